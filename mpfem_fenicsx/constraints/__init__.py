@@ -1,0 +1,5 @@
+"""Multipoint / Dirichlet constraints as PETSc matrices: u_full = P u_reduced + g."""
+
+from .affine import AffineConstraint
+
+__all__ = ["AffineConstraint"]

@@ -1,0 +1,57 @@
+"""Prescribed displacements (mm) on groups of dofs, as the affine constraint's offset g(t)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+import dolfinx
+import dolfinx.fem
+
+from ..constraints import AffineConstraint
+
+
+def component_dofs(V: dolfinx.fem.FunctionSpace, marker: Callable, component: int) -> np.ndarray:
+    """Local unrolled dofs (block * 3 + component) of the nodes where ``marker(x)`` is True."""
+    if component not in (0, 1, 2):
+        raise ValueError(f"component must be 0, 1 or 2, got {component}")
+    blocks = dolfinx.fem.locate_dofs_geometrical(V, marker)
+    return (blocks.astype(np.int64) * V.dofmap.index_map_bs + component).astype(np.int32)
+
+
+class PrescribedDisplacements:
+    """Groups of dofs with a prescribed displacement value(t) (mm).
+
+    ``value`` is a float (fixed) or a callable ``t -> float`` or ``t -> array`` (one value per dof
+    of the group, in the order given). A dof listed in several groups takes the last one.
+    """
+
+    def __init__(self, V: dolfinx.fem.FunctionSpace):
+        self.V = V
+        self._groups: list[tuple[np.ndarray, Callable | float]] = []
+        self.constraint: AffineConstraint | None = None
+
+    def add(self, dofs: np.ndarray, value: Callable | float = 0.0) -> "PrescribedDisplacements":
+        self._groups.append((np.asarray(dofs, dtype=np.int32), value))
+        return self
+
+    def build(self) -> AffineConstraint:
+        all_dofs = np.concatenate([d for d, _ in self._groups]) if self._groups else np.zeros(0, np.int32)
+        self.constraint = AffineConstraint(self.V, all_dofs)
+        prescribed = self.constraint.prescribed
+        self._positions = []
+        for dofs, _ in self._groups:
+            keep = dofs < self.constraint.num_owned
+            self._positions.append((np.searchsorted(prescribed, dofs[keep]), keep))
+        return self.constraint
+
+    def values(self, t: float) -> np.ndarray:
+        out = np.zeros(self.constraint.prescribed.size)
+        for (dofs, value), (pos, keep) in zip(self._groups, self._positions):
+            v = value(t) if callable(value) else value
+            out[pos] = v[keep] if np.ndim(v) else v
+        return out
+
+    def apply(self, t: float) -> None:
+        self.constraint.set_prescribed(self.values(t))

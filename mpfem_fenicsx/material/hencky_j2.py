@@ -1,0 +1,321 @@
+"""Finite-strain von Mises plasticity with Hencky elasticity: vectorized return mapping.
+
+Multiplicative split F = F_e F_p with the exponential-map integrator of Simo (1992) (also
+Eterovic & Bathe 1990): state per quadrature point = plastic right Cauchy-Green inverse
+C_p^-1 (6 Voigt components xx, yy, zz, xy, xz, yz) and equivalent plastic strain eps_p.
+
+Given F_{n+1}:
+    b_e^trial = F C_p,n^-1 F^T = sum_A x_A n_A (x) n_A        (x_A = lambda_A^2)
+    eps^trial_A = 1/2 ln x_A                                   (logarithmic elastic strain)
+    tau = K tr(eps_e) 1 + 2 mu dev(eps_e)                      (Hencky, Kirchhoff stress, MPa)
+    f = sqrt(3/2) |dev tau| - sigma_y(eps_p) <= 0               (thesis eq. 2.1 for sigma_y)
+Radial return in principal logarithmic space (the small-strain algorithm, exactly), with a
+bracketed Newton on the plastic multiplier that stays robust when d sigma_y / d eps_p is
+infinite at eps_p = 0 (power law with n < 1).
+
+Plastic flow is isochoric, so tr(eps_e) = ln J: the volumetric Kirchhoff stress K ln J only
+depends on J and is left to the UFL form (integrated with one point per hexahedron, see
+``mpfem_fenicsx.forms.bulk``). This kernel returns the *deviatoric* first Piola stress
+P_dev = dev(tau) F^-T and its consistent tangent A_dev = dP_dev/dF (Simo 1992, eigen-projection
+derivative with the stable divided difference (ln x_A - ln x_B)/(x_A - x_B)).
+
+Eigen-decompositions use cyclic Jacobi rotations (accurate for repeated eigenvalues, no LAPACK
+call per point). Everything runs in one ``numba.prange`` loop over quadrature points.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+_SQRT_3_2 = np.sqrt(1.5)
+
+
+@numba.njit(cache=True, inline="always")
+def _yield_stress(p, s0, modulus, exponent, law):
+    if law == 0:
+        return s0 + modulus * p ** exponent if p > 0.0 else s0
+    return s0 + modulus * p
+
+
+@numba.njit(cache=True, inline="always")
+def _hardening_slope(p, modulus, exponent, law):
+    if law == 0:
+        if p <= 0.0:
+            return np.inf
+        return modulus * exponent * p ** (exponent - 1.0)
+    return modulus
+
+
+@numba.njit(cache=True)
+def eig_sym3(a_in, w, Q):
+    """Eigenvalues ``w`` and eigenvectors (columns of ``Q``) of the symmetric 3x3 ``a_in``."""
+    a = a_in.copy()
+    for i in range(3):
+        for j in range(3):
+            Q[i, j] = 1.0 if i == j else 0.0
+    scale = abs(a[0, 0]) + abs(a[1, 1]) + abs(a[2, 2]) + 1e-300
+    for _sweep in range(32):
+        off = abs(a[0, 1]) + abs(a[0, 2]) + abs(a[1, 2])
+        if off <= 1e-17 * scale:
+            break
+        for p, q in ((0, 1), (0, 2), (1, 2)):
+            apq = a[p, q]
+            if abs(apq) <= 1e-300:
+                continue
+            theta = (a[q, q] - a[p, p]) / (2.0 * apq)
+            t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
+            if theta < 0.0:
+                t = -t
+            c = 1.0 / np.sqrt(t * t + 1.0)
+            s = t * c
+            for k in range(3):  # a <- a P
+                akp = a[k, p]
+                akq = a[k, q]
+                a[k, p] = c * akp - s * akq
+                a[k, q] = s * akp + c * akq
+            for k in range(3):  # a <- P^T a
+                apk = a[p, k]
+                aqk = a[q, k]
+                a[p, k] = c * apk - s * aqk
+                a[q, k] = s * apk + c * aqk
+            for k in range(3):  # Q <- Q P
+                qkp = Q[k, p]
+                qkq = Q[k, q]
+                Q[k, p] = c * qkp - s * qkq
+                Q[k, q] = s * qkp + c * qkq
+    for i in range(3):
+        w[i] = a[i, i]
+
+
+@numba.njit(cache=True, inline="always")
+def _log_divided_difference(xa, xb):
+    """(ln xa - ln xb) / (xa - xb), stable when xa -> xb (limit 1/xb)."""
+    t = (xa - xb) / xb
+    if abs(t) < 1e-5:
+        return (1.0 - 0.5 * t + t * t / 3.0) / xb
+    return np.log1p(t) / (xa - xb)
+
+
+@numba.njit(cache=True, inline="always")
+def _inverse3(F, Finv):
+    det = (F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
+           - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
+           + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]))
+    inv = 1.0 / det
+    Finv[0, 0] = (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1]) * inv
+    Finv[0, 1] = (F[0, 2] * F[2, 1] - F[0, 1] * F[2, 2]) * inv
+    Finv[0, 2] = (F[0, 1] * F[1, 2] - F[0, 2] * F[1, 1]) * inv
+    Finv[1, 0] = (F[1, 2] * F[2, 0] - F[1, 0] * F[2, 2]) * inv
+    Finv[1, 1] = (F[0, 0] * F[2, 2] - F[0, 2] * F[2, 0]) * inv
+    Finv[1, 2] = (F[0, 2] * F[1, 0] - F[0, 0] * F[1, 2]) * inv
+    Finv[2, 0] = (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]) * inv
+    Finv[2, 1] = (F[0, 1] * F[2, 0] - F[0, 0] * F[2, 1]) * inv
+    Finv[2, 2] = (F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]) * inv
+    return det
+
+
+@numba.njit(parallel=True, cache=True)
+def return_mapping(F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law, want_tangent,
+                   P_dev, A_dev, cp_inv_new, eps_p_new, tau, dissipation, psi):
+    """Exponential-map return mapping at every quadrature point.
+
+    Inputs:  F (nq, 3, 3); cp_inv_n (nq, 6); eps_p_n (nq,); material scalars (MPa).
+    Outputs: P_dev (nq, 3, 3) deviatoric first Piola (MPa); A_dev (nq, 3, 3, 3, 3) its tangent
+             dP_dev/dF (only if want_tangent); cp_inv_new, eps_p_new trial state; tau (nq, 6)
+             total Kirchhoff stress (MPa); dissipation (nq,) plastic work increment
+             sigma_y(eps_p,n+1) * d_eps_p (mJ/mm^3); psi (nq,) Hencky stored energy (mJ/mm^3).
+    """
+    nq = F.shape[0]
+    three_mu = 3.0 * mu
+    for qp in numba.prange(nq):
+        f = F[qp]
+        Finv = np.empty((3, 3))
+        _inverse3(f, Finv)
+        c = cp_inv_n[qp]
+        C = np.empty((3, 3))
+        C[0, 0] = c[0]; C[1, 1] = c[1]; C[2, 2] = c[2]  # noqa: E702
+        C[0, 1] = C[1, 0] = c[3]
+        C[0, 2] = C[2, 0] = c[4]
+        C[1, 2] = C[2, 1] = c[5]
+        be = f @ C @ f.T
+        x = np.empty(3)
+        Q = np.empty((3, 3))
+        eig_sym3(be, x, Q)
+
+        eps_tr = 0.5 * np.log(x)
+        vol = eps_tr[0] + eps_tr[1] + eps_tr[2]
+        dev_tr = eps_tr - vol / 3.0
+        s_tr = 2.0 * mu * dev_tr
+        norm_s = np.sqrt(s_tr[0] ** 2 + s_tr[1] ** 2 + s_tr[2] ** 2)
+        q_tr = _SQRT_3_2 * norm_s
+        p_n = eps_p_n[qp]
+        sy_n = _yield_stress(p_n, s0, modulus, exponent, law)
+
+        dgamma = 0.0
+        plastic = q_tr - sy_n > 1e-12 * sy_n
+        if plastic:
+            lo = 0.0
+            hi = (q_tr - s0) / three_mu
+            slope = _hardening_slope(p_n, modulus, exponent, law)
+            dgamma = (q_tr - sy_n) / (three_mu + slope) if np.isfinite(slope) else 0.5 * hi
+            for _it in range(200):
+                r = q_tr - three_mu * dgamma - _yield_stress(p_n + dgamma, s0, modulus, exponent, law)
+                if abs(r) <= 1e-13 * q_tr:
+                    break
+                if r > 0.0:
+                    lo = dgamma
+                else:
+                    hi = dgamma
+                if hi - lo <= 1e-16 * hi:
+                    break
+                dr = -three_mu - _hardening_slope(p_n + dgamma, modulus, exponent, law)
+                trial = dgamma - r / dr
+                if not (lo < trial < hi):
+                    trial = 0.5 * (lo + hi)
+                dgamma = trial
+        beta = 1.0 - three_mu * dgamma / q_tr if plastic else 1.0
+        s = beta * s_tr
+
+        # updated elastic logarithmic strain, plastic state and energies
+        eps_e = eps_tr.copy()
+        if plastic:
+            for A in range(3):
+                eps_e[A] -= dgamma * 1.5 * s_tr[A] / q_tr
+        be_new = np.zeros((3, 3))
+        tau_full = np.zeros((3, 3))
+        tau_dev = np.zeros((3, 3))
+        for A in range(3):
+            e2 = np.exp(2.0 * eps_e[A])
+            for i in range(3):
+                for j in range(3):
+                    nn = Q[i, A] * Q[j, A]
+                    be_new[i, j] += e2 * nn
+                    tau_dev[i, j] += s[A] * nn
+                    tau_full[i, j] += (s[A] + bulk * vol) * nn
+        cp = Finv @ be_new @ Finv.T
+        cp_inv_new[qp, 0] = cp[0, 0]
+        cp_inv_new[qp, 1] = cp[1, 1]
+        cp_inv_new[qp, 2] = cp[2, 2]
+        cp_inv_new[qp, 3] = 0.5 * (cp[0, 1] + cp[1, 0])
+        cp_inv_new[qp, 4] = 0.5 * (cp[0, 2] + cp[2, 0])
+        cp_inv_new[qp, 5] = 0.5 * (cp[1, 2] + cp[2, 1])
+        eps_p_new[qp] = p_n + dgamma
+        tau[qp, 0] = tau_full[0, 0]
+        tau[qp, 1] = tau_full[1, 1]
+        tau[qp, 2] = tau_full[2, 2]
+        tau[qp, 3] = tau_full[0, 1]
+        tau[qp, 4] = tau_full[0, 2]
+        tau[qp, 5] = tau_full[1, 2]
+        dissipation[qp] = _yield_stress(p_n + dgamma, s0, modulus, exponent, law) * dgamma
+        de = eps_e - (eps_e[0] + eps_e[1] + eps_e[2]) / 3.0
+        psi[qp] = mu * (de[0] ** 2 + de[1] ** 2 + de[2] ** 2) + 0.5 * bulk * vol * vol
+
+        P = tau_dev @ Finv.T
+        for i in range(3):
+            for J in range(3):
+                P_dev[qp, i, J] = P[i, J]
+        if not want_tangent:
+            continue
+
+        # principal algorithmic moduli a_AB = d s_A / d eps^trial_B (deviatoric part only)
+        a = np.empty((3, 3))
+        for A in range(3):
+            for B in range(3):
+                a[A, B] = 2.0 * mu * beta * ((1.0 if A == B else 0.0) - 1.0 / 3.0)
+        if plastic:
+            slope = _hardening_slope(p_n + dgamma, modulus, exponent, law)
+            coef = 6.0 * mu * mu * (dgamma / q_tr - 1.0 / (three_mu + slope))
+            for A in range(3):
+                for B in range(3):
+                    a[A, B] += coef * s_tr[A] * s_tr[B] / (norm_s * norm_s)
+        # spatial tangent: d tau_ij = Cs_ijkl L_kl, L = dF F^-1
+        Cs = np.zeros((3, 3, 3, 3))
+        for A in range(3):
+            for B in range(3):
+                coef = a[A, B]
+                for i in range(3):
+                    for j in range(3):
+                        nAij = Q[i, A] * Q[j, A] * coef
+                        for k in range(3):
+                            for l in range(3):
+                                Cs[i, j, k, l] += nAij * Q[k, B] * Q[l, B]
+        for A in range(3):
+            for B in range(3):
+                if A == B:
+                    continue
+                theta = mu * beta * _log_divided_difference(x[A], x[B])
+                for i in range(3):
+                    for j in range(3):
+                        nAB = theta * Q[i, A] * Q[j, B]
+                        for k in range(3):
+                            for l in range(3):
+                                Cs[i, j, k, l] += nAB * (x[B] * Q[k, A] * Q[l, B]
+                                                         + x[A] * Q[k, B] * Q[l, A])
+        # material tangent A_iJkL = Cs_ijkb Finv_Lb Finv_Jj - P_iL Finv_Jk
+        D = np.zeros((3, 3, 3, 3))
+        for i in range(3):
+            for j in range(3):
+                for k in range(3):
+                    for L in range(3):
+                        acc = 0.0
+                        for b in range(3):
+                            acc += Cs[i, j, k, b] * Finv[L, b]
+                        D[i, j, k, L] = acc
+        for i in range(3):
+            for J in range(3):
+                for k in range(3):
+                    for L in range(3):
+                        acc = 0.0
+                        for j in range(3):
+                            acc += D[i, j, k, L] * Finv[J, j]
+                        A_dev[qp, i, J, k, L] = acc - P[i, L] * Finv[J, k]
+
+
+class HenckyJ2:
+    """Quadrature-point state and update of the Hencky / von Mises material.
+
+    Holds the converged state (C_p^-1, eps_p) of ``num_points`` points and the trial state of the
+    current iterate; :meth:`commit` accepts the trial state at the end of a converged increment.
+    """
+
+    def __init__(self, params, num_points: int, want_tangent: bool = True,
+                 P_dev: np.ndarray | None = None, A_dev: np.ndarray | None = None):
+        """``P_dev`` (nq, 3, 3) and ``A_dev`` (nq, 3, 3, 3, 3) may be views of the quadrature
+        Functions read by the forms, so the kernel writes straight into them (no copy)."""
+        self.params = params
+        self.num_points = num_points
+        self.want_tangent = want_tangent
+        ident = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+        self.cp_inv = np.tile(ident, (num_points, 1))
+        self.eps_p = np.zeros(num_points)
+        self.cp_inv_trial = self.cp_inv.copy()
+        self.eps_p_trial = self.eps_p.copy()
+        self.P_dev = np.zeros((num_points, 3, 3)) if P_dev is None else P_dev
+        if A_dev is None:
+            A_dev = np.zeros((num_points, 3, 3, 3, 3) if want_tangent else (1, 3, 3, 3, 3))
+        self.A_dev = A_dev
+        self.tau = np.zeros((num_points, 6))
+        self.dissipation = np.zeros(num_points)
+        self.psi = np.zeros(num_points)
+
+    def update(self, F: np.ndarray, tangent: bool | None = None) -> None:
+        """Evaluate stress (and tangent) at deformation gradients ``F`` (nq, 3, 3)."""
+        tangent = self.want_tangent if tangent is None else tangent
+        if tangent and self.A_dev.shape[0] != self.num_points:
+            self.A_dev = np.zeros((self.num_points, 3, 3, 3, 3))
+        return_mapping(F, self.cp_inv, self.eps_p, *self.params.kernel_parameters(), tangent,
+                       self.P_dev, self.A_dev, self.cp_inv_trial, self.eps_p_trial, self.tau,
+                       self.dissipation, self.psi)
+
+    def commit(self) -> None:
+        self.cp_inv[:] = self.cp_inv_trial
+        self.eps_p[:] = self.eps_p_trial
+
+    def von_mises_kirchhoff(self) -> np.ndarray:
+        """sqrt(3/2) |dev tau| at each point, MPa."""
+        t = self.tau
+        m = (t[:, 0] + t[:, 1] + t[:, 2]) / 3.0
+        dev2 = (t[:, 0] - m) ** 2 + (t[:, 1] - m) ** 2 + (t[:, 2] - m) ** 2 + 2 * (
+            t[:, 3] ** 2 + t[:, 4] ** 2 + t[:, 5] ** 2)
+        return np.sqrt(1.5 * dev2)

@@ -1,0 +1,134 @@
+"""The particles' bulk problem: displacement space, quadrature-point state and compiled forms.
+
+Data flow per evaluation: u -> F at quadrature points (``fem.Expression``) -> vectorized
+return mapping (``material.hencky_j2``) writing P_dev (and A_dev) straight into quadrature
+Functions -> residual / Jacobian assembled by DOLFINx from the UFL forms in ``forms/``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+
+import basix
+import basix.ufl
+import dolfinx
+import dolfinx.fem
+import dolfinx.fem.petsc
+import ufl
+from petsc4py import PETSc
+
+from . import forms
+from .material import ElastoPlastic, HenckyJ2
+
+
+class SolidProblem:
+    """Finite-strain elastoplastic bulk on a (multi-particle) mesh.
+
+    Args:
+        mesh: DOLFINx mesh (mm); hexahedra (Q1 + SRI) or tetrahedra (P1/P2).
+        material: particle material (MPa, t/mm^3).
+        degree: displacement degree (default: the geometry degree).
+        tangent: also compute the consistent tangent and compile the Jacobian (implicit solver).
+    """
+
+    def __init__(self, mesh: dolfinx.mesh.Mesh, material: ElastoPlastic, *, degree: int | None = None,
+                 tangent: bool = True):
+        self.mesh = mesh
+        self.params = material
+        self.comm = mesh.comm
+        cell_name = mesh.topology.cell_name()
+        degree = degree or mesh.geometry.cmap.degree
+        self.V = dolfinx.fem.functionspace(mesh, ("Lagrange", degree, (3,)))
+        self.u = dolfinx.fem.Function(self.V, name="displacement")
+        self.rules = forms.QuadratureRules.for_cell(cell_name, degree)
+
+        tdim = mesh.topology.dim
+        self.num_cells = mesh.topology.index_map(tdim).size_local
+        self.cells = np.arange(self.num_cells, dtype=np.int32)
+        cell_type = getattr(basix.CellType, cell_name)
+        self.points, self.weights = basix.make_quadrature(cell_type, self.rules.deviatoric)
+        self.points_per_cell = self.weights.size
+        nq = self.num_cells * self.points_per_cell
+
+        def quadrature_function(shape, name):
+            element = basix.ufl.quadrature_element(cell_name, value_shape=shape,
+                                                   degree=self.rules.deviatoric)
+            fn = dolfinx.fem.Function(dolfinx.fem.functionspace(mesh, element), name=name)
+            # the kernel writes (cell, point, component) in order: check the dof layout is that
+            dofs = fn.function_space.dofmap.list[: self.num_cells]
+            if not np.array_equal(dofs.ravel(), np.arange(dofs.size)):
+                raise RuntimeError("unexpected quadrature dof layout; cannot write state in place")
+            return fn
+
+        self.P_dev = quadrature_function((3, 3), "P_dev")
+        self.A_dev = quadrature_function((3, 3, 3, 3), "A_dev") if tangent else None
+        size = nq * 9
+        self.material = HenckyJ2(
+            material, nq, tangent,
+            P_dev=self.P_dev.x.array[:size].reshape(nq, 3, 3),
+            A_dev=self.A_dev.x.array[: size * 9].reshape(nq, 3, 3, 3, 3) if tangent else None)
+
+        F = forms.deformation_gradient(self.u)
+        self._F_expr = dolfinx.fem.Expression(F, self.points)
+        detJ = dolfinx.fem.Expression(abs(ufl.JacobianDeterminant(mesh)), self.points)
+        jac = detJ.eval(mesh, self.cells).reshape(self.num_cells, self.points_per_cell)
+        #: reference volume (mm^3) carried by each quadrature point
+        self.point_volumes = (jac * self.weights[None, :]).ravel()
+
+        self.dx_dev = ufl.dx(domain=mesh, metadata={"quadrature_degree": self.rules.deviatoric})
+        self.dx_vol = ufl.dx(domain=mesh, metadata={"quadrature_degree": self.rules.volumetric})
+        v = ufl.TestFunction(self.V)
+        du = ufl.TrialFunction(self.V)
+        bulk = dolfinx.fem.Constant(mesh, float(material.bulk))
+        self.residual_ufl = forms.internal_work(self.u, v, self.P_dev, bulk, self.dx_dev, self.dx_vol)
+        self.residual_form = dolfinx.fem.form(self.residual_ufl)
+        self.jacobian_form = None
+        if tangent:
+            self.jacobian_form = dolfinx.fem.form(
+                forms.internal_work_tangent(self.u, du, v, self.A_dev, bulk, self.dx_dev, self.dx_vol))
+
+    # -- material --------------------------------------------------------------------------
+    def deformation_gradients(self) -> np.ndarray:
+        return self._F_expr.eval(self.mesh, self.cells).reshape(-1, 3, 3)
+
+    def update_material(self, tangent: bool = False) -> None:
+        """Return mapping at the current u (trial state; call :meth:`commit` when converged)."""
+        self.material.update(self.deformation_gradients(), tangent)
+
+    def commit(self) -> None:
+        self.material.commit()
+
+    # -- integrals over the particles (summed over ranks) -------------------------------------
+    def integrate_points(self, values: np.ndarray) -> float:
+        """sum_q values_q dV_q over all points of all ranks (reference volume weights)."""
+        return self.comm.allreduce(float(self.point_volumes @ values), op=MPI.SUM)
+
+    def plastic_dissipation_increment(self) -> float:
+        """Plastic work of the current (trial) increment, mJ = N mm."""
+        return self.integrate_points(self.material.dissipation)
+
+    def stored_energy(self) -> float:
+        """Hencky elastic energy of the current trial state, mJ."""
+        return self.integrate_points(self.material.psi)
+
+    def lumped_mass(self, density: float) -> dolfinx.fem.Function:
+        """Row-sum lumped mass per dof (t) as a Function (ghosts updated)."""
+        v = ufl.TestFunction(self.V)
+        dx = ufl.dx(domain=self.mesh, metadata={"quadrature_degree": 2 * self.V.element.basix_element.degree})
+        m = dolfinx.fem.Function(self.V, name="lumped_mass")
+        vec = dolfinx.fem.petsc.assemble_vector(dolfinx.fem.form(forms.lumped_mass_action(density, v, dx)))
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        m.x.petsc_vec.array[:] = vec.array_r
+        m.x.scatter_forward()
+        vec.destroy()
+        return m
+
+    def min_cell_length(self) -> np.ndarray:
+        """Smallest vertex-to-vertex distance of each owned cell (mm), reference configuration."""
+        geom = self.mesh.geometry
+        x = geom.x[geom.dofmap[: self.num_cells]]
+        nv = x.shape[1]
+        i, j = np.triu_indices(nv, 1)
+        d = np.linalg.norm(x[:, i] - x[:, j], axis=-1)
+        return d.min(axis=1)

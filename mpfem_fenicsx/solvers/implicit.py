@@ -1,0 +1,195 @@
+"""Quasi-static implicit solver: Newton (PETSc SNES) on the constrained (reduced) system with
+adaptive load stepping and cut-backs.
+
+Unknowns are the reduced coordinates x of u = P x + g(t) (``constraints.AffineConstraint``):
+    r_red(x) = P^T r(u),    J_red = P^T K P,
+with r the assembled internal force (N) and K its consistent tangent (N/mm). Reactions at
+prescribed dofs are the full residual there (N, sign: force exerted *on* the body).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from petsc4py import PETSc
+
+import dolfinx.fem.petsc
+
+from ..loading import PrescribedDisplacements
+from ..problem import SolidProblem
+
+
+class NonConvergence(RuntimeError):
+    """Raised when the load step cannot be reduced further without Newton converging."""
+
+
+@dataclass
+class StepControl:
+    """Pseudo-time stepping on [0, t_end] (s): initial, minimum and maximum increments."""
+
+    t_end: float = 1.0
+    dt: float = 0.05
+    dt_min: float = 1e-6
+    dt_max: float = 0.1
+    grow: float = 1.5  # increment growth after an easy step (<= easy_iterations)
+    easy_iterations: int = 6
+
+    def __post_init__(self):
+        if not 0 < self.dt_min <= self.dt <= self.t_end:
+            raise ValueError(f"step control needs 0 < dt_min <= dt <= t_end, got {self}")
+
+
+DEFAULT_OPTIONS = {
+    "snes_type": "newtonls",
+    "snes_linesearch_type": "basic",
+    "snes_rtol": 1e-9,
+    "snes_atol": 1e-9,
+    "snes_stol": 0.0,
+    "snes_max_it": 25,
+    "ksp_type": "preonly",
+    "pc_type": "lu",
+    "pc_factor_mat_solver_type": "mumps",
+}
+
+
+class ImplicitSolver:
+    """Newton-Raphson on the reduced system, one SNES solve per load increment."""
+
+    def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, *,
+                 petsc_options: dict | None = None, prefix: str = "mpfem_implicit_"):
+        if problem.jacobian_form is None:
+            raise ValueError("the implicit solver needs SolidProblem(..., tangent=True)")
+        self.problem = problem
+        self.bcs = bcs
+        self.constraint = bcs.constraint or bcs.build()
+        self.comm = problem.comm
+        self.x = self.constraint.create_reduced_vector()
+        self.x_old = self.x.duplicate()
+        self.r_red = self.x.duplicate()
+        self.r_full = dolfinx.fem.petsc.create_vector(problem.V)
+        self.K = dolfinx.fem.petsc.create_matrix(problem.jacobian_form)
+        self.t = 0.0
+        self.iterations_total = 0
+        self.timings = {"material": 0.0, "residual": 0.0, "jacobian": 0.0, "reduce": 0.0}
+
+        self.bcs.apply(0.0)
+        self._residual(None, self.x, self.r_red)
+        self._assemble_tangent()
+        self.J_red = self.constraint.reduce_matrix(self.K)
+        self._tangent_valid = True
+
+        self.snes = PETSc.SNES().create(self.comm)
+        self.snes.setOptionsPrefix(prefix)
+        opts = PETSc.Options()
+        for key, value in {**DEFAULT_OPTIONS, **(petsc_options or {})}.items():
+            opts[prefix + key] = value
+        self.snes.setFromOptions()
+        self.snes.setFunction(self._residual, self.r_red)
+        self.snes.setJacobian(self._jacobian, self.J_red, self.J_red)
+
+    # -- SNES callbacks -----------------------------------------------------------------------
+    def _residual(self, snes, x: PETSc.Vec, r: PETSc.Vec) -> None:
+        t0 = time.perf_counter()
+        self.constraint.expand(x, self.problem.u)
+        self.problem.update_material(tangent=True)
+        t1 = time.perf_counter()
+        with self.r_full.localForm() as loc:
+            loc.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(self.r_full, self.problem.residual_form)
+        self.r_full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        self.constraint.restrict(self.r_full, r)
+        t2 = time.perf_counter()
+        self.timings["material"] += t1 - t0
+        self.timings["residual"] += t2 - t1
+
+    def _assemble_tangent(self) -> None:
+        self.K.zeroEntries()
+        dolfinx.fem.petsc.assemble_matrix(self.K, self.problem.jacobian_form)
+        self.K.assemble()
+
+    def _jacobian(self, snes, x, J, P) -> None:
+        t0 = time.perf_counter()
+        self._assemble_tangent()
+        t1 = time.perf_counter()
+        self.constraint.reduce_matrix(self.K, self.J_red)
+        self.timings["jacobian"] += t1 - t0
+        self.timings["reduce"] += time.perf_counter() - t1
+
+    # -- results ------------------------------------------------------------------------------
+    def reactions(self, dofs: np.ndarray) -> float:
+        """Sum over ranks of the reaction (N) on the given local unrolled dofs (owned ones)."""
+        owned = np.asarray(dofs)[np.asarray(dofs) < self.constraint.num_owned]
+        return self.comm.allreduce(float(self.r_full.array_r[owned].sum()))
+
+    # -- stepping -----------------------------------------------------------------------------
+    def _refresh_tangent(self) -> None:
+        """Residual and tangent at the current (converged) x, e.g. after a failed increment."""
+        self._residual(None, self.x, self.r_red)
+        self._jacobian(None, self.x, self.J_red, self.J_red)
+        self._tangent_valid = True
+
+    def solve_increment(self, t_new: float) -> tuple[bool, int]:
+        """Newton at time t_new, starting from the tangent predictor.
+
+        Predictor: x = x_n - J_red^-1 P^T K (g(t_new) - g(t_n)), i.e. the boundary motion is
+        spread through the body by the last tangent instead of distorting the boundary layer
+        (the same role as DOLFINx's lifting of incremental Dirichlet values).
+        """
+        if not self._tangent_valid:
+            self._refresh_tangent()
+        g_old = self.constraint.g.x.petsc_vec.copy()
+        self.bcs.apply(t_new)
+        dg = self.constraint.g.x.petsc_vec.copy()
+        dg.axpy(-1.0, g_old)
+        force = self.K.createVecLeft()
+        self.K.mult(dg, force)
+        rhs = self.x.duplicate()
+        self.constraint.restrict(force, rhs)
+        rhs.scale(-1.0)
+        ksp = self.snes.getKSP()
+        ksp.setOperators(self.J_red, self.J_red)
+        dx = self.x.duplicate()
+        ksp.solve(rhs, dx)
+        self.x.axpy(1.0, dx)
+        for vec in (g_old, dg, force, rhs, dx):
+            vec.destroy()
+        self.snes.solve(None, self.x)
+        its = self.snes.getIterationNumber()
+        reason = self.snes.getConvergedReason()
+        if reason <= 0:
+            self._tangent_valid = False
+        return reason > 0, its
+
+    def run(self, control: StepControl, on_step: Callable[["ImplicitSolver"], None] | None = None,
+            log: Callable[[str], None] | None = None) -> int:
+        """Advance from the current time to control.t_end; ``on_step`` after each converged step."""
+        dt = control.dt
+        steps = 0
+        self.x.copy(self.x_old)
+        while self.t < control.t_end * (1 - 1e-12):
+            dt = min(dt, control.t_end - self.t)
+            ok, its = self.solve_increment(self.t + dt)
+            self.iterations_total += its
+            if not ok:
+                self.x_old.copy(self.x)  # restore the last converged state
+                self.bcs.apply(self.t)
+                dt *= 0.5
+                if log:
+                    log(f"  cut-back at t={self.t:.4g}: Newton reason {self.snes.getConvergedReason()}, "
+                        f"dt -> {dt:.3g}")
+                if dt < control.dt_min:
+                    raise NonConvergence(
+                        f"Newton did not converge at t={self.t:.6g} even with dt={dt:.3g} < dt_min")
+                continue
+            self.problem.commit()
+            self.t += dt
+            steps += 1
+            self.x.copy(self.x_old)
+            if on_step:
+                on_step(self)
+            if its <= control.easy_iterations:
+                dt = min(dt * control.grow, control.dt_max)
+        return steps
