@@ -50,19 +50,26 @@ def volumetric_piola(u, bulk):
 
 
 def internal_work(u, v, P_dev, bulk, dx_dev, dx_vol):
-    """Residual int P : Grad v dX with P_dev from the quadrature kernel (8 pts) + P_vol (1 pt)."""
-    return ufl.inner(P_dev, ufl.grad(v)) * dx_dev + ufl.inner(volumetric_piola(u, bulk), ufl.grad(v)) * dx_vol
+    """Residual int P : Grad v dX as two forms: (deviatoric, 8 points; volumetric, 1 point).
+
+    The two parts must be compiled as *separate* forms and their assembled tensors added:
+    FFCx 0.11 mis-evaluates a single form mixing quadrature degrees on non-affine hexahedra
+    (checked by ``tests/test_material.py::test_tangent_matches_finite_differences``).
+    """
+    deviatoric = ufl.inner(P_dev, ufl.grad(v)) * dx_dev
+    volumetric = ufl.inner(volumetric_piola(u, bulk), ufl.grad(v)) * dx_vol
+    return deviatoric, volumetric
 
 
 def internal_work_tangent(u, du, v, A_dev, bulk, dx_dev, dx_vol):
-    """Consistent linearization of :func:`internal_work` in the direction du.
+    """Consistent linearization of :func:`internal_work` in the direction du, same two parts.
 
     Deviatoric part: A_dev = dP_dev/dF from the kernel; volumetric part: exact UFL derivative.
     """
     i, j, k, l = ufl.indices(4)
     dP_dev = ufl.as_tensor(A_dev[i, j, k, l] * ufl.grad(du)[k, l], (i, j))
-    vol = ufl.inner(volumetric_piola(u, bulk), ufl.grad(v)) * dx_vol
-    return ufl.inner(dP_dev, ufl.grad(v)) * dx_dev + ufl.derivative(vol, u, du)
+    volumetric = ufl.inner(volumetric_piola(u, bulk), ufl.grad(v)) * dx_vol
+    return ufl.inner(dP_dev, ufl.grad(v)) * dx_dev, ufl.derivative(volumetric, u, du)
 
 
 def lumped_mass_action(density, v, dx):

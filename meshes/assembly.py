@@ -105,23 +105,44 @@ def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type:
     raise ValueError(f"cell_type must be 'hexahedron' or 'tetrahedron', got {cell_type!r}")
 
 
-def cell_volumes(mesh: dolfinx.mesh.Mesh, u: dolfinx.fem.Function | None = None) -> np.ndarray:
-    """Current volume (mm^3) of each owned cell: int_cell det(I + grad u) dX (exact for Q1)."""
-    V0 = dolfinx.fem.functionspace(mesh, ("DG", 0))
-    w = ufl.TestFunction(V0)
-    J = 1.0 if u is None else ufl.det(ufl.Identity(3) + ufl.grad(u))
-    dx = ufl.dx(domain=mesh, metadata={"quadrature_degree": 4})
-    vec = dolfinx.fem.assemble_vector(dolfinx.fem.form(J * w * dx))
-    owned = mesh.topology.index_map(mesh.topology.dim).size_local
-    return vec.array[V0.dofmap.list[:owned, 0]].copy()
+class CellVolumes:
+    """Current volume (mm^3) of each owned cell, int_cell det(I + grad u) dX (exact for Q1).
+
+    The form is compiled once; calling the object re-assembles it for the current ``u``.
+    """
+
+    def __init__(self, mesh: dolfinx.mesh.Mesh, u: dolfinx.fem.Function | None = None):
+        V0 = dolfinx.fem.functionspace(mesh, ("DG", 0))
+        w = ufl.TestFunction(V0)
+        J = 1.0 if u is None else ufl.det(ufl.Identity(3) + ufl.grad(u))
+        dx = ufl.dx(domain=mesh, metadata={"quadrature_degree": 4})
+        self._form = dolfinx.fem.form(J * w * dx)
+        owned = mesh.topology.index_map(mesh.topology.dim).size_local
+        self._dofs = V0.dofmap.list[:owned, 0]
+        self._vec = dolfinx.fem.Function(V0)
+
+    def __call__(self) -> np.ndarray:
+        self._vec.x.array[:] = 0.0
+        dolfinx.fem.assemble_vector(self._vec.x.array, self._form)
+        return self._vec.x.array[self._dofs].copy()
+
+
+class ParticleVolumes:
+    """Current volume (mm^3) of each particle, summed over ranks (compiled once)."""
+
+    def __init__(self, assembly: ParticleAssembly, u: dolfinx.fem.Function | None = None):
+        self._cells = CellVolumes(assembly.mesh, u)
+        owned = assembly.mesh.topology.index_map(assembly.mesh.topology.dim).size_local
+        # cell_tags cover cells 0..num_cells-1 in order (see _tag_mesh)
+        self._pid = assembly.cell_tags.values[:owned]
+        self._n = assembly.num_particles
+        self._comm = assembly.mesh.comm
+
+    def __call__(self) -> np.ndarray:
+        local = np.bincount(self._pid, weights=self._cells(), minlength=self._n)
+        return self._comm.allreduce(local, op=MPI.SUM)
 
 
 def particle_volumes(assembly: ParticleAssembly, u: dolfinx.fem.Function | None = None) -> np.ndarray:
-    """Current volume (mm^3) of each particle, summed over ranks."""
-    vol = cell_volumes(assembly.mesh, u)
-    tdim = assembly.mesh.topology.dim
-    owned = assembly.mesh.topology.index_map(tdim).size_local
-    # cell_tags cover cells 0..num_cells-1 in order (see _tag_mesh)
-    pid = assembly.cell_tags.values[:owned]
-    local = np.bincount(pid, weights=vol, minlength=assembly.num_particles)
-    return assembly.mesh.comm.allreduce(local, op=MPI.SUM)
+    """One-off evaluation of :class:`ParticleVolumes` (compiles a form: not for time loops)."""
+    return ParticleVolumes(assembly, u)()

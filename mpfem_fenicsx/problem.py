@@ -81,12 +81,36 @@ class SolidProblem:
         v = ufl.TestFunction(self.V)
         du = ufl.TrialFunction(self.V)
         bulk = dolfinx.fem.Constant(mesh, float(material.bulk))
+        #: residual / Jacobian parts (deviatoric, volumetric), assembled one after the other
         self.residual_ufl = forms.internal_work(self.u, v, self.P_dev, bulk, self.dx_dev, self.dx_vol)
-        self.residual_form = dolfinx.fem.form(self.residual_ufl)
-        self.jacobian_form = None
+        self.residual_forms = [dolfinx.fem.form(f) for f in self.residual_ufl]
+        self.jacobian_forms = None
         if tangent:
-            self.jacobian_form = dolfinx.fem.form(
-                forms.internal_work_tangent(self.u, du, v, self.A_dev, bulk, self.dx_dev, self.dx_vol))
+            self.jacobian_forms = [dolfinx.fem.form(f) for f in forms.internal_work_tangent(
+                self.u, du, v, self.A_dev, bulk, self.dx_dev, self.dx_vol)]
+
+    # -- assembly ------------------------------------------------------------------------------
+    def create_vector(self) -> PETSc.Vec:
+        return dolfinx.fem.petsc.create_vector(self.V)
+
+    def create_matrix(self) -> PETSc.Mat:
+        return dolfinx.fem.petsc.create_matrix(self.jacobian_forms[0])
+
+    def assemble_residual(self, b: PETSc.Vec) -> None:
+        """b = internal force (N) at the current material state, ghost contributions summed."""
+        with b.localForm() as loc:
+            loc.set(0.0)
+        for form in self.residual_forms:
+            dolfinx.fem.petsc.assemble_vector(b, form)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+
+    def assemble_jacobian(self, K: PETSc.Mat) -> None:
+        """K = consistent tangent stiffness (N/mm) at the current material state."""
+        K.zeroEntries()
+        for form in self.jacobian_forms:
+            dolfinx.fem.petsc.assemble_matrix(K, form)
+            K.assemble(PETSc.Mat.AssemblyType.FLUSH)
+        K.assemble()
 
     # -- material --------------------------------------------------------------------------
     def deformation_gradients(self) -> np.ndarray:

@@ -16,8 +16,6 @@ from dataclasses import dataclass
 import numpy as np
 from petsc4py import PETSc
 
-import dolfinx.fem.petsc
-
 from ..loading import PrescribedDisplacements
 from ..problem import SolidProblem
 
@@ -60,7 +58,7 @@ class ImplicitSolver:
 
     def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, *,
                  petsc_options: dict | None = None, prefix: str = "mpfem_implicit_"):
-        if problem.jacobian_form is None:
+        if problem.jacobian_forms is None:
             raise ValueError("the implicit solver needs SolidProblem(..., tangent=True)")
         self.problem = problem
         self.bcs = bcs
@@ -69,8 +67,8 @@ class ImplicitSolver:
         self.x = self.constraint.create_reduced_vector()
         self.x_old = self.x.duplicate()
         self.r_red = self.x.duplicate()
-        self.r_full = dolfinx.fem.petsc.create_vector(problem.V)
-        self.K = dolfinx.fem.petsc.create_matrix(problem.jacobian_form)
+        self.r_full = problem.create_vector()
+        self.K = problem.create_matrix()
         self.t = 0.0
         self.iterations_total = 0
         self.timings = {"material": 0.0, "residual": 0.0, "jacobian": 0.0, "reduce": 0.0}
@@ -96,19 +94,14 @@ class ImplicitSolver:
         self.constraint.expand(x, self.problem.u)
         self.problem.update_material(tangent=True)
         t1 = time.perf_counter()
-        with self.r_full.localForm() as loc:
-            loc.set(0.0)
-        dolfinx.fem.petsc.assemble_vector(self.r_full, self.problem.residual_form)
-        self.r_full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        self.problem.assemble_residual(self.r_full)
         self.constraint.restrict(self.r_full, r)
         t2 = time.perf_counter()
         self.timings["material"] += t1 - t0
         self.timings["residual"] += t2 - t1
 
     def _assemble_tangent(self) -> None:
-        self.K.zeroEntries()
-        dolfinx.fem.petsc.assemble_matrix(self.K, self.problem.jacobian_form)
-        self.K.assemble()
+        self.problem.assemble_jacobian(self.K)
 
     def _jacobian(self, snes, x, J, P) -> None:
         t0 = time.perf_counter()

@@ -1,0 +1,59 @@
+"""Row-wise history written as CSV by rank 0 (one row per output step, named columns)."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+
+class History:
+    """Collects rows of named values; :meth:`write` saves ``path`` (rank 0 only).
+
+    The file is rewritten after every row when ``flush_every_row`` is set, so a run that stops
+    early still leaves its history on disk.
+    """
+
+    def __init__(self, path: str | Path, columns: list[str], comm: MPI.Comm = MPI.COMM_WORLD,
+                 flush_every_row: bool = False):
+        self.path = Path(path)
+        self.columns = list(columns)
+        self.comm = comm
+        self.rows: list[list[float]] = []
+        self.flush_every_row = flush_every_row
+
+    def append(self, **values) -> None:
+        missing = set(self.columns) - set(values)
+        unknown = set(values) - set(self.columns)
+        if missing or unknown:
+            raise KeyError(f"history row: missing {sorted(missing)}, unknown {sorted(unknown)}")
+        self.rows.append([float(values[c]) for c in self.columns])
+        if self.flush_every_row:
+            self.write()
+
+    def array(self) -> np.ndarray:
+        return np.array(self.rows, dtype=float).reshape(-1, len(self.columns))
+
+    def column(self, name: str) -> np.ndarray:
+        return self.array()[:, self.columns.index(name)]
+
+    def write(self) -> Path:
+        if self.comm.rank == 0:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            with open(self.path, "w", newline="") as fh:
+                writer = csv.writer(fh)
+                writer.writerow(self.columns)
+                for row in self.rows:
+                    writer.writerow([repr(v) for v in row])
+        return self.path
+
+
+def read_csv(path: str | Path) -> dict[str, np.ndarray]:
+    """Columns of a history CSV as float arrays."""
+    with open(path) as fh:
+        reader = csv.reader(fh)
+        header = next(reader)
+        data = np.array([[float(v) for v in row] for row in reader], dtype=float).reshape(-1, len(header))
+    return {name: data[:, i] for i, name in enumerate(header)}

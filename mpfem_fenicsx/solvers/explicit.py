@@ -1,0 +1,262 @@
+"""Explicit dynamics: central difference with lumped mass, mass scaling and bulk viscosity.
+
+Reduced coordinates x of u = P x + g(t) (``constraints.AffineConstraint``):
+    M_red a_n = -P^T (f_int(u_n) + f_bv(u_n, v_{n-1/2}))
+    v_{n+1/2} = v_{n-1/2} + dt a_n        (v_{1/2} = v_0 + dt/2 a_0)
+    x_{n+1}   = x_n + dt v_{n+1/2}
+Stability: dt <= dt_e = safety * L_e / c_d * (sqrt(1 + xi^2) - xi) per element, with xi = b1 the
+linear bulk-viscosity fraction (Abaqus/Explicit estimate), L_e the smallest vertex distance.
+Mass scaling (element by element, Abaqus "fixed mass scaling to a target increment"):
+rho_e = rho * max(1, (dt_target / dt_e)^2).
+
+Energy balance (mJ = N mm), all with forces at integer steps n times the centred displacement
+increment (u_{n+1} - u_{n-1}) / 2, which makes the discrete balance exact for central
+differences:
+    W_ext = sum R_n . du_n,   R_n = f_int + f_bv + M a  (reactions of the prescribed dofs)
+    E_int = sum f_int,n . du_n (elastic + plastic),  E_visc = sum f_bv,n . du_n,
+    E_kin = 1/2 v^T M v  (v at the step, averaged from the half steps).
+The material's own energies (Hencky stored energy and accumulated plastic work) are reported
+next to E_int as an independent check of the internal work.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dolfinx
+import dolfinx.fem
+import dolfinx.fem.petsc
+import ufl
+
+from .. import forms
+from ..loading import PrescribedDisplacements
+from ..problem import SolidProblem
+
+
+@dataclass
+class ExplicitSettings:
+    """Time integration settings (s)."""
+
+    t_end: float
+    target_dt: float | None = None  # mass-scale up to this increment (None: no mass scaling)
+    safety: float = 0.9
+    #: the stable increment shrinks as elements deform: mass-scale for dt_target / margin
+    deformation_margin: float = 0.6
+    bulk_viscosity_linear: float = 0.06
+    bulk_viscosity_quadratic: float = 1.2
+
+    def __post_init__(self):
+        if not self.t_end > 0:
+            raise ValueError(f"t_end must be > 0 s, got {self.t_end}")
+        if self.target_dt is not None and not self.target_dt > 0:
+            raise ValueError(f"target_dt must be > 0 s, got {self.target_dt}")
+        if not 0 < self.deformation_margin <= 1:
+            raise ValueError(f"deformation_margin must be in (0, 1], got {self.deformation_margin}")
+        if not 0 < self.safety <= 1:
+            raise ValueError(f"safety must be in (0, 1], got {self.safety}")
+
+
+@dataclass
+class Energies:
+    """Cumulated energies (mJ)."""
+
+    external: float = 0.0
+    internal: float = 0.0
+    viscous: float = 0.0
+    kinetic: float = 0.0
+    plastic: float = 0.0  # accumulated plastic work from the material
+    elastic: float = 0.0  # current Hencky stored energy from the material
+
+    def balance_error(self) -> float:
+        """|W_ext - (E_int + E_visc + E_kin)| (mJ)."""
+        return abs(self.external - (self.internal + self.viscous + self.kinetic))
+
+    def as_dict(self) -> dict:
+        return {"W_ext": self.external, "E_int": self.internal, "E_visc": self.viscous,
+                "E_kin": self.kinetic, "E_p": self.plastic, "E_el": self.elastic}
+
+
+@dataclass
+class _Timings:
+    material: float = 0.0
+    assembly: float = 0.0
+    update: float = 0.0
+    extra: dict = field(default_factory=dict)
+
+
+class ExplicitSolver:
+    """Central-difference integrator of a :class:`SolidProblem` with prescribed displacements."""
+
+    def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, settings: ExplicitSettings):
+        self.problem = problem
+        self.bcs = bcs
+        self.settings = settings
+        self.constraint = bcs.constraint or bcs.build()
+        self.comm = problem.comm
+        mat = problem.params
+        mesh = problem.mesh
+
+        # element stable increments and element-wise mass scaling
+        c_d = mat.dilatational_wave_speed
+        xi = settings.bulk_viscosity_linear
+        length = problem.min_cell_length()
+        dt_e = settings.safety * length / c_d * (np.sqrt(1.0 + xi * xi) - xi)
+        self.dt_stable_unscaled = self.comm.allreduce(float(dt_e.min()), op=MPI.MIN)
+        scale = np.ones_like(dt_e)
+        if settings.target_dt is not None:
+            scale = np.maximum(1.0, (settings.target_dt / (settings.deformation_margin * dt_e)) ** 2)
+            self.dt = settings.target_dt
+        else:
+            self.dt = self.dt_stable_unscaled
+        self.mass_scaling_max = self.comm.allreduce(float(scale.max()), op=MPI.MAX)
+
+        DG0 = dolfinx.fem.functionspace(mesh, ("DG", 0))
+        cell_dofs = DG0.dofmap.list[: problem.num_cells, 0]
+
+        def cell_function(values, name):
+            fn = dolfinx.fem.Function(DG0, name=name)
+            fn.x.array[cell_dofs] = values
+            fn.x.scatter_forward()
+            return fn
+
+        self.density = cell_function(mat.density * scale, "density")
+        wave_speed = cell_function(c_d / np.sqrt(scale), "wave_speed")
+        cell_length = cell_function(length, "cell_length")
+        v = ufl.TestFunction(problem.V)
+        dx_mass = ufl.dx(domain=mesh, metadata={"quadrature_degree": 2 * problem.V.element.basix_element.degree})
+        mass = dolfinx.fem.Function(problem.V, name="lumped_mass")
+        vec = dolfinx.fem.petsc.assemble_vector(dolfinx.fem.form(forms.lumped_mass_action(self.density, v, dx_mass)))
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        mass.x.petsc_vec.array[:] = vec.array_r
+        mass.x.scatter_forward()
+        vec.destroy()
+        self.mass = mass
+        self.total_mass = self.comm.allreduce(float(mass.x.array[: self.constraint.num_owned].sum()) / 3.0)
+        self.mass_red = self.constraint.reduced_lumped_mass(mass)
+
+        self.velocity = dolfinx.fem.Function(problem.V, name="velocity")
+        self.viscous_form = dolfinx.fem.form(forms.bulk_viscosity_work(
+            problem.u, self.velocity, v, self.density, wave_speed, cell_length,
+            dolfinx.fem.Constant(mesh, settings.bulk_viscosity_linear),
+            dolfinx.fem.Constant(mesh, settings.bulk_viscosity_quadratic), problem.dx_vol))
+
+        self.f_int = problem.create_vector()
+        self.f_visc = problem.create_vector()
+        self.x = self.constraint.create_reduced_vector()
+        self.v_red = self.x.duplicate()
+        self.a_red = self.x.duplicate()
+        self.r_red = self.x.duplicate()
+        self.t = 0.0
+        self.step = 0
+        self.energies = Energies()
+        self.timings = _Timings()
+        n = self.constraint.num_owned
+        self._u_prev = np.zeros(n)
+        self._v_half_prev = np.zeros(n)
+        self._forces_prev = None  # (f_int, f_visc, R) at step n, waiting for u_{n+1}
+
+    # -- forces ------------------------------------------------------------------------------
+    def _assemble(self, vec: PETSc.Vec, form) -> None:
+        with vec.localForm() as loc:
+            loc.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(vec, form)
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+
+    def _forces(self) -> None:
+        t0 = time.perf_counter()
+        self.problem.update_material(tangent=False)
+        self.problem.commit()
+        t1 = time.perf_counter()
+        self.problem.assemble_residual(self.f_int)
+        self._assemble(self.f_visc, self.viscous_form)
+        self.timings.material += t1 - t0
+        self.timings.assembly += time.perf_counter() - t1
+        self.energies.plastic += self.problem.plastic_dissipation_increment()
+
+    def _dot(self, a: np.ndarray, b: np.ndarray) -> float:
+        return self.comm.allreduce(float(a @ b), op=MPI.SUM)
+
+    def reactions(self, dofs: np.ndarray) -> float:
+        """Sum over ranks of the reaction force (N) on the given local unrolled dofs at the last
+        step: R = f_int + f_bv + M a (inertia included, as Abaqus RF in explicit)."""
+        dofs = np.asarray(dofs)
+        owned = dofs[dofs < self.constraint.num_owned]
+        return self.comm.allreduce(float(self._reaction_last[owned].sum()) if owned.size else 0.0)
+
+    # -- stepping ----------------------------------------------------------------------------
+    def advance(self) -> None:
+        """One central-difference step t_n -> t_{n+1}."""
+        dt = self.dt
+        n = self.constraint.num_owned
+        u = self.problem.u
+        if self.step == 0:
+            self.bcs.apply(0.0)
+            self.constraint.expand(self.x, u)
+            self._u_prev[:] = u.x.array[:n]
+            self._forces()
+        t2 = time.perf_counter()
+        # reduced acceleration and velocity (half step at the start)
+        self.r_red.set(0.0)
+        force = self.f_int.copy()
+        force.axpy(1.0, self.f_visc)
+        self.constraint.restrict(force, self.r_red)
+        self.a_red.pointwiseDivide(self.r_red, self.mass_red)
+        self.a_red.scale(-1.0)
+        self.v_red.axpy(0.5 * dt if self.step == 0 else dt, self.a_red)
+        self.x.axpy(dt, self.v_red)
+
+        u_n = u.x.array[:n].copy()
+        g_n = self.constraint.g.x.array[:n].copy()
+        t_new = self.t + dt
+        self.bcs.apply(t_new)
+        self.constraint.expand(self.x, u)
+        g_new = self.constraint.g.x.array[:n]
+        # full half-step velocity: free part from v_red, prescribed part from g
+        self.constraint.expand(self.v_red, self.velocity, with_offset=False)
+        self.velocity.x.array[:n] += (g_new - g_n) / dt
+        self.velocity.x.scatter_forward()
+        v_half = self.velocity.x.array[:n].copy()
+
+        # reactions at step n: R = f + M a, a from the two half-step velocities
+        mass = self.mass.x.array[:n]
+        h = dt if self.step > 0 else 0.5 * dt
+        accel = (v_half - self._v_half_prev) / h
+        reaction = force.array_r[:n] + mass * accel
+        force.destroy()
+        self._reaction_last = reaction
+        # centred displacement increment around step n (one-sided at the start)
+        du = 0.5 * (u.x.array[:n] - (self._u_prev if self.step > 0 else u_n))
+        e = self.energies
+        e.external += self._dot(reaction, du)
+        e.internal += self._dot(self.f_int.array_r[:n], du)
+        e.viscous += self._dot(self.f_visc.array_r[:n], du)
+        self._u_prev[:] = u_n
+        self._v_half_prev[:] = v_half
+        self.timings.update += time.perf_counter() - t2
+
+        self.t = t_new
+        self.step += 1
+        self._forces()  # f_int(u_{n+1}), f_bv(u_{n+1}, v_{n+1/2})
+        e.kinetic = 0.5 * self._dot(mass, v_half * v_half)
+        if not np.isfinite(e.kinetic):
+            raise FloatingPointError(
+                f"explicit integration diverged at step {self.step} (t={self.t:.4g} s, dt={dt:.3g} s): "
+                "reduce target_dt or deformation_margin")
+        e.elastic = self.problem.stored_energy()
+
+    def run(self, on_output: Callable[["ExplicitSolver"], None] | None = None, outputs: int = 100) -> int:
+        """Integrate to settings.t_end; ``on_output`` about ``outputs`` times, and at the end."""
+        total = int(np.ceil(self.settings.t_end / self.dt - 1e-9))
+        every = max(1, total // max(outputs, 1))
+        self.dt = self.settings.t_end / total
+        while self.step < total:
+            self.advance()
+            if on_output and (self.step % every == 0 or self.step == total):
+                on_output(self)
+        return total

@@ -1,0 +1,1 @@
+"""End-to-end workflows shared by demos and tests."""

@@ -1,0 +1,181 @@
+"""Verification workflows of the foundation: homogeneous uniaxial tension and a sphere squeezed
+between two prescribed caps. Shared by ``demos/`` and ``tests/``.
+
+Sign convention: the uniaxial *tension* test reports the true (Cauchy) stress as positive in
+tension (it is a material curve, sigma_0 + K eps_p^n); the squeezed sphere reports the
+compressive cap force as positive (thesis convention, compression > 0).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+import dolfinx
+
+from ..io import History
+from ..loading import PrescribedDisplacements, Ramp, SmoothStep, component_dofs
+from ..material import LEAD, ElastoPlastic
+from ..meshes import ParticleVolumes, particle_mesh
+from ..problem import SolidProblem
+from ..solvers import ImplicitSolver, StepControl
+from ..solvers.explicit import ExplicitSettings, ExplicitSolver
+
+SOLVERS = ("implicit", "explicit")
+
+
+def _check_solver(solver: str) -> None:
+    if solver not in SOLVERS:
+        raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
+
+
+def _mean_over_points(problem: SolidProblem, values: np.ndarray) -> float:
+    """Volume average of a quadrature-point field over all ranks."""
+    return problem.integrate_points(values) / problem.integrate_points(np.ones_like(values))
+
+
+@dataclass
+class UniaxialResult:
+    log_strain: np.ndarray
+    true_stress: np.ndarray  # MPa, tension > 0
+    eps_p: np.ndarray
+    energies: History | None
+    wall_time: float
+    csv: Path
+
+
+def run_uniaxial(solver: str = "implicit", material: ElastoPlastic = LEAD, log_strain: float = 0.5,
+                 cells: int = 2, out_dir: str | Path = "results/uniaxial", comm: MPI.Comm = MPI.COMM_WORLD,
+                 explicit_time: float = 4e-3, explicit_steps: int = 8000, rows: int = 400,
+                 log=print) -> UniaxialResult:
+    """Stretch a unit cube (1 mm, ``cells``^3 hexahedra) homogeneously to ``log_strain``.
+
+    Symmetry rollers on x=0, y=0, z=0; u_x prescribed on x=1. Implicit: ramp in pseudo-time with
+    adaptive steps. Explicit: smooth-step amplitude over ``explicit_time`` s with mass scaling to
+    ``explicit_time / explicit_steps``. Writes ``stress_strain.csv`` (log_strain, true_stress_MPa,
+    eps_p) and, for the explicit solver, ``energy.csv``.
+    """
+    _check_solver(solver)
+    if not 0 < log_strain <= 2:
+        raise ValueError(f"log_strain must be in (0, 2], got {log_strain}")
+    out_dir = Path(out_dir)
+    length = 1.0
+    mesh = dolfinx.mesh.create_box(comm, [[0, 0, 0], [length] * 3], [cells] * 3,
+                                   dolfinx.mesh.CellType.hexahedron)
+    problem = SolidProblem(mesh, material, tangent=(solver == "implicit"))
+    V = problem.V
+    stretch = np.exp(log_strain)
+    amplitude = Ramp(1.0) if solver == "implicit" else SmoothStep(explicit_time)
+    bcs = PrescribedDisplacements(V)
+    for axis in range(3):
+        bcs.add(component_dofs(V, lambda x, a=axis: np.isclose(x[a], 0.0), axis))
+    loaded = component_dofs(V, lambda x: np.isclose(x[0], length), 0)
+    bcs.add(loaded, lambda t: (stretch - 1.0) * length * amplitude(t))
+
+    history = History(out_dir / "stress_strain.csv", ["log_strain", "true_stress_MPa", "eps_p"], comm)
+    energy = None
+
+    def record(s):
+        F = problem.deformation_gradients()
+        lateral = _mean_over_points(problem, F[:, 1, 1]) * _mean_over_points(problem, F[:, 2, 2])
+        force = s.reactions(loaded)
+        u_end = (stretch - 1.0) * length * amplitude(s.t)
+        history.append(log_strain=np.log1p(u_end / length), true_stress_MPa=force / (lateral * length ** 2),
+                       eps_p=_mean_over_points(problem, problem.material.eps_p))
+
+    start = time.perf_counter()
+    if solver == "implicit":
+        s = ImplicitSolver(problem, bcs)
+        s.run(StepControl(t_end=1.0, dt=0.01, dt_max=0.02), on_step=record)
+    else:
+        s = ExplicitSolver(problem, bcs, ExplicitSettings(t_end=explicit_time,
+                                                          target_dt=explicit_time / explicit_steps))
+        energy = History(out_dir / "energy.csv", ["time", "W_ext", "E_int", "E_p", "E_el", "E_kin", "E_visc"], comm)
+
+        def on_output(s):
+            record(s)
+            e = s.energies
+            energy.append(time=s.t, W_ext=e.external, E_int=e.internal, E_p=e.plastic, E_el=e.elastic,
+                          E_kin=e.kinetic, E_visc=e.viscous)
+
+        log(f"explicit: dt = {s.dt:.3g} s (stable unscaled {s.dt_stable_unscaled:.3g} s, "
+            f"max mass scaling {s.mass_scaling_max:.3g})")
+        s.run(on_output, outputs=rows)
+        energy.write()
+    wall = time.perf_counter() - start
+    csv = history.write()
+    data = history.array()
+    return UniaxialResult(data[:, 0], data[:, 1], data[:, 2], energy, wall, csv)
+
+
+@dataclass
+class SqueezeResult:
+    history: History
+    initial_volume: float
+    wall_time: float
+    num_dofs: int
+
+
+def run_sphere_squeeze(solver: str = "implicit", material: ElastoPlastic = LEAD, reduction: float = 0.3,
+                       radius: float = 1.0, cap: float = 0.75, refinement: int = 1,
+                       out_dir: str | Path = "results/sphere_squeeze", comm: MPI.Comm = MPI.COMM_WORLD,
+                       explicit_time: float = 2e-3, explicit_steps: int = 20000, rows: int = 40,
+                       log=print) -> SqueezeResult:
+    """Squeeze one cube-sphere particle between two prescribed caps to a height reduction.
+
+    The caps are the nodes with |z| >= cap * radius: their u_z is prescribed (-/+ reduction *
+    radius at the end, i.e. the height 2r shrinks by ``reduction``), u_x and u_y stay free; one
+    node row is held in x and y to remove the rigid motions. History columns: time,
+    height_reduction, force_N (compressive cap force > 0), volume_mm3, volume_change.
+    """
+    _check_solver(solver)
+    if not 0 < reduction < 0.6:
+        raise ValueError(f"reduction must be in (0, 0.6), got {reduction}")
+    if not 0.3 < cap < 1.0:
+        raise ValueError(f"cap must be in (0.3, 1), got {cap}")
+    out_dir = Path(out_dir)
+    assembly = particle_mesh([[0.0, 0.0, 0.0]], [radius], comm, refinement=refinement)
+    problem = SolidProblem(assembly.mesh, material, tangent=(solver == "implicit"))
+    V = problem.V
+    amplitude = Ramp(1.0) if solver == "implicit" else SmoothStep(explicit_time)
+    travel = reduction * radius  # each cap moves by half of the total height change 2 r reduction
+    tol = 1e-9 * radius
+    top = component_dofs(V, lambda x: x[2] >= cap * radius - tol, 2)
+    bottom = component_dofs(V, lambda x: x[2] <= -cap * radius + tol, 2)
+    bcs = PrescribedDisplacements(V)
+    bcs.add(top, lambda t: -travel * amplitude(t))
+    bcs.add(bottom, lambda t: travel * amplitude(t))
+    # rigid-body modes in the plane: fix x on the y-z plane nodes of the caps, y on x-z ones
+    on_x0 = lambda x: (np.abs(x[0]) < tol) & (np.abs(x[2]) >= cap * radius - tol)  # noqa: E731
+    on_y0 = lambda x: (np.abs(x[1]) < tol) & (np.abs(x[2]) >= cap * radius - tol)  # noqa: E731
+    bcs.add(component_dofs(V, on_x0, 0), 0.0)
+    bcs.add(component_dofs(V, on_y0, 1), 0.0)
+
+    v0 = float(ParticleVolumes(assembly)()[0])
+    current_volume = ParticleVolumes(assembly, problem.u)
+    history = History(out_dir / f"{solver}.csv",
+                      ["time", "height_reduction", "force_N", "volume_mm3", "volume_change"], comm)
+
+    def record(s):
+        vol = float(current_volume()[0])
+        history.append(time=s.t, height_reduction=2 * travel * amplitude(s.t) / (2 * radius),
+                       force_N=-s.reactions(top), volume_mm3=vol, volume_change=vol / v0 - 1.0)
+
+    start = time.perf_counter()
+    if solver == "implicit":
+        s = ImplicitSolver(problem, bcs)
+        s.run(StepControl(t_end=1.0, dt=0.01, dt_max=0.025, dt_min=1e-5), on_step=record,
+              log=log)
+    else:
+        s = ExplicitSolver(problem, bcs, ExplicitSettings(t_end=explicit_time,
+                                                          target_dt=explicit_time / explicit_steps))
+        log(f"explicit: dt = {s.dt:.3g} s (stable unscaled {s.dt_stable_unscaled:.3g} s, "
+            f"max mass scaling {s.mass_scaling_max:.3g})")
+        s.run(record, outputs=rows)
+    wall = time.perf_counter() - start
+    history.write()
+    return SqueezeResult(history, v0, wall, V.dofmap.index_map.size_global * 3)
