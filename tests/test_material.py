@@ -1,0 +1,129 @@
+"""Hencky / von Mises kernel: eigen-solver, objectivity, tangent, and the assembled Jacobian."""
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from mpfem_fenicsx.material import LEAD, STEEL_LINEAR, ElastoPlastic, HenckyJ2, eig_sym3
+from mpfem_fenicsx.meshes import particle_mesh
+from mpfem_fenicsx.problem import SolidProblem
+
+
+def _random_F(rng, n, amplitude):
+    return np.eye(3) + amplitude * rng.standard_normal((n, 3, 3))
+
+
+def test_eigen_solver_handles_repeated_eigenvalues():
+    rng = np.random.default_rng(0)
+    for eigenvalues in ([1.0, 1.0, 1.0], [2.0, 2.0, 0.5], [3.0, 1e-3, 1e-3], [1.0, 1.0 + 1e-12, 4.0]):
+        R, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+        a = R @ np.diag(eigenvalues) @ R.T
+        w = np.empty(3)
+        Q = np.empty((3, 3))
+        eig_sym3(a.copy(), w, Q)
+        assert np.allclose(np.sort(w), np.sort(eigenvalues), atol=1e-13)
+        assert np.allclose(Q @ np.diag(w) @ Q.T, a, atol=1e-13)
+        assert np.allclose(Q.T @ Q, np.eye(3), atol=1e-13)
+
+
+def test_elastic_response_is_hencky():
+    """Below yield: tau = K ln J I + 2 mu dev(ln V) for a stretch F = diag(l1, l2, l3)."""
+    mat = ElastoPlastic(sigma_0=1e9)
+    m = HenckyJ2(mat, 1)
+    stretches = np.array([1.02, 0.99, 1.005])
+    m.update(np.diag(stretches)[None])
+    h = np.log(stretches)
+    expected = mat.bulk * h.sum() + 2 * mat.mu * (h - h.mean())
+    assert np.allclose(m.tau[0, :3], expected, rtol=1e-12)
+    assert m.eps_p_trial[0] == 0.0
+
+
+def test_objectivity():
+    """tau(R F) = R tau(F) R^T, also after plastic flow."""
+    rng = np.random.default_rng(3)
+    F = _random_F(rng, 20, 0.1)
+    R, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+    R *= np.sign(np.linalg.det(R))
+    a, b = HenckyJ2(LEAD, 20), HenckyJ2(LEAD, 20)
+    a.update(F)
+    b.update(np.einsum("ij,qjk->qik", R, F))
+
+    def full(t):
+        return np.array([[t[0], t[3], t[4]], [t[3], t[1], t[5]], [t[4], t[5], t[2]]])
+
+    for q in range(20):
+        assert np.allclose(R @ full(a.tau[q]) @ R.T, full(b.tau[q]), atol=1e-10)
+    assert np.allclose(a.eps_p_trial, b.eps_p_trial, rtol=1e-12)
+    assert (a.eps_p_trial > 0).sum() > 10
+
+
+@pytest.mark.parametrize("material", [LEAD, STEEL_LINEAR], ids=["power", "linear"])
+def test_consistent_tangent_matches_finite_differences(material):
+    rng = np.random.default_rng(1)
+    n = 60
+    m = HenckyJ2(material, n)
+    F0 = _random_F(rng, n, 0.03)
+    m.update(F0)
+    m.commit()  # plastic history: C_p != I, eps_p > 0 at most points
+    F = F0 + 0.002 * rng.standard_normal((n, 3, 3))
+    for q in range(5):  # a few points unloaded elastically: F ~ U_p, so that b_e^trial ~ I
+        c = m.cp_inv[q]
+        cp_inv = np.array([[c[0], c[3], c[4]], [c[3], c[1], c[5]], [c[4], c[5], c[2]]])
+        w, R = np.linalg.eigh(cp_inv)
+        F[q] = R @ np.diag(w ** -0.5) @ R.T + 1e-5 * rng.standard_normal((3, 3))
+    m.update(F)
+    A = m.A_dev.copy()
+    assert (m.eps_p_trial == m.eps_p).sum() == 5  # the unloaded points stay elastic
+    h = 1e-7
+    fd = np.empty_like(A)
+    for k in range(3):
+        for L in range(3):
+            Fp, Fm = F.copy(), F.copy()
+            Fp[:, k, L] += h
+            Fm[:, k, L] -= h
+            m.update(Fp, tangent=False)
+            Pp = m.P_dev.copy()
+            m.update(Fm, tangent=False)
+            fd[..., k, L] = (Pp - m.P_dev) / (2 * h)
+    assert np.abs(fd - A).max() < 1e-6 * np.abs(A).max()
+
+
+def test_power_law_first_yield_is_robust():
+    """n < 1: d sigma_y/d eps_p is infinite at eps_p = 0; the local Newton must still converge."""
+    m = HenckyJ2(LEAD, 3)
+    F = np.array([np.diag([1.0 + e, 1.0, 1.0]) for e in (7.5e-4, 1e-3, 0.2)])
+    m.update(F)
+    q = m.von_mises_kirchhoff()
+    assert np.allclose(q, LEAD.yield_stress(m.eps_p_trial), rtol=1e-10)
+    assert np.all(m.eps_p_trial > 0)
+
+
+def test_assembled_jacobian_matches_residual_on_distorted_hexahedra():
+    """Consistent Jacobian of the SRI forms on curved (non-affine) cube-sphere cells."""
+    import dolfinx.fem.petsc  # noqa: F401
+
+    a = particle_mesh([[0, 0, 0]], [1.0], MPI.COMM_SELF)
+    prob = SolidProblem(a.mesh, LEAD)
+    rng = np.random.default_rng(1)
+    x = prob.V.tabulate_dof_coordinates()
+    u0 = np.zeros((x.shape[0], 3))
+    u0[:, 2] = -0.05 * x[:, 2]
+    u0 = u0.ravel() + 1e-3 * rng.standard_normal(u0.size)
+    du = rng.standard_normal(u0.size)
+    b = prob.create_vector()
+
+    def residual(u):
+        prob.u.x.array[:] = u
+        prob.update_material(tangent=True)
+        prob.assemble_residual(b)
+        return b.array.copy()
+
+    residual(u0)
+    K = prob.create_matrix()
+    prob.assemble_jacobian(K)
+    vin, vout = K.createVecs()
+    vin.array[:] = du
+    K.mult(vin, vout)
+    h = 1e-7
+    fd = (residual(u0 + h * du) - residual(u0 - h * du)) / (2 * h)
+    assert np.abs(vout.array - fd).max() < 1e-8 * np.abs(fd).max()

@@ -1,0 +1,67 @@
+"""Particle meshes: cube-sphere counts and quality, multi-particle tags, gmsh tetrahedra."""
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from mpfem_fenicsx.meshes import particle_mesh, particle_volumes, unit_ball_hex
+from mpfem_fenicsx.meshes.cubesphere import _orient_positive
+
+
+def test_default_cube_sphere_resolution():
+    ball = unit_ball_hex()
+    # 4^3 core + 6 * 4^2 * 4 shell hexahedra; (4+1)^3 + 4 (6*4^2 + 2) nodes (~560 of the thesis)
+    assert ball.num_cells == 64 + 6 * 16 * 4 == 448
+    assert ball.num_nodes == 125 + 4 * 98 == 517
+    assert ball.surface_nodes.size == 98
+    assert np.allclose(np.linalg.norm(ball.points[ball.surface_nodes], axis=1), 1.0)
+    # orientation: re-orienting changes nothing, i.e. every Jacobian is already positive
+    assert np.array_equal(_orient_positive(ball.points, ball.cells), ball.cells)
+
+
+def test_refinement_converges_to_sphere_volume():
+    exact = 4.0 / 3.0 * np.pi
+    errors = []
+    for k in (1, 2, 3):
+        a = particle_mesh([[0, 0, 0]], [1.0], MPI.COMM_SELF, refinement=k)
+        errors.append(abs(particle_volumes(a)[0] - exact) / exact)
+    assert errors[0] < 0.07
+    # polyhedral approximation of a curved surface: error ~ h^2
+    assert errors[1] < errors[0] / 3.0 and errors[2] < errors[1] / 1.8
+
+
+def test_many_particles_one_mesh_with_tags():
+    centres = np.array([[0, 0, 0], [3.0, 0, 0], [0, 2.5, 0.5]])
+    radii = np.array([1.0, 0.6, 0.8])
+    a = particle_mesh(centres, radii, MPI.COMM_SELF)
+    assert a.mesh.topology.index_map(3).size_global == 3 * 448
+    counts = np.bincount(a.cell_tags.values, minlength=3)
+    assert counts.tolist() == [448, 448, 448]
+    facet_counts = np.bincount(a.facet_tags.values, minlength=3)
+    assert facet_counts.tolist() == [96, 96, 96]
+    vols = particle_volumes(a)
+    ratio = vols / (4.0 / 3.0 * np.pi * radii ** 3)
+    assert np.allclose(ratio, ratio[0], rtol=1e-10)  # same shape, scaled
+    # facets of particle i lie on its sphere
+    x = a.mesh.geometry.x
+    a.mesh.topology.create_connectivity(2, 0)
+    f2v = a.mesh.topology.connectivity(2, 0)
+    for facet, pid in zip(a.facet_tags.indices, a.facet_tags.values):
+        vertices = f2v.links(facet)
+        d = np.linalg.norm(x[vertices] - centres[pid], axis=1)
+        assert np.allclose(d, radii[pid], rtol=1e-9)
+
+
+@pytest.mark.parametrize("bad", [-1.0, 0.0, np.nan])
+def test_bad_radius_is_rejected(bad):
+    with pytest.raises(ValueError, match="radius must be > 0"):
+        particle_mesh([[0, 0, 0], [3, 0, 0]], [1.0, bad], MPI.COMM_SELF)
+
+
+def test_gmsh_tetrahedra_p2_volume():
+    a = particle_mesh([[0, 0, 0], [3, 0, 0]], [1.0, 0.5], MPI.COMM_SELF, cell_type="tetrahedron",
+                      tet_order=2, tet_size=0.4)
+    exact = 4.0 / 3.0 * np.pi * np.array([1.0, 0.125])
+    assert np.allclose(particle_volumes(a), exact, rtol=2e-3)
+    assert set(np.unique(a.cell_tags.values)) == {0, 1}
+    assert set(np.unique(a.facet_tags.values)) == {0, 1}
