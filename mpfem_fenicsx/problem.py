@@ -38,7 +38,7 @@ class SolidProblem:
         self.params = material
         self.comm = mesh.comm
         cell_name = mesh.topology.cell_name()
-        degree = degree or mesh.geometry.cmap.degree
+        degree = degree or mesh.geometry.cmaps[0].degree
         self.V = dolfinx.fem.functionspace(mesh, ("Lagrange", degree, (3,)))
         self.u = dolfinx.fem.Function(self.V, name="displacement")
         self.rules = forms.QuadratureRules.for_cell(cell_name, degree)
@@ -151,7 +151,7 @@ class SolidProblem:
     def min_cell_length(self) -> np.ndarray:
         """Smallest vertex-to-vertex distance of each owned cell (mm), reference configuration."""
         geom = self.mesh.geometry
-        x = geom.x[geom.dofmap[: self.num_cells]]
+        x = geom.x[geom.dofmaps[0][: self.num_cells]]
         nv = x.shape[1]
         i, j = np.triu_indices(nv, 1)
         d = np.linalg.norm(x[:, i] - x[:, j], axis=-1)

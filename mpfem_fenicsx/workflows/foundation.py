@@ -18,6 +18,8 @@ from mpi4py import MPI
 import dolfinx
 
 from ..io import History
+from ..io.fields import CellFields, ParaViewWriter
+from ..io.render import render_deformed
 from ..loading import PrescribedDisplacements, Ramp, SmoothStep, component_dofs
 from ..material import LEAD, ElastoPlastic
 from ..meshes import ParticleVolumes, particle_mesh
@@ -123,14 +125,16 @@ class SqueezeResult:
 def run_sphere_squeeze(solver: str = "implicit", material: ElastoPlastic = LEAD, reduction: float = 0.3,
                        radius: float = 1.0, cap: float = 0.75, refinement: int = 1,
                        out_dir: str | Path = "results/sphere_squeeze", comm: MPI.Comm = MPI.COMM_WORLD,
-                       explicit_time: float = 2e-3, explicit_steps: int = 20000, rows: int = 40,
-                       log=print) -> SqueezeResult:
+                       explicit_time: float = 2e-3, explicit_steps: int = 6000, rows: int = 40,
+                       visual: bool = False, log=print) -> SqueezeResult:
     """Squeeze one cube-sphere particle between two prescribed caps to a height reduction.
 
     The caps are the nodes with |z| >= cap * radius: their u_z is prescribed (-/+ reduction *
     radius at the end, i.e. the height 2r shrinks by ``reduction``), u_x and u_y stay free; one
     node row is held in x and y to remove the rigid motions. History columns: time,
     height_reduction, force_N (compressive cap force > 0), volume_mm3, volume_change.
+    With ``visual``: ParaView series ``<solver>.xdmf`` (displacement, von Mises, eps_p) and a
+    PNG of the final deformed particle coloured by von Mises stress.
     """
     _check_solver(solver)
     if not 0 < reduction < 0.6:
@@ -160,7 +164,14 @@ def run_sphere_squeeze(solver: str = "implicit", material: ElastoPlastic = LEAD,
     history = History(out_dir / f"{solver}.csv",
                       ["time", "height_reduction", "force_N", "volume_mm3", "volume_change"], comm)
 
+    writer = None
+    if visual:
+        fields = CellFields(problem, assembly.cell_tags)
+        writer = ParaViewWriter(out_dir / f"{solver}.xdmf", problem, fields)
+
     def record(s):
+        if writer is not None:
+            writer.write(s.t)
         vol = float(current_volume()[0])
         history.append(time=s.t, height_reduction=2 * travel * amplitude(s.t) / (2 * radius),
                        force_N=-s.reactions(top), volume_mm3=vol, volume_change=vol / v0 - 1.0)
@@ -178,4 +189,8 @@ def run_sphere_squeeze(solver: str = "implicit", material: ElastoPlastic = LEAD,
         s.run(record, outputs=rows)
     wall = time.perf_counter() - start
     history.write()
+    if writer is not None:
+        writer.close()
+        render_deformed(problem.u, fields.von_mises, out_dir / f"{solver}.png",
+                        title=f"lead particle, {100 * reduction:.0f} % height reduction ({solver})")
     return SqueezeResult(history, v0, wall, V.dofmap.index_map.size_global * 3)

@@ -1,0 +1,49 @@
+"""Off-screen pyvista rendering of the deformed particles coloured by a cell field."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+import dolfinx
+import dolfinx.plot
+
+
+def render_deformed(u: dolfinx.fem.Function, cell_field: dolfinx.fem.Function, path: str | Path,
+                    *, title: str = "", label: str = "von Mises (MPa)") -> Path | None:
+    """Render u-deformed particles coloured by a DG0 field to a PNG (gathered on rank 0)."""
+    import pyvista
+
+    mesh = u.function_space.mesh
+    comm = mesh.comm
+    num_cells = mesh.topology.index_map(mesh.topology.dim).size_local
+    topology, cell_types, x = dolfinx.plot.vtk_mesh(u.function_space, np.arange(num_cells, dtype=np.int32))
+    nodes = x.shape[0]
+    displacement = u.x.array.reshape(-1, 3)[:nodes]
+    values = cell_field.x.array[cell_field.function_space.dofmap.list[:num_cells, 0]]
+    parts = comm.gather((topology, cell_types, x, displacement, values), root=0)
+    if comm.rank != 0:
+        return None
+    grids = []
+    for top, types, pts, disp, val in parts:
+        grid = pyvista.UnstructuredGrid(top, types, pts + disp)
+        grid.cell_data[label] = val
+        grids.append(grid)
+    grid = grids[0] if len(grids) == 1 else grids[0].merge(grids[1:])
+    pyvista.OFF_SCREEN = True
+    plotter = pyvista.Plotter(off_screen=True, window_size=(1000, 800))
+    plotter.add_mesh(grid, scalars=label, cmap="viridis", show_edges=True, edge_color="#333333",
+                     scalar_bar_args={"title": label, "vertical": True, "position_x": 0.82,
+                                      "position_y": 0.15, "width": 0.08, "height": 0.7})
+    if title:
+        plotter.add_text(title, font_size=11)
+    plotter.view_isometric()
+    plotter.reset_camera()
+    plotter.camera.zoom(0.8)
+    plotter.show_axes()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    plotter.screenshot(str(path))
+    plotter.close()
+    return path

@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Create .venv/ (Python >= 3.12) at the repository root and install the project with its test
+# dependencies. Idempotent: does nothing when pyproject.toml has not changed since the last run.
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+venv="$root/.venv"
+stamp="$venv/.mpfem-bootstrap"
+want="$(sha256sum "$root/pyproject.toml" | cut -c1-16)"
+if [[ -x "$venv/bin/python" && -f "$stamp" && "$(cat "$stamp")" == "$want" ]]; then
+  exit 0
+fi
+
+ok_python() {  # python >= 3.12 ?
+  "$1" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 12) else 1)' 2>/dev/null
+}
+python=""
+candidates=("${PYTHON:-}" python3.12 python3.13 python3)
+if command -v pyenv >/dev/null 2>&1; then
+  for v in $(pyenv versions --bare 2>/dev/null | grep -E '^3\.1[2-9]' || true); do
+    candidates+=("$(pyenv prefix "$v")/bin/python3")
+  done
+fi
+candidates+=("$HOME"/.pyenv/versions/3.1[2-9]*/bin/python3)
+for c in "${candidates[@]}"; do
+  [[ -n "$c" ]] || continue
+  if command -v "$c" >/dev/null 2>&1 && ok_python "$c"; then python="$c"; break; fi
+done
+if [[ -z "$python" ]]; then
+  echo "bootstrap: no Python >= 3.12 found (set PYTHON=/path/to/python3.12)" >&2
+  exit 1
+fi
+
+echo "bootstrap: creating $venv with $("$python" --version) ($python)"
+rm -rf "$venv"
+"$python" -m venv "$venv"
+"$venv/bin/python" -m pip install --quiet --upgrade pip
+"$venv/bin/python" -m pip install --quiet -e "$root[test]"
+echo "$want" > "$stamp"
+echo "bootstrap: done"
