@@ -7,6 +7,8 @@ Functions -> residual / Jacobian assembled by DOLFINx from the UFL forms in ``fo
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from mpi4py import MPI
 
@@ -42,6 +44,9 @@ class SolidProblem:
         self.V = dolfinx.fem.functionspace(mesh, ("Lagrange", degree, (3,)))
         self.u = dolfinx.fem.Function(self.V, name="displacement")
         self.rules = forms.QuadratureRules.for_cell(cell_name, degree)
+        if cell_name == "tetrahedron" and degree == 1:
+            warnings.warn("P1 tetrahedra lock under isochoric plastic flow (one constraint per "
+                          "cell, no reduced rule): use hexahedra (SRI) or tet_order=2", stacklevel=2)
 
         tdim = mesh.topology.dim
         self.num_cells = mesh.topology.index_map(tdim).size_local

@@ -126,7 +126,8 @@ def run_sphere_squeeze(solver: str = "implicit", material: ElastoPlastic = LEAD,
                        radius: float = 1.0, cap: float = 0.75, refinement: int = 1,
                        out_dir: str | Path = "results/sphere_squeeze", comm: MPI.Comm = MPI.COMM_WORLD,
                        explicit_time: float = 2e-3, explicit_steps: int = 6000, rows: int = 40,
-                       visual: bool = False, log=print) -> SqueezeResult:
+                       visual: bool = False, cell_type: str = "hexahedron", tet_order: int = 2,
+                       tet_size: float = 0.3, log=print) -> SqueezeResult:
     """Squeeze one cube-sphere particle between two prescribed caps to a height reduction.
 
     The caps are the nodes with |z| >= cap * radius: their u_z is prescribed (-/+ reduction *
@@ -142,7 +143,8 @@ def run_sphere_squeeze(solver: str = "implicit", material: ElastoPlastic = LEAD,
     if not 0.3 < cap < 1.0:
         raise ValueError(f"cap must be in (0.3, 1), got {cap}")
     out_dir = Path(out_dir)
-    assembly = particle_mesh([[0.0, 0.0, 0.0]], [radius], comm, refinement=refinement)
+    assembly = particle_mesh([[0.0, 0.0, 0.0]], [radius], comm, refinement=refinement,
+                             cell_type=cell_type, tet_order=tet_order, tet_size=tet_size)
     problem = SolidProblem(assembly.mesh, material, tangent=(solver == "implicit"))
     V = problem.V
     amplitude = Ramp(1.0) if solver == "implicit" else SmoothStep(explicit_time)
