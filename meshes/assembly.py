@@ -72,6 +72,47 @@ def _tag_mesh(mesh: dolfinx.mesh.Mesh, particle_of_original_cell: np.ndarray):
     return cell_tags, facet_tags
 
 
+@dataclass
+class BodyAssembly:
+    """Several disconnected bodies in one mesh: cell tag = facet tag = body id."""
+
+    mesh: dolfinx.mesh.Mesh
+    cell_tags: dolfinx.mesh.MeshTags
+    facet_tags: dolfinx.mesh.MeshTags
+    num_bodies: int
+
+
+def box_bodies_mesh(boxes, comm: MPI.Comm = MPI.COMM_WORLD) -> BodyAssembly:
+    """Structured hexahedral boxes as bodies of one mesh.
+
+    Args:
+        boxes: list of (lower corner (3,), upper corner (3,), divisions (nx, ny, nz)), mm.
+    """
+    from .cubesphere import _lattice_cells
+
+    xs, cs, owners = [], [], []
+    offset = 0
+    for body, (lo, hi, divisions) in enumerate(boxes):
+        lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+        if np.any(hi <= lo):
+            raise ValueError(f"box {body}: upper corner {hi} must exceed lower corner {lo}")
+        axes = [np.linspace(lo[d], hi[d], int(divisions[d]) + 1) for d in range(3)]
+        X, Y, Z = np.meshgrid(*axes, indexing="ij")
+        xs.append(np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1))
+        cells = _lattice_cells(tuple(int(n) for n in divisions)) + offset
+        cs.append(cells)
+        owners.append(np.full(cells.shape[0], body))
+        offset += xs[-1].shape[0]
+    if comm.rank == 0:
+        x, cells = np.concatenate(xs), np.concatenate(cs)
+    else:
+        x, cells = np.zeros((0, 3)), np.zeros((0, 8), dtype=np.int64)
+    element = basix.ufl.element("Lagrange", "hexahedron", 1, shape=(3,))
+    mesh = dolfinx.mesh.create_mesh(comm, cells, ufl.Mesh(element), x)
+    cell_tags, facet_tags = _tag_mesh(mesh, np.concatenate(owners))
+    return BodyAssembly(mesh, cell_tags, facet_tags, len(boxes))
+
+
 def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type: str = "hexahedron",
                   divisions: int = 4, layers: int = 4, refinement: int = 1,
                   tet_order: int = 1, tet_size: float = 0.25) -> ParticleAssembly:

@@ -56,11 +56,12 @@ DEFAULT_OPTIONS = {
 class ImplicitSolver:
     """Newton-Raphson on the reduced system, one SNES solve per load increment."""
 
-    def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, *,
+    def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, *, contact=None,
                  petsc_options: dict | None = None, prefix: str = "mpfem_implicit_"):
         if problem.jacobian_forms is None:
             raise ValueError("the implicit solver needs SolidProblem(..., tangent=True)")
         self.problem = problem
+        self.contact = contact  # optional ContactModel: forces and tangent added to the bulk ones
         self.bcs = bcs
         self.constraint = bcs.constraint or bcs.build()
         self.comm = problem.comm
@@ -69,14 +70,15 @@ class ImplicitSolver:
         self.r_red = self.x.duplicate()
         self.r_full = problem.create_vector()
         self.K = problem.create_matrix()
+        self.K_total = self.K  # bulk + contact tangent (a separate matrix once contact is on)
         self.t = 0.0
         self.iterations_total = 0
-        self.timings = {"material": 0.0, "residual": 0.0, "jacobian": 0.0, "reduce": 0.0}
+        self.timings = {"material": 0.0, "residual": 0.0, "contact": 0.0, "jacobian": 0.0, "reduce": 0.0}
 
         self.bcs.apply(0.0)
         self._residual(None, self.x, self.r_red)
         self._assemble_tangent()
-        self.J_red = self.constraint.reduce_matrix(self.K)
+        self.J_red = self.constraint.reduce_matrix(self.K_total)
         self._tangent_valid = True
 
         self.snes = PETSc.SNES().create(self.comm)
@@ -95,19 +97,39 @@ class ImplicitSolver:
         self.problem.update_material(tangent=True)
         t1 = time.perf_counter()
         self.problem.assemble_residual(self.r_full)
-        self.constraint.restrict(self.r_full, r)
         t2 = time.perf_counter()
+        if self.contact is not None:
+            self.contact.evaluate(self.problem.u, tangent=True)
+            self.contact.add_residual(self.r_full)
+        t3 = time.perf_counter()
+        self.constraint.restrict(self.r_full, r)
         self.timings["material"] += t1 - t0
         self.timings["residual"] += t2 - t1
+        self.timings["contact"] += t3 - t2
 
     def _assemble_tangent(self) -> None:
         self.problem.assemble_jacobian(self.K)
+        if self.contact is not None:
+            K_c = self.contact.tangent_matrix(self.K)
+            if self.K_total is self.K:
+                self.K_total = self.K.duplicate(copy=True)
+            else:
+                self.K_total.zeroEntries()
+                self.K_total.axpy(1.0, self.K, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+            self.K_total.axpy(1.0, K_c, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+            K_c.destroy()
 
     def _jacobian(self, snes, x, J, P) -> None:
         t0 = time.perf_counter()
         self._assemble_tangent()
         t1 = time.perf_counter()
-        self.constraint.reduce_matrix(self.K, self.J_red)
+        if self.contact is None:
+            self.constraint.reduce_matrix(self.K, self.J_red)
+        else:  # the contact couplings change the pattern: merge it into J_red
+            reduced = self.constraint.reduce_matrix(self.K_total)
+            self.J_red.zeroEntries()
+            self.J_red.axpy(1.0, reduced, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+            reduced.destroy()
         self.timings["jacobian"] += t1 - t0
         self.timings["reduce"] += time.perf_counter() - t1
 
@@ -137,8 +159,8 @@ class ImplicitSolver:
         self.bcs.apply(t_new)
         dg = self.constraint.g.x.petsc_vec.copy()
         dg.axpy(-1.0, g_old)
-        force = self.K.createVecLeft()
-        self.K.mult(dg, force)
+        force = self.K_total.createVecLeft()
+        self.K_total.mult(dg, force)
         rhs = self.x.duplicate()
         self.constraint.restrict(force, rhs)
         rhs.scale(-1.0)
@@ -178,6 +200,8 @@ class ImplicitSolver:
                         f"Newton did not converge at t={self.t:.6g} even with dt={dt:.3g} < dt_min")
                 continue
             self.problem.commit()
+            if self.contact is not None:
+                self.contact.commit(self.problem.u)
             self.t += dt
             steps += 1
             self.x.copy(self.x_old)

@@ -1,0 +1,249 @@
+"""Contact model: search + law + history + assembly into the PETSc residual and Jacobian.
+
+Node-to-surface penalty contact, two-pass: every surface node of every body is a slave against
+the facets of the other bodies, and each pass carries half of the force (weight 1/2), so the
+treatment is symmetric. A contact point is identified by (slave node, master body, lattice
+shift); its history (alpha, sigma_max, tangential traction T_t, frictional work W_f) is kept
+per identifier from one converged increment to the next (``commit``).
+
+Per contact point with nodes a = [slave, master facet vertices] and weights c_a = [1, -N_i]:
+    force on node a:  F_a = c_a w A (T1 n + T_t)       (w = 1/2, A = slave tributary area)
+    residual:         r_a -= F_a                         (contact forces are external)
+    tangent:          K_ab = -c_a c_b w A (dT1 n (x) n + dT_t/d slip + dT_t/d gap (x) n)
+with the normal frozen during the linearization (standard for penalty NTS contact).
+Entries go into PETSc with global indices (``Vec.setValues``, COO ``Mat``), so forces on master
+nodes owned by another rank reach their owner.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dolfinx
+
+from .laws import ContactLaw, evaluate_law
+from .search import ContactPoints, ContactSearch
+from .surface import ContactSurface
+
+PASS_WEIGHT = 0.5  # two-pass symmetric treatment
+
+
+@numba.njit(cache=True)
+def _shape(nv, xi, eta, out):
+    if nv == 4:
+        out[0] = (1 - xi) * (1 - eta)
+        out[1] = xi * (1 - eta)
+        out[2] = (1 - xi) * eta
+        out[3] = xi * eta
+    else:
+        out[0] = 1 - xi - eta
+        out[1] = xi
+        out[2] = eta
+        out[3] = 0.0
+
+
+@numba.njit(cache=True)
+def _point_weights(facets, nv, slave, facet, xi, nodes, weights):
+    """Nodes (n, 5) and weights c_a (n, 5) of every contact point (unused slots: node -1)."""
+    N = np.empty(4)
+    for p in range(slave.size):
+        _shape(nv, xi[p, 0], xi[p, 1], N)
+        nodes[p, 0] = slave[p]
+        weights[p, 0] = 1.0
+        for v in range(4):
+            if v < nv:
+                nodes[p, 1 + v] = facets[facet[p], v]
+                weights[p, 1 + v] = -N[v]
+            else:
+                nodes[p, 1 + v] = -1
+                weights[p, 1 + v] = 0.0
+
+
+@numba.njit(cache=True)
+def _coo_entries(nodes, weights, blocks, scale, D, rows, cols, vals):
+    """(3 nn)^2 tangent entries per point, global dof indices."""
+    k = 0
+    for p in range(nodes.shape[0]):
+        for a in range(nodes.shape[1]):
+            na = nodes[p, a]
+            if na < 0:
+                continue
+            for b in range(nodes.shape[1]):
+                nb = nodes[p, b]
+                if nb < 0:
+                    continue
+                c = -weights[p, a] * weights[p, b] * scale[p]
+                for i in range(3):
+                    for j in range(3):
+                        rows[k] = blocks[na] * 3 + i
+                        cols[k] = blocks[nb] * 3 + j
+                        vals[k] = c * D[p, i, j]
+                        k += 1
+    return k
+
+
+def nodal_areas(x: np.ndarray, facets: np.ndarray, nv: int) -> np.ndarray:
+    """Tributary area (mm^2) of every surface node in configuration x."""
+    f = facets[:, :nv]
+    if nv == 4:
+        area = 0.5 * np.linalg.norm(np.cross(x[f[:, 3]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 1]]), axis=1)
+    else:
+        area = 0.5 * np.linalg.norm(np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]]), axis=1)
+    return np.bincount(f.ravel(), weights=np.repeat(area / nv, nv), minlength=x.shape[0])
+
+
+@dataclass
+class ContactState:
+    """History of the contact points, sorted by key."""
+
+    keys: np.ndarray
+    alpha: np.ndarray
+    smax: np.ndarray
+    tt: np.ndarray
+    work: np.ndarray  # frictional work W_f per point, mJ
+
+    @staticmethod
+    def empty() -> "ContactState":
+        return ContactState(np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.zeros(0))
+
+
+class ContactModel:
+    """Penalty / adhesive / frictional contact between the bodies tagged in ``facet_tags``."""
+
+    def __init__(self, V: dolfinx.fem.FunctionSpace, facet_tags: dolfinx.mesh.MeshTags, num_bodies: int,
+                 law: ContactLaw, search_distance: float, *, shifts: np.ndarray | None = None,
+                 allowed: np.ndarray | None = None):
+        self.law = law
+        self.surface = ContactSurface(V, facet_tags, num_bodies)
+        if search_distance < law.delta_max and law.gamma > 0:
+            raise ValueError(f"contact search distance ({search_distance} mm) must be >= delta_max "
+                             f"({law.delta_max} mm) so that adhesive points are tracked")
+        self.search = ContactSearch(self.surface, search_distance, shifts, allowed)
+        self.comm = V.mesh.comm
+        self.state = ContactState.empty()
+        self.trial = ContactState.empty()
+        self.U_committed = np.zeros((self.surface.num_nodes, 3))
+        self.points: ContactPoints | None = None
+        self.frictional_work = 0.0  # committed, summed over ranks, mJ
+        self._V = V
+
+    # -- evaluation ------------------------------------------------------------------------------
+    def _keys(self, pts: ContactPoints) -> np.ndarray:
+        nb = self.surface.num_bodies
+        ns = len(self.search.shifts)
+        shift_id = np.zeros(pts.size, np.int64)
+        if ns > 1:
+            d = np.linalg.norm(pts.shift[:, None, :] - self.search.shifts[None], axis=2)
+            shift_id = d.argmin(axis=1)
+        return (pts.slave * nb + pts.master_body) * ns + shift_id
+
+    def evaluate(self, u: dolfinx.fem.Function, tangent: bool = False) -> None:
+        """Search, law and forces at displacement u (trial state; see :meth:`commit`)."""
+        s = self.surface
+        U = s.gather(u)
+        x = s.X + U
+        pts = self.search(x)
+        keys = self._keys(pts)
+        # history of the points already in contact at the last converged state
+        old = self.state
+        pos = np.searchsorted(old.keys, keys)
+        pos = np.minimum(pos, max(old.keys.size - 1, 0))
+        known = (old.keys.size > 0) & (old.keys[pos] == keys) if old.keys.size else np.zeros(keys.size, bool)
+        alpha_n = np.where(known, old.alpha[pos] if old.keys.size else 0.0, 0.0)
+        smax_n = np.where(known, old.smax[pos] if old.keys.size else 0.0, 0.0)
+        tt_n = np.where(known[:, None], old.tt[pos] if old.keys.size else 0.0, 0.0)
+        work_n = np.where(known, old.work[pos] if old.keys.size else 0.0, 0.0)
+
+        n = pts.size
+        nodes = np.empty((n, 5), np.int64)
+        weights = np.empty((n, 5))
+        _point_weights(s.facets, s.vertices_per_facet, pts.slave, pts.facet, pts.xi, nodes, weights)
+        dU = U - self.U_committed
+        used = nodes >= 0
+        jump = np.einsum("pa,pad->pd", weights * used, dU[np.where(used, nodes, 0)])
+        area = nodal_areas(x, s.facets, s.vertices_per_facet)[pts.slave]
+
+        T1 = np.empty(n)
+        Tt = np.empty((n, 3))
+        alpha = np.empty(n)
+        smax = np.empty(n)
+        dT1 = np.empty(n)
+        dTt_dslip = np.empty((n, 3, 3))
+        dTt_dgap = np.empty((n, 3))
+        dissipation = np.empty(n)
+        if n:
+            evaluate_law(pts.gap, jump, pts.normal, alpha_n, smax_n, tt_n, *self.law.kernel_parameters(),
+                         T1, Tt, alpha, smax, dT1, dTt_dslip, dTt_dgap, dissipation)
+        scale = PASS_WEIGHT * area
+        self.points = pts
+        self.nodes, self.weights = nodes, weights
+        self.T1, self.Tt, self.area = T1, Tt, area
+        self.point_force = scale[:, None] * (T1[:, None] * pts.normal + Tt)  # N, on the slave
+        order = np.argsort(keys)
+        self.trial = ContactState(keys[order], alpha[order], smax[order], Tt[order],
+                                  (work_n + scale * dissipation)[order])
+        self._trial_dissipation = float(np.sum(scale * dissipation))
+        if tangent:
+            nrm = pts.normal
+            D = dT1[:, None, None] * nrm[:, :, None] * nrm[:, None, :] + dTt_dslip \
+                + dTt_dgap[:, :, None] * nrm[:, None, :]
+            nn = 1 + s.vertices_per_facet
+            size = n * 9 * nn * nn
+            rows = np.empty(size, PETSc.IntType)
+            cols = np.empty(size, PETSc.IntType)
+            vals = np.empty(size)
+            k = _coo_entries(nodes[:, :nn], weights[:, :nn], s.blocks, scale, D, rows, cols, vals) if n else 0
+            self._coo = (rows[:k], cols[:k], vals[:k])
+
+    def nodal_forces(self) -> tuple[np.ndarray, np.ndarray]:
+        """Global dof indices and values of the contact forces on the bodies (N)."""
+        nodes, weights = self.nodes, self.weights
+        used = nodes >= 0
+        f = weights[:, :, None] * self.point_force[:, None, :]  # (n, 5, 3)
+        dofs = self.surface.blocks[np.where(used, nodes, 0)][:, :, None] * 3 + np.arange(3)
+        return dofs[used].ravel().astype(PETSc.IntType), f[used].ravel()
+
+    def add_residual(self, r: PETSc.Vec) -> None:
+        """r -= contact forces (r is the assembled internal-force vector)."""
+        dofs, values = self.nodal_forces()
+        r.setValues(dofs, -values, addv=PETSc.InsertMode.ADD_VALUES)
+        r.assemblyBegin()
+        r.assemblyEnd()
+
+    def tangent_matrix(self, template: PETSc.Mat) -> PETSc.Mat:
+        """Contact tangent as a new AIJ matrix with the layout of ``template``."""
+        rows, cols, vals = self._coo
+        K = PETSc.Mat().create(comm=self.comm)
+        K.setSizes(template.getSizes())
+        K.setType(PETSc.Mat.Type.AIJ)
+        K.setPreallocationCOO(rows, cols)
+        K.setValuesCOO(vals, addv=PETSc.InsertMode.ADD_VALUES)
+        K.assemble()
+        return K
+
+    # -- history -------------------------------------------------------------------------------
+    def commit(self, u: dolfinx.fem.Function) -> None:
+        self.state = self.trial
+        self.U_committed = self.surface.gather(u)
+        self.frictional_work += self.comm.allreduce(self._trial_dissipation, op=MPI.SUM)
+
+    # -- results -------------------------------------------------------------------------------
+    def count(self, compressive_only: bool = False) -> int:
+        """Number of contact points carrying load (summed over ranks)."""
+        active = self.T1 > 0 if compressive_only else self.T1 != 0
+        return self.comm.allreduce(int(active.sum()), op=MPI.SUM)
+
+    def body_forces(self) -> np.ndarray:
+        """(num_bodies, num_bodies, 3): force (N) exerted by body j on body i, summed over ranks."""
+        nb = self.surface.num_bodies
+        out = np.zeros((nb, nb, 3))
+        if self.points is not None and self.points.size:
+            slave_body = self.surface.node_body[self.points.slave]
+            np.add.at(out, (slave_body, self.points.master_body), self.point_force)
+            np.add.at(out, (self.points.master_body, slave_body), -self.point_force)
+        return self.comm.allreduce(out, op=MPI.SUM)

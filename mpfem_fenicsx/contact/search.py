@@ -1,0 +1,313 @@
+"""Contact search: broad phase on body bounding boxes, narrow phase on surface facets.
+
+Broad phase: axis-aligned bounding boxes of every body's current surface, inflated by the search
+distance; candidate (slave body, master body, lattice shift) triples whose boxes overlap, found
+with a k-d tree on box centres. Periodic images enter as a shift added to the master surface
+(``shifts``: (m, 3) lattice vectors, the zero shift included).
+
+Narrow phase (numba, parallel over candidate pairs): every slave node inside the master's
+inflated box is projected onto the master facets whose inflated boxes contain it (closest-point
+projection, Gauss-Newton on the bilinear / linear facet map). Result per contact point: master
+facet, parametric coordinates, normal gap (mm, < 0 = overlap) and the master's outward unit
+normal at the projection. Both bodies of a pair are searched as slave in turn (two-pass,
+symmetric: no body is privileged); the forces of each pass are weighted by 1/2.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from scipy.spatial import cKDTree
+
+#: a master facet is a candidate only if n_master . n_slave < -FACING (opposing surfaces)
+FACING = 0.2
+
+
+@dataclass
+class ContactPoints:
+    """Contact points found by the narrow phase (arrays of equal length n)."""
+
+    slave: np.ndarray  # (n,) surface node of the slave body
+    master_body: np.ndarray  # (n,) body id of the master
+    facet: np.ndarray  # (n,) master facet
+    xi: np.ndarray  # (n, 2) parametric coordinates on the facet
+    gap: np.ndarray  # (n,) normal gap, mm (< 0: overlap)
+    normal: np.ndarray  # (n, 3) master outward unit normal
+    shift: np.ndarray  # (n, 3) lattice shift applied to the master (mm)
+
+    @property
+    def size(self) -> int:
+        return self.slave.size
+
+
+def body_boxes(x: np.ndarray, node_body: np.ndarray, num_bodies: int) -> np.ndarray:
+    """(num_bodies, 2, 3) min/max corners of every body's surface nodes."""
+    boxes = np.empty((num_bodies, 2, 3))
+    for d in range(3):  # 3 vectorized reductions, not a loop over nodes
+        boxes[:, 0, d] = np.full(num_bodies, np.inf)
+        boxes[:, 1, d] = np.full(num_bodies, -np.inf)
+        np.minimum.at(boxes[:, 0, d], node_body, x[:, d])
+        np.maximum.at(boxes[:, 1, d], node_body, x[:, d])
+    return boxes
+
+
+def candidate_pairs(boxes: np.ndarray, distance: float, shifts: np.ndarray | None = None,
+                    allowed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Ordered (slave, master) body pairs with overlapping inflated boxes, and the shift index.
+
+    Returns pairs (m, 2) and shift indices (m,). ``allowed`` (num_bodies, num_bodies) bool can
+    exclude pairs (e.g. a rigid base that never acts as slave).
+    """
+    if shifts is None:
+        shifts = np.zeros((1, 3))
+    lo = boxes[:, 0] - distance
+    hi = boxes[:, 1] + distance
+    centres = 0.5 * (lo + hi)
+    half = 0.5 * (hi - lo)
+    reach = 2.0 * np.linalg.norm(half, axis=1).max()
+    tree = cKDTree(centres)
+    out_pairs, out_shift = [], []
+    for k, shift in enumerate(shifts):  # a handful of lattice shifts (27 at most)
+        # image of master b sits at box(b) + shift: query the tree of slave boxes around it
+        hits = tree.query_ball_point(centres + shift, r=reach)
+        slave = np.concatenate([np.asarray(h, dtype=np.int64) for h in hits])
+        master = np.repeat(np.arange(len(hits)), [len(h) for h in hits])
+        overlap = np.all((lo[slave] <= hi[master] + shift) & (lo[master] + shift <= hi[slave]), axis=1)
+        keep = overlap & ((slave != master) | np.any(shift != 0.0))
+        if allowed is not None:
+            keep &= allowed[slave, master]
+        out_pairs.append(np.stack([slave[keep], master[keep]], axis=1))
+        out_shift.append(np.full(keep.sum(), k, dtype=np.int64))
+    return np.concatenate(out_pairs).astype(np.int64), np.concatenate(out_shift)
+
+
+@numba.njit(cache=True, inline="always")
+def _facet_point(x, f, nv, xi, eta, out_p, out_dxi, out_deta):
+    """Point and tangents of facet f (rows of x) at (xi, eta)."""
+    if nv == 4:
+        n0 = (1 - xi) * (1 - eta)
+        n1 = xi * (1 - eta)
+        n2 = (1 - xi) * eta
+        n3 = xi * eta
+        for d in range(3):
+            x0, x1, x2, x3 = x[f[0], d], x[f[1], d], x[f[2], d], x[f[3], d]
+            out_p[d] = n0 * x0 + n1 * x1 + n2 * x2 + n3 * x3
+            out_dxi[d] = (1 - eta) * (x1 - x0) + eta * (x3 - x2)
+            out_deta[d] = (1 - xi) * (x2 - x0) + xi * (x3 - x1)
+    else:
+        for d in range(3):
+            x0, x1, x2 = x[f[0], d], x[f[1], d], x[f[2], d]
+            out_p[d] = (1 - xi - eta) * x0 + xi * x1 + eta * x2
+            out_dxi[d] = x1 - x0
+            out_deta[d] = x2 - x0
+
+
+@numba.njit(cache=True)
+def _project(p, x, f, nv, res):
+    """Closest point of facet f to p. res = [xi, eta, gap, nx, ny, nz, distance, inside]."""
+    xi = 1.0 / 3.0 if nv == 3 else 0.5
+    eta = xi
+    q = np.empty(3)
+    a = np.empty(3)
+    b = np.empty(3)
+    inside = True
+    for _it in range(12):
+        _facet_point(x, f, nv, xi, eta, q, a, b)
+        r0 = 0.0
+        r1 = 0.0
+        h00 = 0.0
+        h01 = 0.0
+        h11 = 0.0
+        for d in range(3):
+            diff = q[d] - p[d]
+            r0 += a[d] * diff
+            r1 += b[d] * diff
+            h00 += a[d] * a[d]
+            h01 += a[d] * b[d]
+            h11 += b[d] * b[d]
+        det = h00 * h11 - h01 * h01
+        if det <= 0.0:
+            break
+        dxi = (h11 * r0 - h01 * r1) / det
+        deta = (h00 * r1 - h01 * r0) / det
+        xi -= dxi
+        eta -= deta
+        if abs(dxi) + abs(deta) < 1e-12:
+            break
+    tol = 1e-6
+    if nv == 4:
+        inside = (-tol <= xi <= 1 + tol) and (-tol <= eta <= 1 + tol)
+        xi = min(max(xi, 0.0), 1.0)
+        eta = min(max(eta, 0.0), 1.0)
+    else:
+        inside = xi >= -tol and eta >= -tol and xi + eta <= 1 + tol
+        xi = max(xi, 0.0)
+        eta = max(eta, 0.0)
+        s = xi + eta
+        if s > 1.0:
+            xi /= s
+            eta /= s
+    _facet_point(x, f, nv, xi, eta, q, a, b)
+    nx = a[1] * b[2] - a[2] * b[1]
+    ny = a[2] * b[0] - a[0] * b[2]
+    nz = a[0] * b[1] - a[1] * b[0]
+    norm = np.sqrt(nx * nx + ny * ny + nz * nz)
+    nx /= norm
+    ny /= norm
+    nz /= norm
+    gap = (p[0] - q[0]) * nx + (p[1] - q[1]) * ny + (p[2] - q[2]) * nz
+    dist = np.sqrt((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2)
+    res[0] = xi
+    res[1] = eta
+    res[2] = gap
+    res[3] = nx
+    res[4] = ny
+    res[5] = nz
+    res[6] = dist
+    res[7] = 1.0 if inside else 0.0
+
+
+@numba.njit(parallel=True, cache=True)
+def _narrow_phase(x, facets, nv, facet_box, facet_normal, node_normal, body_box, body_facet_ptr, body_facets, slave_ptr,
+                  slave_nodes, pairs, pair_shift, distance, offsets, out_slave, out_master, out_facet,
+                  out_xi, out_gap, out_normal, out_shift, out_valid):
+    npairs = pairs.shape[0]
+    for k in numba.prange(npairs):
+        sb = pairs[k, 0]
+        mb = pairs[k, 1]
+        sh = pair_shift[k]
+        res = np.empty(8)
+        p = np.empty(3)
+        best = np.empty(8)
+        pos = offsets[k]
+        for i in range(slave_ptr[sb], slave_ptr[sb + 1]):
+            s = slave_nodes[i]
+            out_valid[pos] = False
+            for d in range(3):  # slave point in the master's unshifted frame
+                p[d] = x[s, d] - sh[d]
+            outside = False
+            for d in range(3):
+                if p[d] < body_box[mb, 0, d] - distance or p[d] > body_box[mb, 1, d] + distance:
+                    outside = True
+            if not outside:
+                best_score = np.inf
+                found = False
+                for j in range(body_facet_ptr[mb], body_facet_ptr[mb + 1]):
+                    f = body_facets[j]
+                    skip = False
+                    for d in range(3):
+                        if p[d] < facet_box[f, 0, d] - distance or p[d] > facet_box[f, 1, d] + distance:
+                            skip = True
+                    if skip:
+                        continue
+                    # the master facet must face the slave surface (excludes, e.g., the side
+                    # faces of a box seen from the corner of a block resting on it)
+                    facing = 0.0
+                    for d in range(3):
+                        facing += facet_normal[f, d] * node_normal[s, d]
+                    if facing > -FACING:
+                        continue
+                    _project(p, x, facets[f], nv, res)
+                    # prefer projections inside a facet; among them the smallest distance
+                    score = res[6] + (0.0 if res[7] > 0.5 else 1e3 * distance + res[6])
+                    if score < best_score:
+                        best_score = score
+                        best[:] = res
+                        found = True
+                        out_facet[pos] = f
+                if found and -distance < best[2] < distance:
+                    out_valid[pos] = True
+                    out_slave[pos] = s
+                    out_master[pos] = mb
+                    out_xi[pos, 0] = best[0]
+                    out_xi[pos, 1] = best[1]
+                    out_gap[pos] = best[2]
+                    out_normal[pos, 0] = best[3]
+                    out_normal[pos, 1] = best[4]
+                    out_normal[pos, 2] = best[5]
+                    for d in range(3):
+                        out_shift[pos, d] = sh[d]
+            pos += 1
+
+
+def surface_normals(x: np.ndarray, facets: np.ndarray, nv: int) -> tuple[np.ndarray, np.ndarray]:
+    """Unit outward normals of the facets (at their centre) and of the nodes (area-weighted)."""
+    f = facets[:, :nv]
+    if nv == 4:
+        n = 0.5 * np.cross(x[f[:, 3]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 1]])
+    else:
+        n = 0.5 * np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])
+    # quads in lexicographic order: diagonal cross product (x3 - x0) x (x2 - x1) is outward
+    node = np.zeros((x.shape[0], 3))
+    for d in range(3):
+        node[:, d] = np.bincount(f.ravel(), weights=np.repeat(n[:, d], nv), minlength=x.shape[0])
+    facet_n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    norm = np.linalg.norm(node, axis=1, keepdims=True)
+    return facet_n, node / np.where(norm > 0, norm, 1.0)
+
+
+@numba.njit(cache=True)
+def _facet_boxes(x, facets, nv):
+    nf = facets.shape[0]
+    box = np.empty((nf, 2, 3))
+    for f in range(nf):
+        for d in range(3):
+            lo = np.inf
+            hi = -np.inf
+            for v in range(nv):
+                val = x[facets[f, v], d]
+                lo = min(lo, val)
+                hi = max(hi, val)
+            box[f, 0, d] = lo
+            box[f, 1, d] = hi
+    return box
+
+
+class ContactSearch:
+    """Search on a :class:`~mpfem_fenicsx.contact.surface.ContactSurface` (fixed topology)."""
+
+    def __init__(self, surface, distance: float, shifts: np.ndarray | None = None,
+                 allowed: np.ndarray | None = None):
+        if not distance > 0:
+            raise ValueError(f"contact search distance must be > 0 mm, got {distance}")
+        self.surface = surface
+        self.distance = float(distance)
+        self.shifts = np.zeros((1, 3)) if shifts is None else np.asarray(shifts, dtype=float)
+        self.allowed = allowed
+        nb = surface.num_bodies
+        order = np.argsort(surface.facet_body, kind="stable")
+        self.body_facets = order.astype(np.int64)
+        self.body_facet_ptr = np.searchsorted(surface.facet_body[order], np.arange(nb + 1)).astype(np.int64)
+        slaves = surface.owned_nodes
+        sbody = surface.node_body[slaves]
+        order = np.argsort(sbody, kind="stable")
+        self.slave_nodes = slaves[order].astype(np.int64)
+        self.slave_ptr = np.searchsorted(sbody[order], np.arange(nb + 1)).astype(np.int64)
+
+    def __call__(self, x: np.ndarray) -> ContactPoints:
+        """Contact points for current surface positions ``x`` (nS, 3)."""
+        s = self.surface
+        boxes = body_boxes(x, s.node_body, s.num_bodies)
+        pairs, shift_index = candidate_pairs(boxes, self.distance, self.shifts, self.allowed)
+        counts = self.slave_ptr[pairs[:, 0] + 1] - self.slave_ptr[pairs[:, 0]]
+        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        n = int(offsets[-1])
+        out_slave = np.zeros(n, np.int64)
+        out_master = np.zeros(n, np.int64)
+        out_facet = np.zeros(n, np.int64)
+        out_xi = np.zeros((n, 2))
+        out_gap = np.zeros(n)
+        out_normal = np.zeros((n, 3))
+        out_shift = np.zeros((n, 3))
+        valid = np.zeros(n, np.bool_)
+        if n:
+            facet_box = _facet_boxes(x, s.facets, s.vertices_per_facet)
+            facet_normal, node_normal = surface_normals(x, s.facets, s.vertices_per_facet)
+            _narrow_phase(x, s.facets, s.vertices_per_facet, facet_box, facet_normal, node_normal, boxes, self.body_facet_ptr,
+                          self.body_facets, self.slave_ptr, self.slave_nodes, pairs,
+                          self.shifts[shift_index], self.distance, offsets, out_slave, out_master,
+                          out_facet, out_xi, out_gap, out_normal, out_shift, valid)
+        return ContactPoints(out_slave[valid], out_master[valid], out_facet[valid], out_xi[valid],
+                             out_gap[valid], out_normal[valid], out_shift[valid])
