@@ -27,7 +27,7 @@ from petsc4py import PETSc
 import dolfinx
 
 from .laws import ContactLaw, evaluate_law
-from .search import ContactPoints, ContactSearch
+from .search import FACING, ContactPoints, ContactSearch, facet_areas, surface_normals
 from .surface import ContactSurface
 
 PASS_WEIGHT = 0.5  # two-pass symmetric treatment
@@ -87,14 +87,22 @@ def _coo_entries(nodes, weights, blocks, scale, D, rows, cols, vals):
     return k
 
 
-def nodal_areas(x: np.ndarray, facets: np.ndarray, nv: int) -> np.ndarray:
-    """Tributary area (mm^2) of every surface node in configuration x."""
-    f = facets[:, :nv]
-    if nv == 4:
-        area = 0.5 * np.linalg.norm(np.cross(x[f[:, 3]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 1]]), axis=1)
-    else:
-        area = 0.5 * np.linalg.norm(np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]]), axis=1)
-    return np.bincount(f.ravel(), weights=np.repeat(area / nv, nv), minlength=x.shape[0])
+@numba.njit(cache=True)
+def _contact_areas(slave, master_normal, node_facet_ptr, node_facets, facet_area, facet_normal, nv, out):
+    """Tributary area of each contact point's slave node, counting only the slave facets that
+    face the master (n_slave_facet . n_master < -FACING): a node on an edge of a block gets the
+    share of its contact face only, not of the side faces."""
+    for p in range(slave.size):
+        s = slave[p]
+        acc = 0.0
+        for j in range(node_facet_ptr[s], node_facet_ptr[s + 1]):
+            f = node_facets[j]
+            dot = 0.0
+            for d in range(3):
+                dot += facet_normal[f, d] * master_normal[p, d]
+            if dot < -FACING:
+                acc += facet_area[f] / nv
+        out[p] = acc
 
 
 @dataclass
@@ -129,6 +137,11 @@ class ContactModel:
         self.trial = ContactState.empty()
         self.U_committed = np.zeros((self.surface.num_nodes, 3))
         self.points: ContactPoints | None = None
+        nv = self.surface.vertices_per_facet
+        f = self.surface.facets[:, :nv].ravel()
+        order = np.argsort(f, kind="stable")
+        self._node_facets = (order // nv).astype(np.int64)
+        self._node_facet_ptr = np.searchsorted(f[order], np.arange(self.surface.num_nodes + 1)).astype(np.int64)
         self.frictional_work = 0.0  # committed, summed over ranks, mJ
         self._V = V
 
@@ -166,7 +179,12 @@ class ContactModel:
         dU = U - self.U_committed
         used = nodes >= 0
         jump = np.einsum("pa,pad->pd", weights * used, dU[np.where(used, nodes, 0)])
-        area = nodal_areas(x, s.facets, s.vertices_per_facet)[pts.slave]
+        facet_normal, _ = surface_normals(x, s.facets, s.vertices_per_facet)
+        area = np.empty(n)
+        if n:
+            _contact_areas(pts.slave, pts.normal, self._node_facet_ptr, self._node_facets,
+                           facet_areas(x, s.facets, s.vertices_per_facet), facet_normal,
+                           s.vertices_per_facet, area)
 
         T1 = np.empty(n)
         Tt = np.empty((n, 3))

@@ -232,14 +232,24 @@ def _narrow_phase(x, facets, nv, facet_box, facet_normal, node_normal, body_box,
             pos += 1
 
 
+def _area_vectors(x: np.ndarray, facets: np.ndarray, nv: int) -> np.ndarray:
+    """Outward area vectors of the facets (mm^2): 1/2 d1 x d2 with the diagonals of a quad
+    (lexicographic order: (x3 - x0) x (x2 - x1)), exact for planar facets."""
+    f = facets[:, :nv]
+    if nv == 4:
+        return 0.5 * np.cross(x[f[:, 3]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 1]])
+    return 0.5 * np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])
+
+
+def facet_areas(x: np.ndarray, facets: np.ndarray, nv: int) -> np.ndarray:
+    """Facet areas (mm^2) in configuration x."""
+    return np.linalg.norm(_area_vectors(x, facets, nv), axis=1)
+
+
 def surface_normals(x: np.ndarray, facets: np.ndarray, nv: int) -> tuple[np.ndarray, np.ndarray]:
     """Unit outward normals of the facets (at their centre) and of the nodes (area-weighted)."""
     f = facets[:, :nv]
-    if nv == 4:
-        n = 0.5 * np.cross(x[f[:, 3]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 1]])
-    else:
-        n = 0.5 * np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])
-    # quads in lexicographic order: diagonal cross product (x3 - x0) x (x2 - x1) is outward
+    n = _area_vectors(x, facets, nv)
     node = np.zeros((x.shape[0], 3))
     for d in range(3):
         node[:, d] = np.bincount(f.ravel(), weights=np.repeat(n[:, d], nv), minlength=x.shape[0])

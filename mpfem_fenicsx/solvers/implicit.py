@@ -75,6 +75,8 @@ class ImplicitSolver:
         self.iterations_total = 0
         self.timings = {"material": 0.0, "residual": 0.0, "contact": 0.0, "jacobian": 0.0, "reduce": 0.0}
 
+        # start from the current state of the problem (a new solver continues a load path)
+        self.constraint.reduce_values(problem.u, self.x)
         self.bcs.apply(0.0)
         self._residual(None, self.x, self.r_red)
         self._assemble_tangent()
