@@ -115,7 +115,7 @@ def box_bodies_mesh(boxes, comm: MPI.Comm = MPI.COMM_WORLD) -> BodyAssembly:
 
 def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type: str = "hexahedron",
                   divisions: int = 4, layers: int = 4, refinement: int = 1,
-                  tet_order: int = 1, tet_size: float = 0.25) -> ParticleAssembly:
+                  tet_order: int = 1, tet_size: float = 0.25, tet_refine: list | None = None) -> ParticleAssembly:
     """Mesh the spheres ``(centres[i], radii[i])`` (mm) as one DOLFINx mesh on ``comm``.
 
     Args:
@@ -123,6 +123,7 @@ def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type:
         divisions, layers, refinement: cube-sphere resolution (see :func:`unit_ball_hex`).
         tet_order: geometric/field order of the gmsh tetrahedra (1 or 2).
         tet_size: gmsh target element size relative to the radius.
+        tet_refine: local gmsh refinement, see :func:`meshes.tetra.gmsh_spheres`.
     """
     centres, radii = _check_particles(centres, radii)
     if cell_type == "hexahedron":
@@ -142,7 +143,7 @@ def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type:
     if cell_type == "tetrahedron":
         from .tetra import gmsh_spheres
 
-        return gmsh_spheres(centres, radii, comm, order=tet_order, size=tet_size)
+        return gmsh_spheres(centres, radii, comm, order=tet_order, size=tet_size, refine=tet_refine)
     raise ValueError(f"cell_type must be 'hexahedron' or 'tetrahedron', got {cell_type!r}")
 
 

@@ -132,6 +132,10 @@ class ImplicitSolver:
             self.J_red.zeroEntries()
             self.J_red.axpy(1.0, reduced, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
             reduced.destroy()
+            # the merged matrix may carry a nonzero state the factorization mistakes for the old
+            # pattern: drop the factorization so that the next solve redoes the analysis
+            if hasattr(self, "snes"):
+                self.snes.getKSP().getPC().reset()
         self.timings["jacobian"] += t1 - t0
         self.timings["reduce"] += time.perf_counter() - t1
 

@@ -1,0 +1,98 @@
+"""Hertz contact of two identical elastic spheres (SPEC §9 case 2), frictionless.
+
+Spheres of radius r centred at (0, 0, -r) and (0, 0, r), touching at the origin; P1 tetrahedra
+from gmsh, refined around the contact point. Each sphere is driven by a small rigid core (the
+nodes within ``core`` r of its centre) moving by -/+ delta/2 along z, so delta is the approach of
+the centres. Reference: F = 4/3 E* sqrt(R) delta^(3/2), E* = E / (2 (1 - nu^2)), R = r / 2.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from ..contact import ContactLaw, ContactModel
+from ..io import History
+from ..loading import PrescribedDisplacements, component_dofs
+from ..material import ElastoPlastic
+from ..meshes import particle_mesh
+from ..problem import SolidProblem
+from ..solvers import ImplicitSolver, StepControl
+
+
+@dataclass(frozen=True)
+class HertzCase:
+    E: float = 200000.0  # MPa
+    nu: float = 0.3
+    radius: float = 1.0  # mm
+    delta_max_over_r: float = 0.005
+    steps: int = 10
+    size_min: float = 0.005  # element size at the contact (relative to r)
+    refine_radius: float = 0.06  # size_min within this distance of the contact point (relative)
+    size: float = 0.3  # element size away from the contact (relative)
+    core: float = 0.1  # rigid driving core radius (relative)
+    penalty: float = 1e9  # N/mm^3
+
+    def hertz_force(self, delta):
+        e_star = self.E / (2.0 * (1.0 - self.nu ** 2))
+        return 4.0 / 3.0 * e_star * np.sqrt(self.radius / 2.0) * np.asarray(delta) ** 1.5
+
+
+@dataclass
+class HertzResult:
+    history: History
+    num_dofs: int
+    wall_time: float
+    newton_iterations: list
+
+
+def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hertz",
+              comm: MPI.Comm = MPI.COMM_WORLD, petsc_options: dict | None = None, log=print) -> HertzResult:
+    r = case.radius
+    with warnings.catch_warnings():  # P1 tetrahedra: fine for this elastic, compressible case
+        warnings.simplefilter("ignore")
+        assembly = particle_mesh([[0, 0, -r], [0, 0, r]], [r, r], comm, cell_type="tetrahedron", tet_order=1,
+                                 tet_size=case.size,
+                                 tet_refine=[((0.0, 0.0, 0.0), case.size_min * r, case.refine_radius * r, 0.8 * r),
+                                             # enough nodes in the driving cores to hold them rigidly
+                                             ((0.0, 0.0, -r), 0.3 * case.core * r, case.core * r, 0.5 * r),
+                                             ((0.0, 0.0, r), 0.3 * case.core * r, case.core * r, 0.5 * r)])
+        material = ElastoPlastic(E=case.E, nu=case.nu, sigma_0=1e12, hardening="linear", K=0.0, H=0.0)
+        problem = SolidProblem(assembly.mesh, material)
+    V = problem.V
+    law = ContactLaw(penalty=case.penalty, friction=0.0, gamma=0.0)
+    contact = ContactModel(V, assembly.facet_tags, 2, law, search_distance=0.05 * r)
+    delta_end = case.delta_max_over_r * r
+
+    def core(sign):
+        return lambda x: (x[0] ** 2 + x[1] ** 2 + (x[2] - sign * r) ** 2) <= (case.core * r) ** 2
+
+    bcs = PrescribedDisplacements(V)
+    for sign in (-1.0, 1.0):
+        for c in (0, 1):
+            bcs.add(component_dofs(V, core(sign), c))
+    lower = component_dofs(V, core(-1.0), 2)
+    upper = component_dofs(V, core(1.0), 2)
+    bcs.add(lower, lambda t: 0.5 * delta_end * t).add(upper, lambda t: -0.5 * delta_end * t)
+    history = History(Path(out_dir) / "force.csv", ["delta_mm", "force_N", "force_hertz_N"], comm)
+    iterations = []
+
+    def record(s):
+        delta = delta_end * s.t
+        force = -s.reactions(upper)  # the upper core pushes down: compressive force > 0
+        history.append(delta_mm=delta, force_N=force, force_hertz_N=float(case.hertz_force(delta)))
+        iterations.append(s.snes.getIterationNumber())
+        log(f"  delta/r = {delta / r:.5f}: F = {force:.4f} N, Hertz {case.hertz_force(delta):.4f} N, "
+            f"{contact.count(True)} contact points, {iterations[-1]} Newton iterations")
+
+    start = time.perf_counter()
+    solver = ImplicitSolver(problem, bcs, contact=contact, petsc_options=petsc_options)
+    dt = 1.0 / case.steps
+    solver.run(StepControl(t_end=1.0, dt=dt, dt_max=dt, dt_min=dt / 64), on_step=record, log=log)
+    history.write()
+    return HertzResult(history, V.dofmap.index_map.size_global * 3, time.perf_counter() - start, iterations)
