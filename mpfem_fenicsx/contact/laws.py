@@ -70,101 +70,128 @@ class ContactLaw:
         return (self.penalty, kt, self.friction, self.sigma_c, self.delta_max, self.p0, forced)
 
 
+def default_penalty(E: float, length: float, factor: float = 10.0) -> float:
+    """Penalty from element stiffness: k = factor * E / h (N/mm^3), h = contact element size (mm).
+
+    With factor 10 the penalty overlap stays ~1 % of the elastic approach of the surfaces (the
+    Hertz case reaches the analytic force within 5 %), while Newton keeps converging; the thesis'
+    1e9 N/mm^3 suits its coarse Abaqus meshes and explicit dynamics.
+    """
+    if not (E > 0 and length > 0 and factor > 0):
+        raise ValueError(f"default_penalty needs E, length, factor > 0, got {E}, {length}, {factor}")
+    return factor * E / length
+
+
+@numba.njit(cache=True)
+def law_point(d, sx, sy, sz, nx, ny, nz, alpha_n, smax_n, tpx, tpy, tpz, k, kt, mu, sigma_c, delta_max,
+              p0, alpha_forced, branch, out):
+    """Contact law at one point (module docstring).
+
+    Inputs: gap d (mm); slip increment (sx, sy, sz) (mm); unit normal (nx, ny, nz); history
+    alpha_n, smax_n (MPa) and previous tangential traction (tpx, tpy, tpz) (MPa); ``branch``:
+    -1 to select the branches from the state, or the code returned in out[8] to stay on given
+    branches (used to differentiate across the kinks of the law for the tangent).
+    out = [T1, Ttx, Tty, Ttz, alpha, smax, dT1/d gap, dissipation per area, branch code].
+    Branch code = 4 * tangential (0 none, 1 stick, 2 slip) + normal (0 overlap, 1 adhesive
+    loading line, 2 softening, 3 separated).
+    """
+    sm = smax_n
+    a_mem = sm / (p0 + sm) if sm > 0.0 else 0.0
+    a_eff = alpha_forced if alpha_forced >= 0.0 else a_mem
+    peak = a_eff * sigma_c
+    d1 = peak / k
+    if branch < 0:
+        if d < 0.0:
+            nb = 0
+        elif d < delta_max:
+            nb = 1 if d <= d1 else 2
+        else:
+            nb = 3
+    else:
+        nb = branch % 4
+    if nb == 0:
+        t1 = -k * d
+        dt1 = -k
+        if t1 > sm:
+            sm = t1
+    elif nb == 1:
+        t1 = -k * d
+        dt1 = -k
+    elif nb == 2:
+        t1 = -peak * (delta_max - d) / (delta_max - d1)
+        dt1 = peak / (delta_max - d1)
+    else:
+        t1 = 0.0
+        dt1 = 0.0
+        sm = 0.0  # memory erased beyond delta_max
+    if alpha_forced >= 0.0:
+        a = alpha_forced
+    else:
+        a = sm / (p0 + sm) if sm > 0.0 else 0.0
+    out[0] = t1
+    out[4] = a
+    out[5] = sm
+    out[6] = dt1
+    out[7] = 0.0
+    # previous tangential traction rotated into the current tangent plane; tangential slip
+    dot = tpx * nx + tpy * ny + tpz * nz
+    tpx -= dot * nx
+    tpy -= dot * ny
+    tpz -= dot * nz
+    dot = sx * nx + sy * ny + sz * nz
+    sx -= dot * nx
+    sy -= dot * ny
+    sz -= dot * nz
+    tb = 0
+    if branch < 0:
+        if t1 > 0.0 and mu > 0.0:
+            trx = tpx - kt * sx
+            try_ = tpy - kt * sy
+            trz = tpz - kt * sz
+            tb = 1 if np.sqrt(trx * trx + try_ * try_ + trz * trz) <= mu * t1 else 2
+    else:
+        tb = branch // 4
+    out[8] = 4 * tb + nb
+    if tb == 0:
+        out[1] = 0.0
+        out[2] = 0.0
+        out[3] = 0.0
+        return
+    trx = tpx - kt * sx
+    try_ = tpy - kt * sy
+    trz = tpz - kt * sz
+    if tb == 1:
+        out[1] = trx
+        out[2] = try_
+        out[3] = trz
+        return
+    norm = np.sqrt(trx * trx + try_ * try_ + trz * trz)
+    limit = mu * t1
+    out[1] = limit * trx / norm
+    out[2] = limit * try_ / norm
+    out[3] = limit * trz / norm
+    # slip part of the increment and its dissipation
+    e0 = sx + (out[1] - tpx) / kt
+    e1 = sy + (out[2] - tpy) / kt
+    e2 = sz + (out[3] - tpz) / kt
+    out[7] = -(out[1] * e0 + out[2] * e1 + out[3] * e2)
+
+
 @numba.njit(parallel=True, cache=True)
 def evaluate_law(gap, slip, normal, alpha_n, smax_n, tt_n, k, kt, mu, sigma_c, delta_max, p0,
-                 alpha_forced, T1, Tt, alpha, smax, dT1, dTt_dslip, dTt_dgap, dissipation):
-    """Tractions, updated history and consistent tangents at every contact point.
-
-    Inputs: gap (n,), slip (n, 3) tangential relative displacement increment of the slave
-    (mm), normal (n, 3), history alpha_n, smax_n (MPa), tt_n (n, 3) (MPa).
-    Outputs: T1, Tt (n, 3), alpha, smax; dT1 = dT1/d gap (MPa/mm); dTt_dslip (n, 3, 3) and
-    dTt_dgap (n, 3) derivatives of Tt; dissipation (n,) frictional work per area (mJ/mm^2).
-    """
+                 alpha_forced, T1, Tt, alpha, smax, dissipation, branch):
+    """Tractions, updated history and branch codes at every contact point (:func:`law_point`)."""
     n = gap.shape[0]
     for i in numba.prange(n):
-        d = gap[i]
-        a = alpha_n[i]
-        sm = smax_n[i]
-        if d < 0.0:
-            t1 = -k * d
-            dt1 = -k
-            if t1 > sm:
-                sm = t1
-        elif d < delta_max:
-            if alpha_forced >= 0.0:
-                a_eff = alpha_forced
-            else:
-                a_eff = sm / (p0 + sm) if sm > 0.0 else 0.0
-            peak = a_eff * sigma_c
-            d1 = peak / k
-            if d <= d1:
-                t1 = -k * d
-                dt1 = -k
-            else:
-                t1 = -peak * (delta_max - d) / (delta_max - d1)
-                dt1 = peak / (delta_max - d1)
-        else:
-            t1 = 0.0
-            dt1 = 0.0
-            sm = 0.0  # memory erased beyond delta_max
-        if alpha_forced >= 0.0:
-            a = alpha_forced
-        else:
-            a = sm / (p0 + sm) if sm > 0.0 else 0.0
-        T1[i] = t1
-        dT1[i] = dt1
-        alpha[i] = a
-        smax[i] = sm
-
-        # tangential: previous traction rotated into the current tangent plane
-        nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
-        tp0, tp1, tp2 = tt_n[i, 0], tt_n[i, 1], tt_n[i, 2]
-        dot = tp0 * nx + tp1 * ny + tp2 * nz
-        tp0 -= dot * nx
-        tp1 -= dot * ny
-        tp2 -= dot * nz
-        s0, s1, s2 = slip[i, 0], slip[i, 1], slip[i, 2]
-        dot = s0 * nx + s1 * ny + s2 * nz
-        s0 -= dot * nx
-        s1 -= dot * ny
-        s2 -= dot * nz
-        for p in range(3):
-            dTt_dgap[i, p] = 0.0
-            for q in range(3):
-                dTt_dslip[i, p, q] = 0.0
-        dissipation[i] = 0.0
-        if t1 <= 0.0 or mu == 0.0:
-            Tt[i, 0] = 0.0
-            Tt[i, 1] = 0.0
-            Tt[i, 2] = 0.0
-            continue
-        tr0 = tp0 - kt * s0
-        tr1 = tp1 - kt * s1
-        tr2 = tp2 - kt * s2
-        norm = np.sqrt(tr0 * tr0 + tr1 * tr1 + tr2 * tr2)
-        limit = mu * t1
-        nv = (nx, ny, nz)
-        if norm <= limit:
-            Tt[i, 0] = tr0
-            Tt[i, 1] = tr1
-            Tt[i, 2] = tr2
-            for p in range(3):
-                for q in range(3):
-                    dTt_dslip[i, p, q] = -kt * ((1.0 if p == q else 0.0) - nv[p] * nv[q])
-        else:
-            t0, t1v, t2 = tr0 / norm, tr1 / norm, tr2 / norm
-            tv = (t0, t1v, t2)
-            Tt[i, 0] = limit * t0
-            Tt[i, 1] = limit * t1v
-            Tt[i, 2] = limit * t2
-            ratio = limit / norm
-            for p in range(3):
-                dTt_dgap[i, p] = mu * dt1 * tv[p]
-                for q in range(3):
-                    dTt_dslip[i, p, q] = -kt * ratio * ((1.0 if p == q else 0.0) - nv[p] * nv[q]
-                                                         - tv[p] * tv[q])
-            # slip part of the increment and its dissipation
-            e0 = s0 + (Tt[i, 0] - tp0) / kt
-            e1 = s1 + (Tt[i, 1] - tp1) / kt
-            e2 = s2 + (Tt[i, 2] - tp2) / kt
-            dissipation[i] = -(Tt[i, 0] * e0 + Tt[i, 1] * e1 + Tt[i, 2] * e2)
+        out = np.empty(9)
+        law_point(gap[i], slip[i, 0], slip[i, 1], slip[i, 2], normal[i, 0], normal[i, 1], normal[i, 2],
+                  alpha_n[i], smax_n[i], tt_n[i, 0], tt_n[i, 1], tt_n[i, 2], k, kt, mu, sigma_c,
+                  delta_max, p0, alpha_forced, -1, out)
+        branch[i] = int(out[8])
+        T1[i] = out[0]
+        Tt[i, 0] = out[1]
+        Tt[i, 1] = out[2]
+        Tt[i, 2] = out[3]
+        alpha[i] = out[4]
+        smax[i] = out[5]
+        dissipation[i] = out[7]

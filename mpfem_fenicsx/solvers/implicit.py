@@ -71,6 +71,7 @@ class ImplicitSolver:
         self.r_full = problem.create_vector()
         self.K = problem.create_matrix()
         self.K_total = self.K  # bulk + contact tangent (a separate matrix once contact is on)
+        self._J_contact = None  # P^T K_total P with the current contact pattern
         self.t = 0.0
         self.iterations_total = 0
         self.timings = {"material": 0.0, "residual": 0.0, "contact": 0.0, "jacobian": 0.0, "reduce": 0.0}
@@ -109,29 +110,45 @@ class ImplicitSolver:
         self.timings["residual"] += t2 - t1
         self.timings["contact"] += t3 - t2
 
-    def _assemble_tangent(self) -> None:
+    def _assemble_tangent(self) -> bool:
+        """Assemble K (and K_total = K + K_contact); True when the sparsity pattern changed."""
         self.problem.assemble_jacobian(self.K)
-        if self.contact is not None:
-            K_c = self.contact.tangent_matrix(self.K)
-            if self.K_total is self.K:
-                self.K_total = self.K.duplicate(copy=True)
-            else:
-                self.K_total.zeroEntries()
-                self.K_total.axpy(1.0, self.K, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        if self.contact is None:
+            return False
+        K_c = self.contact.tangent_matrix(self.K)
+        rows, cols, _ = self.contact._coo
+        key = (rows.size, hash(rows.tobytes()), hash(cols.tobytes()))
+        changed = key != getattr(self, "_contact_pattern", None)
+        self._contact_pattern = key
+        if self.K_total is self.K or changed:
+            if self.K_total is not self.K:
+                self.K_total.destroy()
+            self.K_total = self.K.duplicate(copy=True)
             self.K_total.axpy(1.0, K_c, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-            K_c.destroy()
+        else:  # same contact couplings as the last time: refill in place
+            self.K_total.zeroEntries()
+            self.K_total.axpy(1.0, self.K, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+            self.K_total.axpy(1.0, K_c, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        K_c.destroy()
+        return changed
 
     def _jacobian(self, snes, x, J, P) -> None:
         t0 = time.perf_counter()
-        self._assemble_tangent()
+        changed = self._assemble_tangent()
         t1 = time.perf_counter()
         if self.contact is None:
             self.constraint.reduce_matrix(self.K, self.J_red)
-        else:  # the contact couplings change the pattern: merge it into J_red
-            reduced = self.constraint.reduce_matrix(self.K_total)
+        elif not changed and self._J_contact is not None:
+            # same pattern: P^T K P reuses its symbolic product; J_red's pattern contains it
+            self.constraint.reduce_matrix(self.K_total, self._J_contact)
             self.J_red.zeroEntries()
-            self.J_red.axpy(1.0, reduced, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-            reduced.destroy()
+            self.J_red.axpy(1.0, self._J_contact, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        else:  # the contact couplings changed the pattern: rebuild J_red's pattern
+            if self._J_contact is not None:
+                self._J_contact.destroy()
+            self._J_contact = self.constraint.reduce_matrix(self.K_total)
+            self.J_red.zeroEntries()
+            self.J_red.axpy(1.0, self._J_contact, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
             # the merged matrix may carry a nonzero state the factorization mistakes for the old
             # pattern: drop the factorization so that the next solve redoes the analysis
             if hasattr(self, "snes"):

@@ -17,6 +17,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..contact import ContactLaw, ContactModel
+from ..contact.laws import default_penalty
 from ..io import History
 from ..loading import PrescribedDisplacements, component_dofs
 from ..material import ElastoPlastic
@@ -36,7 +37,7 @@ class HertzCase:
     refine_radius: float = 0.06  # size_min within this distance of the contact point (relative)
     size: float = 0.3  # element size away from the contact (relative)
     core: float = 0.1  # rigid driving core radius (relative)
-    penalty: float = 1e9  # N/mm^3
+    penalty_factor: float = 10.0  # k = factor * E / (size_min r), see contact.laws.default_penalty
 
     def hertz_force(self, delta):
         e_star = self.E / (2.0 * (1.0 - self.nu ** 2))
@@ -65,7 +66,8 @@ def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hert
         material = ElastoPlastic(E=case.E, nu=case.nu, sigma_0=1e12, hardening="linear", K=0.0, H=0.0)
         problem = SolidProblem(assembly.mesh, material)
     V = problem.V
-    law = ContactLaw(penalty=case.penalty, friction=0.0, gamma=0.0)
+    penalty = default_penalty(case.E, case.size_min * r, case.penalty_factor)
+    law = ContactLaw(penalty=penalty, friction=0.0, gamma=0.0)
     contact = ContactModel(V, assembly.facet_tags, 2, law, search_distance=0.05 * r)
     delta_end = case.delta_max_over_r * r
 
@@ -87,9 +89,11 @@ def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hert
         force = -s.reactions(upper)  # the upper core pushes down: compressive force > 0
         history.append(delta_mm=delta, force_N=force, force_hertz_N=float(case.hertz_force(delta)))
         iterations.append(s.snes.getIterationNumber())
-        log(f"  delta/r = {delta / r:.5f}: F = {force:.4f} N, Hertz {case.hertz_force(delta):.4f} N, "
-            f"{contact.count(True)} contact points, {iterations[-1]} Newton iterations")
+        log(f"  delta/r = {delta / r:.5f}: F = {force:.4f} N, Hertz {case.hertz_force(delta):.4f} N "
+            f"({100 * (force / case.hertz_force(delta) - 1):+.2f} %), {contact.count(True)} contact points, "
+            f"{iterations[-1]} Newton iterations")
 
+    log(f"Hertz: {V.dofmap.index_map.size_global * 3} dofs, penalty {penalty:.3g} N/mm^3")
     start = time.perf_counter()
     solver = ImplicitSolver(problem, bcs, contact=contact, petsc_options=petsc_options)
     dt = 1.0 / case.steps
