@@ -115,7 +115,8 @@ def box_bodies_mesh(boxes, comm: MPI.Comm = MPI.COMM_WORLD) -> BodyAssembly:
 
 def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type: str = "hexahedron",
                   divisions: int = 4, layers: int = 4, refinement: int = 1,
-                  tet_order: int = 1, tet_size: float = 0.25, tet_refine: list | None = None) -> ParticleAssembly:
+                  tet_order: int = 1, tet_size: float = 0.25, tet_refine: list | None = None,
+                  rotations: np.ndarray | None = None) -> ParticleAssembly:
     """Mesh the spheres ``(centres[i], radii[i])`` (mm) as one DOLFINx mesh on ``comm``.
 
     Args:
@@ -124,13 +125,21 @@ def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type:
         tet_order: geometric/field order of the gmsh tetrahedra (1 or 2).
         tet_size: gmsh target element size relative to the radius.
         tet_refine: local gmsh refinement, see :func:`meshes.tetra.gmsh_spheres`.
+        rotations: optional (N, 3, 3) rotation of each hexahedral particle mesh about its centre
+            (random orientations avoid aligned, node-on-node contacts between particles).
     """
     centres, radii = _check_particles(centres, radii)
     if cell_type == "hexahedron":
         ball = unit_ball_hex(divisions, layers, refinement)
         n_nodes, n_cells = ball.num_nodes, ball.num_cells
         if comm.rank == 0:
-            x = (centres[:, None, :] + radii[:, None, None] * ball.points[None]).reshape(-1, 3)
+            unit = np.broadcast_to(ball.points, (radii.size,) + ball.points.shape)
+            if rotations is not None:
+                rotations = np.asarray(rotations, dtype=float)
+                if rotations.shape != (radii.size, 3, 3):
+                    raise ValueError(f"rotations must have shape ({radii.size}, 3, 3), got {rotations.shape}")
+                unit = np.einsum("pij,nj->pni", rotations, ball.points)
+            x = (centres[:, None, :] + radii[:, None, None] * unit).reshape(-1, 3)
             cells = (ball.cells[None] + n_nodes * np.arange(radii.size)[:, None, None]).reshape(-1, 8)
         else:
             x = np.zeros((0, 3))

@@ -86,6 +86,8 @@ class SolidProblem:
         v = ufl.TestFunction(self.V)
         du = ufl.TrialFunction(self.V)
         bulk = dolfinx.fem.Constant(mesh, float(material.bulk))
+        J = ufl.det(forms.deformation_gradient(self.u))
+        self._volumetric_energy = dolfinx.fem.form(0.5 * bulk * ufl.ln(J) ** 2 * self.dx_vol)
         #: residual / Jacobian parts (deviatoric, volumetric), assembled one after the other
         self.residual_ufl = forms.internal_work(self.u, v, self.P_dev, bulk, self.dx_dev, self.dx_vol)
         self.residual_forms = [dolfinx.fem.form(f) for f in self.residual_ufl]
@@ -138,8 +140,11 @@ class SolidProblem:
         return self.integrate_points(self.material.dissipation)
 
     def stored_energy(self) -> float:
-        """Hencky elastic energy of the current trial state, mJ."""
-        return self.integrate_points(self.material.psi)
+        """Hencky elastic energy of the current trial state, mJ: deviatoric part at the
+        quadrature points + volumetric part 1/2 K ln(J)^2 with the volumetric (SRI) rule, i.e.
+        the energy whose derivative is the internal force actually assembled."""
+        volumetric = self.comm.allreduce(dolfinx.fem.assemble_scalar(self._volumetric_energy), op=MPI.SUM)
+        return self.integrate_points(self.material.psi) + volumetric
 
     def lumped_mass(self, density: float) -> dolfinx.fem.Function:
         """Row-sum lumped mass per dof (t) as a Function (ghosts updated)."""

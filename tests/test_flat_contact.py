@@ -41,3 +41,22 @@ def test_friction_slip_onset_and_dissipation(checks):
     assert c["tau_plateau_MPa"] == pytest.approx(c["tau_c_MPa"], rel=0.01)
     assert c["u3c_from_stick_slope_mm"] == pytest.approx(c["u3c_expected_mm"], rel=0.02)
     assert c["W_f_mJ_per_mm2"] == pytest.approx(c["W_f_expected_mJ_per_mm2"], rel=0.02)
+
+
+def test_explicit_contact_reaches_the_same_state(tmp_path):
+    """Explicit central differences with the same contact model: slow smooth-step compression
+    to T1 = 3 sigma_y gives the implicit end state, and the energy balance closes with the
+    contact work equal to the penalty energy 1/2 T1^2 / k per unit area."""
+    from mpfem_fenicsx.workflows.flat_contact import run_normal_explicit
+
+    case = FlatContactCase()
+    history, energies = run_normal_explicit(case, tmp_path, MPI.COMM_SELF, steps=2000)
+    gap, T1, alpha = history.array()[-1, 1:]
+    assert T1 == pytest.approx(3 * case.sigma_y, rel=1e-3)
+    assert alpha == pytest.approx(0.5, rel=1e-3)
+    assert gap == pytest.approx(-T1 / case.penalty, rel=1e-3)
+    e = energies
+    assert e.balance_error() < 1e-6 * e.external
+    assert e.contact == pytest.approx(0.5 * T1 ** 2 / case.penalty * 1.0, rel=1e-2)
+    assert e.internal == pytest.approx(e.elastic, rel=1e-3)
+    assert e.kinetic < 1e-6 * e.external

@@ -233,7 +233,7 @@ def _update_point(qp, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law
     dev2 = 0.0
     for A in range(3):
         dev2 += (eps_e[A] - tr_e / 3.0) ** 2
-    psi[qp] = mu * dev2 + 0.5 * bulk * vol * vol
+    psi[qp] = mu * dev2  # deviatoric part only: the volumetric energy follows the volumetric rule
 
     # P_dev = dev(tau) F^-T
     for i in range(3):
@@ -309,7 +309,9 @@ def return_mapping(F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law, w
     Outputs: P_dev (nq, 3, 3) deviatoric first Piola (MPa); A_dev (nq, 3, 3, 3, 3) its tangent
              dP_dev/dF (only if want_tangent); cp_inv_new, eps_p_new trial state; tau (nq, 6)
              total Kirchhoff stress (MPa); dissipation (nq,) plastic work increment
-             sigma_y(eps_p,n+1) * d_eps_p (mJ/mm^3); psi (nq,) Hencky stored energy (mJ/mm^3).
+             sigma_y(eps_p,n+1) * d_eps_p (mJ/mm^3); psi (nq,) deviatoric Hencky stored energy
+             mu |dev eps_e|^2 (mJ/mm^3; the volumetric part 1/2 K ln(J)^2 is integrated with the
+             volumetric rule of the forms, see SolidProblem.stored_energy).
     """
     nq = F.shape[0]
     nchunks = (nq + _CHUNK - 1) // _CHUNK

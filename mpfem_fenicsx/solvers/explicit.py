@@ -12,8 +12,9 @@ rho_e = rho * max(1, (dt_target / dt_e)^2).
 Energy balance (mJ = N mm), all with forces at integer steps n times the centred displacement
 increment (u_{n+1} - u_{n-1}) / 2, which makes the discrete balance exact for central
 differences:
-    W_ext = sum R_n . du_n,   R_n = f_int + f_bv + M a  (reactions of the prescribed dofs)
+    W_ext = sum R_n . du_n,   R_n = f_int + f_bv - f_c + M a  (reactions of the prescribed dofs)
     E_int = sum f_int,n . du_n (elastic + plastic),  E_visc = sum f_bv,n . du_n,
+    E_contact = -sum f_c,n . du_n (penalty energy + friction + adhesion work),
     E_kin = 1/2 v^T M v  (v at the step, averaged from the half steps).
 The material's own energies (Hencky stored energy and accumulated plastic work) are reported
 next to E_int as an independent check of the internal work.
@@ -69,17 +70,18 @@ class Energies:
     external: float = 0.0
     internal: float = 0.0
     viscous: float = 0.0
+    contact: float = 0.0  # work absorbed by contact (penalty energy + friction + adhesion)
     kinetic: float = 0.0
     plastic: float = 0.0  # accumulated plastic work from the material
     elastic: float = 0.0  # current Hencky stored energy from the material
 
     def balance_error(self) -> float:
-        """|W_ext - (E_int + E_visc + E_kin)| (mJ)."""
-        return abs(self.external - (self.internal + self.viscous + self.kinetic))
+        """|W_ext - (E_int + E_visc + E_contact + E_kin)| (mJ)."""
+        return abs(self.external - (self.internal + self.viscous + self.contact + self.kinetic))
 
     def as_dict(self) -> dict:
         return {"W_ext": self.external, "E_int": self.internal, "E_visc": self.viscous,
-                "E_kin": self.kinetic, "E_p": self.plastic, "E_el": self.elastic}
+                "E_contact": self.contact, "E_kin": self.kinetic, "E_p": self.plastic, "E_el": self.elastic}
 
 
 @dataclass
@@ -93,8 +95,10 @@ class _Timings:
 class ExplicitSolver:
     """Central-difference integrator of a :class:`SolidProblem` with prescribed displacements."""
 
-    def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, settings: ExplicitSettings):
+    def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, settings: ExplicitSettings,
+                 contact=None):
         self.problem = problem
+        self.contact = contact  # optional ContactModel: its forces join the internal ones
         self.bcs = bcs
         self.settings = settings
         self.constraint = bcs.constraint or bcs.build()
@@ -136,6 +140,8 @@ class ExplicitSolver:
         mass.x.petsc_vec.array[:] = vec.array_r
         mass.x.scatter_forward()
         vec.destroy()
+        if contact is not None:
+            self._contact_mass_scaling(mass, contact, settings)
         self.mass = mass
         self.total_mass = self.comm.allreduce(float(mass.x.array[: self.constraint.num_owned].sum()) / 3.0)
         self.mass_red = self.constraint.reduced_lumped_mass(mass)
@@ -148,6 +154,7 @@ class ExplicitSolver:
 
         self.f_int = problem.create_vector()
         self.f_visc = problem.create_vector()
+        self.f_cont = problem.create_vector()  # minus the contact forces on the bodies
         self.x = self.constraint.create_reduced_vector()
         self.v_red = self.x.duplicate()
         self.a_red = self.x.duplicate()
@@ -160,6 +167,31 @@ class ExplicitSolver:
         self._u_prev = np.zeros(n)
         self._v_half_prev = np.zeros(n)
         self._forces_prev = None  # (f_int, f_visc, R) at step n, waiting for u_{n+1}
+
+    def _contact_mass_scaling(self, mass, contact, settings) -> None:
+        """Penalty contact adds a spring k A to every surface node (k penalty, A tributary
+        area, both passes): with a target increment, add the mass m_c = k A (dt / 2 s)^2 so that
+        the node stays stable in contact; without one, reduce dt to 2 s sqrt(m / (k A))."""
+        from ..contact.search import facet_areas
+
+        surf = contact.surface
+        area = np.bincount(surf.facets[:, : surf.vertices_per_facet].ravel(),
+                           weights=np.repeat(facet_areas(surf.X, surf.facets, surf.vertices_per_facet)
+                                             / surf.vertices_per_facet, surf.vertices_per_facet),
+                           minlength=surf.num_nodes)
+        k_node = contact.law.penalty * area[surf.owned_nodes]
+        blocks = surf.owned_local_blocks
+        m_node = mass.x.array.reshape(-1, 3)[blocks, 0]
+        s = self.settings.safety
+        if settings.target_dt is not None:
+            added = k_node * (self.dt / (2.0 * s * settings.deformation_margin)) ** 2
+            mass.x.array.reshape(-1, 3)[blocks] += added[:, None]
+            mass.x.scatter_forward()
+            self.contact_added_mass = self.comm.allreduce(float(added.sum()), op=MPI.SUM)
+        else:
+            local = float((2.0 * s * np.sqrt(m_node / k_node)).min()) if k_node.size else np.inf
+            self.dt = min(self.dt, self.comm.allreduce(local, op=MPI.MIN))
+            self.contact_added_mass = 0.0
 
     # -- forces ------------------------------------------------------------------------------
     def _assemble(self, vec: PETSc.Vec, form) -> None:
@@ -175,6 +207,14 @@ class ExplicitSolver:
         t1 = time.perf_counter()
         self.problem.assemble_residual(self.f_int)
         self._assemble(self.f_visc, self.viscous_form)
+        with self.f_cont.localForm() as loc:
+            loc.set(0.0)
+        if self.contact is not None:
+            tc = time.perf_counter()
+            self.contact.evaluate(self.problem.u, tangent=False)
+            self.contact.add_residual(self.f_cont)
+            self.contact.commit(self.problem.u)
+            self.timings.extra["contact"] = self.timings.extra.get("contact", 0.0) + time.perf_counter() - tc
         self.timings.material += t1 - t0
         self.timings.assembly += time.perf_counter() - t1
         self.energies.plastic += self.problem.plastic_dissipation_increment()
@@ -205,6 +245,7 @@ class ExplicitSolver:
         self.r_red.set(0.0)
         force = self.f_int.copy()
         force.axpy(1.0, self.f_visc)
+        force.axpy(1.0, self.f_cont)
         self.constraint.restrict(force, self.r_red)
         self.a_red.pointwiseDivide(self.r_red, self.mass_red)
         self.a_red.scale(-1.0)
@@ -236,6 +277,7 @@ class ExplicitSolver:
         e.external += self._dot(reaction, du)
         e.internal += self._dot(self.f_int.array_r[:n], du)
         e.viscous += self._dot(self.f_visc.array_r[:n], du)
+        e.contact += self._dot(self.f_cont.array_r[:n], du)
         self._u_prev[:] = u_n
         self._v_half_prev[:] = v_half
         self.timings.update += time.perf_counter() - t2
