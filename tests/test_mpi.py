@@ -1,4 +1,4 @@
-"""SPEC §9 case 8 (foundation part): ``mpirun -n 2`` reproduces the serial results."""
+"""SPEC §9 case 8: ``mpirun -n 2`` reproduces the serial results (bulk and contact)."""
 
 import subprocess
 import sys
@@ -12,12 +12,14 @@ from mpfem_fenicsx.io import read_csv
 MPIRUN = Path(sys.executable).parent / "mpirun"
 
 CASES = {
-    # name: (demo, arguments, csv file, relative tolerance)
-    "uniaxial-implicit": ("uniaxial.py", ["--solver", "implicit"], "stress_strain.csv", 1e-7),
-    "uniaxial-explicit": ("uniaxial.py", ["--solver", "explicit"], "stress_strain.csv", 1e-6),
-    "sphere-implicit": ("sphere_squeeze.py", ["--solver", "implicit"], "implicit.csv", 1e-7),
+    # name: (demo, arguments, csv files, relative tolerance)
+    "uniaxial-implicit": ("uniaxial.py", ["--solver", "implicit"], ["stress_strain.csv"], 1e-7),
+    "uniaxial-explicit": ("uniaxial.py", ["--solver", "explicit"], ["stress_strain.csv"], 1e-6),
+    "sphere-implicit": ("sphere_squeeze.py", ["--solver", "implicit"], ["implicit.csv"], 1e-7),
     "sphere-explicit": ("sphere_squeeze.py", ["--solver", "explicit", "--explicit-steps", "1500"],
-                        "explicit.csv", 1e-6),
+                        ["explicit.csv"], 1e-6),
+    # base and block land on different ranks: contact across the partition
+    "flat-contact": ("flat_contact.py", [], ["normal.csv", "tangential.csv"], 1e-7),
 }
 
 
@@ -30,14 +32,15 @@ def _run(cmd, cwd):
 @pytest.mark.mpi
 @pytest.mark.parametrize("case", list(CASES))
 def test_two_ranks_reproduce_serial(case, root, tmp_path):
-    demo, args, csv, rtol = CASES[case]
+    demo, args, csvs, rtol = CASES[case]
     script = str(root / "demos" / demo)
     _run([sys.executable, script, *args, "--out", str(tmp_path / "serial")], root)
     out = _run([str(MPIRUN), "-n", "2", sys.executable, script, *args, "--out", str(tmp_path / "mpi")], root)
-    serial = read_csv(tmp_path / "serial" / csv)
-    parallel = read_csv(tmp_path / "mpi" / csv)
-    assert list(serial) == list(parallel)
-    for name in serial:
-        assert serial[name].shape == parallel[name].shape, name
-        scale = np.abs(serial[name]).max() + 1e-30
-        assert np.abs(serial[name] - parallel[name]).max() <= rtol * scale, (name, out)
+    for csv in csvs:
+        serial = read_csv(tmp_path / "serial" / csv)
+        parallel = read_csv(tmp_path / "mpi" / csv)
+        assert list(serial) == list(parallel)
+        for name in serial:
+            assert serial[name].shape == parallel[name].shape, (csv, name)
+            scale = np.abs(serial[name]).max() + 1e-30
+            assert np.abs(serial[name] - parallel[name]).max() <= rtol * scale, (csv, name, out)

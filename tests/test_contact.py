@@ -1,0 +1,71 @@
+"""Contact search and forces without a solve: action-reaction, symmetry, periodic shifts."""
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from mpfem_fenicsx.contact import ContactLaw, ContactModel
+from mpfem_fenicsx.material import LEAD
+from mpfem_fenicsx.meshes import particle_mesh
+from mpfem_fenicsx.problem import SolidProblem
+
+
+def _model(centres, radii, shifts=None):
+    a = particle_mesh(centres, radii, MPI.COMM_SELF)
+    prob = SolidProblem(a.mesh, LEAD, tangent=False)
+    law = ContactLaw(penalty=1e6, friction=0.0)
+    model = ContactModel(prob.V, a.facet_tags, len(radii), law, search_distance=0.1, shifts=shifts)
+    model.evaluate(prob.u)
+    return model
+
+
+def test_action_reaction_and_direction():
+    # the second particle is offset along a general direction, overlapping by 0.06
+    direction = np.array([1.0, 0.6, -0.3]) / np.linalg.norm([1.0, 0.6, -0.3])
+    model = _model([[0, 0, 0], 1.94 * direction], [1.0, 1.0])
+    forces = model.body_forces()  # force of j on i
+    assert np.linalg.norm(forces[0, 1]) > 0
+    assert np.allclose(forces[0, 1], -forces[1, 0], atol=1e-9 * np.linalg.norm(forces[0, 1]))
+    # repulsive, roughly along the line of centres (faceted surfaces tilt it a little)
+    cosine = -forces[0, 1] @ direction / np.linalg.norm(forces[0, 1])
+    assert cosine > 0.9
+    # nodal forces sum to zero
+    _, values = model.nodal_forces()
+    assert np.abs(values.reshape(-1, 3).sum(axis=0)).max() < 1e-9 * np.abs(values).max()
+
+
+def test_two_pass_treatment_is_symmetric():
+    """Relabelling the particles leaves the pair force unchanged (no privileged body)."""
+    c = [[0, 0, 0], [1.9, 0.1, 0.05]]
+    f_ab = _model(c, [1.0, 1.0]).body_forces()[0, 1]
+    f_ba = _model(c[::-1], [1.0, 1.0]).body_forces()[1, 0]
+    assert np.allclose(f_ab, f_ba, rtol=1e-10)
+    # both passes find contact points
+    m = _model(c, [1.0, 1.0])
+    bodies = m.surface.node_body[m.points.slave]
+    assert set(bodies.tolist()) == {0, 1}
+
+
+def test_periodic_image_contact_equals_direct_contact():
+    """A particle touching the image of another through a lattice shift feels the same force as
+    with the other particle placed at the shifted position."""
+    cell = 4.0
+    offset = np.array([1.94, 0.07, 0.03])  # generic: no node-on-node tie between the poles
+    direct = _model([[0, 0, 0], offset], [1.0, 1.0]).body_forces()[0, 1]
+    shifts = np.array([[0, 0, 0], [cell, 0, 0], [-cell, 0, 0]], dtype=float)
+    image = _model([[0, 0, 0], offset - [cell, 0, 0]], [1.0, 1.0], shifts=shifts).body_forces()[0, 1]
+    assert np.linalg.norm(direct) > 0
+    assert np.allclose(image, direct, rtol=1e-8, atol=1e-9 * np.linalg.norm(direct))
+
+
+def test_no_contact_when_apart():
+    m = _model([[0, 0, 0], [2.5, 0, 0]], [1.0, 1.0])
+    assert m.points.size == 0
+    assert np.allclose(m.body_forces(), 0.0)
+
+
+def test_search_distance_must_cover_delta_max():
+    a = particle_mesh([[0, 0, 0], [2.5, 0, 0]], [1.0, 1.0], MPI.COMM_SELF)
+    prob = SolidProblem(a.mesh, LEAD, tangent=False)
+    with pytest.raises(ValueError, match="delta_max"):
+        ContactModel(prob.V, a.facet_tags, 2, ContactLaw(gamma=1e-3, delta_max=0.5), search_distance=0.1)
