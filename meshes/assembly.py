@@ -194,6 +194,34 @@ class ParticleVolumes:
         return self._comm.allreduce(local, op=MPI.SUM)
 
 
+class ParticleCentroids:
+    """Current centroid (mm) of each particle, int_p (X + u) J dX / int_p J dX (compiled once)."""
+
+    def __init__(self, assembly: ParticleAssembly, u: dolfinx.fem.Function):
+        mesh = assembly.mesh
+        V0 = dolfinx.fem.functionspace(mesh, ("DG", 0))
+        w = ufl.TestFunction(V0)
+        x = ufl.SpatialCoordinate(mesh) + u
+        J = ufl.det(ufl.Identity(3) + ufl.grad(u))
+        dx = ufl.dx(domain=mesh, metadata={"quadrature_degree": 4})
+        self._forms = [dolfinx.fem.form(x[d] * J * w * dx) for d in range(3)] + [dolfinx.fem.form(J * w * dx)]
+        owned = mesh.topology.index_map(mesh.topology.dim).size_local
+        self._dofs = V0.dofmap.list[:owned, 0]
+        self._pid = assembly.cell_tags.values[:owned]
+        self._n = assembly.num_particles
+        self._comm = mesh.comm
+        self._vec = dolfinx.fem.Function(V0)
+
+    def __call__(self) -> np.ndarray:
+        sums = np.zeros((4, self._n))
+        for k, form in enumerate(self._forms):
+            self._vec.x.array[:] = 0.0
+            dolfinx.fem.assemble_vector(self._vec.x.array, form)
+            sums[k] = np.bincount(self._pid, weights=self._vec.x.array[self._dofs], minlength=self._n)
+        sums = self._comm.allreduce(sums, op=MPI.SUM)
+        return (sums[:3] / sums[3]).T
+
+
 def particle_volumes(assembly: ParticleAssembly, u: dolfinx.fem.Function | None = None) -> np.ndarray:
     """One-off evaluation of :class:`ParticleVolumes` (compiles a form: not for time loops)."""
     return ParticleVolumes(assembly, u)()

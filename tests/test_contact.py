@@ -69,3 +69,25 @@ def test_search_distance_must_cover_delta_max():
     prob = SolidProblem(a.mesh, LEAD, tangent=False)
     with pytest.raises(ValueError, match="delta_max"):
         ContactModel(prob.V, a.facet_tags, 2, ContactLaw(gamma=1e-3, delta_max=0.5), search_distance=0.1)
+
+
+def test_pair_forces_and_centroids():
+    """Pair resultants match the body forces; centroids of an undeformed assembly are the centres;
+    the Love-Weber branch vector of the pair points from i to j."""
+    from mpfem_fenicsx.meshes import ParticleCentroids
+
+    centres = np.array([[0, 0, 0], [1.94, 0.07, 0.03], [0, 1.95, 0.02]])
+    a = particle_mesh(centres, [1.0, 1.0, 1.0], MPI.COMM_SELF)
+    prob = SolidProblem(a.mesh, LEAD, tangent=False)
+    model = ContactModel(prob.V, a.facet_tags, 3, ContactLaw(penalty=1e6, friction=0.0), search_distance=0.1)
+    model.evaluate(prob.u)
+    pairs = model.pair_forces()
+    assert pairs["pairs"].tolist() == [[0, 1], [0, 2]]
+    bodies = model.body_forces()
+    for (i, j), f in zip(pairs["pairs"], pairs["force"]):
+        assert np.allclose(f, bodies[i, j], rtol=1e-10)
+    assert np.all(pairs["area"] > 0) and np.all(pairs["points"] > 0)
+    centroids = ParticleCentroids(a, prob.u)()
+    assert np.allclose(centroids, centres, atol=1e-12)
+    branch = centroids[1] - centroids[0]
+    assert pairs["force"][0] @ branch < 0  # repulsion: the force of 1 on 0 points away from 1

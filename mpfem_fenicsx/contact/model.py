@@ -333,6 +333,51 @@ class ContactModel:
         active = self.T1 > 0 if compressive_only else self.T1 != 0
         return self.comm.allreduce(int(active.sum()), op=MPI.SUM)
 
+    def pair_forces(self) -> dict[str, np.ndarray]:
+        """Per contacting pair of bodies (and lattice shift), summed over ranks:
+        ``pairs`` (m, 2) body ids (i, j) with i < j or a non-zero shift; ``shift`` (m, 3) lattice
+        vector of j's image (mm); ``force`` (m, 3) force exerted by j (its image) on i (N);
+        ``area`` (m,) contact area carried by the pair (mm^2, mean of both passes' loaded
+        tributary areas); ``points`` (m,) number of loaded contact points. The branch vector for
+        the Love-Weber stress is centroid(j) + shift - centroid(i).
+        """
+        if self.points is None or self.points.size == 0:
+            local = (np.zeros((0, 2), np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0))
+        else:
+            loaded = self.T1 != 0.0
+            slave = self.surface.node_body[self.points.slave]
+            master = self.points.master_body
+            shift = self.points.shift
+            # orient every point as (i, j, shift): the pass with slave j becomes (i, j) with -shift
+            flip = (slave > master) | ((slave == master) & (shift[:, 0] < 0))
+            i = np.where(flip, master, slave)
+            j = np.where(flip, slave, master)
+            sh = np.where(flip[:, None], -shift, shift)
+            f = np.where(flip[:, None], -self.point_force, self.point_force)
+            key = np.round(sh, 9)
+            table, inverse = np.unique(np.column_stack([i, j, key]), axis=0, return_inverse=True)
+            inverse = inverse.ravel()
+            force = np.zeros((table.shape[0], 3))
+            np.add.at(force, inverse, f)
+            area = np.bincount(inverse, weights=PASS_WEIGHT * self.area * loaded, minlength=table.shape[0])
+            count = np.bincount(inverse, weights=loaded.astype(float), minlength=table.shape[0])
+            local = (table[:, :2].astype(np.int64), table[:, 2:], force, area, count)
+        parts = self.comm.allgather(local)
+        pairs = np.concatenate([p[0] for p in parts])
+        shifts = np.concatenate([p[1] for p in parts])
+        if pairs.shape[0] == 0:
+            return {"pairs": pairs, "shift": shifts, "force": np.zeros((0, 3)), "area": np.zeros(0),
+                    "points": np.zeros(0)}
+        table, inverse = np.unique(np.column_stack([pairs, shifts]), axis=0, return_inverse=True)
+        inverse = inverse.ravel()
+        m = table.shape[0]
+        force = np.zeros((m, 3))
+        np.add.at(force, inverse, np.concatenate([p[2] for p in parts]))
+        area = np.bincount(inverse, weights=np.concatenate([p[3] for p in parts]), minlength=m)
+        count = np.bincount(inverse, weights=np.concatenate([p[4] for p in parts]), minlength=m)
+        return {"pairs": table[:, :2].astype(np.int64), "shift": table[:, 2:], "force": force,
+                "area": area, "points": count}
+
     def body_forces(self) -> np.ndarray:
         """(num_bodies, num_bodies, 3): force (N) exerted by body j on body i, summed over ranks."""
         nb = self.surface.num_bodies
