@@ -17,6 +17,7 @@ test-all: bootstrap  ## also the heavy cases
 
 bench: bootstrap
 	$(PY) bench/material_assembly.py
+	$(PY) bench/contact.py
 
 clean:
 	rm -rf results .pytest_cache
