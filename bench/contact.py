@@ -11,12 +11,12 @@ forces (law + assembly into a PETSc vector) and of the tangent, with the time pe
 
 import argparse
 import json
-import time
 
 import numpy as np
 from mpi4py import MPI
 
 import mpfem_fenicsx  # noqa: F401
+from timing import median_time
 from mpfem_fenicsx.contact import ContactLaw, ContactModel
 from mpfem_fenicsx.material import LEAD
 from mpfem_fenicsx.meshes import particle_mesh
@@ -30,17 +30,6 @@ def lattice(n: int, seed: int = 0):
     centres = 1.95 * grid + rng.uniform(-0.02, 0.02, (n, 3))
     radii = rng.uniform(0.95, 1.05, n)
     return centres, radii
-
-
-def median(fn, repeat, comm):
-    times = []
-    for _ in range(repeat):
-        comm.Barrier()
-        t0 = time.perf_counter()
-        fn()
-        comm.Barrier()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times))
 
 
 def main():
@@ -64,10 +53,10 @@ def main():
             contact.evaluate(problem.u, tangent=False)
             contact.add_residual(vec)
 
-        t_search = median(lambda: contact.search(x), args.repeat, comm)
-        t_forces = median(forces, args.repeat, comm)
+        t_search = median_time(lambda: contact.search(x), args.repeat, comm)
+        t_forces = median_time(forces, args.repeat, comm)
         template = _template(problem)
-        t_tangent = median(lambda: (contact.evaluate(problem.u, tangent=True), contact.tangent_matrix(template)),
+        t_tangent = median_time(lambda: (contact.evaluate(problem.u, tangent=True), contact.tangent_matrix(template)),
                            args.repeat, comm)
         points = comm.allreduce(contact.points.size, op=MPI.SUM)
         result = {

@@ -18,20 +18,10 @@ import numpy as np
 from mpi4py import MPI
 
 import mpfem_fenicsx  # noqa: F401
+from timing import median_time
 from mpfem_fenicsx.material import LEAD
 from mpfem_fenicsx.meshes import particle_mesh
 from mpfem_fenicsx.problem import SolidProblem
-
-
-def median_time(fn, repeat, comm):
-    times = []
-    for _ in range(repeat):
-        comm.Barrier()
-        t0 = time.perf_counter()
-        fn()
-        comm.Barrier()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times))
 
 
 def main():

@@ -100,7 +100,6 @@ def test_power_law_first_yield_is_robust():
 
 def test_assembled_jacobian_matches_residual_on_distorted_hexahedra():
     """Consistent Jacobian of the SRI forms on curved (non-affine) cube-sphere cells."""
-    import dolfinx.fem.petsc  # noqa: F401
 
     a = particle_mesh([[0, 0, 0]], [1.0], MPI.COMM_SELF)
     prob = SolidProblem(a.mesh, LEAD)

@@ -16,7 +16,6 @@ Triangles: x = (1-xi-eta) x0 + xi x1 + eta x2, vertex 3 = -1.
 from __future__ import annotations
 
 import numpy as np
-from mpi4py import MPI
 
 import basix
 import dolfinx

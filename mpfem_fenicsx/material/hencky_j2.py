@@ -100,6 +100,22 @@ def _log_divided_difference(xa, xb):
 
 
 @numba.njit(cache=True, inline="always")
+def _mul_ab(a, b, out):
+    """out = a b (3 x 3)."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+
+
+@numba.njit(cache=True, inline="always")
+def _mul_abt(a, b, out):
+    """out = a b^T (3 x 3)."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, 0] * b[j, 0] + a[i, 1] * b[j, 1] + a[i, 2] * b[j, 2]
+
+
+@numba.njit(cache=True, inline="always")
 def _inverse3(F, Finv):
     det = (F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
            - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
@@ -134,19 +150,8 @@ def _update_point(qp, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law
     C[0, 1] = C[1, 0] = c[3]
     C[0, 2] = C[2, 0] = c[4]
     C[1, 2] = C[2, 1] = c[5]
-    # be = f C f^T
-    for i in range(3):
-        for j in range(3):
-            acc = 0.0
-            for k in range(3):
-                acc += C[i, k] * f[j, k]
-            M1[i, j] = acc  # C f^T
-    for i in range(3):
-        for j in range(3):
-            acc = 0.0
-            for k in range(3):
-                acc += f[i, k] * M1[k, j]
-            be[i, j] = acc
+    _mul_abt(C, f, M1)  # b_e^trial = f C f^T
+    _mul_ab(f, M1, be)
     eig_sym3(be, x, Q)
 
     vol = 0.0
@@ -201,19 +206,8 @@ def _update_point(qp, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law
                 nn = Q[i, A] * Q[j, A]
                 M1[i, j] += e2 * nn
                 M2[i, j] += s[A] * nn
-    # C_p^-1 new = Finv be Finv^T
-    for i in range(3):
-        for j in range(3):
-            acc = 0.0
-            for k in range(3):
-                acc += M1[i, k] * Finv[j, k]
-            M3[i, j] = acc
-    for i in range(3):
-        for j in range(3):
-            acc = 0.0
-            for k in range(3):
-                acc += Finv[i, k] * M3[k, j]
-            C[i, j] = acc
+    _mul_abt(M1, Finv, M3)  # C_p^-1 new = F^-1 b_e F^-T
+    _mul_ab(Finv, M3, C)
     cp_inv_new[qp, 0] = C[0, 0]
     cp_inv_new[qp, 1] = C[1, 1]
     cp_inv_new[qp, 2] = C[2, 2]
@@ -235,13 +229,7 @@ def _update_point(qp, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law
         dev2 += (eps_e[A] - tr_e / 3.0) ** 2
     psi[qp] = mu * dev2  # deviatoric part only: the volumetric energy follows the volumetric rule
 
-    # P_dev = dev(tau) F^-T
-    for i in range(3):
-        for J in range(3):
-            acc = 0.0
-            for k in range(3):
-                acc += M2[i, k] * Finv[J, k]
-            P_dev[qp, i, J] = acc
+    _mul_abt(M2, Finv, P_dev[qp])  # P_dev = dev(tau) F^-T
     if not want_tangent:
         return
 
