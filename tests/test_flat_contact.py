@@ -3,6 +3,7 @@
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from mpi4py import MPI
 
@@ -59,3 +60,37 @@ def test_explicit_contact_reaches_the_same_state(tmp_path):
     assert e.contact == pytest.approx(0.5 * T1 ** 2 / case.penalty * 1.0, rel=1e-2)
     assert e.internal == pytest.approx(e.elastic, rel=1e-3)
     assert e.kinetic < 1e-6 * e.external
+
+
+def test_contact_history_survives_a_restart(tmp_path):
+    """Adhesive memory (alpha, sigma_max) and frictional history saved after compression and
+    loaded into a fresh model give the same tractions on the next evaluation."""
+    from mpfem_fenicsx.loading import PrescribedDisplacements
+    from mpfem_fenicsx.solvers import ImplicitSolver, StepControl
+    from mpfem_fenicsx.workflows.flat_contact import _compression, _setup
+
+    case = FlatContactCase()
+    models = []
+    for _ in range(2):
+        problem, contact, base, block_dofs = _setup(case, 0.0, MPI.COMM_SELF)
+        models.append((problem, contact))
+    (p1, c1), (p2, c2) = models
+    u_c = _compression(case, case.E, 3.0 * case.sigma_y)
+    bcs = PrescribedDisplacements(p1.V).add(base)
+    top = block_dofs(lambda x: x[2] > 0.5 * case.height, 2)
+    bcs.add(block_dofs(lambda x: x[2] > 0.5 * case.height, 0)).add(
+        block_dofs(lambda x: x[2] > 0.5 * case.height, 1)).add(top, lambda t: u_c * t)
+    ImplicitSolver(p1, bcs, contact=c1).run(StepControl(t_end=1.0, dt=0.25, dt_max=0.25))
+    np.savez(tmp_path / "state.npz", u=p1.u.x.array, **{f"c_{k}": v for k, v in c1.state_dict().items()},
+             **{f"m_{k}": v for k, v in p1.material.state_dict().items()})
+    data = np.load(tmp_path / "state.npz")
+    p2.u.x.array[:] = data["u"]
+    c2.load_state({k[2:]: data[k] for k in data.files if k.startswith("c_")})
+    p2.material.load_state({k[2:]: data[k] for k in data.files if k.startswith("m_")})
+    assert np.allclose(c2.state.alpha, 0.5, rtol=1e-6)  # alpha survived
+    block_z = block_dofs(lambda x: x[2] >= -1e-12, 2)
+    for p, c in ((p1, c1), (p2, c2)):
+        p.u.x.array[block_z] += 1e-4  # lift the block: adhesive softening branch, needs alpha
+        c.evaluate(p.u)
+    assert np.all(c2.T1 < 0)
+    assert np.allclose(c1.T1, c2.T1, rtol=1e-12)

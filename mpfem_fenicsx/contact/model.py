@@ -327,6 +327,26 @@ class ContactModel:
         self.U_committed = self.surface.gather(u)
         self.frictional_work += self.comm.allreduce(self._trial_dissipation, op=MPI.SUM)
 
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Committed contact history of this rank's slave points, as arrays (for checkpoints):
+        keys, alpha, sigma_max, tangential traction, frictional work per point, committed
+        surface displacement and the total frictional work."""
+        st = self.state
+        return {"keys": st.keys, "alpha": st.alpha, "sigma_max": st.smax, "tangential_traction": st.tt,
+                "frictional_work": st.work, "surface_displacement": self.U_committed,
+                "total_frictional_work": np.array(self.frictional_work)}
+
+    def load_state(self, data: dict[str, np.ndarray]) -> None:
+        """Restore :meth:`state_dict` (same mesh and partition)."""
+        if data["surface_displacement"].shape != self.U_committed.shape:
+            raise ValueError("contact state: surface size differs from this model's")
+        self.state = ContactState(np.asarray(data["keys"], np.int64), np.asarray(data["alpha"]),
+                                  np.asarray(data["sigma_max"]), np.asarray(data["tangential_traction"]),
+                                  np.asarray(data["frictional_work"]))
+        self.trial = self.state
+        self.U_committed = np.asarray(data["surface_displacement"]).copy()
+        self.frictional_work = float(data["total_frictional_work"])
+
     # -- results -------------------------------------------------------------------------------
     def count(self, compressive_only: bool = False) -> int:
         """Number of contact points carrying load (summed over ranks)."""

@@ -365,6 +365,18 @@ class HenckyJ2:
         self.cp_inv[:] = self.cp_inv_trial
         self.eps_p[:] = self.eps_p_trial
 
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Committed plastic state (C_p^-1, eps_p) of this rank's points (for checkpoints)."""
+        return {"cp_inv": self.cp_inv.copy(), "eps_p": self.eps_p.copy()}
+
+    def load_state(self, data: dict[str, np.ndarray]) -> None:
+        if data["eps_p"].shape != self.eps_p.shape:
+            raise ValueError(f"material state has {data['eps_p'].size} points, expected {self.num_points}")
+        self.cp_inv[:] = data["cp_inv"]
+        self.eps_p[:] = data["eps_p"]
+        self.cp_inv_trial[:] = self.cp_inv
+        self.eps_p_trial[:] = self.eps_p
+
     def von_mises_kirchhoff(self) -> np.ndarray:
         """sqrt(3/2) |dev tau| at each point, MPa."""
         t = self.tau
