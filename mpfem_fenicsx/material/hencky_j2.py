@@ -137,155 +137,156 @@ _CHUNK = 512  # points per parallel chunk: scratch arrays are allocated once per
 
 
 @numba.njit(cache=True)
-def _update_point(qp, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law, want_tangent,
+def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law, want_tangent,
                   P_dev, A_dev, cp_inv_new, eps_p_new, tau, dissipation, psi,
                   Finv, C, be, x, Q, eps_tr, s_tr, s, eps_e, M1, M2, M3, a, Cs, D):
-    three_mu = 3.0 * mu
-    f = F[qp]
-    _inverse3(f, Finv)
-    c = cp_inv_n[qp]
-    C[0, 0] = c[0]
-    C[1, 1] = c[1]
-    C[2, 2] = c[2]
-    C[0, 1] = C[1, 0] = c[3]
-    C[0, 2] = C[2, 0] = c[4]
-    C[1, 2] = C[2, 1] = c[5]
-    _mul_abt(C, f, M1)  # b_e^trial = f C f^T
-    _mul_ab(f, M1, be)
-    eig_sym3(be, x, Q)
+    for qp in range(q0, q1):
+        three_mu = 3.0 * mu
+        f = F[qp]
+        _inverse3(f, Finv)
+        c = cp_inv_n[qp]
+        C[0, 0] = c[0]
+        C[1, 1] = c[1]
+        C[2, 2] = c[2]
+        C[0, 1] = C[1, 0] = c[3]
+        C[0, 2] = C[2, 0] = c[4]
+        C[1, 2] = C[2, 1] = c[5]
+        _mul_abt(C, f, M1)  # b_e^trial = f C f^T
+        _mul_ab(f, M1, be)
+        eig_sym3(be, x, Q)
 
-    vol = 0.0
-    for A in range(3):
-        eps_tr[A] = 0.5 * np.log(x[A])
-        vol += eps_tr[A]
-    norm2 = 0.0
-    for A in range(3):
-        s_tr[A] = 2.0 * mu * (eps_tr[A] - vol / 3.0)
-        norm2 += s_tr[A] * s_tr[A]
-    norm_s = np.sqrt(norm2)
-    q_tr = _SQRT_3_2 * norm_s
-    p_n = eps_p_n[qp]
-    sy_n = _yield_stress(p_n, s0, modulus, exponent, law)
+        vol = 0.0
+        for A in range(3):
+            eps_tr[A] = 0.5 * np.log(x[A])
+            vol += eps_tr[A]
+        norm2 = 0.0
+        for A in range(3):
+            s_tr[A] = 2.0 * mu * (eps_tr[A] - vol / 3.0)
+            norm2 += s_tr[A] * s_tr[A]
+        norm_s = np.sqrt(norm2)
+        q_tr = _SQRT_3_2 * norm_s
+        p_n = eps_p_n[qp]
+        sy_n = _yield_stress(p_n, s0, modulus, exponent, law)
 
-    dgamma = 0.0
-    plastic = q_tr - sy_n > 1e-12 * sy_n
-    if plastic:
-        lo = 0.0
-        hi = (q_tr - s0) / three_mu
-        slope = _hardening_slope(p_n, modulus, exponent, law)
-        dgamma = (q_tr - sy_n) / (three_mu + slope) if np.isfinite(slope) else 0.5 * hi
-        for _it in range(200):
-            r = q_tr - three_mu * dgamma - _yield_stress(p_n + dgamma, s0, modulus, exponent, law)
-            if abs(r) <= 1e-13 * q_tr:
-                break
-            if r > 0.0:
-                lo = dgamma
-            else:
-                hi = dgamma
-            if hi - lo <= 1e-16 * hi:
-                break
-            dr = -three_mu - _hardening_slope(p_n + dgamma, modulus, exponent, law)
-            trial = dgamma - r / dr
-            if not (lo < trial < hi):
-                trial = 0.5 * (lo + hi)
-            dgamma = trial
-    beta = 1.0 - three_mu * dgamma / q_tr if plastic else 1.0
+        dgamma = 0.0
+        plastic = q_tr - sy_n > 1e-12 * sy_n
+        if plastic:
+            lo = 0.0
+            hi = (q_tr - s0) / three_mu
+            slope = _hardening_slope(p_n, modulus, exponent, law)
+            dgamma = (q_tr - sy_n) / (three_mu + slope) if np.isfinite(slope) else 0.5 * hi
+            for _it in range(200):
+                r = q_tr - three_mu * dgamma - _yield_stress(p_n + dgamma, s0, modulus, exponent, law)
+                if abs(r) <= 1e-13 * q_tr:
+                    break
+                if r > 0.0:
+                    lo = dgamma
+                else:
+                    hi = dgamma
+                if hi - lo <= 1e-16 * hi:
+                    break
+                dr = -three_mu - _hardening_slope(p_n + dgamma, modulus, exponent, law)
+                trial = dgamma - r / dr
+                if not (lo < trial < hi):
+                    trial = 0.5 * (lo + hi)
+                dgamma = trial
+        beta = 1.0 - three_mu * dgamma / q_tr if plastic else 1.0
 
-    # updated elastic logarithmic strain, plastic state and energies
-    for A in range(3):
-        s[A] = beta * s_tr[A]
-        eps_e[A] = eps_tr[A] - (dgamma * 1.5 * s_tr[A] / q_tr if plastic else 0.0)
-    for i in range(3):
-        for j in range(3):
-            M1[i, j] = 0.0  # b_e new
-            M2[i, j] = 0.0  # dev tau
-    for A in range(3):
-        e2 = np.exp(2.0 * eps_e[A])
+        # updated elastic logarithmic strain, plastic state and energies
+        for A in range(3):
+            s[A] = beta * s_tr[A]
+            eps_e[A] = eps_tr[A] - (dgamma * 1.5 * s_tr[A] / q_tr if plastic else 0.0)
         for i in range(3):
             for j in range(3):
-                nn = Q[i, A] * Q[j, A]
-                M1[i, j] += e2 * nn
-                M2[i, j] += s[A] * nn
-    _mul_abt(M1, Finv, M3)  # C_p^-1 new = F^-1 b_e F^-T
-    _mul_ab(Finv, M3, C)
-    cp_inv_new[qp, 0] = C[0, 0]
-    cp_inv_new[qp, 1] = C[1, 1]
-    cp_inv_new[qp, 2] = C[2, 2]
-    cp_inv_new[qp, 3] = 0.5 * (C[0, 1] + C[1, 0])
-    cp_inv_new[qp, 4] = 0.5 * (C[0, 2] + C[2, 0])
-    cp_inv_new[qp, 5] = 0.5 * (C[1, 2] + C[2, 1])
-    eps_p_new[qp] = p_n + dgamma
-    pressure = bulk * vol
-    tau[qp, 0] = M2[0, 0] + pressure
-    tau[qp, 1] = M2[1, 1] + pressure
-    tau[qp, 2] = M2[2, 2] + pressure
-    tau[qp, 3] = M2[0, 1]
-    tau[qp, 4] = M2[0, 2]
-    tau[qp, 5] = M2[1, 2]
-    dissipation[qp] = _yield_stress(p_n + dgamma, s0, modulus, exponent, law) * dgamma
-    tr_e = eps_e[0] + eps_e[1] + eps_e[2]
-    dev2 = 0.0
-    for A in range(3):
-        dev2 += (eps_e[A] - tr_e / 3.0) ** 2
-    psi[qp] = mu * dev2  # deviatoric part only: the volumetric energy follows the volumetric rule
+                M1[i, j] = 0.0  # b_e new
+                M2[i, j] = 0.0  # dev tau
+        for A in range(3):
+            e2 = np.exp(2.0 * eps_e[A])
+            for i in range(3):
+                for j in range(3):
+                    nn = Q[i, A] * Q[j, A]
+                    M1[i, j] += e2 * nn
+                    M2[i, j] += s[A] * nn
+        _mul_abt(M1, Finv, M3)  # C_p^-1 new = F^-1 b_e F^-T
+        _mul_ab(Finv, M3, C)
+        cp_inv_new[qp, 0] = C[0, 0]
+        cp_inv_new[qp, 1] = C[1, 1]
+        cp_inv_new[qp, 2] = C[2, 2]
+        cp_inv_new[qp, 3] = 0.5 * (C[0, 1] + C[1, 0])
+        cp_inv_new[qp, 4] = 0.5 * (C[0, 2] + C[2, 0])
+        cp_inv_new[qp, 5] = 0.5 * (C[1, 2] + C[2, 1])
+        eps_p_new[qp] = p_n + dgamma
+        pressure = bulk * vol
+        tau[qp, 0] = M2[0, 0] + pressure
+        tau[qp, 1] = M2[1, 1] + pressure
+        tau[qp, 2] = M2[2, 2] + pressure
+        tau[qp, 3] = M2[0, 1]
+        tau[qp, 4] = M2[0, 2]
+        tau[qp, 5] = M2[1, 2]
+        dissipation[qp] = _yield_stress(p_n + dgamma, s0, modulus, exponent, law) * dgamma
+        tr_e = eps_e[0] + eps_e[1] + eps_e[2]
+        dev2 = 0.0
+        for A in range(3):
+            dev2 += (eps_e[A] - tr_e / 3.0) ** 2
+        psi[qp] = mu * dev2  # deviatoric part only: the volumetric energy follows the volumetric rule
 
-    _mul_abt(M2, Finv, P_dev[qp])  # P_dev = dev(tau) F^-T
-    if not want_tangent:
-        return
+        _mul_abt(M2, Finv, P_dev[qp])  # P_dev = dev(tau) F^-T
+        if not want_tangent:
+            continue
 
-    # principal algorithmic moduli a_AB = d s_A / d eps^trial_B (deviatoric part only)
-    for A in range(3):
-        for B in range(3):
-            a[A, B] = 2.0 * mu * beta * ((1.0 if A == B else 0.0) - 1.0 / 3.0)
-    if plastic:
-        slope = _hardening_slope(p_n + dgamma, modulus, exponent, law)
-        coef = 6.0 * mu * mu * (dgamma / q_tr - 1.0 / (three_mu + slope))
+        # principal algorithmic moduli a_AB = d s_A / d eps^trial_B (deviatoric part only)
         for A in range(3):
             for B in range(3):
-                a[A, B] += coef * s_tr[A] * s_tr[B] / (norm_s * norm_s)
-    # spatial tangent: d tau_ij = Cs_ijkl L_kl, L = dF F^-1
-    for i in range(3):
-        for j in range(3):
-            for k in range(3):
-                for l in range(3):
-                    Cs[i, j, k, l] = 0.0
-    for A in range(3):
-        for B in range(3):
-            coef = a[A, B]
-            for i in range(3):
-                for j in range(3):
-                    nAij = Q[i, A] * Q[j, A] * coef
-                    for k in range(3):
-                        for l in range(3):
-                            Cs[i, j, k, l] += nAij * Q[k, B] * Q[l, B]
-    for A in range(3):
-        for B in range(3):
-            if A == B:
-                continue
-            theta = mu * beta * _log_divided_difference(x[A], x[B])
-            for i in range(3):
-                for j in range(3):
-                    nAB = theta * Q[i, A] * Q[j, B]
-                    for k in range(3):
-                        for l in range(3):
-                            Cs[i, j, k, l] += nAB * (x[B] * Q[k, A] * Q[l, B] + x[A] * Q[k, B] * Q[l, A])
-    # material tangent A_iJkL = Cs_ijkb Finv_Lb Finv_Jj - P_iL Finv_Jk
-    for i in range(3):
-        for j in range(3):
-            for k in range(3):
-                for L in range(3):
-                    acc = 0.0
-                    for b in range(3):
-                        acc += Cs[i, j, k, b] * Finv[L, b]
-                    D[i, j, k, L] = acc
-    for i in range(3):
-        for J in range(3):
-            for k in range(3):
-                for L in range(3):
-                    acc = 0.0
+                a[A, B] = 2.0 * mu * beta * ((1.0 if A == B else 0.0) - 1.0 / 3.0)
+        if plastic:
+            slope = _hardening_slope(p_n + dgamma, modulus, exponent, law)
+            coef = 6.0 * mu * mu * (dgamma / q_tr - 1.0 / (three_mu + slope))
+            for A in range(3):
+                for B in range(3):
+                    a[A, B] += coef * s_tr[A] * s_tr[B] / (norm_s * norm_s)
+        # spatial tangent: d tau_ij = Cs_ijkl L_kl, L = dF F^-1
+        for i in range(3):
+            for j in range(3):
+                for k in range(3):
+                    for l in range(3):
+                        Cs[i, j, k, l] = 0.0
+        for A in range(3):
+            for B in range(3):
+                coef = a[A, B]
+                for i in range(3):
                     for j in range(3):
-                        acc += D[i, j, k, L] * Finv[J, j]
-                    A_dev[qp, i, J, k, L] = acc - P_dev[qp, i, L] * Finv[J, k]
+                        nAij = Q[i, A] * Q[j, A] * coef
+                        for k in range(3):
+                            for l in range(3):
+                                Cs[i, j, k, l] += nAij * Q[k, B] * Q[l, B]
+        for A in range(3):
+            for B in range(3):
+                if A == B:
+                    continue
+                theta = mu * beta * _log_divided_difference(x[A], x[B])
+                for i in range(3):
+                    for j in range(3):
+                        nAB = theta * Q[i, A] * Q[j, B]
+                        for k in range(3):
+                            for l in range(3):
+                                Cs[i, j, k, l] += nAB * (x[B] * Q[k, A] * Q[l, B] + x[A] * Q[k, B] * Q[l, A])
+        # material tangent A_iJkL = Cs_ijkb Finv_Lb Finv_Jj - P_iL Finv_Jk
+        for i in range(3):
+            for j in range(3):
+                for k in range(3):
+                    for L in range(3):
+                        acc = 0.0
+                        for b in range(3):
+                            acc += Cs[i, j, k, b] * Finv[L, b]
+                        D[i, j, k, L] = acc
+        for i in range(3):
+            for J in range(3):
+                for k in range(3):
+                    for L in range(3):
+                        acc = 0.0
+                        for j in range(3):
+                            acc += D[i, j, k, L] * Finv[J, j]
+                        A_dev[qp, i, J, k, L] = acc - P_dev[qp, i, L] * Finv[J, k]
 
 
 @numba.njit(parallel=True, cache=True)
@@ -319,10 +320,9 @@ def return_mapping(F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law, w
         a = np.empty((3, 3))
         Cs = np.empty((3, 3, 3, 3))
         D = np.empty((3, 3, 3, 3))
-        for qp in range(chunk * _CHUNK, min(nq, (chunk + 1) * _CHUNK)):
-            _update_point(qp, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law,
-                          want_tangent, P_dev, A_dev, cp_inv_new, eps_p_new, tau, dissipation, psi,
-                          Finv, C, be, x, Q, eps_tr, s_tr, s, eps_e, M1, M2, M3, a, Cs, D)
+        _update_range(chunk * _CHUNK, min(nq, (chunk + 1) * _CHUNK), F, cp_inv_n, eps_p_n, mu, bulk, s0,
+                      modulus, exponent, law, want_tangent, P_dev, A_dev, cp_inv_new, eps_p_new, tau,
+                      dissipation, psi, Finv, C, be, x, Q, eps_tr, s_tr, s, eps_e, M1, M2, M3, a, Cs, D)
 
 
 class HenckyJ2:
