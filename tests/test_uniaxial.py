@@ -35,10 +35,14 @@ def test_csv_contract(uniaxial):
     assert np.allclose(data["true_stress_MPa"], res.true_stress)
 
 
-def test_explicit_energy_balance(uniaxial):
-    solver, res = uniaxial
-    if solver != "explicit":
-        pytest.skip("energy balance is the explicit solver's")
+@pytest.fixture(scope="module")
+def explicit_run(tmp_path_factory):
+    return run_uniaxial("explicit", LEAD, 0.5, out_dir=tmp_path_factory.mktemp("energy"), comm=MPI.COMM_SELF,
+                        log=lambda *a: None)
+
+
+def test_explicit_energy_balance(explicit_run):
+    res = explicit_run
     e = dict(zip(res.energies.columns, res.energies.array()[-1]))
     w_ext = e["W_ext"]
     assert w_ext > 0
