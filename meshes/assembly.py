@@ -21,7 +21,7 @@ import dolfinx
 import dolfinx.mesh
 import ufl
 
-from .cubesphere import unit_ball_hex
+from .cubesphere import mobius_ball, unit_ball_hex
 
 
 @dataclass
@@ -116,7 +116,7 @@ def box_bodies_mesh(boxes, comm: MPI.Comm = MPI.COMM_WORLD) -> BodyAssembly:
 def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type: str = "hexahedron",
                   divisions: int = 4, layers: int = 4, refinement: int = 1,
                   tet_order: int = 1, tet_size: float = 0.25, tet_refine: list | None = None,
-                  rotations: np.ndarray | None = None) -> ParticleAssembly:
+                  rotations: np.ndarray | None = None, grading: np.ndarray | None = None) -> ParticleAssembly:
     """Mesh the spheres ``(centres[i], radii[i])`` (mm) as one DOLFINx mesh on ``comm``.
 
     Args:
@@ -127,6 +127,9 @@ def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type:
         tet_refine: local gmsh refinement, see :func:`meshes.tetra.gmsh_spheres`.
         rotations: optional (N, 3, 3) rotation of each hexahedral particle mesh about its centre
             (random orientations avoid aligned, node-on-node contacts between particles).
+        grading: optional (N, 3) vectors g (|g| < 1): particle i's hexahedra are refined towards
+            the surface point in direction g/|g| by the conformal map of :func:`mobius_ball`
+            (element size x (1 - |g|)/(1 + |g|) there), e.g. at a known contact point.
     """
     centres, radii = _check_particles(centres, radii)
     if cell_type == "hexahedron":
@@ -134,11 +137,14 @@ def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type:
         n_nodes, n_cells = ball.num_nodes, ball.num_cells
         if comm.rank == 0:
             unit = np.broadcast_to(ball.points, (radii.size,) + ball.points.shape)
+            if grading is not None:
+                grading = np.asarray(grading, dtype=float).reshape(radii.size, 3)
+                unit = np.stack([mobius_ball(ball.points, -g) if np.any(g) else ball.points for g in grading])
             if rotations is not None:
                 rotations = np.asarray(rotations, dtype=float)
                 if rotations.shape != (radii.size, 3, 3):
                     raise ValueError(f"rotations must have shape ({radii.size}, 3, 3), got {rotations.shape}")
-                unit = np.einsum("pij,nj->pni", rotations, ball.points)
+                unit = np.einsum("pij,pnj->pni", rotations, unit)
             x = (centres[:, None, :] + radii[:, None, None] * unit).reshape(-1, 3)
             cells = (ball.cells[None] + n_nodes * np.arange(radii.size)[:, None, None]).reshape(-1, 8)
         else:

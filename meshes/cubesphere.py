@@ -123,3 +123,21 @@ def unit_ball_hex(divisions: int = 4, layers: int = 4, refinement: int = 1,
     cells = _orient_positive(points, cells)
     surface = np.flatnonzero(np.abs(np.linalg.norm(points, axis=1) - 1.0) < 1e-12)
     return UnitBallMesh(points=points, cells=cells.astype(np.int64), surface_nodes=surface)
+
+
+def mobius_ball(points: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """Conformal automorphism of the unit ball sending ``a`` (|a| < 1) to the origin.
+
+    It maps the unit sphere onto itself and preserves angles, so a cube-sphere mesh keeps
+    well-shaped elements while its nodes crowd towards the boundary point -a/|a| (element
+    size scaled by (1 - |a|)/(1 + |a|) there, and by the inverse at the opposite pole): a local
+    refinement for contact without changing the mesh topology.
+    """
+    a = np.asarray(a, dtype=float)
+    if not np.linalg.norm(a) < 1.0:
+        raise ValueError(f"mobius grading vector must have norm < 1, got {np.linalg.norm(a)}")
+    aa = a @ a
+    diff = points - a
+    num = (1.0 - aa) * diff - np.einsum("ij,ij->i", diff, diff)[:, None] * a
+    den = 1.0 - 2.0 * points @ a + np.einsum("ij,ij->i", points, points) * aa
+    return num / den[:, None]
