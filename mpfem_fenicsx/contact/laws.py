@@ -36,7 +36,9 @@ class ContactLaw:
     gamma: float = 0.0  # Dupre adhesion energy, mJ/mm^2
     delta_max: float = 5e-4  # separation at which adhesion vanishes, mm (0.5 um)
     asperity_yield: float = 5.0  # asperity yield stress sigma_y, MPa; p0 = 3 sigma_y
-    alpha_forced: float | None = None  # force the degree of contact (e.g. 1.0), else PW law
+    #: force the degree of contact (e.g. 1.0) at the points where contact has been established
+    #: (sigma_max > 0); never-touched points carry no adhesion (no snap-in ahead of the contact)
+    alpha_forced: float | None = None
 
     def __post_init__(self):
         checks = [
@@ -97,7 +99,8 @@ def law_point(d, sx, sy, sz, nx, ny, nz, alpha_n, smax_n, tpx, tpy, tpz, k, kt, 
     """
     sm = smax_n
     a_mem = sm / (p0 + sm) if sm > 0.0 else 0.0
-    a_eff = alpha_forced if alpha_forced >= 0.0 else a_mem
+    # a forced degree of contact applies where contact was established (sigma_max > 0)
+    a_eff = alpha_forced if (alpha_forced >= 0.0 and sm > 0.0) else a_mem
     peak = a_eff * sigma_c
     d1 = peak / k
     if branch < 0:
@@ -124,7 +127,7 @@ def law_point(d, sx, sy, sz, nx, ny, nz, alpha_n, smax_n, tpx, tpy, tpz, k, kt, 
         t1 = 0.0
         dt1 = 0.0
         sm = 0.0  # memory erased beyond delta_max
-    if alpha_forced >= 0.0:
+    if alpha_forced >= 0.0 and sm > 0.0:
         a = alpha_forced
     else:
         a = sm / (p0 + sm) if sm > 0.0 else 0.0

@@ -1,0 +1,53 @@
+"""The contact law at single points (thesis §3.3): branches, memory, forced degree of contact."""
+
+import numpy as np
+import pytest
+
+from mpfem_fenicsx.contact.laws import ContactLaw, evaluate_law
+
+
+def _law(law, gap, smax=0.0, slip=(0.0, 0.0, 0.0), tt=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)):
+    n = len(gap)
+    out = [np.empty(n), np.empty((n, 3)), np.empty(n), np.empty(n), np.empty(n), np.empty(n, np.int64)]
+    evaluate_law(np.asarray(gap, float), np.tile(slip, (n, 1)).astype(float), np.tile(normal, (n, 1)).astype(float),
+                 np.zeros(n), np.full(n, smax, float), np.tile(tt, (n, 1)).astype(float),
+                 *law.kernel_parameters(), *out)
+    T1, Tt, alpha, smax_new, dissipation, branch = out
+    return T1, Tt, alpha, smax_new, dissipation
+
+
+def test_normal_law_branches_and_memory():
+    law = ContactLaw(penalty=1e9, friction=0.0, gamma=1e-2, delta_max=2e-4, asperity_yield=200.0)
+    T1, _, alpha, smax, _ = _law(law, [-6e-7])  # T1 = 600 = p0: alpha = 1/2
+    assert T1[0] == pytest.approx(600.0) and alpha[0] == pytest.approx(0.5) and smax[0] == pytest.approx(600.0)
+    d1 = 0.5 * law.sigma_c / law.penalty
+    gaps = [0.5 * d1, d1, 0.5 * (d1 + law.delta_max), law.delta_max, 2 * law.delta_max]
+    T1, _, alpha, smax, _ = _law(law, gaps, smax=600.0)
+    assert T1[1] == pytest.approx(-0.5 * law.sigma_c)  # peak tension alpha sigma_c
+    assert T1[0] == pytest.approx(-0.25 * law.sigma_c)  # penalty line in tension
+    assert T1[2] == pytest.approx(-0.25 * law.sigma_c)  # halfway down the softening line
+    assert T1[3] == 0.0 and T1[4] == 0.0
+    assert alpha[4] == 0.0 and smax[4] == 0.0  # memory erased beyond delta_max
+    assert alpha[2] == pytest.approx(0.5)  # kept before delta_max
+
+
+def test_forced_degree_of_contact_only_where_contact_was_made():
+    law = ContactLaw(penalty=1e9, friction=0.0, gamma=1e-3, delta_max=1e-5, alpha_forced=1.0)
+    never, _, a_never, _, _ = _law(law, [5e-6], smax=0.0)
+    assert never[0] == 0.0 and a_never[0] == 0.0  # no snap-in ahead of the contact
+    touched, _, a_touched, _, _ = _law(law, [law.sigma_c / law.penalty], smax=100.0)
+    assert touched[0] == pytest.approx(-law.sigma_c) and a_touched[0] == 1.0
+
+
+def test_coulomb_stick_slip_and_dissipation():
+    law = ContactLaw(penalty=1e9, friction=0.1)
+    gap = [-1e-7]  # T1 = 100 MPa, tau_c = 10 MPa
+    _, Tt, _, _, w = _law(law, gap, slip=(5e-9, 0.0, 0.0))  # trial 5 MPa: stick
+    assert Tt[0] == pytest.approx([-5.0, 0.0, 0.0]) and w[0] == 0.0
+    _, Tt, _, _, w = _law(law, gap, slip=(3e-8, 0.0, 0.0))  # trial 30 MPa: slip at 10
+    assert Tt[0] == pytest.approx([-10.0, 0.0, 0.0])
+    assert w[0] == pytest.approx(10.0 * (3e-8 - 1e-8))  # tau_c x slip part of the increment
+    _, Tt, _, _, _ = _law(law, [1e-7], slip=(3e-8, 0.0, 0.0))  # opening: no shear
+    assert np.all(Tt[0] == 0.0)
+    _, Tt, _, _, _ = _law(law, gap, slip=(0.0, 0.0, 1e-6))  # normal motion is not slip
+    assert np.all(Tt[0] == 0.0)
