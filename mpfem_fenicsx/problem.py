@@ -146,8 +146,9 @@ class SolidProblem:
         volumetric = self.comm.allreduce(dolfinx.fem.assemble_scalar(self._volumetric_energy), op=MPI.SUM)
         return self.integrate_points(self.material.psi) + volumetric
 
-    def lumped_mass(self, density: float) -> dolfinx.fem.Function:
-        """Row-sum lumped mass per dof (t) as a Function (ghosts updated)."""
+    def lumped_mass(self, density) -> dolfinx.fem.Function:
+        """Row-sum lumped mass per dof (t) as a Function (ghosts updated); ``density`` (t/mm^3)
+        is a number or a (e.g. mass-scaled, cell-wise) Function."""
         v = ufl.TestFunction(self.V)
         dx = ufl.dx(domain=self.mesh, metadata={"quadrature_degree": 2 * self.V.element.basix_element.degree})
         m = dolfinx.fem.Function(self.V, name="lumped_mass")

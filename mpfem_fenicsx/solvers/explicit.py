@@ -79,9 +79,6 @@ class Energies:
         """|W_ext - (E_int + E_visc + E_contact + E_kin)| (mJ)."""
         return abs(self.external - (self.internal + self.viscous + self.contact + self.kinetic))
 
-    def as_dict(self) -> dict:
-        return {"W_ext": self.external, "E_int": self.internal, "E_visc": self.viscous,
-                "E_contact": self.contact, "E_kin": self.kinetic, "E_p": self.plastic, "E_el": self.elastic}
 
 
 @dataclass
@@ -132,20 +129,14 @@ class ExplicitSolver:
         self.density = cell_function(mat.density * scale, "density")
         wave_speed = cell_function(c_d / np.sqrt(scale), "wave_speed")
         cell_length = cell_function(length, "cell_length")
-        v = ufl.TestFunction(problem.V)
-        dx_mass = ufl.dx(domain=mesh, metadata={"quadrature_degree": 2 * problem.V.element.basix_element.degree})
-        mass = dolfinx.fem.Function(problem.V, name="lumped_mass")
-        vec = dolfinx.fem.petsc.assemble_vector(dolfinx.fem.form(forms.lumped_mass_action(self.density, v, dx_mass)))
-        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        mass.x.petsc_vec.array[:] = vec.array_r
-        mass.x.scatter_forward()
-        vec.destroy()
+        mass = problem.lumped_mass(self.density)
         if contact is not None:
             self._contact_mass_scaling(mass, contact, settings)
         self.mass = mass
         self.total_mass = self.comm.allreduce(float(mass.x.array[: self.constraint.num_owned].sum()) / 3.0)
         self.mass_red = self.constraint.reduced_lumped_mass(mass)
 
+        v = ufl.TestFunction(problem.V)
         self.velocity = dolfinx.fem.Function(problem.V, name="velocity")
         self.viscous_form = dolfinx.fem.form(forms.bulk_viscosity_work(
             problem.u, self.velocity, v, self.density, wave_speed, cell_length,
