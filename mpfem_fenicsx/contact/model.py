@@ -240,13 +240,13 @@ class ContactModel:
         keys = self._keys(pts)
         # history of the points already in contact at the last converged state
         old = self.state
-        pos = np.searchsorted(old.keys, keys)
-        pos = np.minimum(pos, max(old.keys.size - 1, 0))
-        known = (old.keys.size > 0) & (old.keys[pos] == keys) if old.keys.size else np.zeros(keys.size, bool)
-        alpha_n = np.where(known, old.alpha[pos] if old.keys.size else 0.0, 0.0)
-        smax_n = np.where(known, old.smax[pos] if old.keys.size else 0.0, 0.0)
-        tt_n = np.where(known[:, None], old.tt[pos] if old.keys.size else 0.0, 0.0)
-        work_n = np.where(known, old.work[pos] if old.keys.size else 0.0, 0.0)
+        alpha_n, smax_n, work_n = np.zeros(keys.size), np.zeros(keys.size), np.zeros(keys.size)
+        tt_n = np.zeros((keys.size, 3))
+        if old.keys.size:  # new points start with an empty history
+            pos = np.minimum(np.searchsorted(old.keys, keys), old.keys.size - 1)
+            known = old.keys[pos] == keys
+            alpha_n[known], smax_n[known] = old.alpha[pos[known]], old.smax[pos[known]]
+            tt_n[known], work_n[known] = old.tt[pos[known]], old.work[pos[known]]
 
         n = pts.size
         nodes = np.empty((n, 5), np.int64)

@@ -146,6 +146,7 @@ class ExplicitSolver:
         self.f_int = problem.create_vector()
         self.f_visc = problem.create_vector()
         self.f_cont = problem.create_vector()  # minus the contact forces on the bodies
+        self._force = problem.create_vector()  # their sum, reused every step
         self.x = self.constraint.create_reduced_vector()
         self.v_red = self.x.duplicate()
         self.a_red = self.x.duplicate()
@@ -233,8 +234,8 @@ class ExplicitSolver:
             self._forces()
         t2 = time.perf_counter()
         # reduced acceleration and velocity (half step at the start)
-        self.r_red.set(0.0)
-        force = self.f_int.copy()
+        force = self._force
+        self.f_int.copy(force)
         force.axpy(1.0, self.f_visc)
         force.axpy(1.0, self.f_cont)
         self.constraint.restrict(force, self.r_red)
@@ -260,7 +261,6 @@ class ExplicitSolver:
         h = dt if self.step > 0 else 0.5 * dt
         accel = (v_half - self._v_half_prev) / h
         reaction = force.array_r[:n] + mass * accel
-        force.destroy()
         self._reaction_last = reaction
         # centred displacement increment around step n (one-sided at the start)
         du = 0.5 * (u.x.array[:n] - (self._u_prev if self.step > 0 else u_n))
