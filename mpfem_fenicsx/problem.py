@@ -35,7 +35,7 @@ class SolidProblem:
     """
 
     def __init__(self, mesh: dolfinx.mesh.Mesh, material: ElastoPlastic, *, degree: int | None = None,
-                 tangent: bool = True):
+                 tangent: bool = True, active_cells: np.ndarray | None = None):
         self.mesh = mesh
         self.params = material
         self.comm = mesh.comm
@@ -79,10 +79,21 @@ class SolidProblem:
         detJ = dolfinx.fem.Expression(abs(ufl.JacobianDeterminant(mesh)), self.points)
         jac = detJ.eval(mesh, self.cells).reshape(self.num_cells, self.points_per_cell)
         #: reference volume (mm^3) carried by each quadrature point
-        self.point_volumes = (jac * self.weights[None, :]).ravel()
+        self.active = np.ones(self.num_cells, dtype=bool)
+        if active_cells is not None:
+            self.active[:] = False
+            self.active[np.asarray(active_cells, dtype=np.int64)] = True
+        self.point_volumes = (jac * self.weights[None, :] * self.active[:, None]).ravel()
 
-        self.dx_dev = ufl.dx(domain=mesh, metadata={"quadrature_degree": self.rules.deviatoric})
-        self.dx_vol = ufl.dx(domain=mesh, metadata={"quadrature_degree": self.rules.volumetric})
+        marker = dolfinx.mesh.meshtags(mesh, tdim, self.cells, self.active.astype(np.int32))
+        self.dx = ufl.Measure("dx", domain=mesh, subdomain_data=marker)
+
+        def measure(degree):
+            return self.dx(1, metadata={"quadrature_degree": degree})
+
+        self._measure = measure
+        self.dx_dev = measure(self.rules.deviatoric)
+        self.dx_vol = measure(self.rules.volumetric)
         v = ufl.TestFunction(self.V)
         du = ufl.TrialFunction(self.V)
         bulk = dolfinx.fem.Constant(mesh, float(material.bulk))
@@ -150,7 +161,7 @@ class SolidProblem:
         """Row-sum lumped mass per dof (t) as a Function (ghosts updated); ``density`` (t/mm^3)
         is a number or a (e.g. mass-scaled, cell-wise) Function."""
         v = ufl.TestFunction(self.V)
-        dx = ufl.dx(domain=self.mesh, metadata={"quadrature_degree": 2 * self.V.element.basix_element.degree})
+        dx = self._measure(2 * self.V.element.basix_element.degree)
         m = dolfinx.fem.Function(self.V, name="lumped_mass")
         vec = dolfinx.fem.petsc.assemble_vector(dolfinx.fem.form(forms.lumped_mass_action(density, v, dx)))
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)

@@ -1,5 +1,5 @@
 """Multipoint / Dirichlet constraints as PETSc matrices: u_full = P u_reduced + g."""
 
-from .affine import AffineConstraint
+from .affine import AffineConstraint, CouplingRows
 
-__all__ = ["AffineConstraint"]
+__all__ = ["AffineConstraint", "CouplingRows"]

@@ -2,18 +2,40 @@
 but as a layer *outside* assembly so that custom contact terms can be reduced the same way).
 
 Reduced operators: K_red = P^T K P (``Mat.PtAP``), r_red = P^T r, lumped reduced mass
-M_red = P^T (M * (P 1)) (row-sum lumping of P^T M P). Prescribed (Dirichlet) dofs are rows of P
-with no entry and their value in g; multipoint couplings (periodic ties, distributing couplings)
-are rows with several entries and arrive with the granular-volume capability.
+M_red = diag(P^T M P) = (P o P)^T M (M lumped; equal to the row sum of P^T M P for injections and
+ties, and positive for any coupling). Prescribed (Dirichlet) dofs are rows of P with no entry and
+their value in g; multipoint couplings (periodic ties, distributing couplings, ``CouplingRows``)
+are rows with several entries: u_s = sum_k c_k u_k + g_s, the masters k being free dofs on any
+rank.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
 import dolfinx
+
+
+@dataclass
+class CouplingRows:
+    """Slave rows u[slave] = sum_k coefficients[k] u[masters[k]] + g[slave] (CSR by slave).
+
+    ``slaves``: local owned unrolled dofs; ``masters``: *global* unrolled dof indices (any rank);
+    masters must be free (neither prescribed nor slaves): chains are not resolved.
+    """
+
+    slaves: np.ndarray
+    indptr: np.ndarray
+    masters: np.ndarray
+    coefficients: np.ndarray
+
+    @staticmethod
+    def empty() -> "CouplingRows":
+        return CouplingRows(np.zeros(0, np.int32), np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0))
 
 
 class AffineConstraint:
@@ -23,9 +45,11 @@ class AffineConstraint:
         V: the displacement space.
         prescribed_dofs: local unrolled dof indices (block * bs + component) whose value is
             prescribed through :attr:`g`; ghosts are ignored (their owner constrains them).
+        couplings: multipoint rows (owned slaves), see :class:`CouplingRows`.
     """
 
-    def __init__(self, V: dolfinx.fem.FunctionSpace, prescribed_dofs: np.ndarray):
+    def __init__(self, V: dolfinx.fem.FunctionSpace, prescribed_dofs: np.ndarray,
+                 couplings: CouplingRows | None = None):
         self.V = V
         comm = V.mesh.comm
         imap = V.dofmap.index_map
@@ -33,8 +57,15 @@ class AffineConstraint:
         self.num_owned = imap.size_local * bs
         dofs = np.unique(np.asarray(prescribed_dofs, dtype=np.int64))
         self.prescribed = dofs[dofs < self.num_owned].astype(np.int32)
+        couplings = couplings or CouplingRows.empty()
+        self.couplings = couplings
+        self.slaves = np.asarray(couplings.slaves, dtype=np.int32)
+        if self.slaves.size and (self.slaves.max() >= self.num_owned or np.intersect1d(self.slaves, dofs).size
+                                 or np.unique(self.slaves).size != self.slaves.size):
+            raise ValueError("coupling slaves must be distinct owned dofs that are not prescribed")
         free = np.ones(self.num_owned, dtype=bool)
         free[self.prescribed] = False
+        free[self.slaves] = False
         self.free = np.flatnonzero(free).astype(np.int32)
         n_red = self.free.size
         offset = comm.exscan(n_red) or 0
@@ -42,13 +73,36 @@ class AffineConstraint:
         self.reduced_range = (offset, offset + n_red)
         global_offset = imap.local_range[0] * bs
 
-        indptr = np.zeros(self.num_owned + 1, dtype=PETSc.IntType)
-        indptr[1:] = np.cumsum(free)
-        cols = (offset + np.arange(n_red)).astype(PETSc.IntType)
-        self.P = PETSc.Mat().createAIJ(
-            ((self.num_owned, imap.size_global * bs), (n_red, self.num_reduced_global)),
-            csr=(indptr, cols, np.ones(n_red)), comm=comm)
+        # one row per owned dof: free -> its reduced index; prescribed -> empty; slave -> masters
+        counts = free.astype(np.int64)
+        cols = np.full(self.num_owned, -1, np.int64)
+        cols[self.free] = offset + np.arange(n_red)
+        vals_free = np.ones(n_red)
+        if comm.allreduce(self.slaves.size, op=MPI.SUM):
+            reduced_of_global = np.concatenate(comm.allgather(cols))  # global dof -> reduced index
+            master_cols = reduced_of_global[np.asarray(couplings.masters, dtype=np.int64)]
+            if np.any(master_cols < 0):
+                raise ValueError("a coupling master dof is prescribed or itself a slave")
+            counts[self.slaves] = np.diff(couplings.indptr)
+        indptr = np.zeros(self.num_owned + 1, dtype=np.int64)
+        indptr[1:] = np.cumsum(counts)
+        columns = np.empty(indptr[-1], dtype=np.int64)
+        values = np.empty(indptr[-1])
+        columns[indptr[self.free]] = cols[self.free]
+        values[indptr[self.free]] = vals_free
+        if self.slaves.size:
+            row_of_entry = np.repeat(np.arange(self.slaves.size), np.diff(couplings.indptr))
+            position = indptr[self.slaves[row_of_entry]] + np.arange(row_of_entry.size) \
+                - np.asarray(couplings.indptr)[row_of_entry]
+            columns[position] = master_cols
+            values[position] = couplings.coefficients
+        sizes = ((self.num_owned, imap.size_global * bs), (n_red, self.num_reduced_global))
+        csr = (indptr.astype(PETSc.IntType), columns.astype(PETSc.IntType))
+        self.P = PETSc.Mat().createAIJ(sizes, csr=(*csr, values), comm=comm)
         self.P.assemble()
+        #: P with squared entries, for the diagonal lumped reduced mass
+        self._P_squared = PETSc.Mat().createAIJ(sizes, csr=(*csr, values * values), comm=comm)
+        self._P_squared.assemble()
         self._global_offset = global_offset
         self.g = dolfinx.fem.Function(V, name="prescribed")
 
@@ -73,21 +127,19 @@ class AffineConstraint:
         self.P.multTranspose(full, out)
 
     def reduce_values(self, u: dolfinx.fem.Function, out: PETSc.Vec) -> None:
-        """Reduced coordinates of a Function that satisfies the constraint (injection P^T u)."""
-        self.P.multTranspose(u.x.petsc_vec, out)
+        """Reduced coordinates of a Function that satisfies the constraint (its free dofs)."""
+        out.array[:] = u.x.array[self.free]
 
     def reduced_lumped_mass(self, mass: dolfinx.fem.Function) -> PETSc.Vec:
-        """Row-sum lumped P^T M P: M_red = P^T (M * (P 1))."""
-        ones = self.create_reduced_vector()
-        ones.set(1.0)
-        p1 = self.P.createVecLeft()
-        self.P.mult(ones, p1)
-        p1.pointwiseMult(p1, mass.x.petsc_vec)
+        """Diagonal of P^T M P for a lumped M (t): M_red = (P o P)^T M."""
         m_red = self.create_reduced_vector()
-        self.P.multTranspose(p1, m_red)
-        ones.destroy()
-        p1.destroy()
+        self._P_squared.multTranspose(mass.x.petsc_vec, m_red)
         return m_red
+
+    def set_values(self, dofs: np.ndarray, values: np.ndarray) -> None:
+        """Offsets g (mm) of constrained dofs (prescribed or slave rows), ghosts updated."""
+        self.g.x.array[dofs] = values
+        self.g.x.scatter_forward()
 
     def reduce_matrix(self, K: PETSc.Mat, result: PETSc.Mat | None = None) -> PETSc.Mat:
         """P^T K P (reusing ``result``'s nonzero pattern when given)."""

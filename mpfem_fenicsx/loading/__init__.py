@@ -1,6 +1,8 @@
-"""Loading: amplitudes and prescribed motions."""
+"""Loading: amplitudes, prescribed motions and macroscopic gradient paths."""
 
 from .amplitude import Ramp, SmoothStep
+from .macroscopic import GradientPath, compaction_gradient
 from .prescribed import PrescribedDisplacements, body_dofs, component_dofs
 
-__all__ = ["PrescribedDisplacements", "Ramp", "SmoothStep", "body_dofs", "component_dofs"]
+__all__ = ["GradientPath", "PrescribedDisplacements", "Ramp", "SmoothStep", "body_dofs", "compaction_gradient",
+           "component_dofs"]

@@ -221,6 +221,12 @@ class ExplicitSolver:
         owned = dofs[dofs < self.constraint.num_owned]
         return self.comm.allreduce(float(self._reaction_last[owned].sum()) if owned.size else 0.0)
 
+    @property
+    def reaction(self) -> np.ndarray:
+        """Reaction (N) on every owned unrolled dof at the last step, f_int + f_bv - f_c + M a
+        (non-zero on constrained dofs only, up to the dynamic residual)."""
+        return self._reaction_last
+
     # -- stepping ----------------------------------------------------------------------------
     def advance(self) -> None:
         """One central-difference step t_n -> t_{n+1}."""

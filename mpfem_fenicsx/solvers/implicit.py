@@ -162,6 +162,11 @@ class ImplicitSolver:
         owned = np.asarray(dofs)[np.asarray(dofs) < self.constraint.num_owned]
         return self.comm.allreduce(float(self.r_full.array_r[owned].sum()))
 
+    @property
+    def reaction(self) -> np.ndarray:
+        """Reaction (N) on every owned unrolled dof: the full residual (zero on free dofs)."""
+        return self.r_full.array_r[: self.constraint.num_owned]
+
     # -- stepping -----------------------------------------------------------------------------
     def _refresh_tangent(self) -> None:
         """Residual and tangent at the current (converged) x, e.g. after a failed increment."""

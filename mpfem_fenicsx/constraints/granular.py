@@ -1,0 +1,260 @@
+"""Boundary conditions of a granular volume as multipoint constraints (thesis §2.5, table 2.2).
+
+A macroscopic gradient F0(t) is imposed on a periodic cell of sizes L = (dx, dy, dz) (mm) with
+the origin at a corner; H = F0 - I. Every constrained dof gets an offset linear in H,
+g = G vec(H) (vec(H)[3 i + j] = H_ij), so that
+
+    u_full = P u_red + G vec(H(t))    (``AffineConstraint`` + the basis G of this module)
+
+and the generalized force conjugate to H (the "auxiliary nodes" reactions of the thesis) is
+R = G^T r_full (N mm): W_ext = R : dH, hence the Schmidt first Piola stress P = R / V0 with V0
+the reference cell volume (eq. 2.14 and the virtual-work argument of §2.3).
+
+Kinds (``kind``):
+- ``GDH`` (eq. 2.12-2.13): the reference point (centre X_c) of every particle, originals and
+  copies, follows u_ref = H (X_c - L/2) through a *distributing* coupling: the weighted mean of
+  the nodes within 0.5 r of the centre (cubic weights w = 1 - 3 (d/R)^2 + 2 (d/R)^3, R = 0.5 r,
+  normalized) equals u_ref; the nodes keep deforming. Eliminated through the node of largest
+  weight: u_s = (u_ref - sum_{k != s} w_k u_k) / w_s.
+- ``GDF``: the same coupling on the duplicated particles only; the particles of the volume
+  (VEP) are free to rearrange.
+- ``CLPS`` (Loidolt, eq. 2.15): the reference point of each copy follows the one of its original
+  shifted by the deformed cell vector: sum w u(copy) - sum w u(orig) = H (L o s). (The equal
+  rotations of eq. 2.16 are not imposed: see the module notes in the closing report.)
+- ``CLP`` (Schmidt, eq. 2.14): every node of a copy is tied to its original,
+  u(n, copy) = u(n, orig) + H (L o s); copies are stiffless and massless
+  (``SolidProblem(active_cells=...)``), placed on half of the faces.
+For CLP and CLPS the whole assembly may translate freely: one surface node of a particle without
+copies is anchored on the affine field (its reaction vanishes by periodicity).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+from scipy.spatial import cKDTree
+
+import dolfinx
+
+from .affine import AffineConstraint, CouplingRows
+
+KINDS = ("GDH", "GDF", "CLPS", "CLP")
+
+
+def cubic_weights(distance: np.ndarray, reach: float) -> np.ndarray:
+    """Abaqus distributing-coupling cubic weights 1 - 3 (d/R)^2 + 2 (d/R)^3, normalized to sum 1."""
+    s = np.clip(distance / reach, 0.0, 1.0)
+    w = 1.0 - 3.0 * s ** 2 + 2.0 * s ** 3
+    return w / w.sum()
+
+
+@dataclass
+class _Nodes:
+    """All mesh nodes of the assembly (gathered on every rank): reference coordinates X, the
+    assembly particle they belong to and their global block index."""
+
+    X: np.ndarray
+    particle: np.ndarray
+    block: np.ndarray
+
+
+def _gather_nodes(V: dolfinx.fem.FunctionSpace, cell_particle: np.ndarray) -> _Nodes:
+    mesh = V.mesh
+    imap = V.dofmap.index_map
+    n_owned = imap.size_local
+    cell_map = mesh.topology.index_map(mesh.topology.dim)
+    # particle id of the ghost cells too (a node may be reached by ghost cells only)
+    DG0 = dolfinx.fem.functionspace(mesh, ("DG", 0))
+    tag = dolfinx.fem.Function(DG0)
+    tag.x.array[DG0.dofmap.list[: cell_map.size_local, 0]] = cell_particle[: cell_map.size_local]
+    tag.x.scatter_forward()
+    num_cells = cell_map.size_local + cell_map.num_ghosts
+    dofs = V.dofmap.list[:num_cells]
+    particle = np.full(n_owned + imap.num_ghosts, -1, np.int64)
+    cell_ids = np.rint(tag.x.array[DG0.dofmap.list[:num_cells, 0]]).astype(np.int64)
+    particle[dofs.ravel()] = np.repeat(cell_ids, dofs.shape[1])
+    X = V.tabulate_dof_coordinates()[:n_owned]
+    block = imap.local_range[0] + np.arange(n_owned)
+    comm = mesh.comm
+    return _Nodes(np.concatenate(comm.allgather(X)), np.concatenate(comm.allgather(particle[:n_owned])),
+                  np.concatenate(comm.allgather(block)))
+
+
+class GranularBoundaryConditions:
+    """GDH / GDF / CLPS / CLP on a particle assembly, driven by ``gradient(t)`` -> F0 (3, 3).
+
+    Args:
+        V: displacement space of the assembly mesh.
+        cell_particle: assembly particle index of every owned cell.
+        centres, radii: (n, 3), (n,) reference centres and radii of the assembly particles,
+            originals first.
+        original, shift: (n,) original particle of each assembly particle and (n, 3) integer
+            lattice shift (zero for the originals).
+        cell: (3,) periodic cell sizes (mm).
+        kind: one of GDH, GDF, CLPS, CLP.
+        gradient: callable t -> F0(t) (3, 3).
+        coupling_radius: reach of the distributing coupling as a fraction of r (thesis: 0.5).
+    """
+
+    def __init__(self, V, cell_particle, centres, radii, original, shift, cell, kind: str, gradient, *,
+                 coupling_radius: float = 0.5):
+        if kind not in KINDS:
+            raise ValueError(f"bc must be one of {', '.join(KINDS)}, got {kind!r}")
+        if not 0.0 < coupling_radius < 1.0:
+            raise ValueError(f"coupling_radius must be in (0, 1) (fraction of r), got {coupling_radius}")
+        self.V = V
+        self.kind = kind
+        self.gradient = gradient
+        self.cell = np.asarray(cell, dtype=float)
+        self.reference_volume = float(np.prod(self.cell))
+        centres = np.asarray(centres, dtype=float)
+        radii = np.asarray(radii, dtype=float)
+        original = np.asarray(original, dtype=np.int64)
+        shift = np.asarray(shift, dtype=np.int64)
+        is_copy = np.any(shift != 0, axis=1)
+        nodes = _gather_nodes(V, np.asarray(cell_particle, dtype=np.int64))
+        self.num_particles = radii.size
+        self._rows: list[tuple] = []  # (slave blocks, component, masters (k, m) blocks, coeffs, G (k, 9))
+        self._prescribed: list[tuple] = []  # (blocks, G (k, 9)) for all 3 components
+
+        by_particle = np.argsort(nodes.particle, kind="stable")
+        starts = np.searchsorted(nodes.particle[by_particle], np.arange(radii.size + 1))
+        self._members = [by_particle[starts[p]:starts[p + 1]] for p in range(radii.size)]
+
+        if kind in ("GDH", "GDF"):
+            driven = np.arange(radii.size) if kind == "GDH" else np.flatnonzero(is_copy)
+            for p in driven:
+                self._add_coupling(nodes, p, centres[p], radii[p], coupling_radius, centres[p] - 0.5 * self.cell)
+        elif kind == "CLPS":
+            for p in np.flatnonzero(is_copy):
+                self._add_coupling(nodes, p, centres[p], radii[p], coupling_radius, shift[p] * self.cell,
+                                   partner=(original[p], centres[original[p]]))
+        else:
+            self._add_ties(nodes, is_copy, original, shift)
+        if kind in ("CLP", "CLPS"):
+            self._add_anchor(nodes, centres, radii, is_copy, original)
+        self._build()
+
+    # -- construction -------------------------------------------------------------------------
+    def _coupling_nodes(self, nodes, p, centre, radius, fraction):
+        members = self._members[p]
+        d = np.linalg.norm(nodes.X[members] - centre, axis=1)
+        inside = d <= fraction * radius
+        if inside.sum() < 4:
+            raise ValueError(f"particle {p}: fewer than 4 nodes within {fraction} r of the centre; "
+                             "refine the particle mesh or raise coupling_radius")
+        sel = members[inside]
+        return sel, cubic_weights(d[inside], fraction * radius)
+
+    def _add_coupling(self, nodes, p, centre, radius, fraction, offset, partner=None):
+        """Distributing coupling of particle p: sum w u(p) [- sum w u(partner)] = H offset."""
+        sel, w = self._coupling_nodes(nodes, p, centre, radius, fraction)
+        s = int(np.argmax(w))
+        others = np.delete(np.arange(sel.size), s)
+        masters = [nodes.block[sel[others]]]
+        coeffs = [-w[others] / w[s]]
+        if partner is not None:
+            q, q_centre = partner
+            sel_q, w_q = self._coupling_nodes(nodes, q, q_centre, radius, fraction)
+            masters.append(nodes.block[sel_q])
+            coeffs.append(w_q / w[s])
+        G = np.zeros((3, 9))
+        for i in range(3):
+            G[i, 3 * i: 3 * i + 3] = offset / w[s]
+        self._rows.append((np.array([nodes.block[sel[s]]]), np.concatenate(masters)[None, :],
+                           np.concatenate(coeffs)[None, :], G[None]))
+
+    def _add_ties(self, nodes, is_copy, original, shift):
+        """CLP: every node of every copy tied to the coincident node of its original."""
+        orig_mask = ~is_copy[nodes.particle]
+        tree = cKDTree(nodes.X[orig_mask])
+        orig_index = np.flatnonzero(orig_mask)
+        copy_nodes = np.flatnonzero(is_copy[nodes.particle])
+        p = nodes.particle[copy_nodes]
+        lattice = shift[p] * self.cell
+        dist, hit = tree.query(nodes.X[copy_nodes] - lattice)
+        hit = orig_index[hit]
+        scale = float(np.max(self.cell))
+        bad = (dist > 1e-9 * scale) | (nodes.particle[hit] != original[p])
+        if np.any(bad):
+            raise ValueError(f"CLP: {int(bad.sum())} copy nodes have no coincident node on their original "
+                             "(copies must be meshed exactly like their originals)")
+        G = np.zeros((copy_nodes.size, 3, 9))
+        for i in range(3):
+            G[:, i, 3 * i: 3 * i + 3] = lattice
+        self._rows.append((nodes.block[copy_nodes], nodes.block[hit][:, None],
+                           np.ones((copy_nodes.size, 1)), G))
+
+    def _add_anchor(self, nodes, centres, radii, is_copy, original):
+        """Fix the rigid translation: the outermost node of a particle that is nobody's master."""
+        used = set(original[is_copy].tolist())
+        candidates = [p for p in range(self.num_particles) if not is_copy[p] and p not in used]
+        if not candidates:
+            raise ValueError(f"{self.kind}: every particle has a copy; no node left to anchor the rigid "
+                             "translation (use a larger cell)")
+        p = candidates[0]
+        members = self._members[p]
+        k = members[np.argmax(np.linalg.norm(nodes.X[members] - centres[p], axis=1))]
+        G = np.zeros((3, 9))
+        for i in range(3):
+            G[i, 3 * i: 3 * i + 3] = nodes.X[k] - 0.5 * self.cell
+        self._prescribed.append((np.array([nodes.block[k]]), G[None]))
+
+    def _build(self) -> None:
+        """Keep the rows whose slave this rank owns; create the AffineConstraint."""
+        V = self.V
+        imap = V.dofmap.index_map
+        lo, hi = imap.local_range
+        slave_dofs, indptr, masters, coeffs, g_rows = [], [0], [], [], []
+        for blocks, mblocks, c, G in self._rows:
+            owned = (blocks >= lo) & (blocks < hi)
+            for i in range(3):
+                slave_dofs.append((blocks[owned] - lo) * 3 + i)
+                m = mblocks[owned] * 3 + i
+                masters.append(m.ravel())
+                coeffs.append(c[owned].ravel())
+                indptr.append(np.full(owned.sum(), m.shape[1], np.int64))
+                g_rows.append(G[owned, i])
+        pres_dofs, pres_G = [], []
+        for blocks, G in self._prescribed:
+            owned = (blocks >= lo) & (blocks < hi)
+            for i in range(3):
+                pres_dofs.append((blocks[owned] - lo) * 3 + i)
+                pres_G.append(G[owned, i])
+        slaves = np.concatenate(slave_dofs) if slave_dofs else np.zeros(0, np.int64)
+        counts = np.concatenate(indptr[1:]) if len(indptr) > 1 else np.zeros(0, np.int64)
+        couplings = CouplingRows(slaves.astype(np.int32), np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
+                                 np.concatenate(masters) if masters else np.zeros(0, np.int64),
+                                 np.concatenate(coeffs) if coeffs else np.zeros(0))
+        prescribed = np.concatenate(pres_dofs) if pres_dofs else np.zeros(0, np.int64)
+        self.constraint = AffineConstraint(V, prescribed, couplings)
+        order = np.argsort(prescribed)
+        self.constrained_dofs = np.concatenate([slaves, prescribed[order]]).astype(np.int32)
+        blocks_G = g_rows + ([np.concatenate(pres_G)[order]] if pres_G else [])
+        self.G = np.concatenate(blocks_G) if blocks_G else np.zeros((0, 9))
+        self.num_slaves = V.mesh.comm.allreduce(slaves.size, op=MPI.SUM)
+
+    # -- PrescribedDisplacements interface (used by the solvers) -------------------------------
+    def build(self) -> AffineConstraint:
+        return self.constraint
+
+    def displacement_gradient(self, t: float) -> np.ndarray:
+        F0 = np.asarray(self.gradient(t), dtype=float)
+        return F0 - np.eye(3)
+
+    def apply(self, t: float) -> None:
+        """Offsets g = G vec(F0(t) - I) on every constrained dof."""
+        self.constraint.set_values(self.constrained_dofs, self.G @ self.displacement_gradient(t).ravel())
+
+    # -- results --------------------------------------------------------------------------------
+    def macroscopic_force(self, reaction: np.ndarray) -> np.ndarray:
+        """R = G^T r (N mm, (3, 3), conjugate to H = F0 - I) from the full reaction vector's owned
+        values (N): the generalized force of the thesis' auxiliary nodes, summed over ranks."""
+        local = self.G.T @ reaction[self.constrained_dofs] if self.G.size else np.zeros(9)
+        return self.V.mesh.comm.allreduce(local, op=MPI.SUM).reshape(3, 3)
+
+    def schmidt_piola(self, reaction: np.ndarray) -> np.ndarray:
+        """Macroscopic first Piola stress P = R / V0 (MPa, tension positive)."""
+        return self.macroscopic_force(reaction) / self.reference_volume

@@ -1,0 +1,74 @@
+"""Macroscopic loading paths F0(t) of a granular volume (thesis §2.5 and §4.2, SPEC §5).
+
+Compaction keeps the solid volume (plastic flow is isochoric, elastic change is small), so a
+target relative density rho_f reached from rho_0 needs det F0 = rho_0 / rho_f:
+- isotropic:  F0 = (rho_0 / rho_f)^(1/3) I,
+- die ("matrice", uniaxial strain along e3): F0 = diag(1, 1, rho_0 / rho_f).
+A path is a sequence of segments F = F_n ... F_2 F_1 (e.g. F_r F_d F_c: compaction, unloading,
+reload), each applied with a smooth-step amplitude on its logarithm, F_k(t) = exp(a_k(t) log G_k),
+so that the Hencky strain rate is proportional to the smooth-step rate (zero at the knots).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.linalg import expm, logm
+
+from .amplitude import SmoothStep
+
+PATHS = ("isotropic", "die")
+
+
+def compaction_gradient(path: str, rho_initial: float, rho_target: float) -> np.ndarray:
+    """F0 (3, 3) taking the relative density from ``rho_initial`` to ``rho_target``."""
+    if path not in PATHS:
+        raise ValueError(f"loading must be one of {', '.join(PATHS)}, got {path!r}")
+    if not 0.0 < rho_initial < 1.0:
+        raise ValueError(f"initial relative density must be in (0, 1), got {rho_initial:.4f}")
+    if not rho_initial < rho_target < 1.0:
+        raise ValueError(f"target_density must be in ({rho_initial:.4f}, 1) (above the packing's "
+                         f"density, below full density), got {rho_target}")
+    ratio = rho_initial / rho_target
+    if path == "isotropic":
+        return ratio ** (1.0 / 3.0) * np.eye(3)
+    return np.diag([1.0, 1.0, ratio])
+
+
+@dataclass
+class GradientPath:
+    """Piecewise smooth-step path of the macroscopic gradient, F0(0) = I (or ``start``).
+
+    ``segments``: list of (duration s, increment gradient G_k (3, 3)); the gradient at the end
+    of segment k is G_k ... G_1 start.
+    """
+
+    segments: list[tuple[float, np.ndarray]]
+    start: np.ndarray = field(default_factory=lambda: np.eye(3))
+
+    def __post_init__(self):
+        self._knots = [0.0]
+        self._logs = []
+        self._ends = [np.asarray(self.start, dtype=float)]
+        for k, (duration, G) in enumerate(self.segments):
+            G = np.asarray(G, dtype=float)
+            if not duration > 0:
+                raise ValueError(f"segment {k}: duration must be > 0 s, got {duration}")
+            if G.shape != (3, 3) or not np.linalg.det(G) > 0:
+                raise ValueError(f"segment {k}: increment gradient must be a 3x3 matrix with det > 0")
+            self._knots.append(self._knots[-1] + duration)
+            self._logs.append(np.real(logm(G)))
+            self._ends.append(G @ self._ends[-1])
+
+    @property
+    def duration(self) -> float:
+        return self._knots[-1]
+
+    def __call__(self, t: float) -> np.ndarray:
+        k = int(np.searchsorted(self._knots, t, side="right")) - 1
+        if k >= len(self.segments):
+            return self._ends[-1].copy()
+        k = max(k, 0)
+        a = SmoothStep(self._knots[k + 1], self._knots[k])(t)
+        return expm(a * self._logs[k]) @ self._ends[k]
