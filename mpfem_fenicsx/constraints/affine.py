@@ -2,8 +2,10 @@
 but as a layer *outside* assembly so that custom contact terms can be reduced the same way).
 
 Reduced operators: K_red = P^T K P (``Mat.PtAP``), r_red = P^T r, lumped reduced mass
-M_red = diag(P^T M P) = (P o P)^T M (M lumped; equal to the row sum of P^T M P for injections and
-ties, and positive for any coupling). Prescribed (Dirichlet) dofs are rows of P with no entry and
+M_red = |P|^T (M |P| 1), the row sums of |P|^T M |P| (M lumped): the usual row-sum lumping for
+injections and ties; for a distributing coupling, which hands the slave's stiffness to all its
+masters, it hands them the slave's mass in proportion, which keeps the explicit stable increment
+of the unconstrained mesh (a diagonal lumping does not: measured divergence). Prescribed (Dirichlet) dofs are rows of P with no entry and
 their value in g; multipoint couplings (periodic ties, distributing couplings, ``CouplingRows``)
 are rows with several entries: u_s = sum_k c_k u_k + g_s, the masters k being free dofs on any
 rank.
@@ -100,9 +102,9 @@ class AffineConstraint:
         csr = (indptr.astype(PETSc.IntType), columns.astype(PETSc.IntType))
         self.P = PETSc.Mat().createAIJ(sizes, csr=(*csr, values), comm=comm)
         self.P.assemble()
-        #: P with squared entries, for the diagonal lumped reduced mass
-        self._P_squared = PETSc.Mat().createAIJ(sizes, csr=(*csr, values * values), comm=comm)
-        self._P_squared.assemble()
+        #: |P|, for the lumped reduced mass
+        self._P_abs = PETSc.Mat().createAIJ(sizes, csr=(*csr, np.abs(values)), comm=comm)
+        self._P_abs.assemble()
         self._global_offset = global_offset
         self.g = dolfinx.fem.Function(V, name="prescribed")
 
@@ -131,9 +133,16 @@ class AffineConstraint:
         out.array[:] = u.x.array[self.free]
 
     def reduced_lumped_mass(self, mass: dolfinx.fem.Function) -> PETSc.Vec:
-        """Diagonal of P^T M P for a lumped M (t): M_red = (P o P)^T M."""
+        """Row-sum lumped |P|^T M |P| for a lumped M (t): M_red = |P|^T (M * (|P| 1))."""
+        ones = self.create_reduced_vector()
+        ones.set(1.0)
+        p1 = self._P_abs.createVecLeft()
+        self._P_abs.mult(ones, p1)
+        p1.pointwiseMult(p1, mass.x.petsc_vec)
         m_red = self.create_reduced_vector()
-        self._P_squared.multTranspose(mass.x.petsc_vec, m_red)
+        self._P_abs.multTranspose(p1, m_red)
+        ones.destroy()
+        p1.destroy()
         return m_red
 
     def set_values(self, dofs: np.ndarray, values: np.ndarray) -> None:

@@ -43,6 +43,12 @@ from .affine import AffineConstraint, CouplingRows
 KINDS = ("GDH", "GDF", "CLPS", "CLP")
 
 
+def periodic_lattice() -> np.ndarray:
+    """The 27 integer shifts {-1, 0, 1}^3, zero first (periodic images of a cell)."""
+    grid = np.array(np.meshgrid(*[[0, -1, 1]] * 3, indexing="ij")).reshape(3, -1).T
+    return grid.astype(np.int64)
+
+
 def cubic_weights(distance: np.ndarray, reach: float) -> np.ndarray:
     """Abaqus distributing-coupling cubic weights 1 - 3 (d/R)^2 + 2 (d/R)^3, normalized to sum 1."""
     s = np.clip(distance / reach, 0.0, 1.0)
@@ -96,16 +102,20 @@ class GranularBoundaryConditions:
         kind: one of GDH, GDF, CLPS, CLP.
         gradient: callable t -> F0(t) (3, 3).
         coupling_radius: reach of the distributing coupling as a fraction of r (thesis: 0.5).
+        images: a ContactModel whose periodic images follow the deformed cell, shifts
+            F0 (L o s) for the 26 neighbours s (CLP realized by contact with periodic images,
+            SPEC §5; then no copies are needed and only the rigid translation is fixed).
     """
 
     def __init__(self, V, cell_particle, centres, radii, original, shift, cell, kind: str, gradient, *,
-                 coupling_radius: float = 0.5):
+                 coupling_radius: float = 0.5, images=None):
         if kind not in KINDS:
             raise ValueError(f"bc must be one of {', '.join(KINDS)}, got {kind!r}")
         if not 0.0 < coupling_radius < 1.0:
             raise ValueError(f"coupling_radius must be in (0, 1) (fraction of r), got {coupling_radius}")
         self.V = V
         self.kind = kind
+        self.images = images
         self.gradient = gradient
         self.cell = np.asarray(cell, dtype=float)
         self.reference_volume = float(np.prod(self.cell))
@@ -188,8 +198,10 @@ class GranularBoundaryConditions:
                            np.ones((copy_nodes.size, 1)), G))
 
     def _add_anchor(self, nodes, centres, radii, is_copy, original):
-        """Fix the rigid translation: the outermost node of a particle that is nobody's master."""
-        used = set(original[is_copy].tolist())
+        """Fix the rigid translation: the outermost node of a particle of the volume, which is
+        never a coupling master (CLPS couples the central nodes); CLP ties every node of a copied
+        particle, so there the particle must have no copy."""
+        used = set(original[is_copy].tolist()) if self.kind == "CLP" else set()
         candidates = [p for p in range(self.num_particles) if not is_copy[p] and p not in used]
         if not candidates:
             raise ValueError(f"{self.kind}: every particle has a copy; no node left to anchor the rigid "
@@ -246,15 +258,18 @@ class GranularBoundaryConditions:
 
     def apply(self, t: float) -> None:
         """Offsets g = G vec(F0(t) - I) on every constrained dof."""
-        self.constraint.set_values(self.constrained_dofs, self.G @ self.displacement_gradient(t).ravel())
+        H = self.displacement_gradient(t)
+        self._H = H
+        self.constraint.set_values(self.constrained_dofs, self.G @ H.ravel())
+        if self.images is not None:
+            self.images.set_periodic_images(periodic_lattice(), ((H + np.eye(3)) * self.cell).T)
 
     # -- results --------------------------------------------------------------------------------
     def macroscopic_force(self, reaction: np.ndarray) -> np.ndarray:
         """R = G^T r (N mm, (3, 3), conjugate to H = F0 - I) from the full reaction vector's owned
         values (N): the generalized force of the thesis' auxiliary nodes, summed over ranks."""
         local = self.G.T @ reaction[self.constrained_dofs] if self.G.size else np.zeros(9)
-        return self.V.mesh.comm.allreduce(local, op=MPI.SUM).reshape(3, 3)
-
-    def schmidt_piola(self, reaction: np.ndarray) -> np.ndarray:
-        """Macroscopic first Piola stress P = R / V0 (MPa, tension positive)."""
-        return self.macroscopic_force(reaction) / self.reference_volume
+        R = self.V.mesh.comm.allreduce(local, op=MPI.SUM).reshape(3, 3)
+        if self.images is not None:  # image shifts S = F0 (L o s): dW = pf . dH (L o s)
+            R += self.images.image_moment() @ np.linalg.inv(self._H + np.eye(3)).T
+        return R

@@ -221,6 +221,21 @@ class ContactModel:
         self.frictional_work = 0.0  # committed, summed over ranks, mJ
         self._V = V
 
+    def set_periodic_images(self, lattice: np.ndarray, cell_vectors: np.ndarray) -> None:
+        """Images of the masters shifted by ``lattice @ cell_vectors`` (lattice (m, 3) integers,
+        the zero shift first; cell_vectors (3, 3), rows = current cell vectors F0 (L_i e_i), mm).
+        Called whenever the macroscopic gradient changes (periodic conditions by images)."""
+        self.search.shifts = np.asarray(lattice, dtype=float) @ np.asarray(cell_vectors, dtype=float)
+
+    def image_moment(self) -> np.ndarray:
+        """sum over the points whose master is a periodic image of (force on the slave) x (image
+        shift) (N mm, (3, 3), summed over ranks): the work-conjugate of the shifts, i.e. what the
+        copies' ties transmit in fully periodic conditions (Schmidt stress by images)."""
+        local = np.zeros((3, 3))
+        if self.points is not None and self.points.size:
+            local = self.point_force.T @ self.points.shift
+        return self.comm.allreduce(local, op=MPI.SUM)
+
     # -- evaluation ------------------------------------------------------------------------------
     def _keys(self, pts: ContactPoints) -> np.ndarray:
         nb = self.surface.num_bodies

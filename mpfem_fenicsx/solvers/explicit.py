@@ -177,11 +177,13 @@ class ExplicitSolver:
         s = self.settings.safety
         if settings.target_dt is not None:
             added = k_node * (self.dt / (2.0 * s * settings.deformation_margin)) ** 2
+            added[m_node <= 0.0] = 0.0  # massless shell copies: their ties carry it to the original
             mass.x.array.reshape(-1, 3)[blocks] += added[:, None]
             mass.x.scatter_forward()
             self.contact_added_mass = self.comm.allreduce(float(added.sum()), op=MPI.SUM)
         else:
-            local = float((2.0 * s * np.sqrt(m_node / k_node)).min()) if k_node.size else np.inf
+            real = m_node > 0.0
+            local = float((2.0 * s * np.sqrt(m_node[real] / k_node[real])).min()) if real.any() else np.inf
             self.dt = min(self.dt, self.comm.allreduce(local, op=MPI.MIN))
             self.contact_added_mass = 0.0
 

@@ -4,6 +4,10 @@ Spheres of radius r centred at (0, 0, -r) and (0, 0, r), touching at the origin;
 from gmsh, refined around the contact point. Each sphere is driven by a small rigid core (the
 nodes within ``core`` r of its centre) moving by -/+ delta/2 along z, so delta is the approach of
 the centres. Reference: F = 4/3 E* sqrt(R) delta^(3/2), E* = E / (2 (1 - nu^2)), R = r / 2.
+
+``solver="explicit"`` runs the same case with central differences (mass scaling to
+``explicit_increments`` increments, smooth-step approach): slow enough, it reproduces the implicit
+force-approach curve (issue 3 acceptance; ``tests/test_hertz.py``).
 """
 
 from __future__ import annotations
@@ -19,11 +23,12 @@ from mpi4py import MPI
 from ..contact import ContactLaw, ContactModel
 from ..contact.laws import default_penalty
 from ..io import History
-from ..loading import PrescribedDisplacements, component_dofs
+from ..loading import PrescribedDisplacements, SmoothStep, component_dofs
 from ..material import ElastoPlastic
 from ..meshes import particle_mesh
 from ..problem import SolidProblem
 from ..solvers import ImplicitSolver, StepControl
+from ..solvers.explicit import ExplicitSettings, ExplicitSolver
 
 
 @dataclass(frozen=True)
@@ -53,7 +58,11 @@ class HertzResult:
 
 
 def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hertz",
-              comm: MPI.Comm = MPI.COMM_WORLD, petsc_options: dict | None = None, log=print) -> HertzResult:
+              comm: MPI.Comm = MPI.COMM_WORLD, petsc_options: dict | None = None, log=print,
+              solver: str = "implicit", explicit_increments: int = 4000, explicit_time: float = 1e-3,
+              rows: int = 40) -> HertzResult:
+    if solver not in ("implicit", "explicit"):
+        raise ValueError(f"solver must be implicit or explicit, got {solver!r}")
     r = case.radius
     with warnings.catch_warnings():  # P1 tetrahedra: fine for this elastic, compressible case
         warnings.simplefilter("ignore")
@@ -64,7 +73,7 @@ def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hert
                                              ((0.0, 0.0, -r), 0.3 * case.core * r, case.core * r, 0.5 * r),
                                              ((0.0, 0.0, r), 0.3 * case.core * r, case.core * r, 0.5 * r)])
         material = ElastoPlastic(E=case.E, nu=case.nu, sigma_0=1e12, hardening="linear", K=0.0, H=0.0)
-        problem = SolidProblem(assembly.mesh, material)
+        problem = SolidProblem(assembly.mesh, material, tangent=(solver == "implicit"))
     V = problem.V
     penalty = default_penalty(case.E, case.size_min * r, case.penalty_factor)
     law = ContactLaw(penalty=penalty, friction=0.0, gamma=0.0)
@@ -80,23 +89,33 @@ def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hert
             bcs.add(component_dofs(V, core(sign), c))
     lower = component_dofs(V, core(-1.0), 2)
     upper = component_dofs(V, core(1.0), 2)
-    bcs.add(lower, lambda t: 0.5 * delta_end * t).add(upper, lambda t: -0.5 * delta_end * t)
-    history = History(Path(out_dir) / "force.csv", ["delta_mm", "force_N", "force_hertz_N"], comm)
+    amplitude = (lambda t: t) if solver == "implicit" else SmoothStep(explicit_time)
+    bcs.add(lower, lambda t: 0.5 * delta_end * amplitude(t)).add(upper, lambda t: -0.5 * delta_end * amplitude(t))
+    name = "force.csv" if solver == "implicit" else "force_explicit.csv"
+    history = History(Path(out_dir) / name, ["delta_mm", "force_N", "force_hertz_N"], comm)
     iterations = []
 
     def record(s):
-        delta = delta_end * s.t
+        delta = delta_end * amplitude(s.t)
         force = -s.reactions(upper)  # the upper core pushes down: compressive force > 0
         history.append(delta_mm=delta, force_N=force, force_hertz_N=float(case.hertz_force(delta)))
-        iterations.append(s.snes.getIterationNumber())
+        iterations.append(s.snes.getIterationNumber() if solver == "implicit" else 0)
         log(f"  delta/r = {delta / r:.5f}: F = {force:.4f} N, Hertz {case.hertz_force(delta):.4f} N "
             f"({100 * (force / case.hertz_force(delta) - 1):+.2f} %), {contact.count(True)} contact points, "
             f"{iterations[-1]} Newton iterations")
 
     log(f"Hertz: {V.dofmap.index_map.size_global * 3} dofs, penalty {penalty:.3g} N/mm^3")
     start = time.perf_counter()
-    solver = ImplicitSolver(problem, bcs, contact=contact, petsc_options=petsc_options)
-    dt = 1.0 / case.steps
-    solver.run(StepControl(t_end=1.0, dt=dt, dt_max=dt, dt_min=dt / 64), on_step=record, log=log)
+    if solver == "implicit":
+        s = ImplicitSolver(problem, bcs, contact=contact, petsc_options=petsc_options)
+        dt = 1.0 / case.steps
+        s.run(StepControl(t_end=1.0, dt=dt, dt_max=dt, dt_min=dt / 64), on_step=record, log=log)
+    else:
+        s = ExplicitSolver(problem, bcs, ExplicitSettings(t_end=explicit_time,
+                                                          target_dt=explicit_time / explicit_increments),
+                           contact=contact)
+        log(f"  explicit: dt = {s.dt:.3g} s (unscaled {s.dt_stable_unscaled:.3g} s), {explicit_increments} "
+            "increments")
+        s.run(record, outputs=rows)
     history.write()
     return HertzResult(history, V.dofmap.index_map.size_global * 3, time.perf_counter() - start, iterations)

@@ -1,0 +1,58 @@
+"""Command line of the compaction demos (``demos/isotropic.py``, ``demos/die.py``)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from mpi4py import MPI
+
+from ..constraints.granular import KINDS
+from ..workflows.compaction import CompactionCase, run_compaction
+
+
+def parser(loading: str, doc: str) -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    d = CompactionCase()
+    p.add_argument("--particles", type=int, default=d.particles, help="particles of the generated packing")
+    p.add_argument("--target-density", type=float, default=d.target_density, help="relative density to reach")
+    p.add_argument("--bc", choices=KINDS, default=d.bc, help="boundary conditions (thesis table 2.2)")
+    p.add_argument("--images", action="store_true", help="CLP by contact with periodic images (no copies)")
+    p.add_argument("--solver", choices=("implicit", "explicit"), default=d.solver)
+    p.add_argument("--packing", default=None, help="packing file (header dx dy dz, then x y z r lines)")
+    p.add_argument("--packing-fraction", type=float, default=None,
+                   help="generator: stop at this solid fraction (default: jammed)")
+    p.add_argument("--seed", type=int, default=d.seed)
+    p.add_argument("--d-bc", type=float, default=None, help="duplication distance / r_max (default: thesis table 2.3)")
+    p.add_argument("--gamma", type=float, default=d.gamma, help="adhesion energy (mJ/mm^2)")
+    p.add_argument("--friction", type=float, default=d.friction)
+    p.add_argument("--increments", type=int, default=d.increments, help="explicit increments (mass scaling)")
+    p.add_argument("--refinement", type=int, default=d.refinement, help="cube-sphere refinement")
+    p.add_argument("--outputs", type=int, default=d.outputs, help="history rows / ParaView frames")
+    p.add_argument("--no-visual", action="store_true", help="skip ParaView output and the PNG")
+    p.add_argument("--out", default=f"results/{loading}")
+    return p
+
+
+def main(loading: str, doc: str, argv=None) -> None:
+    args = parser(loading, doc).parse_args(argv)
+    comm = MPI.COMM_WORLD
+    say = print if comm.rank == 0 else (lambda *a, **k: None)
+    try:
+        case = CompactionCase(particles=args.particles, target_density=args.target_density, loading=loading,
+                              bc=args.bc, images=args.images, solver=args.solver, seed=args.seed,
+                              packing_file=args.packing, packing_fraction=args.packing_fraction, d_bc=args.d_bc,
+                              gamma=args.gamma, friction=args.friction, increments=args.increments,
+                              refinement=args.refinement, outputs=args.outputs, visual=not args.no_visual,
+                              out_dir=args.out)
+    except ValueError as err:
+        raise SystemExit(f"error: {err}")
+    start = time.perf_counter()
+    res = run_compaction(case, comm, log=say)
+    h = res.history
+    say(f"done: rho = {h.column('rho')[-1]:.4f} (imposed {h.column('rho_imposed')[-1]:.4f}), "
+        f"sigma_m = {h.column('sigma_m')[-1]:.3f} MPa, sigma_d = {h.column('sigma_d')[-1]:.3f} MPa, "
+        f"{int(h.column('n_contacts')[-1])} contacts; {res.num_particles_model} particles in the model, "
+        f"{res.num_dofs} dofs, {res.increments} increments, wall {time.perf_counter() - start:.0f} s")
+    say(f"outputs in {res.out_dir}/: history.csv, packing.txt"
+        + ("" if args.no_visual else ", particles.xdmf (ParaView), particles.png"))

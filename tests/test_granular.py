@@ -1,0 +1,97 @@
+"""Granular volumes (issue 4): GDH / GDF / CLPS / CLP constraints, rigid motions, CLP by copies
+vs CLP by periodic images, on small simple-cubic cells (8 equal spheres, thesis §2.6)."""
+
+import itertools
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from mpfem_fenicsx.constraints.granular import cubic_weights
+from mpfem_fenicsx.meshes.packing import Packing
+from mpfem_fenicsx.workflows.compaction import CompactionCase, build_compaction, run_compaction
+
+
+def simple_cubic(r: float = 0.1) -> Packing:
+    centres = r + 2 * r * np.array(list(itertools.product([0, 1], repeat=3)), dtype=float)
+    return Packing(cell=np.full(3, 4 * r), centres=centres, radii=np.full(8, r))
+
+
+def quiet(*args):
+    pass
+
+
+def small_case(tmp_path, **kw) -> CompactionCase:
+    options = dict(packing=simple_cubic(), target_density=0.56, increments=300, outputs=3, visual=False,
+                   duration=1e-4, out_dir=str(tmp_path), d_bc=0.8)
+    options.update(kw)
+    return CompactionCase(**options)
+
+
+def coupling_means(model):
+    """Weighted mean displacement of the coupling nodes (within 0.5 r) of every particle."""
+    X = model.problem.V.tabulate_dof_coordinates()
+    U = model.problem.u.x.array.reshape(-1, 3)
+    means = []
+    for c, r in zip(model.centres, model.radii):
+        d = np.linalg.norm(X - c, axis=1)
+        inside = d <= 0.5 * r
+        means.append(cubic_weights(d[inside], 0.5 * r) @ U[inside])
+    return np.array(means)
+
+
+@pytest.mark.parametrize("bc", ["GDH", "GDF", "CLPS", "CLP"])
+def test_constraints_hold_after_compaction(tmp_path, bc):
+    res = run_compaction(small_case(tmp_path, bc=bc), MPI.COMM_SELF, log=quiet)
+    model = res.extra["model"]
+    H = model.bcs.displacement_gradient(res.extra["solver"].t)
+    assert np.abs(H).max() > 0.02  # the cell did deform
+    centres, shift, original = model.centres, model.shift, model.original
+    cell = res.packing.cell
+    is_copy = model.is_copy
+    assert is_copy.sum() > 0
+    if bc in ("GDH", "GDF"):
+        means = coupling_means(model)
+        driven = np.arange(len(centres)) if bc == "GDH" else np.flatnonzero(is_copy)
+        target = (centres[driven] - 0.5 * cell) @ H.T
+        assert np.abs(means[driven] - target).max() < 1e-10
+    elif bc == "CLPS":
+        means = coupling_means(model)
+        c = np.flatnonzero(is_copy)
+        jump = means[c] - means[original[c]] - (shift[c] * cell) @ H.T
+        assert np.abs(jump).max() < 1e-10
+    else:
+        problem = model.problem
+        X = problem.V.tabulate_dof_coordinates()
+        U = problem.u.x.array.reshape(-1, 3)
+        from scipy.spatial import cKDTree
+        tree = cKDTree(X)
+        worst = 0.0
+        for p in np.flatnonzero(is_copy):
+            mine = np.linalg.norm(X - centres[p], axis=1) <= model.radii[p] * 1.0001
+            lattice = shift[p] * cell
+            _, j = tree.query(X[mine] - lattice)
+            worst = max(worst, np.abs(U[mine] - U[j] - lattice @ H.T).max())
+        assert worst < 1e-10
+    # compaction happened and the Schmidt stress is compressive
+    h = res.history
+    assert h.column("rho_imposed")[-1] == pytest.approx(0.56, rel=1e-6)
+    assert h.column("sigma_m")[-1] > 0
+
+
+@pytest.mark.parametrize("bc", ["CLP", "CLPS"])
+def test_rigid_translation_gives_zero_stress(tmp_path, bc):
+    """F0 = I and a uniform translation of every node (allowed by the periodic constraints):
+    no internal or contact force, zero Schmidt stress."""
+    model = build_compaction(small_case(tmp_path, bc=bc), MPI.COMM_SELF, log=quiet)
+    problem, bcs, contact = model.problem, model.bcs, model.contact
+    bcs.apply(0.0)  # F0(0) = I
+    problem.u.x.array.reshape(-1, 3)[:] = [0.013, -0.007, 0.021]
+    problem.u.x.scatter_forward()
+    problem.update_material()
+    r = problem.create_vector()
+    problem.assemble_residual(r)
+    contact.evaluate(problem.u)
+    contact.add_residual(r)
+    assert np.abs(r.array).max() < 1e-9
+    assert np.abs(bcs.macroscopic_force(r.array)).max() < 1e-12

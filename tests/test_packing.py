@@ -1,0 +1,234 @@
+"""Periodic sphere packings (SPEC §5, §9.7; thesis §2.2.1): container, I/O, generator, duplicates."""
+
+import time
+
+import numpy as np
+import pytest
+
+from mpfem_fenicsx.meshes.packing import (Packing, _periodic_pairs, assembly_particles, duplicate_particles,
+                                          generate_packing, read_packing, write_packing)
+
+R_MIN, R_MAX = 0.082, 0.147  # thesis radii, mm
+
+
+@pytest.fixture(scope="module")
+def jammed50():
+    return generate_packing(50, R_MIN, R_MAX, seed=0)
+
+
+def simple_cubic(r=1.0):
+    """8 spheres at (r, r, r) + {0, 2r}^3 in a cube of side 4r (touching, also through the faces)."""
+    offsets = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=float)
+    return Packing([4 * r] * 3, r + 2 * r * offsets, np.full(8, r))
+
+
+def contact_numbers(packing, gap_tol):
+    i, j, _, dist = _periodic_pairs(packing.centres, packing.radii, packing.cell, 2 * packing.radii.max())
+    c = dist - packing.radii[i] - packing.radii[j] < gap_tol
+    return np.bincount(i[c], minlength=packing.num_particles) + np.bincount(j[c], minlength=packing.num_particles)
+
+
+# ---------------------------------------------------------------------------------- Packing
+
+
+def test_simple_cubic_packing_properties():
+    p = simple_cubic(0.5).validate()
+    assert p.num_particles == 8
+    assert p.solid_fraction == pytest.approx(np.pi / 6)
+    assert p.max_overlap() == 0.0  # every sphere touches its 6 neighbours, two of them through a face
+    assert (contact_numbers(p, 1e-12) == 6).all()
+    q = p.scaled(0.99)
+    assert np.array_equal(q.radii, 0.99 * p.radii) and np.array_equal(q.centres, p.centres)
+    assert q.solid_fraction == pytest.approx(0.99**3 * np.pi / 6)
+    assert not p.radii.flags.writeable  # frozen: arrays are read-only copies
+    assert p.scaled(1.01).max_overlap() == pytest.approx((1.01 - 1.0) / 0.505)
+
+
+@pytest.mark.parametrize("centres, radii, match", [
+    ([[1.0, 1, 1], [1.9, 1, 1]], [0.5, 0.5], r"overlap of particles 0 and 1"),
+    ([[0.1, 1, 1], [3.8, 1, 1]], [0.2, 0.2], r"overlap of particles 0 and 1 \(image shift \[-1, 0, 0\]\)"),
+    ([[1.0, 1, 1], [4.0, 1, 1]], [0.5, 0.5], r"centre of particle 1 outside the cell: x=4.0"),
+    ([[1.0, 1, -0.1], [3.0, 1, 1]], [0.5, 0.5], r"centre of particle 0 outside the cell: z=-0.1"),
+    ([[1.0, 1, 1], [3.0, 1, 1]], [0.5, -0.5], r"radius must be > 0 mm; particle 1"),
+    ([[1.0, 1, 1], [3.0, 1, 1]], [0.5, 2.5], r"radius must be < min\(cell\)/2"),
+])
+def test_validate_errors(centres, radii, match):
+    with pytest.raises(ValueError, match=match):
+        Packing([4.0, 4.0, 4.0], centres, radii).validate()
+
+
+def test_constructor_and_argument_errors():
+    with pytest.raises(ValueError, match="cell must be 3 sizes"):
+        Packing([1.0, 1.0], [[0.5, 0.5, 0.5]], [0.1])
+    with pytest.raises(ValueError, match="radii must have shape"):
+        Packing([1.0, 1.0, 1.0], [[0.5, 0.5, 0.5]], [0.1, 0.1])
+    with pytest.raises(ValueError, match="cell sizes must be finite and > 0"):
+        Packing([1.0, 0.0, 1.0], [[0.5, 0.0, 0.5]], [0.1]).validate()
+    with pytest.raises(ValueError, match="radius_factor"):
+        simple_cubic().scaled(0.0)
+    with pytest.raises(ValueError, match="r_max must be >= r_min"):
+        generate_packing(50, 0.2, 0.1, seed=0)
+    with pytest.raises(ValueError, match="target_fraction must be in"):
+        generate_packing(50, R_MIN, R_MAX, seed=0, target_fraction=0.9)
+    with pytest.raises(ValueError, match="n=5 too small"):
+        generate_packing(5, R_MIN, R_MAX, seed=0)
+
+
+# ------------------------------------------------------------------------------------ I/O
+
+
+def test_file_round_trip_is_exact(tmp_path, jammed50):
+    path = tmp_path / "p.txt"
+    write_packing(jammed50, path)
+    lines = path.read_text().splitlines()
+    assert len(lines) == 51 and len(lines[0].split()) == 3 and len(lines[1].split()) == 4
+    q = read_packing(path)
+    for a in ("cell", "centres", "radii"):
+        assert np.array_equal(getattr(q, a), getattr(jammed50, a))
+
+
+def test_read_comments_and_blank_lines(tmp_path):
+    path = tmp_path / "p.txt"
+    path.write_text("# exported by a YADE script\n\n4 4 4  # cell\n1 1 1 1\n# spheres\n3 1 1 1\n\n")
+    p = read_packing(path)
+    assert p.cell.tolist() == [4, 4, 4] and p.num_particles == 2 and p.radii.tolist() == [1, 1]
+
+
+@pytest.mark.parametrize("text, match", [
+    ("4 4 4\n1 1 1 0.5\n3 1 1\n", r"line 3: sphere line 'x y z r' must hold 4 numbers, got 3"),
+    ("# c\n4 4\n1 1 1 0.5\n", r"line 2: cell line 'dx dy dz' must hold 3 numbers"),
+    ("4 4 4\n1 1 one 0.5\n", r"line 2: sphere line 'x y z r' must hold 4 numbers, got '1 1 one 0.5'"),
+    ("4 4 4\n", r"at least one sphere line"),
+    ("4 4 4\n1 1 1 1\n2.5 1 1 1\n", r"overlap of particles 0 and 1"),
+    ("4 4 4\n1 1 1 -1\n", r"radius must be > 0 mm"),
+])
+def test_read_errors(tmp_path, text, match):
+    path = tmp_path / "bad.txt"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=match):
+        read_packing(path)
+
+
+def test_read_without_validation(tmp_path):
+    path = tmp_path / "p.txt"
+    path.write_text("4 4 4\n1 1 1 1\n2.5 1 1 1\n")
+    assert read_packing(path, validate=False).max_overlap() == pytest.approx(0.5)
+    assert read_packing(path, overlap_tolerance=0.6).num_particles == 2
+
+
+# ------------------------------------------------------------------------------ generator
+
+
+def test_generator_reproducible_by_seed():
+    a = generate_packing(50, R_MIN, R_MAX, seed=3, target_fraction=0.55)
+    b = generate_packing(50, R_MIN, R_MAX, seed=3, target_fraction=0.55)
+    c = generate_packing(50, R_MIN, R_MAX, seed=4, target_fraction=0.55)
+    for name in ("cell", "centres", "radii"):
+        assert np.array_equal(getattr(a, name), getattr(b, name))
+        assert not np.array_equal(getattr(a, name), getattr(c, name))
+
+
+def test_generator_jammed_reproducible(jammed50):
+    again = generate_packing(50, R_MIN, R_MAX, seed=0)
+    assert np.array_equal(again.centres, jammed50.centres) and np.array_equal(again.cell, jammed50.cell)
+
+
+def test_target_fraction_reached_overlap_free():
+    p = generate_packing(50, R_MIN, R_MAX, seed=1, target_fraction=0.55)
+    assert abs(p.solid_fraction - 0.55) < 1e-3
+    p.validate()
+    assert p.max_overlap() < 1e-6
+    assert R_MIN <= p.radii.min() and p.radii.max() <= R_MAX
+    assert ((p.centres >= 0) & (p.centres < p.cell)).all()
+
+
+@pytest.mark.parametrize("n, seed", [(50, 0), (100, 2)])
+def test_jammed_packing(n, seed, jammed50):
+    p = jammed50 if (n, seed) == (50, 0) else generate_packing(n, R_MIN, R_MAX, seed=seed)
+    assert 0.58 <= p.solid_fraction <= 0.67
+    p.validate()
+    assert p.max_overlap() < 1e-6
+    assert R_MIN <= p.radii.min() and p.radii.max() <= R_MAX
+    assert ((p.centres >= 0) & (p.centres < p.cell)).all()
+    # jammed = isostatic: the non-rattlers (>= 4 contacts) have ~6 contacts on average
+    z = contact_numbers(p, 1e-3 * R_MIN)
+    assert (z < 4).sum() <= 0.15 * n
+    assert 5.5 < z[z >= 4].mean() < 6.5
+
+
+def test_anisotropic_cell():
+    p = generate_packing(60, R_MIN, R_MAX, seed=5, target_fraction=0.5, cell_aspect=(1.0, 1.0, 2.0))
+    assert p.cell[2] / p.cell[0] == pytest.approx(2.0) and abs(p.solid_fraction - 0.5) < 1e-3
+    p.validate()
+
+
+def test_unreachable_target_fraction():
+    with pytest.raises(ValueError, match=r"target_fraction=0.7 unreachable: jammed at 0\.6"):
+        generate_packing(50, R_MIN, R_MAX, seed=0, target_fraction=0.7)
+
+
+@pytest.mark.heavy
+def test_generator_1000_particles():
+    t = time.perf_counter()
+    p = generate_packing(1000, R_MIN, R_MAX, seed=0)
+    elapsed = time.perf_counter() - t
+    print(f"N=1000 jammed: {elapsed:.1f} s, solid fraction {p.solid_fraction:.4f}")
+    p.validate()
+    assert 0.60 <= p.solid_fraction <= 0.66
+
+
+# ----------------------------------------------------------------------------- duplicates
+
+
+@pytest.mark.parametrize("d_bc, faces, corners, expected", [
+    # x_min = r, x_max = 3r: with d_bc = 1.5 r one layer is near each plane
+    (1.5, "all", True, 8 + 16 + 32),  # x: 4 + 4; y: all 16; z: all 32 -> 4^3 - 8
+    (1.5, "half", True, 4 + 6 + 9),  # + side only: half of 8, 12, 18 -> 3^3 - 8
+    (1.5, "all", False, 3 * 8),  # faces only
+    (1.5, "half", False, 3 * 4),  # thesis §2.6: simple cubic with CLP, 12 copies
+    (2.5, "all", True, 8 * 27 - 8),  # every particle near both planes of every axis
+    (2.5, "half", True, 8 + 16 + 32),
+    (0.5, "all", True, 56),  # the extreme layers are at distance 0 < d_bc
+])
+def test_duplicates_simple_cubic(d_bc, faces, corners, expected):
+    p = simple_cubic(1.0)
+    d = duplicate_particles(p, d_bc, faces=faces, corners=corners)
+    assert d.num_copies == expected
+    assert np.array_equal(d.centres, p.centres[d.original] + d.shift * p.cell)
+    assert np.array_equal(d.radii, p.radii[d.original])
+    assert np.abs(d.shift).max() == 1 and (np.abs(d.shift).sum(axis=1) > 0).all()
+    if faces == "half":
+        assert (d.shift >= 0).all()
+    if not corners:
+        assert (np.abs(d.shift).sum(axis=1) == 1).all()
+    keys = np.column_stack([d.original, d.shift])
+    assert np.unique(keys, axis=0).shape[0] == d.num_copies
+
+
+@pytest.mark.parametrize("faces", ["all", "half"])
+def test_duplicates_match_rule(jammed50, faces):
+    """Copies = all (i, s != 0) with s_a = +1 if near min_a, -1 if near max_a (all), 0 otherwise."""
+    p, d_bc = jammed50, 2.0 * R_MAX
+    d = duplicate_particles(p, d_bc, faces=faces)
+    lo, hi = p.centres.min(axis=0), p.centres.max(axis=0)
+    expected = set()
+    for i, c in enumerate(p.centres):
+        choices = [[0] + ([1] if c[a] - lo[a] < d_bc else []) + ([-1] if faces == "all" and hi[a] - c[a] < d_bc
+                                                                 else []) for a in range(3)]
+        expected |= {(i, *s) for s in np.array(np.meshgrid(*choices)).reshape(3, -1).T.tolist() if any(s)}
+    got = {tuple(k) for k in np.column_stack([d.original, d.shift]).tolist()}
+    assert got == expected and len(got) == d.num_copies
+    assert np.allclose(d.centres, p.centres[d.original] + d.shift * p.cell, rtol=0, atol=1e-15)
+    a = assembly_particles(p, d)
+    n = p.num_particles
+    assert a.centres.shape == (n + d.num_copies, 3) and a.radii.shape == (n + d.num_copies,)
+    assert np.array_equal(a.original[:n], np.arange(n)) and not a.shift[:n].any()
+    assert np.array_equal(a.centres[n:], d.centres) and np.array_equal(a.original[n:], d.original)
+    assert np.allclose(a.centres, p.centres[a.original] + a.shift * p.cell, rtol=0, atol=1e-15)
+
+
+def test_duplicates_errors():
+    with pytest.raises(ValueError, match="faces must be 'all' or 'half'"):
+        duplicate_particles(simple_cubic(), 1.5, faces="quarter")
+    with pytest.raises(ValueError, match="d_bc must be > 0 mm"):
+        duplicate_particles(simple_cubic(), -1.0)
