@@ -1,6 +1,6 @@
 """Flagship demo: isotropic compaction of a periodic volume of lead particles (thesis chapter 2).
 
-    python demos/isotropic.py                       # embedded default: 16 particles, CLP, rho -> 0.9
+    python demos/isotropic.py                       # embedded default: 24 particles, CLP, rho -> 0.92
     python demos/isotropic.py --particles 50 --target-density 0.95 --bc CLP
     mpirun -n 2 python demos/isotropic.py --bc GDF
 

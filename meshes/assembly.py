@@ -231,3 +231,20 @@ class ParticleCentroids:
 def particle_volumes(assembly: ParticleAssembly, u: dolfinx.fem.Function | None = None) -> np.ndarray:
     """One-off evaluation of :class:`ParticleVolumes` (compiles a form: not for time loops)."""
     return ParticleVolumes(assembly, u)()
+
+
+def node_particles(V: dolfinx.fem.FunctionSpace, cell_particle: np.ndarray) -> np.ndarray:
+    """Particle id of every owned node (a node is reached by owned cells of its particle, or,
+    near a partition boundary, only by ghost cells: those take the id through a DG0 scatter)."""
+    mesh = V.mesh
+    cell_map = mesh.topology.index_map(3)
+    DG0 = dolfinx.fem.functionspace(mesh, ("DG", 0))
+    tag = dolfinx.fem.Function(DG0)
+    tag.x.array[DG0.dofmap.list[: cell_map.size_local, 0]] = cell_particle
+    tag.x.scatter_forward()
+    cells = cell_map.size_local + cell_map.num_ghosts
+    ids = np.rint(tag.x.array[DG0.dofmap.list[:cells, 0]]).astype(np.int64)
+    dofs = V.dofmap.list[:cells]
+    node = np.zeros(V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts, np.int64)
+    node[dofs.ravel()] = np.repeat(ids, dofs.shape[1])
+    return node[: V.dofmap.index_map.size_local]

@@ -66,24 +66,31 @@ class SolidProblem:
                 raise RuntimeError("unexpected quadrature dof layout; cannot write state in place")
             return fn
 
-        self.P_dev = quadrature_function((3, 3), "P_dev")
-        self.A_dev = quadrature_function((3, 3, 3, 3), "A_dev") if tangent else None
-        size = nq * 9
-        self.material = HenckyJ2(
-            material, nq, tangent,
-            P_dev=self.P_dev.x.array[:size].reshape(nq, 3, 3),
-            A_dev=self.A_dev.x.array[: size * 9].reshape(nq, 3, 3, 3, 3) if tangent else None)
-
-        F = forms.deformation_gradient(self.u)
-        self._F_expr = dolfinx.fem.Expression(F, self.points)
-        detJ = dolfinx.fem.Expression(abs(ufl.JacobianDeterminant(mesh)), self.points)
-        jac = detJ.eval(mesh, self.cells).reshape(self.num_cells, self.points_per_cell)
-        #: reference volume (mm^3) carried by each quadrature point
         self.active = np.ones(self.num_cells, dtype=bool)
         if active_cells is not None:
             self.active[:] = False
             self.active[np.asarray(active_cells, dtype=np.int64)] = True
-        self.point_volumes = (jac * self.weights[None, :] * self.active[:, None]).ravel()
+        #: cells whose quadrature points carry material state (all, or the active ones)
+        self.material_cells = np.flatnonzero(self.active).astype(np.int32)
+        self._all_active = self.material_cells.size == self.num_cells
+        nq_mat = self.material_cells.size * self.points_per_cell
+
+        self.P_dev = quadrature_function((3, 3), "P_dev")
+        self.A_dev = quadrature_function((3, 3, 3, 3), "A_dev") if tangent else None
+        size = nq * 9
+        # all cells active: the kernel writes straight into the quadrature Functions; otherwise it
+        # works on the active points and update_material scatters the result
+        self.material = HenckyJ2(
+            material, nq_mat, tangent,
+            P_dev=self.P_dev.x.array[:size].reshape(nq, 3, 3) if self._all_active else None,
+            A_dev=self.A_dev.x.array[: size * 9].reshape(nq, 3, 3, 3, 3) if tangent and self._all_active else None)
+
+        F = forms.deformation_gradient(self.u)
+        self._F_expr = dolfinx.fem.Expression(F, self.points)
+        detJ = dolfinx.fem.Expression(abs(ufl.JacobianDeterminant(mesh)), self.points)
+        jac = detJ.eval(mesh, self.material_cells).reshape(-1, self.points_per_cell)
+        #: reference volume (mm^3) carried by each material point
+        self.point_volumes = (jac * self.weights[None, :]).ravel()
 
         marker = dolfinx.mesh.meshtags(mesh, tdim, self.cells, self.active.astype(np.int32))
         self.dx = ufl.Measure("dx", domain=mesh, subdomain_data=marker)
@@ -132,11 +139,19 @@ class SolidProblem:
 
     # -- material --------------------------------------------------------------------------
     def deformation_gradients(self) -> np.ndarray:
-        return self._F_expr.eval(self.mesh, self.cells).reshape(-1, 3, 3)
+        return self._F_expr.eval(self.mesh, self.material_cells).reshape(-1, 3, 3)
 
     def update_material(self, tangent: bool = False) -> None:
         """Return mapping at the current u (trial state; call :meth:`commit` when converged)."""
         self.material.update(self.deformation_gradients(), tangent)
+        if not self._all_active:
+            width = self.points_per_cell * 9
+            cells = self.material_cells
+            self.P_dev.x.array[: self.num_cells * width].reshape(self.num_cells, width)[cells] = \
+                self.material.P_dev.reshape(cells.size, width)
+            if tangent:
+                self.A_dev.x.array[: self.num_cells * width * 9].reshape(self.num_cells, width * 9)[cells] = \
+                    self.material.A_dev.reshape(cells.size, width * 9)
 
     def commit(self) -> None:
         self.material.commit()

@@ -24,8 +24,9 @@ Kinds (``kind``):
 - ``CLP`` (Schmidt, eq. 2.14): every node of a copy is tied to its original,
   u(n, copy) = u(n, orig) + H (L o s); copies are stiffless and massless
   (``SolidProblem(active_cells=...)``), placed on half of the faces.
-For CLP and CLPS the whole assembly may translate freely: one surface node of a particle without
-copies is anchored on the affine field (its reaction vanishes by periodicity).
+For CLP and CLPS the whole assembly may translate freely: for static solvers one surface node of a
+particle of the volume is held at u = 0 (its reaction vanishes by periodicity); explicit runs
+conserve momentum and keep no anchor.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from scipy.spatial import cKDTree
 
 import dolfinx
 
+from ..meshes import node_particles
 from .affine import AffineConstraint, CouplingRows
 
 KINDS = ("GDH", "GDF", "CLPS", "CLP")
@@ -67,24 +69,13 @@ class _Nodes:
 
 
 def _gather_nodes(V: dolfinx.fem.FunctionSpace, cell_particle: np.ndarray) -> _Nodes:
-    mesh = V.mesh
     imap = V.dofmap.index_map
     n_owned = imap.size_local
-    cell_map = mesh.topology.index_map(mesh.topology.dim)
-    # particle id of the ghost cells too (a node may be reached by ghost cells only)
-    DG0 = dolfinx.fem.functionspace(mesh, ("DG", 0))
-    tag = dolfinx.fem.Function(DG0)
-    tag.x.array[DG0.dofmap.list[: cell_map.size_local, 0]] = cell_particle[: cell_map.size_local]
-    tag.x.scatter_forward()
-    num_cells = cell_map.size_local + cell_map.num_ghosts
-    dofs = V.dofmap.list[:num_cells]
-    particle = np.full(n_owned + imap.num_ghosts, -1, np.int64)
-    cell_ids = np.rint(tag.x.array[DG0.dofmap.list[:num_cells, 0]]).astype(np.int64)
-    particle[dofs.ravel()] = np.repeat(cell_ids, dofs.shape[1])
+    particle = node_particles(V, cell_particle)
     X = V.tabulate_dof_coordinates()[:n_owned]
     block = imap.local_range[0] + np.arange(n_owned)
-    comm = mesh.comm
-    return _Nodes(np.concatenate(comm.allgather(X)), np.concatenate(comm.allgather(particle[:n_owned])),
+    comm = V.mesh.comm
+    return _Nodes(np.concatenate(comm.allgather(X)), np.concatenate(comm.allgather(particle)),
                   np.concatenate(comm.allgather(block)))
 
 
@@ -105,10 +96,12 @@ class GranularBoundaryConditions:
         images: a ContactModel whose periodic images follow the deformed cell, shifts
             F0 (L o s) for the 26 neighbours s (CLP realized by contact with periodic images,
             SPEC §5; then no copies are needed and only the rigid translation is fixed).
+        anchor: CLP/CLPS only: hold one node against the free rigid translation (needed by a
+            static solver; an explicit run conserves momentum and needs none).
     """
 
     def __init__(self, V, cell_particle, centres, radii, original, shift, cell, kind: str, gradient, *,
-                 coupling_radius: float = 0.5, images=None):
+                 coupling_radius: float = 0.5, images=None, anchor: bool = True):
         if kind not in KINDS:
             raise ValueError(f"bc must be one of {', '.join(KINDS)}, got {kind!r}")
         if not 0.0 < coupling_radius < 1.0:
@@ -143,7 +136,7 @@ class GranularBoundaryConditions:
                                    partner=(original[p], centres[original[p]]))
         else:
             self._add_ties(nodes, is_copy, original, shift)
-        if kind in ("CLP", "CLPS"):
+        if kind in ("CLP", "CLPS") and anchor:
             self._add_anchor(nodes, centres, radii, is_copy, original)
         self._build()
 
@@ -209,10 +202,9 @@ class GranularBoundaryConditions:
         p = candidates[0]
         members = self._members[p]
         k = members[np.argmax(np.linalg.norm(nodes.X[members] - centres[p], axis=1))]
-        G = np.zeros((3, 9))
-        for i in range(3):
-            G[i, 3 * i: 3 * i + 3] = nodes.X[k] - 0.5 * self.cell
-        self._prescribed.append((np.array([nodes.block[k]]), G[None]))
+        # held at u = 0: any fixed translation is equivalent by periodicity, and a node that
+        # followed the affine field would drag its particle before any contact carries it
+        self._prescribed.append((np.array([nodes.block[k]]), np.zeros((1, 3, 9))))
 
     def _build(self) -> None:
         """Keep the rows whose slave this rank owns; create the AffineConstraint."""

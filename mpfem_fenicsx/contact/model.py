@@ -93,7 +93,7 @@ def _point_forces(pos, pos_n, nv, branch, alpha_n, smax_n, tpx, tpy, tpz, scale,
 
 
 @numba.njit(parallel=True, cache=True)
-def _point_tangents(x, x_n, facets, nv, slave, facet, branch, shift, alpha_n, smax_n, tt_n, scale, k, kt, mu,
+def _point_tangents(x, x_n, facets, nv, slave, facet, branch, shift, shift_n, alpha_n, smax_n, tt_n, scale, k, kt, mu,
                     sigma_c, delta_max, p0, alpha_forced, K):
     """Consistent tangent of every contact point by central differences of :func:`_point_forces`
     over the positions of its nodes: K (n, 3 nn, 3 nn) = d r / d u, r = -forces on the bodies.
@@ -120,7 +120,7 @@ def _point_tangents(x, x_n, facets, nv, slave, facet, branch, shift, alpha_n, sm
                 pos_n[a, d] = x_n[nodes[a], d]
         for d in range(3):  # slave seen in the frame of the (unshifted) master, as in the search
             pos[0, d] -= shift[p, d]
-            pos_n[0, d] -= shift[p, d]
+            pos_n[0, d] -= shift_n[p, d]
         for d in range(3):
             size2 += (pos[1, d] - pos[2, d]) ** 2
         h = 1e-7 * np.sqrt(size2)
@@ -212,6 +212,7 @@ class ContactModel:
         self.state = ContactState.empty()
         self.trial = ContactState.empty()
         self.U_committed = np.zeros((self.surface.num_nodes, 3))
+        self.shifts_committed = self.search.shifts.copy()
         self.points: ContactPoints | None = None
         nv = self.surface.vertices_per_facet
         f = self.surface.facets[:, :nv].ravel()
@@ -237,14 +238,15 @@ class ContactModel:
         return self.comm.allreduce(local, op=MPI.SUM)
 
     # -- evaluation ------------------------------------------------------------------------------
-    def _keys(self, pts: ContactPoints) -> np.ndarray:
+    def _keys(self, pts: ContactPoints) -> tuple[np.ndarray, np.ndarray]:
+        """History keys (slave, master body, shift id) of the points, and their shift ids."""
         nb = self.surface.num_bodies
         ns = len(self.search.shifts)
         shift_id = np.zeros(pts.size, np.int64)
         if ns > 1:
             d = np.linalg.norm(pts.shift[:, None, :] - self.search.shifts[None], axis=2)
             shift_id = d.argmin(axis=1)
-        return (pts.slave * nb + pts.master_body) * ns + shift_id
+        return (pts.slave * nb + pts.master_body) * ns + shift_id, shift_id
 
     def evaluate(self, u: dolfinx.fem.Function, tangent: bool = False) -> None:
         """Search, law and forces at displacement u (trial state; see :meth:`commit`)."""
@@ -252,7 +254,10 @@ class ContactModel:
         U = s.gather(u)
         x = s.X + U
         pts = self.search(x)
-        keys = self._keys(pts)
+        keys, shift_id = self._keys(pts)
+        # image shifts at the last converged state: a deforming periodic cell moves the images
+        shift_n = self.shifts_committed[shift_id] if self.shifts_committed.shape == self.search.shifts.shape \
+            else pts.shift
         # history of the points already in contact at the last converged state
         old = self.state
         alpha_n, smax_n, work_n = np.zeros(keys.size), np.zeros(keys.size), np.zeros(keys.size)
@@ -270,6 +275,7 @@ class ContactModel:
         dU = U - self.U_committed
         used = nodes >= 0
         jump = np.einsum("pa,pad->pd", weights * used, dU[np.where(used, nodes, 0)])
+        jump -= pts.shift - shift_n  # relative motion includes the image's displacement
         facet_normal, _ = surface_normals(x, s.facets, s.vertices_per_facet)
         area = np.empty(n)
         if n:
@@ -302,7 +308,7 @@ class ContactModel:
             x_n = s.X + self.U_committed
             if n:
                 _point_tangents(x, x_n, s.facets, s.vertices_per_facet, pts.slave, pts.facet, branch,
-                                pts.shift, alpha_n, smax_n, tt_n, scale, *params, K)
+                                pts.shift, shift_n, alpha_n, smax_n, tt_n, scale, *params, K)
             size = n * 9 * nn * nn
             rows = np.empty(size, PETSc.IntType)
             cols = np.empty(size, PETSc.IntType)
@@ -340,6 +346,7 @@ class ContactModel:
     def commit(self, u: dolfinx.fem.Function) -> None:
         self.state = self.trial
         self.U_committed = self.surface.gather(u)
+        self.shifts_committed = self.search.shifts.copy()
         self.frictional_work += self.comm.allreduce(self._trial_dissipation, op=MPI.SUM)
 
     def state_dict(self) -> dict[str, np.ndarray]:
@@ -349,7 +356,7 @@ class ContactModel:
         st = self.state
         return {"keys": st.keys, "alpha": st.alpha, "sigma_max": st.smax, "tangential_traction": st.tt,
                 "frictional_work": st.work, "surface_displacement": self.U_committed,
-                "total_frictional_work": np.array(self.frictional_work)}
+                "image_shifts": self.shifts_committed, "total_frictional_work": np.array(self.frictional_work)}
 
     def load_state(self, data: dict[str, np.ndarray]) -> None:
         """Restore :meth:`state_dict` (same mesh and partition)."""
@@ -360,6 +367,9 @@ class ContactModel:
                                   np.asarray(data["frictional_work"]))
         self.trial = self.state
         self.U_committed = np.asarray(data["surface_displacement"]).copy()
+        if "image_shifts" in data:
+            self.shifts_committed = np.asarray(data["image_shifts"], dtype=float).copy()
+            self.search.shifts = self.shifts_committed.copy()
         self.frictional_work = float(data["total_frictional_work"])
 
     # -- results -------------------------------------------------------------------------------

@@ -24,18 +24,18 @@ class CellFields:
     def __init__(self, problem: SolidProblem, cell_tags: dolfinx.mesh.MeshTags | None = None):
         self.problem = problem
         DG0 = dolfinx.fem.functionspace(problem.mesh, ("DG", 0))
-        self._dofs = DG0.dofmap.list[: problem.num_cells, 0]
+        self._dofs = DG0.dofmap.list[problem.material_cells, 0]  # cells carrying material points
         self.von_mises = dolfinx.fem.Function(DG0, name="von_mises_MPa")
         self.eps_p = dolfinx.fem.Function(DG0, name="eps_p")
         self.particle = None
         if cell_tags is not None:
             self.particle = dolfinx.fem.Function(DG0, name="particle")
             owned = cell_tags.values[: problem.num_cells]
-            self.particle.x.array[self._dofs] = owned
+            self.particle.x.array[DG0.dofmap.list[: problem.num_cells, 0]] = owned
             self.particle.x.scatter_forward()
 
     def _cell_average(self, values: np.ndarray) -> np.ndarray:
-        return values.reshape(self.problem.num_cells, -1).mean(axis=1)
+        return values.reshape(self.problem.material_cells.size, -1).mean(axis=1)
 
     def update(self) -> None:
         m = self.problem.material

@@ -51,6 +51,10 @@ class ExplicitSettings:
     deformation_margin: float = 0.6
     bulk_viscosity_linear: float = 0.06
     bulk_viscosity_quadratic: float = 1.2
+    #: mass-proportional damping c (1/s) of the velocity relative to the background flow
+    #: (``ExplicitSolver(background=...)``): dynamic relaxation towards the quasi-static path;
+    #: its dissipation is reported (Energies.damping) and must stay small
+    damping: float = 0.0
 
     def __post_init__(self):
         if not self.t_end > 0:
@@ -61,6 +65,8 @@ class ExplicitSettings:
             raise ValueError(f"deformation_margin must be in (0, 1], got {self.deformation_margin}")
         if not 0 < self.safety <= 1:
             raise ValueError(f"safety must be in (0, 1], got {self.safety}")
+        if self.damping < 0:
+            raise ValueError(f"damping must be >= 0 1/s, got {self.damping}")
 
 
 @dataclass
@@ -74,10 +80,11 @@ class Energies:
     kinetic: float = 0.0
     plastic: float = 0.0  # accumulated plastic work from the material
     elastic: float = 0.0  # current Hencky stored energy from the material
+    damping: float = 0.0  # dissipated by the relaxation damping
 
     def balance_error(self) -> float:
-        """|W_ext - (E_int + E_visc + E_contact + E_kin)| (mJ)."""
-        return abs(self.external - (self.internal + self.viscous + self.contact + self.kinetic))
+        """|W_ext - (E_int + E_visc + E_contact + E_kin + E_damp)| (mJ)."""
+        return abs(self.external - (self.internal + self.viscous + self.contact + self.kinetic + self.damping))
 
 
 
@@ -93,8 +100,17 @@ class ExplicitSolver:
     """Central-difference integrator of a :class:`SolidProblem` with prescribed displacements."""
 
     def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, settings: ExplicitSettings,
-                 contact=None):
+                 contact=None, background: Callable[[float], np.ndarray] | None = None,
+                 damped_bodies: np.ndarray | None = None):
+        """``background``: t -> velocity gradient L (3, 3) (1/s) of the homogeneous flow v = L x
+        that the damping leaves alone (e.g. dF0/dt F0^-1 of a compacted cell); default L = 0.
+        ``damped_bodies``: body id of every owned node: the damping then acts on each body's
+        mean (rigid) velocity only, c m_node (w_body - <w>), w = v_body - L x_body, <.> the mass
+        average, so that rearrangements are relaxed while the bodies' deformation is not
+        resisted and momentum is conserved (default: node by node)."""
         self.problem = problem
+        self.background = background
+        self.damped_bodies = None if damped_bodies is None else np.asarray(damped_bodies, dtype=np.int64)
         self.contact = contact  # optional ContactModel: its forces join the internal ones
         self.bcs = bcs
         self.settings = settings
@@ -146,6 +162,10 @@ class ExplicitSolver:
         self.f_int = problem.create_vector()
         self.f_visc = problem.create_vector()
         self.f_cont = problem.create_vector()  # minus the contact forces on the bodies
+        self.f_damp = problem.create_vector()
+        self._node_coordinates = problem.V.tabulate_dof_coordinates()  # (blocks, 3), mm
+        if self.damped_bodies is not None:
+            self._num_damped = self.comm.allreduce(int(self.damped_bodies.max(initial=-1)) + 1, op=MPI.MAX)
         self._force = problem.create_vector()  # their sum, reused every step
         self.x = self.constraint.create_reduced_vector()
         self.v_red = self.x.duplicate()
@@ -213,6 +233,33 @@ class ExplicitSolver:
         self.timings.assembly += time.perf_counter() - t1
         self.energies.plastic += self.problem.plastic_dissipation_increment()
 
+    def _damping_force(self) -> None:
+        """f_d = c M (v - L x) at step n with the last half-step velocity (explicit in v), node by
+        node or with the mass-weighted mean velocity and position of each damped body."""
+        n = self.constraint.num_owned
+        m = self.mass.x.array[:n].reshape(-1, 3)[:, 0]
+        v = self.velocity.x.array[:n].reshape(-1, 3)
+        x = self._node_coordinates[: n // 3] + self.problem.u.x.array[:n].reshape(-1, 3)
+        if self.damped_bodies is not None:
+            b = self.damped_bodies
+            nb = self._num_damped
+            sums = np.zeros((7, nb))
+            sums[0] = np.bincount(b, weights=m, minlength=nb)
+            for d in range(3):
+                sums[1 + d] = np.bincount(b, weights=m * v[:, d], minlength=nb)
+                sums[4 + d] = np.bincount(b, weights=m * x[:, d], minlength=nb)
+            sums = self.comm.allreduce(sums, op=MPI.SUM)
+            mass = np.where(sums[0] > 0, sums[0], 1.0)
+            v_body = (sums[1:4] / mass).T
+            if self.background is not None:
+                v_body -= (sums[4:7] / mass).T @ np.asarray(self.background(self.t), dtype=float).T
+            # remove the mean: the damping conserves momentum and ignores rigid translations
+            v_body -= (sums[0] @ v_body) / sums[0].sum()
+            v = v_body[b]
+        elif self.background is not None:
+            v = v - x @ np.asarray(self.background(self.t), dtype=float).T
+        self.f_damp.array_w[:n] = (self.settings.damping * m[:, None] * v).ravel()
+
     def _dot(self, a: np.ndarray, b: np.ndarray) -> float:
         return self.comm.allreduce(float(a @ b), op=MPI.SUM)
 
@@ -246,6 +293,9 @@ class ExplicitSolver:
         self.f_int.copy(force)
         force.axpy(1.0, self.f_visc)
         force.axpy(1.0, self.f_cont)
+        if self.settings.damping > 0:
+            self._damping_force()
+            force.axpy(1.0, self.f_damp)
         self.constraint.restrict(force, self.r_red)
         self.a_red.pointwiseDivide(self.r_red, self.mass_red)
         self.a_red.scale(-1.0)
@@ -277,6 +327,8 @@ class ExplicitSolver:
         e.internal += self._dot(self.f_int.array_r[:n], du)
         e.viscous += self._dot(self.f_visc.array_r[:n], du)
         e.contact += self._dot(self.f_cont.array_r[:n], du)
+        if self.settings.damping > 0:
+            e.damping += self._dot(self.f_damp.array_r[:n], du)
         self._u_prev[:] = u_n
         self._v_half_prev[:] = v_half
         self.timings.update += time.perf_counter() - t2

@@ -32,7 +32,7 @@ from ..io.fields import CellFields, ParaViewWriter
 from ..io.render import render_deformed
 from ..loading import GradientPath, compaction_gradient
 from ..material import LEAD, ElastoPlastic
-from ..meshes import ParticleCentroids, ParticleVolumes, particle_mesh
+from ..meshes import ParticleCentroids, ParticleVolumes, node_particles, particle_mesh
 from ..meshes.packing import Duplicates, Packing, assembly_particles, duplicate_particles, generate_packing, read_packing, \
     write_packing
 from ..problem import SolidProblem
@@ -46,8 +46,8 @@ DEFAULT_D_BC = {"GDH": 2.5, "GDF": 2.5, "CLPS": 2.5, "CLP": 1.8}
 class CompactionCase:
     """A compaction run. Radii in mm (thesis: 0.082-0.147 mm), densities relative (-)."""
 
-    particles: int = 16
-    target_density: float = 0.9
+    particles: int = 24
+    target_density: float = 0.92
     loading: str = "isotropic"  # or "die" (uniaxial strain along z)
     bc: str = "CLP"
     images: bool = False  # CLP only: periodic images shifted by F0 (L o s) instead of tied copies
@@ -68,7 +68,10 @@ class CompactionCase:
     asperity_yield: float = 5.0  # MPa
     penalty_factor: float = 10.0  # k = factor E / h (contact.laws.default_penalty)
     duration: float = 1e-3  # s of (mass-scaled) loading time
-    increments: int = 6000
+    increments: int = 4000
+    #: relaxation damping of each particle's rigid motion relative to the imposed homogeneous
+    #: flow, in units of 1 / duration (ExplicitSettings.damping); dissipation = history's E_damp
+    damping: float = 100.0
     outputs: int = 40
     visual: bool = True
     out_dir: str = "results/isotropic"
@@ -182,7 +185,7 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
                            search_distance=max(0.05 * float(radii.min()), 2 * case.delta_max), allowed=allowed,
                            shifts=periodic_lattice() * packing.cell if case.images else None)
     bcs = GranularBoundaryConditions(V, cell_particle, centres, radii, original, shift, packing.cell, case.bc, path,
-                                     images=contact if case.images else None)
+                                     images=contact if case.images else None, anchor=case.solver == "implicit")
     return CompactionModel(case, packing, centres, radii, original, shift, assembly, problem, bcs, contact, path,
                            volumes, solid0, rho0)
 
@@ -199,8 +202,16 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     solid0, rho0 = model.solid_volume0, model.rho0
     cell_volume0 = float(np.prod(packing.cell))
 
-    settings = ExplicitSettings(t_end=case.duration, target_dt=case.duration / case.increments)
-    solver = ExplicitSolver(problem, bcs, settings, contact=contact)
+    settings = ExplicitSettings(t_end=case.duration, target_dt=case.duration / case.increments,
+                                damping=case.damping / case.duration)
+
+    def flow(t: float) -> np.ndarray:  # L = dF0/dt F0^-1 (1/s)
+        eps = 1e-6 * case.duration
+        return (path(t + eps) - path(t - eps)) / (2 * eps) @ np.linalg.inv(path(t))
+
+    # the damping relaxes each particle's rigid motion relative to the imposed flow
+    node_particle = node_particles(problem.V, assembly.cell_tags.values[: problem.num_cells])
+    solver = ExplicitSolver(problem, bcs, settings, contact=contact, background=flow, damped_bodies=node_particle)
     num_dofs = V.dofmap.index_map.size_global * 3
     log(f"model: {radii.size} particles, {num_dofs} dofs ({bcs.constraint.num_reduced_global} free), "
         f"rho0 = {rho0:.4f} -> {case.target_density}, dt = {solver.dt:.3g} s "
@@ -211,7 +222,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     comps = [f"{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
     columns = ["time", "rho", "rho_imposed", "h_v", "h_d", "sigma_m", "sigma_d"] + [f"F{c}" for c in comps] + \
         [f"sigma{c}" for c in comps] + [f"sigma_schmidt_{c}" for c in comps] + \
-        ["n_contacts", "E_int", "E_p", "E_contact", "E_kin", "E_visc", "W_ext", "wall_time"]
+        ["n_contacts", "E_int", "E_p", "E_contact", "E_kin", "E_visc", "E_damp", "W_ext", "wall_time"]
     periodic = case.bc in ("CLP", "CLPS")  # Schmidt stress defined
     history = History(out / "history.csv", columns, comm, flush_every_row=True)
     writer = None
@@ -244,14 +255,15 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
                        **{f"sigma{c}": v for c, v in zip(comps, -sigma_lw.ravel())},
                        **{f"sigma_schmidt_{c}": v for c, v in zip(comps, -sigma_s.ravel())},
                        n_contacts=len(pairs), E_int=e.internal, E_p=e.plastic, E_contact=e.contact,
-                       E_kin=e.kinetic, E_visc=e.viscous, W_ext=e.external, wall_time=time.perf_counter() - start)
+                       E_kin=e.kinetic, E_visc=e.viscous, E_damp=e.damping, W_ext=e.external, wall_time=time.perf_counter() - start)
         if writer is not None:
             writer.write(s.t)
         elapsed = time.perf_counter() - start
         frac = s.step / case.increments
         eta = elapsed / max(frac, 1e-9) * (1 - frac)
         log(f"  {100 * frac:5.1f} %  t={s.t:.3e} s  rho={rho:.4f}  sigma_m={sigma_m:8.3f} MPa  "
-            f"contacts={len(pairs)}  E_kin/E_int={e.kinetic / max(abs(e.internal), 1e-30):.2e}  "
+            f"contacts={len(pairs)}  E_kin/E_int={e.kinetic / max(abs(e.internal), 1e-30):.1e}  "
+            f"E_damp/E_int={e.damping / max(abs(e.internal), 1e-30):.1e}  "
             f"elapsed {elapsed:.0f} s  ETA {eta:.0f} s")
 
     if comm.rank == 0:
