@@ -262,8 +262,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         frac = s.step / case.increments
         eta = elapsed / max(frac, 1e-9) * (1 - frac)
         log(f"  {100 * frac:5.1f} %  t={s.t:.3e} s  rho={rho:.4f}  sigma_m={sigma_m:8.3f} MPa  "
-            f"contacts={len(pairs)}  E_kin/E_int={e.kinetic / max(abs(e.internal), 1e-30):.1e}  "
-            f"E_damp/E_int={e.damping / max(abs(e.internal), 1e-30):.1e}  "
+            f"contacts={len(pairs)}  E_int={e.internal:.3g} mJ  E_kin={e.kinetic:.2g}  E_damp={e.damping:.2g}  "
             f"elapsed {elapsed:.0f} s  ETA {eta:.0f} s")
 
     if comm.rank == 0:
