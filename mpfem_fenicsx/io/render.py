@@ -11,17 +11,21 @@ import dolfinx.plot
 
 
 def render_deformed(u: dolfinx.fem.Function, cell_field: dolfinx.fem.Function, path: str | Path,
-                    *, title: str = "", label: str = "von Mises (MPa)") -> Path | None:
-    """Render u-deformed particles coloured by a DG0 field to a PNG (gathered on rank 0)."""
+                    *, title: str = "", label: str = "von Mises (MPa)", cells: np.ndarray | None = None) -> Path | None:
+    """Render u-deformed particles coloured by a DG0 field to a PNG (gathered on rank 0);
+    ``cells``: the local cells to show (default: all owned cells)."""
     import pyvista
 
     mesh = u.function_space.mesh
     comm = mesh.comm
     num_cells = mesh.topology.index_map(mesh.topology.dim).size_local
-    topology, cell_types, x = dolfinx.plot.vtk_mesh(u.function_space, np.arange(num_cells, dtype=np.int32))
+    if cells is None:
+        cells = np.arange(num_cells, dtype=np.int32)
+    cells = np.asarray(cells, dtype=np.int32)
+    topology, cell_types, x = dolfinx.plot.vtk_mesh(u.function_space, cells)
     nodes = x.shape[0]
     displacement = u.x.array.reshape(-1, 3)[:nodes]
-    values = cell_field.x.array[cell_field.function_space.dofmap.list[:num_cells, 0]]
+    values = cell_field.x.array[cell_field.function_space.dofmap.list[cells, 0]]
     parts = comm.gather((topology, cell_types, x, displacement, values), root=0)
     if comm.rank != 0:
         return None

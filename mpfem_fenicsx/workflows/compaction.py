@@ -272,7 +272,9 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     history.write()
     if writer is not None:
         writer.close()
-        render_deformed(problem.u, fields.von_mises, out / "particles.png",
-                        title=f"{n} lead particles, {case.loading} {case.bc}, rho = {history.rows[-1][1]:.3f}")
+        # CLP shell copies carry no stress: show the volume's particles only
+        render_deformed(problem.u, fields.von_mises, out / "particles.png", cells=problem.material_cells,
+                        title=f"{n} lead particles, {case.loading} compaction, {case.bc}, "
+                              f"rho = {history.rows[-1][1]:.3f}")
     return CompactionResult(history, packing, num_dofs, radii.size, time.perf_counter() - start, total, out,
                             extra={"model": model, "solver": solver})
