@@ -39,6 +39,15 @@ def _yield_stress(p, s0, modulus, exponent, law):
 
 
 @numba.njit(cache=True, inline="always")
+def _plastic_work(p, dgamma, s0, modulus, exponent, law):
+    """Exact plastic work of the increment, int_p^(p + dgamma) sigma_y dp (MPa = mJ/mm^3): the
+    rectangle sigma_y(p + dgamma) dgamma overestimates it where the power law is steep."""
+    if law == 0:
+        return s0 * dgamma + modulus / (exponent + 1.0) * ((p + dgamma) ** (exponent + 1.0) - p ** (exponent + 1.0))
+    return (s0 + modulus * (p + 0.5 * dgamma)) * dgamma
+
+
+@numba.njit(cache=True, inline="always")
 def _hardening_slope(p, modulus, exponent, law):
     if law == 0:
         if p <= 0.0:
@@ -223,7 +232,7 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
         tau[qp, 3] = M2[0, 1]
         tau[qp, 4] = M2[0, 2]
         tau[qp, 5] = M2[1, 2]
-        dissipation[qp] = _yield_stress(p_n + dgamma, s0, modulus, exponent, law) * dgamma
+        dissipation[qp] = _plastic_work(p_n, dgamma, s0, modulus, exponent, law)
         tr_e = eps_e[0] + eps_e[1] + eps_e[2]
         dev2 = 0.0
         for A in range(3):

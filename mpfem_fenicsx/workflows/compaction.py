@@ -222,7 +222,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     comps = [f"{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
     columns = ["time", "rho", "rho_imposed", "h_v", "h_d", "sigma_m", "sigma_d"] + [f"F{c}" for c in comps] + \
         [f"sigma{c}" for c in comps] + [f"sigma_schmidt_{c}" for c in comps] + \
-        ["n_contacts", "E_int", "E_p", "E_contact", "E_kin", "E_visc", "E_damp", "W_ext", "wall_time"]
+        ["n_contacts", "E_int", "E_el", "E_p", "E_contact", "E_kin", "E_visc", "E_damp", "W_ext", "wall_time"]
     periodic = case.bc in ("CLP", "CLPS")  # Schmidt stress defined
     history = History(out / "history.csv", columns, comm, flush_every_row=True)
     writer = None
@@ -254,7 +254,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
                        **{f"F{c}": v for c, v in zip(comps, F.ravel())},
                        **{f"sigma{c}": v for c, v in zip(comps, -sigma_lw.ravel())},
                        **{f"sigma_schmidt_{c}": v for c, v in zip(comps, -sigma_s.ravel())},
-                       n_contacts=len(pairs), E_int=e.internal, E_p=e.plastic, E_contact=e.contact,
+                       n_contacts=len(pairs), E_int=e.internal, E_el=e.elastic, E_p=e.plastic, E_contact=e.contact,
                        E_kin=e.kinetic, E_visc=e.viscous, E_damp=e.damping, W_ext=e.external, wall_time=time.perf_counter() - start)
         if writer is not None:
             writer.write(s.t)
