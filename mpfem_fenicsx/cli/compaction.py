@@ -27,6 +27,7 @@ def parser(loading: str, doc: str) -> argparse.ArgumentParser:
     p.add_argument("--gamma", type=float, default=d.gamma, help="adhesion energy (mJ/mm^2)")
     p.add_argument("--friction", type=float, default=d.friction)
     p.add_argument("--increments", type=int, default=d.increments, help="explicit increments (mass scaling)")
+    p.add_argument("--steps", type=int, default=d.steps, help="implicit load steps (adaptive)")
     p.add_argument("--refinement", type=int, default=d.refinement, help="cube-sphere refinement")
     p.add_argument("--outputs", type=int, default=d.outputs, help="history rows / ParaView frames")
     p.add_argument("--no-visual", action="store_true", help="skip ParaView output and the PNG")
@@ -42,7 +43,7 @@ def main(loading: str, doc: str, argv=None) -> None:
         case = CompactionCase(particles=args.particles, target_density=args.target_density, loading=loading,
                               bc=args.bc, images=args.images, solver=args.solver, seed=args.seed,
                               packing_file=args.packing, packing_fraction=args.packing_fraction, d_bc=args.d_bc,
-                              gamma=args.gamma, friction=args.friction, increments=args.increments,
+                              gamma=args.gamma, friction=args.friction, increments=args.increments, steps=args.steps,
                               refinement=args.refinement, outputs=args.outputs, visual=not args.no_visual,
                               out_dir=args.out)
     except ValueError as err:
@@ -53,6 +54,6 @@ def main(loading: str, doc: str, argv=None) -> None:
     say(f"done: rho = {h.column('rho')[-1]:.4f} (imposed {h.column('rho_imposed')[-1]:.4f}), "
         f"sigma_m = {h.column('sigma_m')[-1]:.3f} MPa, sigma_d = {h.column('sigma_d')[-1]:.3f} MPa, "
         f"{int(h.column('n_contacts')[-1])} contacts; {res.num_particles_model} particles in the model, "
-        f"{res.num_dofs} dofs, {res.increments} increments, wall {time.perf_counter() - start:.0f} s")
+        f"{res.num_dofs} dofs, {res.increments} {'increments' if args.solver == 'explicit' else 'steps'}, wall {time.perf_counter() - start:.0f} s")
     say(f"outputs in {res.out_dir}/: history.csv, packing.txt"
         + ("" if args.no_visual else ", particles.xdmf (ParaView), particles.png"))

@@ -57,7 +57,12 @@ class ImplicitSolver:
     """Newton-Raphson on the reduced system, one SNES solve per load increment."""
 
     def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, *, contact=None,
-                 petsc_options: dict | None = None, prefix: str = "mpfem_implicit_"):
+                 petsc_options: dict | None = None, prefix: str = "mpfem_implicit_",
+                 regularization: np.ndarray | None = None):
+        """``regularization``: stiffness k_i (N/mm) per owned dof of a pseudo-time viscous drag
+        r_i += k_i (u_i - u_i,n) towards the last converged state: it makes free-floating bodies
+        (particles before contact) solvable and vanishes as the state stops changing; its work
+        is accumulated in :attr:`regularization_work` (mJ) and must stay small."""
         if problem.jacobian_forms is None:
             raise ValueError("the implicit solver needs SolidProblem(..., tangent=True)")
         self.problem = problem
@@ -74,6 +79,23 @@ class ImplicitSolver:
         self._J_contact = None  # P^T K_total P with the current contact pattern
         self.t = 0.0
         self.iterations_total = 0
+        self.regularization = None
+        self.regularization_work = 0.0
+        if regularization is not None:
+            self.regularization = self.r_full.duplicate()
+            self.regularization.array_w[:] = regularization
+            self._u_converged = problem.u.x.array[: self.constraint.num_owned].copy()
+            # diagonal matrix on the dofs with k_i > 0 (their diagonal is in K's pattern)
+            n = self.constraint.num_owned
+            lo = self.K.getOwnershipRange()[0]
+            rows = np.flatnonzero(np.asarray(regularization) > 0)
+            indptr = np.zeros(n + 1, dtype=PETSc.IntType)
+            indptr[rows + 1] = 1
+            indptr = np.cumsum(indptr).astype(PETSc.IntType)
+            self._regularization_matrix = PETSc.Mat().createAIJ(
+                self.K.getSizes(), csr=(indptr, (lo + rows).astype(PETSc.IntType),
+                                        np.asarray(regularization)[rows]), comm=self.comm)
+            self._regularization_matrix.assemble()
         self.timings = {"material": 0.0, "residual": 0.0, "contact": 0.0, "jacobian": 0.0, "reduce": 0.0}
 
         # start from the current state of the problem (a new solver continues a load path)
@@ -101,6 +123,9 @@ class ImplicitSolver:
         t1 = time.perf_counter()
         self.problem.assemble_residual(self.r_full)
         t2 = time.perf_counter()
+        if self.regularization is not None:
+            n = self.constraint.num_owned
+            self.r_full.array_w[:n] += self.regularization.array_r * (self.problem.u.x.array[:n] - self._u_converged)
         if self.contact is not None:
             self.contact.evaluate(self.problem.u, tangent=True)
             self.contact.add_residual(self.r_full)
@@ -113,6 +138,8 @@ class ImplicitSolver:
     def _assemble_tangent(self) -> bool:
         """Assemble K (and K_total = K + K_contact); True when the sparsity pattern changed."""
         self.problem.assemble_jacobian(self.K)
+        if self.regularization is not None:
+            self.K.axpy(1.0, self._regularization_matrix, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
         if self.contact is None:
             return False
         K_c = self.contact.tangent_matrix(self.K)
@@ -230,6 +257,12 @@ class ImplicitSolver:
             self.problem.commit()
             if self.contact is not None:
                 self.contact.commit(self.problem.u)
+            if self.regularization is not None:
+                n = self.constraint.num_owned
+                du = self.problem.u.x.array[:n] - self._u_converged
+                self.regularization_work += self.comm.allreduce(
+                    float(np.sum(self.regularization.array_r * du * du)))
+                self._u_converged[:] = self.problem.u.x.array[:n]
             self.t += dt
             steps += 1
             self.x.copy(self.x_old)
