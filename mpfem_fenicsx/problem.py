@@ -185,10 +185,15 @@ class SolidProblem:
         vec.destroy()
         return m
 
-    def min_cell_length(self) -> np.ndarray:
-        """Smallest vertex-to-vertex distance of each owned cell (mm), reference configuration."""
+    def min_cell_length(self, deformed: bool = False) -> np.ndarray:
+        """Smallest vertex-to-vertex distance of each owned cell (mm), in the reference
+        configuration or (``deformed``) at the current displacement (P1/Q1 nodes)."""
         geom = self.mesh.geometry
-        x = geom.x[geom.dofmaps[0][: self.num_cells]]
+        if deformed:
+            nodes = self.V.tabulate_dof_coordinates() + self.u.x.array.reshape(-1, 3)
+            x = nodes[self.V.dofmap.list[: self.num_cells]]
+        else:
+            x = geom.x[geom.dofmaps[0][: self.num_cells]]
         nv = x.shape[1]
         i, j = np.triu_indices(nv, 1)
         d = np.linalg.norm(x[:, i] - x[:, j], axis=-1)

@@ -49,6 +49,9 @@ class ExplicitSettings:
     safety: float = 0.9
     #: the stable increment shrinks as elements deform: mass-scale for dt_target / margin
     deformation_margin: float = 0.6
+    #: every so many increments, re-check the element stable increments in the deformed
+    #: configuration and add mass where needed (Abaqus variable mass scaling); 0: fixed
+    rescale_every: int = 100
     bulk_viscosity_linear: float = 0.06
     bulk_viscosity_quadratic: float = 1.2
     #: mass-proportional damping c (1/s) of the velocity relative to the background flow
@@ -145,12 +148,8 @@ class ExplicitSolver:
         self.density = cell_function(mat.density * scale, "density")
         wave_speed = cell_function(c_d / np.sqrt(scale), "wave_speed")
         cell_length = cell_function(length, "cell_length")
-        mass = problem.lumped_mass(self.density)
-        if contact is not None:
-            self._contact_mass_scaling(mass, contact, settings)
-        self.mass = mass
-        self.total_mass = self.comm.allreduce(float(mass.x.array[: self.constraint.num_owned].sum()) / 3.0)
-        self.mass_red = self.constraint.reduced_lumped_mass(mass)
+        self._scaling = (scale, cell_dofs, wave_speed, cell_length, c_d, xi)
+        self._build_mass()
 
         v = ufl.TestFunction(problem.V)
         self.velocity = dolfinx.fem.Function(problem.V, name="velocity")
@@ -179,6 +178,38 @@ class ExplicitSolver:
         self._u_prev = np.zeros(n)
         self._v_half_prev = np.zeros(n)
         self._forces_prev = None  # (f_int, f_visc, R) at step n, waiting for u_{n+1}
+
+    def _build_mass(self) -> None:
+        """Lumped mass (with the contact springs' mass) and its reduction."""
+        mass = self.problem.lumped_mass(self.density)
+        if self.contact is not None:
+            self._contact_mass_scaling(mass, self.contact, self.settings)
+        self.mass = mass
+        self.total_mass = self.comm.allreduce(float(mass.x.array[: self.constraint.num_owned].sum()) / 3.0)
+        self.mass_red = self.constraint.reduced_lumped_mass(mass)
+
+    def _rescale_mass(self) -> None:
+        """Variable mass scaling: where the deformed elements' stable increment fell below dt / 0.9,
+        raise their density so that it is back; the bulk viscosity takes the current lengths."""
+        scale, cell_dofs, wave_speed, cell_length, c_d, xi = self._scaling
+        length = self.problem.min_cell_length(deformed=True)
+        dt_e = self.settings.safety * length / c_d * (np.sqrt(1.0 + xi * xi) - xi)
+        need = (self.dt / (0.9 * dt_e)) ** 2
+        grow = need > scale
+        cell_length.x.array[cell_dofs] = length
+        cell_length.x.scatter_forward()
+        if not self.comm.allreduce(bool(grow.any()), op=MPI.LOR):
+            return
+        scale[grow] = need[grow]
+        rho = self.problem.params.density
+        self.density.x.array[cell_dofs] = rho * scale
+        self.density.x.scatter_forward()
+        wave_speed.x.array[cell_dofs] = c_d / np.sqrt(scale)
+        wave_speed.x.scatter_forward()
+        self.mass_red.destroy()
+        self._build_mass()
+        self.mass_scaling_max = self.comm.allreduce(float(scale.max()), op=MPI.MAX)
+        self.rescaled_cells = getattr(self, "rescaled_cells", 0) + self.comm.allreduce(int(grow.sum()))
 
     def _contact_mass_scaling(self, mass, contact, settings) -> None:
         """Penalty contact adds a spring k A to every surface node (k penalty, A tributary
@@ -335,6 +366,9 @@ class ExplicitSolver:
 
         self.t = t_new
         self.step += 1
+        every = self.settings.rescale_every
+        if every and self.settings.target_dt is not None and self.step % every == 0:
+            self._rescale_mass()
         self._forces()  # f_int(u_{n+1}), f_bv(u_{n+1}, v_{n+1/2})
         e.kinetic = 0.5 * self._dot(mass, v_half * v_half)
         if not np.isfinite(e.kinetic):
