@@ -186,8 +186,10 @@ class SolidProblem:
         return m
 
     def min_cell_length(self, deformed: bool = False) -> np.ndarray:
-        """Smallest vertex-to-vertex distance of each owned cell (mm), in the reference
-        configuration or (``deformed``) at the current displacement (P1/Q1 nodes)."""
+        """Characteristic length of each owned cell (mm) for the explicit stable increment, in the
+        reference configuration or (``deformed``) at the current displacement (P1/Q1 nodes): the
+        smallest vertex-to-vertex distance, and for hexahedra also the volume / largest face area,
+        which catches flattened (sheared) cells whose edges keep their lengths."""
         geom = self.mesh.geometry
         if deformed:
             nodes = self.V.tabulate_dof_coordinates() + self.u.x.array.reshape(-1, 3)
@@ -196,5 +198,15 @@ class SolidProblem:
             x = geom.x[geom.dofmaps[0][: self.num_cells]]
         nv = x.shape[1]
         i, j = np.triu_indices(nv, 1)
-        d = np.linalg.norm(x[:, i] - x[:, j], axis=-1)
-        return d.min(axis=1)
+        d = np.linalg.norm(x[:, i] - x[:, j], axis=-1).min(axis=1)
+        if nv == 8 and self.mesh.topology.cell_name() == "hexahedron":  # lexicographic vertices
+            jac = np.stack([(x[:, 1] - x[:, 0] + x[:, 3] - x[:, 2] + x[:, 5] - x[:, 4] + x[:, 7] - x[:, 6]),
+                            (x[:, 2] - x[:, 0] + x[:, 3] - x[:, 1] + x[:, 6] - x[:, 4] + x[:, 7] - x[:, 5]),
+                            (x[:, 4] - x[:, 0] + x[:, 5] - x[:, 1] + x[:, 6] - x[:, 2] + x[:, 7] - x[:, 3])],
+                           axis=-1) / 4.0
+            volume = np.abs(np.linalg.det(jac))  # centre-point volume
+            faces = np.array([[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 4, 5], [2, 3, 6, 7], [0, 2, 4, 6], [1, 3, 5, 7]])
+            area = 0.5 * np.linalg.norm(np.cross(x[:, faces[:, 3]] - x[:, faces[:, 0]],
+                                                 x[:, faces[:, 2]] - x[:, faces[:, 1]]), axis=-1).max(axis=1)
+            d = np.minimum(d, volume / area)
+        return d
