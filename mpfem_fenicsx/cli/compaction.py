@@ -51,7 +51,10 @@ def main(loading: str, doc: str, argv=None) -> None:
     except ValueError as err:
         raise SystemExit(f"error: {err}")
     start = time.perf_counter()
-    res = run_compaction(case, comm, log=say)
+    try:
+        res = run_compaction(case, comm, log=say)
+    except ValueError as err:  # bad input found while building (packing file, unreachable density, ...)
+        raise SystemExit(f"error: {err}")
     h = res.history
     say(f"done: rho = {h.column('rho')[-1]:.4f} (imposed {h.column('rho_imposed')[-1]:.4f}), "
         f"sigma_m = {h.column('sigma_m')[-1]:.3f} MPa, sigma_d = {h.column('sigma_d')[-1]:.3f} MPa, "
