@@ -111,7 +111,6 @@ class GranularBoundaryConditions:
         self.images = images
         self.gradient = gradient
         self.cell = np.asarray(cell, dtype=float)
-        self.reference_volume = float(np.prod(self.cell))
         centres = np.asarray(centres, dtype=float)
         radii = np.asarray(radii, dtype=float)
         original = np.asarray(original, dtype=np.int64)
@@ -238,7 +237,6 @@ class GranularBoundaryConditions:
         self.constrained_dofs = np.concatenate([slaves, prescribed[order]]).astype(np.int32)
         blocks_G = g_rows + ([np.concatenate(pres_G)[order]] if pres_G else [])
         self.G = np.concatenate(blocks_G) if blocks_G else np.zeros((0, 9))
-        self.num_slaves = V.mesh.comm.allreduce(slaves.size, op=MPI.SUM)
 
     # -- PrescribedDisplacements interface (used by the solvers) -------------------------------
     def build(self) -> AffineConstraint:

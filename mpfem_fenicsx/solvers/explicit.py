@@ -209,7 +209,6 @@ class ExplicitSolver:
         self.mass_red.destroy()
         self._build_mass()
         self.mass_scaling_max = self.comm.allreduce(float(scale.max()), op=MPI.MAX)
-        self.rescaled_cells = getattr(self, "rescaled_cells", 0) + self.comm.allreduce(int(grow.sum()))
 
     def _contact_mass_scaling(self, mass, contact, settings) -> None:
         """Penalty contact adds a spring k A to every surface node (k penalty, A tributary

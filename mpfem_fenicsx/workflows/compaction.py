@@ -141,6 +141,7 @@ class CompactionModel:
     volumes: ParticleVolumes
     solid_volume0: float
     rho0: float
+    contact_length: float  # surface element edge of the smallest cube-sphere (mm)
 
     @property
     def is_copy(self) -> np.ndarray:
@@ -176,7 +177,7 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     F_target = compaction_gradient(case.loading, rho0, case.target_density)
     path = GradientPath([(case.duration, F_target)])
 
-    h_contact = float(radii.min()) * np.pi / (8 * case.refinement)  # surface element edge of the cube-sphere
+    h_contact = float(radii.min()) * np.pi / (8 * case.refinement)
     law = ContactLaw(penalty=default_penalty(case.material.E, h_contact, case.penalty_factor),
                      friction=case.friction, gamma=case.gamma, delta_max=case.delta_max,
                      asperity_yield=case.asperity_yield)
@@ -189,7 +190,7 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     bcs = GranularBoundaryConditions(V, cell_particle, centres, radii, original, shift, packing.cell, case.bc, path,
                                      images=contact if case.images else None, anchor=case.solver == "implicit")
     return CompactionModel(case, packing, centres, radii, original, shift, assembly, problem, bcs, contact, path,
-                           volumes, solid0, rho0)
+                           volumes, solid0, rho0, h_contact)
 
 
 def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> CompactionResult:
@@ -224,7 +225,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         log("WARNING: implicit granular compaction is experimental: with the pseudo-time drag the free "
             "particles are solvable, but Newton needs many cut-backs once contacts yield (tested on an "
             "8-particle cell only); use the explicit solver for production runs")
-        h = float(radii.min()) * np.pi / (8 * case.refinement)
+        h = model.contact_length
         nodal_volume = problem.lumped_mass(1.0).x.array[: bcs.constraint.num_owned]
         solver = ImplicitSolver(problem, bcs, contact=contact,
                                 regularization=case.regularization * case.material.E * nodal_volume / h ** 2)
