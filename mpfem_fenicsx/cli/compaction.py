@@ -15,9 +15,7 @@ def parser(loading: str, doc: str) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     d = CompactionCase()
     p.add_argument("--particles", type=int, default=d.particles, help="particles of the generated packing")
-    # die default below 0.9: beyond it the explicit run currently diverges at 4000 increments (see README)
-    target = d.target_density if loading == "isotropic" else 0.88
-    p.add_argument("--target-density", type=float, default=target, help="relative density to reach")
+    p.add_argument("--target-density", type=float, default=d.target_density, help="relative density to reach")
     p.add_argument("--bc", choices=KINDS, default=d.bc, help="boundary conditions (thesis table 2.2)")
     p.add_argument("--images", action="store_true", help="CLP by contact with periodic images (no copies)")
     p.add_argument("--solver", choices=("implicit", "explicit"), default=d.solver)

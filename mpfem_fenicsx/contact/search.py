@@ -21,8 +21,11 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-#: a master facet is a candidate only if n_master . n_slave < -FACING (opposing surfaces)
+#: a slave facet carries contact area only if n_slave_facet . n_master < -FACING
 FACING = 0.2
+#: a master facet is a candidate for a slave node only if n_master . n_node < -SEARCH_FACING
+#: (opposing surfaces; 0 = anything beyond perpendicular)
+SEARCH_FACING = 0.0
 
 
 @dataclass
@@ -207,7 +210,7 @@ def _narrow_phase(x, facets, nv, facet_box, facet_normal, node_normal, body_box,
                     facing = 0.0
                     for d in range(3):
                         facing += facet_normal[f, d] * node_normal[s, d]
-                    if facing > -FACING:
+                    if facing > -SEARCH_FACING:
                         continue
                     _project(p, x, facets[f], nv, res)
                     # prefer projections inside a facet; among them the smallest distance

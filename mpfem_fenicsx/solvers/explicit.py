@@ -36,6 +36,7 @@ import dolfinx.fem.petsc
 import ufl
 
 from .. import forms
+from ..contact.model import PASS_WEIGHT
 from ..loading import PrescribedDisplacements
 from ..problem import SolidProblem
 
@@ -190,7 +191,8 @@ class ExplicitSolver:
 
     def _rescale_mass(self) -> None:
         """Variable mass scaling: where the deformed elements' stable increment fell below dt / 0.9,
-        raise their density so that it is back; the bulk viscosity takes the current lengths."""
+        raise their density so that it is back; the bulk viscosity takes the current lengths; the
+        contact mass follows the current contact stiffness (see _contact_mass_scaling)."""
         scale, cell_dofs, wave_speed, cell_length, c_d, xi = self._scaling
         length = self.problem.min_cell_length(deformed=True)
         dt_e = self.settings.safety * length / c_d * (np.sqrt(1.0 + xi * xi) - xi)
@@ -198,7 +200,10 @@ class ExplicitSolver:
         grow = need > scale
         cell_length.x.array[cell_dofs] = length
         cell_length.x.scatter_forward()
-        if not self.comm.allreduce(bool(grow.any()), op=MPI.LOR):
+        contact_grows = False
+        if self.contact is not None and getattr(self, "_contact_mass", None) is not None:
+            contact_grows = bool((self._contact_mass_needed(self.contact) > 1.05 * self._contact_mass).any())
+        if not self.comm.allreduce(bool(grow.any()) or contact_grows, op=MPI.LOR):
             return
         scale[grow] = need[grow]
         rho = self.problem.params.density
@@ -211,9 +216,17 @@ class ExplicitSolver:
         self.mass_scaling_max = self.comm.allreduce(float(scale.max()), op=MPI.MAX)
 
     def _contact_mass_scaling(self, mass, contact, settings) -> None:
-        """Penalty contact adds a spring k A to every surface node (k penalty, A tributary
-        area, both passes): with a target increment, add the mass m_c = k A (dt / 2 s)^2 so that
-        the node stays stable in contact; without one, reduce dt to 2 s sqrt(m / (k A))."""
+        """Penalty contact adds springs to the surface nodes. With a target increment, add to
+        every surface node the mass m_c = K_c (dt / 2 s)^2 that keeps it stable (central
+        difference: dt <= 2 sqrt(m / K)), where K_c is the larger of
+          - k A_ref (k penalty, A_ref reference tributary area): a node pressed over its own area;
+          - 1.5 x the Gershgorin row sum of the current contact stiffness, sum_p 2 k w A_p |c_a|
+            (both passes, c_a = 1 on the slave, -N_a on the master facet's nodes): a small
+            particle's node pressed by a larger particle's coarser facets, or contact areas
+            grown by flattening (die compaction diverged without it);
+        the contact mass only grows (previous value kept). Massless CLP copy nodes get theirs
+        too: their ties add it to the original's reduced mass. Without a target increment,
+        reduce dt to 2 s sqrt(m / (k A_ref)) instead."""
         from ..contact.search import facet_areas
 
         surf = contact.surface
@@ -226,8 +239,12 @@ class ExplicitSolver:
         m_node = mass.x.array.reshape(-1, 3)[blocks, 0]
         s = self.settings.safety
         if settings.target_dt is not None:
-            added = k_node * (self.dt / (2.0 * s * settings.deformation_margin)) ** 2
-            added[m_node <= 0.0] = 0.0  # massless shell copies: their ties carry it to the original
+            added = np.maximum(k_node * (self.dt / (2.0 * s * settings.deformation_margin)) ** 2,
+                               self._contact_mass_needed(contact))
+            previous = getattr(self, "_contact_mass", None)
+            if previous is not None:
+                added = np.maximum(added, previous)
+            self._contact_mass = added
             mass.x.array.reshape(-1, 3)[blocks] += added[:, None]
             mass.x.scatter_forward()
             self.contact_added_mass = self.comm.allreduce(float(added.sum()), op=MPI.SUM)
@@ -236,6 +253,26 @@ class ExplicitSolver:
             local = float((2.0 * s * np.sqrt(m_node[real] / k_node[real])).min()) if real.any() else np.inf
             self.dt = min(self.dt, self.comm.allreduce(local, op=MPI.MIN))
             self.contact_added_mass = 0.0
+
+    def _contact_mass_needed(self, contact) -> np.ndarray:
+        """Mass (t) that keeps each owned surface node stable under 1.5 x its current contact
+        stiffness row sum."""
+        s = self.settings
+        return 1.5 * self._contact_row_sums(contact) * (self.dt / (2.0 * s.safety * s.deformation_margin)) ** 2
+
+    def _contact_row_sums(self, contact) -> np.ndarray:
+        """Gershgorin row sums (N/mm) of the current contact stiffness at this rank's owned
+        surface nodes (zero before the first evaluation)."""
+        surf = contact.surface
+        rows = np.zeros(surf.num_nodes)
+        if contact.points is not None and contact.points.size:
+            k = max(contact.law.kernel_parameters()[:2])
+            used = contact.nodes >= 0
+            point = 2.0 * k * PASS_WEIGHT * contact.area  # sum_b |c_b| = 2
+            rows = np.bincount(contact.nodes[used], weights=(np.abs(contact.weights) * point[:, None])[used],
+                               minlength=surf.num_nodes)
+        rows = self.comm.allreduce(rows, op=MPI.SUM)
+        return rows[surf.owned_nodes]
 
     # -- forces ------------------------------------------------------------------------------
     def _assemble(self, vec: PETSc.Vec, form) -> None:
