@@ -65,3 +65,39 @@ def test_gmsh_tetrahedra_p2_volume():
     assert np.allclose(particle_volumes(a), exact, rtol=2e-3)
     assert set(np.unique(a.cell_tags.values)) == {0, 1}
     assert set(np.unique(a.facet_tags.values)) == {0, 1}
+
+
+def test_quarter_sphere_pair_hexahedra_refined_at_the_contact():
+    """Two quarter balls (x, y >= 0) of radius 1 centred at z = -1 and z = +1: hexahedra by gmsh
+    subdivision, smaller at the contact point, contact tags on the curved surface only."""
+    import ufl
+
+    import dolfinx
+
+    from mpfem_fenicsx.meshes.sphere_pair import quarter_sphere_pair
+
+    a = quarter_sphere_pair(1.0, MPI.COMM_SELF, size_min=0.06, size_max=0.4)
+    mesh = a.mesh
+    assert mesh.topology.cell_name() == "hexahedron"
+    dx = ufl.Measure("dx", domain=mesh, subdomain_data=a.cell_tags)
+    ds = ufl.Measure("ds", domain=mesh, subdomain_data=a.facet_tags)
+    one = dolfinx.fem.Constant(mesh, 1.0)
+    for body in (0, 1):
+        volume = dolfinx.fem.assemble_scalar(dolfinx.fem.form(one * dx(body)))
+        area = dolfinx.fem.assemble_scalar(dolfinx.fem.form(one * ds(body)))
+        # quarter of 4/3 pi and of 4 pi (symmetry faces untagged); the polyhedral surface with
+        # 0.4 r facets far from the contact is ~1 % short
+        assert volume == pytest.approx(np.pi / 3.0, rel=0.02)
+        assert area == pytest.approx(np.pi, rel=0.02)
+    # tagged facets are on the spheres (|x -+ e_z| = 1), none on the symmetry planes
+    mesh.topology.create_connectivity(2, 0)
+    mid = dolfinx.mesh.compute_midpoints(mesh, 2, a.facet_tags.indices)
+    centre = np.where(a.facet_tags.values[:, None] == 0, [0, 0, -1.0], [0, 0, 1.0])
+    assert np.abs(np.linalg.norm(mid - centre, axis=1) - 1.0).max() < 0.01
+    # local refinement: cells near the contact point much smaller than far away
+    h = dolfinx.cpp.mesh.h(mesh._cpp_object, 3, np.arange(mesh.topology.index_map(3).size_local, dtype=np.int32))
+    mid_cells = dolfinx.mesh.compute_midpoints(mesh, 3, np.arange(h.size, dtype=np.int32))
+    near = np.linalg.norm(mid_cells, axis=1) < 0.1
+    far = np.linalg.norm(mid_cells, axis=1) > 1.0
+    assert near.any() and far.any()
+    assert np.median(h[near]) < 0.4 * np.median(h[far])
