@@ -91,3 +91,36 @@ def test_pair_forces_and_centroids():
     assert np.allclose(centroids, centres, atol=1e-12)
     branch = centroids[1] - centroids[0]
     assert pairs["force"][0] @ branch < 0  # repulsion: the force of 1 on 0 points away from 1
+
+
+def test_penetration_is_found_for_a_steep_slave_face():
+    """A slab tilted 80 deg pokes 0.08 mm into a base: nodes of its steep face (node normal at
+    100 deg to the base's normal) that are inside the base must be contact points with
+    gap = -depth. (A master-facet cut-off at n_m . n_s < -0.2 missed them: they went unseen
+    until the penetration was deep, then kicked the die compaction apart.)"""
+    from mpfem_fenicsx.loading import body_dofs
+    from mpfem_fenicsx.meshes import box_bodies_mesh
+
+    a = box_bodies_mesh([([-1, -1, -0.5], [1, 1, 0], (8, 8, 1)),  # base, top face z = 0
+                         ([0, -0.3, 0], [0.6, 0.3, 0.2], (15, 6, 2))], MPI.COMM_SELF)  # slab, 0.04 mm rows
+    prob = SolidProblem(a.mesh, LEAD, tangent=False)
+    theta = np.radians(80.0)
+    c, s = np.cos(theta), np.sin(theta)
+    R = np.array([[c, 0, -s], [0, 1, 0], [s, 0, c]])  # the slab's bottom face rises at 80 deg
+    lift = np.array([0.3, 0.0, -0.08])
+    X = prob.V.tabulate_dof_coordinates()
+    blocks = body_dofs(prob.V, a.cell_tags, 1, component=0) // 3
+    u = prob.u.x.array.reshape(-1, 3)
+    u[blocks] = X[blocks] @ R.T + lift - X[blocks]
+    model = ContactModel(prob.V, a.facet_tags, 2, ContactLaw(penalty=1e6, friction=0.0), search_distance=0.1)
+    model.evaluate(prob.u)
+    surf = model.surface
+    x = surf.X + surf.gather(prob.u)
+    inside = np.flatnonzero((surf.node_body == 1) & (x[:, 2] < -0.01))
+    # the steep face's rows at 0.04 mm from the lowest edge are among them
+    assert np.any(np.abs(x[inside, 2] + 0.08 - 0.04 * s) < 1e-9)
+    pts = model.points
+    found = {int(n): g for n, g, m in zip(pts.slave, pts.gap, pts.master_body) if m == 0}
+    missing = [int(n) for n in inside if int(n) not in found]
+    assert not missing, f"penetrating slab nodes without a contact point: {missing}"
+    assert np.allclose([found[int(n)] for n in inside], x[inside, 2], atol=1e-9)
