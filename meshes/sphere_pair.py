@@ -15,31 +15,22 @@ faces are not contact surfaces).
 
 from __future__ import annotations
 
-import numpy as np
 from mpi4py import MPI
 
-import dolfinx
-import dolfinx.io.gmsh
-
 from .assembly import BodyAssembly
+from .tetra import gmsh_to_dolfinx
 
 
 def quarter_sphere_pair(radius: float = 1.0, comm: MPI.Comm = MPI.COMM_WORLD, *, size_min: float = 0.03,
                         refine_radius: float = 0.2, refine_width: float = 0.5, size_max: float = 0.3) -> BodyAssembly:
     """Mesh the two quarter spheres (mm); sizes relative to ``radius`` (tetrahedra before splitting)."""
-    import gmsh
-
     for name, value, lo, hi in (("size_min", size_min, 1e-3, 0.5), ("size_max", size_max, size_min, 1.0),
                                 ("refine_radius", refine_radius, 0.0, 1.0), ("refine_width", refine_width, 0.0, 2.0)):
         if not lo <= value <= hi:
             raise ValueError(f"sphere pair {name} = {value} is out of range [{lo}, {hi}] (relative to the radius)")
     r = float(radius)
-    started = gmsh.isInitialized()
-    if not started:
-        gmsh.initialize(interruptible=False)
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.model.add("sphere_pair")
-    if comm.rank == 0:
+
+    def build(gmsh):
         occ = gmsh.model.occ
         volumes = []
         for sign in (-1.0, 1.0):
@@ -53,27 +44,21 @@ def quarter_sphere_pair(radius: float = 1.0, comm: MPI.Comm = MPI.COMM_WORLD, *,
             # spherical boundary = the faces not lying on a symmetry plane x = 0 or y = 0
             curved = []
             for dim, face in gmsh.model.getBoundary([(3, tag)], oriented=False):
-                c = gmsh.model.occ.getCenterOfMass(dim, face)
+                c = occ.getCenterOfMass(dim, face)
                 if abs(c[0]) > 1e-9 * r and abs(c[1]) > 1e-9 * r:
                     curved.append(face)
             gmsh.model.addPhysicalGroup(2, curved, body + 1)
-        ball = gmsh.model.mesh.field.add("Ball")
+        field = gmsh.model.mesh.field.add("Ball")
         for key, value in dict(Radius=refine_radius * r, Thickness=refine_width * r, VIn=size_min * r,
                                VOut=size_max * r, XCenter=0.0, YCenter=0.0, ZCenter=0.0).items():
-            gmsh.model.mesh.field.setNumber(ball, key, float(value))
-        gmsh.model.mesh.field.setAsBackgroundMesh(ball)
+            gmsh.model.mesh.field.setNumber(field, key, float(value))
+        gmsh.model.mesh.field.setAsBackgroundMesh(field)
         for key in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints", "Mesh.MeshSizeFromCurvature"):
             gmsh.option.setNumber(key, 0)
         gmsh.option.setNumber("Mesh.SubdivisionAlgorithm", 2)  # every tetrahedron -> 4 hexahedra
         gmsh.model.mesh.generate(3)
-    data = dolfinx.io.gmsh.model_to_mesh(gmsh.model, comm, 0, gdim=3)
-    gmsh.model.remove()
-    if not started:
-        gmsh.finalize()
-    ct, ft = data.cell_tags, data.facet_tags
-    mesh = data.mesh
+
+    mesh, cell_tags, facet_tags = gmsh_to_dolfinx("sphere_pair", build, comm)
     if mesh.topology.cell_name() != "hexahedron":
         raise RuntimeError(f"gmsh subdivision gave {mesh.topology.cell_name()} cells, expected hexahedra")
-    cell_tags = dolfinx.mesh.meshtags(mesh, 3, ct.indices, ct.values - 1)
-    facet_tags = dolfinx.mesh.meshtags(mesh, 2, ft.indices, ft.values - 1)
     return BodyAssembly(mesh, cell_tags, facet_tags, 2)

@@ -13,6 +13,34 @@ import dolfinx
 import dolfinx.io.gmsh
 
 
+def gmsh_to_dolfinx(name: str, build, comm: MPI.Comm):
+    """Run ``build(gmsh)`` on rank 0 in a fresh gmsh model, then distribute its mesh over ``comm``.
+
+    Physical groups numbered from 1 become 0-based cell tags (volumes) and facet tags (surfaces).
+    Returns (mesh, cell_tags, facet_tags).
+    """
+    import gmsh
+
+    started = gmsh.isInitialized()
+    if not started:
+        gmsh.initialize(interruptible=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.add(name)
+    try:
+        if comm.rank == 0:
+            build(gmsh)
+        data = dolfinx.io.gmsh.model_to_mesh(gmsh.model, comm, 0, gdim=3)
+    finally:
+        gmsh.model.remove()
+        if not started:
+            gmsh.finalize()
+    mesh = data.mesh
+    ct, ft = data.cell_tags, data.facet_tags
+    cell_tags = dolfinx.mesh.meshtags(mesh, 3, ct.indices, ct.values - 1)
+    facet_tags = dolfinx.mesh.meshtags(mesh, 2, ft.indices, ft.values - 1)
+    return mesh, cell_tags, facet_tags
+
+
 def gmsh_spheres(centres: np.ndarray, radii: np.ndarray, comm: MPI.Comm, *, order: int = 1,
                  size: float = 0.25, refine: list | None = None):
     """Mesh each sphere with gmsh; cell tag = facet tag = particle id (0-based).
@@ -21,20 +49,14 @@ def gmsh_spheres(centres: np.ndarray, radii: np.ndarray, comm: MPI.Comm, *, orde
     element size is size_min within distance_min of the point, growing linearly to the global
     size at distance_max (gmsh Distance + Threshold fields), e.g. around contact points.
     """
-    import gmsh
-
     from .assembly import ParticleAssembly
 
     if order not in (1, 2):
         raise ValueError(f"tet_order must be 1 or 2, got {order}")
     if not 0.01 <= size <= 1.0:
         raise ValueError(f"tet_size must be in [0.01, 1] (relative to the radius), got {size}")
-    started = gmsh.isInitialized()
-    if not started:
-        gmsh.initialize(interruptible=False)
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.model.add("particles")
-    if comm.rank == 0:
+
+    def build(gmsh):
         vols = []
         for c, r in zip(centres, radii):
             tag = gmsh.model.occ.addSphere(*c, r)
@@ -69,12 +91,6 @@ def gmsh_spheres(centres: np.ndarray, radii: np.ndarray, comm: MPI.Comm, *, orde
             gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
         gmsh.model.mesh.generate(3)
         gmsh.model.mesh.setOrder(order)
-    data = dolfinx.io.gmsh.model_to_mesh(gmsh.model, comm, 0, gdim=3)
-    gmsh.model.remove()
-    if not started:
-        gmsh.finalize()
-    mesh = data.mesh
-    ct, ft = data.cell_tags, data.facet_tags
-    cell_tags = dolfinx.mesh.meshtags(mesh, 3, ct.indices, ct.values - 1)
-    facet_tags = dolfinx.mesh.meshtags(mesh, 2, ft.indices, ft.values - 1)
+
+    mesh, cell_tags, facet_tags = gmsh_to_dolfinx("particles", build, comm)
     return ParticleAssembly(mesh, cell_tags, facet_tags, centres, radii, "tetrahedron")
