@@ -142,24 +142,3 @@ def test_clp_by_copies_equals_clp_by_images(tmp_path):
     assert np.abs(ra - rb[j]).max() < 1e-8 * np.abs(ra).max()
     assert np.abs(Ra).max() > 1e-3  # N mm
     assert np.allclose(Ra, Rb, rtol=1e-8, atol=1e-10 * np.abs(Ra).max())
-
-
-def test_relaxation_damping_carries_no_macroscopic_stress(tmp_path):
-    """The particle damping acts on the rigid velocities minus their affine fit: for any velocity
-    field its nodal forces have zero resultant and zero first moment sum f (x) x (so nothing
-    reaches the Schmidt reaction), and its work E_damp only grows."""
-    res = run_compaction(small_case(tmp_path, bc="CLP", increments=200, outputs=10), MPI.COMM_SELF, log=quiet)
-    solver = res.extra["solver"]
-    e_damp = res.history.column("E_damp")
-    assert e_damp[-1] > 0
-    assert np.all(np.diff(e_damp) >= -1e-9 * e_damp[-1])
-    n = solver.constraint.num_owned
-    rng = np.random.default_rng(3)
-    solver.velocity.x.array[:n] = rng.normal(size=n) * 100.0  # mm/s, arbitrary
-    solver._damping_force()
-    f = solver.f_damp.array_r[:n].reshape(-1, 3)
-    x = solver._node_coordinates[: n // 3] + solver.problem.u.x.array[:n].reshape(-1, 3)
-    scale = np.abs(f).sum(axis=0).max()
-    assert scale > 0
-    assert np.abs(f.sum(axis=0)).max() < 1e-10 * scale
-    assert np.abs(f.T @ x).max() < 1e-10 * scale * np.abs(x).max()

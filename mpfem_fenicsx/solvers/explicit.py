@@ -109,10 +109,9 @@ class ExplicitSolver:
         """``background``: t -> velocity gradient L (3, 3) (1/s) of the homogeneous flow v = L x
         that the damping leaves alone (e.g. dF0/dt F0^-1 of a compacted cell); default L = 0.
         ``damped_bodies``: body id of every owned node: the damping then acts on each body's
-        mean (rigid) velocity only, relative to the flow and to the bodies' own affine fit (see
-        :meth:`_damping_force`), so that rearrangements are relaxed while the bodies'
-        deformation is not resisted, momentum is conserved and no macroscopic stress is carried
-        (default: node by node)."""
+        mean (rigid) velocity only, c m_node (w_body - <w>), w = v_body - L x_body, <.> the mass
+        average, so that rearrangements are relaxed while the bodies' deformation is not
+        resisted and momentum is conserved (default: node by node)."""
         self.problem = problem
         self.background = background
         self.damped_bodies = None if damped_bodies is None else np.asarray(damped_bodies, dtype=np.int64)
@@ -302,14 +301,8 @@ class ExplicitSolver:
         self.energies.plastic += self.problem.plastic_dissipation_increment()
 
     def _damping_force(self) -> None:
-        """f_d = c M w at step n with the last half-step velocity (explicit in v), w = v - L x.
-
-        Node by node, or, with ``damped_bodies``, on the bodies' rigid velocities: w_b = mass
-        average of w over body b, minus its mass-weighted least-squares affine fit
-        w_b ~ w0 + W (x_b - x0) over all bodies. The fit removal makes sum_b M_b w_b = 0 (no net
-        force) and sum_b M_b w_b (x) (x_b - x0) = 0 (no first moment): the damping relaxes
-        rearrangements but carries no macroscopic stress (nothing in the Schmidt reaction) and
-        its work c sum_b M_b |w_b|^2 dt >= 0 is a pure dissipation (E_damp)."""
+        """f_d = c M (v - L x) at step n with the last half-step velocity (explicit in v), node by
+        node or with the mass-weighted mean velocity and position of each damped body."""
         n = self.constraint.num_owned
         m = self.mass.x.array[:n].reshape(-1, 3)[:, 0]
         v = self.velocity.x.array[:n].reshape(-1, 3)
@@ -323,20 +316,13 @@ class ExplicitSolver:
                 sums[1 + d] = np.bincount(b, weights=m * v[:, d], minlength=nb)
                 sums[4 + d] = np.bincount(b, weights=m * x[:, d], minlength=nb)
             sums = self.comm.allreduce(sums, op=MPI.SUM)
-            M = sums[0]
-            safe = np.where(M > 0, M, 1.0)
-            v_body = (sums[1:4] / safe).T
-            x_body = (sums[4:7] / safe).T
+            mass = np.where(sums[0] > 0, sums[0], 1.0)
+            v_body = (sums[1:4] / mass).T
             if self.background is not None:
-                v_body -= x_body @ np.asarray(self.background(self.t), dtype=float).T
-            # remove the mass-weighted affine fit w0 + W (x - x0) of the bodies' velocities
-            x0 = M @ x_body / M.sum()
-            w0 = M @ v_body / M.sum()
-            dx = x_body - x0
-            A = (M[:, None] * dx).T @ dx
-            B = (M[:, None] * (v_body - w0)).T @ dx
-            W = B @ np.linalg.pinv(A)
-            v = (v_body - w0 - dx @ W.T)[b]
+                v_body -= (sums[4:7] / mass).T @ np.asarray(self.background(self.t), dtype=float).T
+            # remove the mean: the damping conserves momentum and ignores rigid translations
+            v_body -= (sums[0] @ v_body) / sums[0].sum()
+            v = v_body[b]
         elif self.background is not None:
             v = v - x @ np.asarray(self.background(self.t), dtype=float).T
         self.f_damp.array_w[:n] = (self.settings.damping * m[:, None] * v).ravel()
