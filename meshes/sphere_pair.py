@@ -18,7 +18,7 @@ from __future__ import annotations
 from mpi4py import MPI
 
 from .assembly import BodyAssembly
-from .tetra import gmsh_to_dolfinx
+from .tetra import ball_size_field, gmsh_to_dolfinx, size_from_background
 
 
 def quarter_sphere_pair(radius: float = 1.0, comm: MPI.Comm = MPI.COMM_WORLD, *, size_min: float = 0.03,
@@ -48,13 +48,8 @@ def quarter_sphere_pair(radius: float = 1.0, comm: MPI.Comm = MPI.COMM_WORLD, *,
                 if abs(c[0]) > 1e-9 * r and abs(c[1]) > 1e-9 * r:
                     curved.append(face)
             gmsh.model.addPhysicalGroup(2, curved, body + 1)
-        field = gmsh.model.mesh.field.add("Ball")
-        for key, value in dict(Radius=refine_radius * r, Thickness=refine_width * r, VIn=size_min * r,
-                               VOut=size_max * r, XCenter=0.0, YCenter=0.0, ZCenter=0.0).items():
-            gmsh.model.mesh.field.setNumber(field, key, float(value))
-        gmsh.model.mesh.field.setAsBackgroundMesh(field)
-        for key in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints", "Mesh.MeshSizeFromCurvature"):
-            gmsh.option.setNumber(key, 0)
+        size_from_background(gmsh, ball_size_field(gmsh, (0.0, 0.0, 0.0), size_min * r, refine_radius * r,
+                                                   (refine_radius + refine_width) * r, size_max * r))
         gmsh.option.setNumber("Mesh.SubdivisionAlgorithm", 2)  # every tetrahedron -> 4 hexahedra
         gmsh.model.mesh.generate(3)
 

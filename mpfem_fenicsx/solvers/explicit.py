@@ -150,6 +150,7 @@ class ExplicitSolver:
         wave_speed = cell_function(c_d / np.sqrt(scale), "wave_speed")
         cell_length = cell_function(length, "cell_length")
         self._scaling = (scale, cell_dofs, wave_speed, cell_length, c_d, xi)
+        self._contact_mass = None  # per owned surface node, set by _contact_mass_scaling
         self._build_mass()
 
         v = ufl.TestFunction(problem.V)
@@ -201,7 +202,7 @@ class ExplicitSolver:
         cell_length.x.array[cell_dofs] = length
         cell_length.x.scatter_forward()
         contact_grows = False
-        if self.contact is not None and getattr(self, "_contact_mass", None) is not None:
+        if self._contact_mass is not None:
             contact_grows = bool((self._contact_mass_needed(self.contact) > 1.05 * self._contact_mass).any())
         if not self.comm.allreduce(bool(grow.any()) or contact_grows, op=MPI.LOR):
             return
@@ -239,11 +240,9 @@ class ExplicitSolver:
         m_node = mass.x.array.reshape(-1, 3)[blocks, 0]
         s = self.settings.safety
         if settings.target_dt is not None:
-            added = np.maximum(k_node * (self.dt / (2.0 * s * settings.deformation_margin)) ** 2,
-                               self._contact_mass_needed(contact))
-            previous = getattr(self, "_contact_mass", None)
-            if previous is not None:
-                added = np.maximum(added, previous)
+            added = np.maximum(self._spring_mass(k_node), self._contact_mass_needed(contact))
+            if self._contact_mass is not None:
+                added = np.maximum(added, self._contact_mass)
             self._contact_mass = added
             mass.x.array.reshape(-1, 3)[blocks] += added[:, None]
             mass.x.scatter_forward()
@@ -254,11 +253,16 @@ class ExplicitSolver:
             self.dt = min(self.dt, self.comm.allreduce(local, op=MPI.MIN))
             self.contact_added_mass = 0.0
 
+    def _spring_mass(self, stiffness: np.ndarray) -> np.ndarray:
+        """Nodal mass (t) for which springs ``stiffness`` (N/mm) are stable at dt, with the
+        safety and deformation margins: m = K (dt / (2 s margin))^2."""
+        s = self.settings
+        return stiffness * (self.dt / (2.0 * s.safety * s.deformation_margin)) ** 2
+
     def _contact_mass_needed(self, contact) -> np.ndarray:
         """Mass (t) that keeps each owned surface node stable under 1.5 x its current contact
         stiffness row sum."""
-        s = self.settings
-        return 1.5 * self._contact_row_sums(contact) * (self.dt / (2.0 * s.safety * s.deformation_margin)) ** 2
+        return self._spring_mass(1.5 * self._contact_row_sums(contact))
 
     def _contact_row_sums(self, contact) -> np.ndarray:
         """Gershgorin row sums (N/mm) of the current contact stiffness at this rank's owned

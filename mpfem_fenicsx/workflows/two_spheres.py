@@ -20,9 +20,9 @@ size_min = 0.03 (hexahedra ~0.015 r at the contact, 47 772 dofs) Newton needs th
 at first contact and each iteration costs ~4 s (MUMPS LU), so a full ratio takes tens of
 minutes. With size_min = 0.05 the monitor shows why: each time a new ring of nodes enters the
 contact the active set flips between iterations and Newton diverges (NaN from inverted cells)
-unless the step is cut to ~1e-5 r of approach; capping the Newton correction (tried: a tenth of a contact element)
-only makes it wander. A penalty smoothed over a small gap band (C1 at first contact) is the next
-thing to try. The earlier full-sphere cube-sphere version had the same first-contact trouble.
+unless the step is cut to ~1e-5 r of approach; capping the Newton correction (tried: a tenth of
+a contact element) only makes it wander. A penalty smoothed over a small gap band (C1 at first
+contact) is the next thing to try. The earlier full-sphere cube-sphere version had the same first-contact trouble.
 """
 
 from __future__ import annotations
