@@ -21,7 +21,7 @@ CASES = {
     # base and block land on different ranks: contact across the partition
     "flat-contact": ("flat_contact.py", [], ["normal.csv", "tangential.csv"], 1e-7),
     # granular volume: 24 particles + CLP shell copies, particles and copies split over the ranks
-    "compaction-explicit": ("isotropic.py", ["--target-density", "0.6", "--increments", "150", "--outputs", "3",
+    "compaction-explicit": ("isotropic.py", ["--target-density", "0.64", "--increments", "150", "--outputs", "3",
                                              "--no-visual"], ["history.csv"], 1e-5),
 }
 IGNORED = {"wall_time"}  # columns that legitimately differ
@@ -46,5 +46,8 @@ def test_two_ranks_reproduce_serial(case, root, tmp_path):
         assert list(serial) == list(parallel)
         for name in set(serial) - IGNORED:
             assert serial[name].shape == parallel[name].shape, (csv, name)
-            scale = np.abs(serial[name]).max() + 1e-30
+            # a column that is round-off (e.g. an off-diagonal stress) is compared with the
+            # magnitude of its family (sigma11..33, F11..33, ...)
+            family = name.rstrip("0123456789_")
+            scale = max(np.nanmax(np.abs(serial[k])) for k in serial if k.rstrip("0123456789_") == family) + 1e-30
             assert np.abs(serial[name] - parallel[name]).max() <= rtol * scale, (csv, name, out)

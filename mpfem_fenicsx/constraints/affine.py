@@ -129,8 +129,9 @@ class AffineConstraint:
         self.P.multTranspose(full, out)
 
     def reduce_values(self, u: dolfinx.fem.Function, out: PETSc.Vec) -> None:
-        """Reduced coordinates of a Function that satisfies the constraint (its free dofs)."""
-        out.array[:] = u.x.array[self.free]
+        """Reduced coordinates of a Function that satisfies the constraint: its free dofs minus
+        their offsets (g may carry free dofs too, e.g. a comoving homogeneous flow)."""
+        out.array[:] = u.x.array[self.free] - self.g.x.array[self.free]
 
     def reduced_lumped_mass(self, mass: dolfinx.fem.Function) -> PETSc.Vec:
         """Row-sum lumped |P|^T M |P| for a lumped M (t): M_red = |P|^T (M * (|P| 1))."""
@@ -146,7 +147,8 @@ class AffineConstraint:
         return m_red
 
     def set_values(self, dofs: np.ndarray, values: np.ndarray) -> None:
-        """Offsets g (mm) of constrained dofs (prescribed or slave rows), ghosts updated."""
+        """Offsets g (mm) of any owned dofs (prescribed, slave rows, or free dofs carried by a
+        moving frame: u_free = x + g), ghosts updated."""
         self.g.x.array[dofs] = values
         self.g.x.scatter_forward()
 

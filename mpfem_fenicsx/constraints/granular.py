@@ -27,6 +27,17 @@ Kinds (``kind``):
 For CLP and CLPS the whole assembly may translate freely: for static solvers one surface node of a
 particle of the volume is held at u = 0 (its reaction vanishes by periodicity); explicit runs
 conserve momentum and keep no anchor.
+
+Comoving carrier (``comoving=True``, default): every particle is carried, rigidly, by the
+homogeneous flow at its centre X_c: u = H (X_c - L/2) + w for each of its nodes, and the unknowns
+are the motions w relative to it (free nodes: offset H (X_c - L/2); slaves: their own offset plus
+the masters' carriers). The particle's shape is not imposed: it deforms through contacts only.
+For a static solver this is only a change of variables (and a better predictor); for explicit
+dynamics the offsets carry no inertia (``ExplicitSolver``), so the imposed flow is not resisted
+by the scaled masses, only the particles' motion relative to it (periodic "SLLOD" dynamics).
+R = G^T r then sums the reactions of all nodes; the carriers of a particle's own nodes cancel
+(its resultant is zero in equilibrium), so R is again the force through the copies (ties,
+couplings) times the lattice vectors.
 """
 
 from __future__ import annotations
@@ -98,10 +109,12 @@ class GranularBoundaryConditions:
             SPEC §5; then no copies are needed and only the rigid translation is fixed).
         anchor: CLP/CLPS only: hold one node against the free rigid translation (needed by a
             static solver; an explicit run conserves momentum and needs none).
+        comoving: carry every particle with the homogeneous flow at its centre, H (X_c - L/2)
+            (see the module notes).
     """
 
     def __init__(self, V, cell_particle, centres, radii, original, shift, cell, kind: str, gradient, *,
-                 coupling_radius: float = 0.5, images=None, anchor: bool = True):
+                 coupling_radius: float = 0.5, images=None, anchor: bool = True, comoving: bool = True):
         if kind not in KINDS:
             raise ValueError(f"bc must be one of {', '.join(KINDS)}, got {kind!r}")
         if not 0.0 < coupling_radius < 1.0:
@@ -118,6 +131,9 @@ class GranularBoundaryConditions:
         is_copy = np.any(shift != 0, axis=1)
         nodes = _gather_nodes(V, np.asarray(cell_particle, dtype=np.int64))
         self.num_particles = radii.size
+        self.comoving = comoving
+        self._nodes = nodes
+        self._centres = centres
         self._rows: list[tuple] = []  # (slave blocks, component, masters (k, m) blocks, coeffs, G (k, 9))
         self._prescribed: list[tuple] = []  # (blocks, G (k, 9)) for all 3 components
 
@@ -176,10 +192,15 @@ class GranularBoundaryConditions:
         copy_nodes = np.flatnonzero(is_copy[nodes.particle])
         p = nodes.particle[copy_nodes]
         lattice = shift[p] * self.cell
-        dist, hit = tree.query(nodes.X[copy_nodes] - lattice)
-        hit = orig_index[hit]
+        # several candidates: touching particles (e.g. the simple cubic cell) share contact nodes
+        k = min(4, orig_index.size)
+        dist, hit = tree.query(nodes.X[copy_nodes] - lattice, k=k)
+        dist, hit = dist.reshape(-1, k), orig_index[hit.reshape(-1, k)]
         scale = float(np.max(self.cell))
-        bad = (dist > 1e-9 * scale) | (nodes.particle[hit] != original[p])
+        match = (dist <= 1e-9 * scale) & (nodes.particle[hit] == original[p][:, None])
+        first = np.argmax(match, axis=1)
+        hit = hit[np.arange(hit.shape[0]), first]
+        bad = ~match[np.arange(hit.shape[0]), first]
         if np.any(bad):
             raise ValueError(f"CLP: {int(bad.sum())} copy nodes have no coincident node on their original "
                              "(copies must be meshed exactly like their originals)")
@@ -234,9 +255,44 @@ class GranularBoundaryConditions:
         prescribed = np.concatenate(pres_dofs) if pres_dofs else np.zeros(0, np.int64)
         self.constraint = AffineConstraint(V, prescribed, couplings)
         order = np.argsort(prescribed)
-        self.constrained_dofs = np.concatenate([slaves, prescribed[order]]).astype(np.int32)
-        blocks_G = g_rows + ([np.concatenate(pres_G)[order]] if pres_G else [])
-        self.G = np.concatenate(blocks_G) if blocks_G else np.zeros((0, 9))
+        constrained = np.concatenate([slaves, prescribed[order]]).astype(np.int32)
+        G_slaves = np.concatenate(g_rows) if g_rows else np.zeros((0, 9))
+        blocks_G = [G_slaves] + ([np.concatenate(pres_G)[order]] if pres_G else [])
+        G = np.concatenate(blocks_G)
+        #: owned dofs with an offset G vec(H) (constrained ones, and the free ones when comoving)
+        self.offset_dofs = constrained
+        if self.comoving:
+            carrier = self._carrier_positions(imap.size_global)
+            G[: slaves.size] += self._slave_carriers(slaves, couplings, carrier)
+            free = self.constraint.free
+            X = carrier[lo + free // 3]
+            G_free = np.zeros((free.size, 9))
+            for j in range(3):
+                G_free[np.arange(free.size), 3 * (free % 3) + j] = X[:, j]
+            self.offset_dofs = np.concatenate([constrained, free]).astype(np.int32)
+            G = np.concatenate([G, G_free])
+        self.G = G
+
+    def _carrier_positions(self, num_blocks) -> np.ndarray:
+        """X_c - L/2 of every node's particle, indexed by global block, (num_blocks, 3) mm."""
+        nodes = self._nodes
+        X = np.zeros((num_blocks, 3))
+        X[nodes.block] = self._centres[nodes.particle] - 0.5 * self.cell
+        return X
+
+    def _slave_carriers(self, slaves, couplings, X_of_block) -> np.ndarray:
+        """Carrier part of the slave offsets: u_s = sum_k c_k (w_k + H (X_k - L/2)) + g_s, i.e.
+        sum_k c_k H (X_k - L/2) in the G vec(H) form, (num slaves, 9), X_k - L/2 the carrier
+        position of master k (``_carrier_positions``)."""
+        counts = np.diff(couplings.indptr)
+        row = np.repeat(np.arange(slaves.size), counts)
+        acc = np.zeros((slaves.size, 3))
+        np.add.at(acc, row, couplings.coefficients[:, None] * X_of_block[couplings.masters // 3])
+        G = np.zeros((slaves.size, 9))
+        component = slaves % 3
+        for j in range(3):
+            G[np.arange(slaves.size), 3 * component + j] = acc[:, j]
+        return G
 
     # -- PrescribedDisplacements interface (used by the solvers) -------------------------------
     def build(self) -> AffineConstraint:
@@ -250,7 +306,7 @@ class GranularBoundaryConditions:
         """Offsets g = G vec(F0(t) - I) on every constrained dof."""
         H = self.displacement_gradient(t)
         self._H = H
-        self.constraint.set_values(self.constrained_dofs, self.G @ H.ravel())
+        self.constraint.set_values(self.offset_dofs, self.G @ H.ravel())
         if self.images is not None:
             self.images.set_periodic_images(periodic_lattice(), ((H + np.eye(3)) * self.cell).T)
 
@@ -258,7 +314,7 @@ class GranularBoundaryConditions:
     def macroscopic_force(self, reaction: np.ndarray) -> np.ndarray:
         """R = G^T r (N mm, (3, 3), conjugate to H = F0 - I) from the full reaction vector's owned
         values (N): the generalized force of the thesis' auxiliary nodes, summed over ranks."""
-        local = self.G.T @ reaction[self.constrained_dofs] if self.G.size else np.zeros(9)
+        local = self.G.T @ reaction[self.offset_dofs] if self.G.size else np.zeros(9)
         R = self.V.mesh.comm.allreduce(local, op=MPI.SUM).reshape(3, 3)
         if self.images is not None:  # image shifts S = F0 (L o s): dW = pf . dH (L o s)
             R += self.images.image_moment() @ np.linalg.inv(self._H + np.eye(3)).T

@@ -46,14 +46,14 @@ class History:
                 writer = csv.writer(fh)
                 writer.writerow(self.columns)
                 for row in self.rows:
-                    writer.writerow([repr(v) for v in row])
+                    writer.writerow(["" if np.isnan(v) else repr(v) for v in row])  # NaN: not defined
         return self.path
 
 
 def read_csv(path: str | Path) -> dict[str, np.ndarray]:
-    """Columns of a history CSV as float arrays."""
+    """Columns of a history CSV as float arrays (empty cells, values not defined, read as NaN)."""
     with open(path) as fh:
         reader = csv.reader(fh)
         header = next(reader)
-        data = np.array([[float(v) for v in row] for row in reader], dtype=float).reshape(-1, len(header))
+        data = np.array([[float(v) if v else np.nan for v in row] for row in reader], dtype=float).reshape(-1, len(header))
     return {name: data[:, i] for i, name in enumerate(header)}

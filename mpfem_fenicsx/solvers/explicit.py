@@ -2,6 +2,10 @@
 
 Reduced coordinates x of u = P x + g(t) (``constraints.AffineConstraint``):
     M_red a_n = -P^T (f_int(u_n) + f_bv(u_n, v_{n-1/2}))
+The offset g(t) carries no inertia: only the "peculiar" motion P x is accelerated. For prescribed
+dofs this changes nothing; for a granular cell whose every node is carried by the homogeneous flow
+(F0(t) - I) X (``GranularBoundaryConditions(comoving=True)``) it is the periodic-dynamics (SLLOD)
+idea: mass scaling then slows the particles' motion *relative to* the imposed flow, not the flow.
     v_{n+1/2} = v_{n-1/2} + dt a_n        (v_{1/2} = v_0 + dt/2 a_0)
     x_{n+1}   = x_n + dt v_{n+1/2}
 Stability: dt <= dt_e = safety * L_e / c_d * (sqrt(1 + xi^2) - xi) per element, with xi = b1 the
@@ -10,12 +14,15 @@ Mass scaling (element by element, Abaqus "fixed mass scaling to a target increme
 rho_e = rho * max(1, (dt_target / dt_e)^2).
 
 Energy balance (mJ = N mm), all with forces at integer steps n times the centred displacement
-increment (u_{n+1} - u_{n-1}) / 2, which makes the discrete balance exact for central
-differences:
-    W_ext = sum R_n . du_n,   R_n = f_int + f_bv - f_c + M a  (reactions of the prescribed dofs)
+increment du_n = (u_{n+1} - u_{n-1}) / 2 = dw_n + dg_n (peculiar part dw = P dx, offset part dg),
+which makes the discrete balance exact for central differences:
+    W_ext = sum R_n . du_n,   R_n = f_int + f_bv - f_c + f_d + M a_w  (a_w = P a_red)
     E_int = sum f_int,n . du_n (elastic + plastic),  E_visc = sum f_bv,n . du_n,
     E_contact = -sum f_c,n . du_n (penalty energy + friction + adhesion work),
-    E_kin = 1/2 v^T M v  (v at the step, averaged from the half steps).
+    E_damp = sum f_d,n . dw_n (dissipation of the relaxation damping, >= 0),
+    E_kin = 1/2 w'^T M w' (peculiar velocity w' = P v_red at the step),
+    E_carrier = sum (f_d + M a_w)_n . dg_n (work of damping and peculiar inertia through the
+    moving offsets; zero without a comoving carrier, small when quasi-static).
 The material's own energies (Hencky stored energy and accumulated plastic work) are reported
 next to E_int as an independent check of the internal work.
 """
@@ -55,9 +62,9 @@ class ExplicitSettings:
     rescale_every: int = 100
     bulk_viscosity_linear: float = 0.06
     bulk_viscosity_quadratic: float = 1.2
-    #: mass-proportional damping c (1/s) of the velocity relative to the background flow
-    #: (``ExplicitSolver(background=...)``): dynamic relaxation towards the quasi-static path;
-    #: its dissipation is reported (Energies.damping) and must stay small
+    #: mass-proportional damping c (1/s) of the peculiar velocity P v_red (relative to the
+    #: moving offsets g(t), e.g. the homogeneous flow of a comoving granular cell): dynamic
+    #: relaxation towards the quasi-static path; its dissipation is Energies.damping
     damping: float = 0.0
 
     def __post_init__(self):
@@ -84,11 +91,13 @@ class Energies:
     kinetic: float = 0.0
     plastic: float = 0.0  # accumulated plastic work from the material
     elastic: float = 0.0  # current Hencky stored energy from the material
-    damping: float = 0.0  # dissipated by the relaxation damping
+    damping: float = 0.0  # dissipated by the relaxation damping (>= 0)
+    carrier: float = 0.0  # work of damping and peculiar inertia through the moving offsets
 
     def balance_error(self) -> float:
-        """|W_ext - (E_int + E_visc + E_contact + E_kin + E_damp)| (mJ)."""
-        return abs(self.external - (self.internal + self.viscous + self.contact + self.kinetic + self.damping))
+        """|W_ext - (E_int + E_visc + E_contact + E_kin + E_damp + E_carrier)| (mJ)."""
+        return abs(self.external - (self.internal + self.viscous + self.contact + self.kinetic + self.damping
+                                    + self.carrier))
 
 
 
@@ -104,16 +113,12 @@ class ExplicitSolver:
     """Central-difference integrator of a :class:`SolidProblem` with prescribed displacements."""
 
     def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, settings: ExplicitSettings,
-                 contact=None, background: Callable[[float], np.ndarray] | None = None,
-                 damped_bodies: np.ndarray | None = None):
-        """``background``: t -> velocity gradient L (3, 3) (1/s) of the homogeneous flow v = L x
-        that the damping leaves alone (e.g. dF0/dt F0^-1 of a compacted cell); default L = 0.
-        ``damped_bodies``: body id of every owned node: the damping then acts on each body's
-        mean (rigid) velocity only, c m_node (w_body - <w>), w = v_body - L x_body, <.> the mass
-        average, so that rearrangements are relaxed while the bodies' deformation is not
-        resisted and momentum is conserved (default: node by node)."""
+                 contact=None, damped_bodies: np.ndarray | None = None):
+        """``damped_bodies``: body id of every owned node: the damping then acts on each body's
+        mean (rigid) peculiar velocity only, c m_node (w_body - <w>), <.> the mass average, so
+        that rearrangements are relaxed while the bodies' deformation is not resisted and
+        momentum is conserved (default: node by node)."""
         self.problem = problem
-        self.background = background
         self.damped_bodies = None if damped_bodies is None else np.asarray(damped_bodies, dtype=np.int64)
         self.contact = contact  # optional ContactModel: its forces join the internal ones
         self.bcs = bcs
@@ -164,7 +169,6 @@ class ExplicitSolver:
         self.f_visc = problem.create_vector()
         self.f_cont = problem.create_vector()  # minus the contact forces on the bodies
         self.f_damp = problem.create_vector()
-        self._node_coordinates = problem.V.tabulate_dof_coordinates()  # (blocks, 3), mm
         if self.damped_bodies is not None:
             self._num_damped = self.comm.allreduce(int(self.damped_bodies.max(initial=-1)) + 1, op=MPI.MAX)
         self._force = problem.create_vector()  # their sum, reused every step
@@ -178,7 +182,8 @@ class ExplicitSolver:
         self.timings = _Timings()
         n = self.constraint.num_owned
         self._u_prev = np.zeros(n)
-        self._v_half_prev = np.zeros(n)
+        self._v_half_prev = np.zeros(n)  # peculiar half-step velocity P v_red
+        self._g_prev = np.zeros(n)
         self._forces_prev = None  # (f_int, f_visc, R) at step n, waiting for u_{n+1}
 
     def _build_mass(self) -> None:
@@ -225,8 +230,11 @@ class ExplicitSolver:
             (both passes, c_a = 1 on the slave, -N_a on the master facet's nodes): a small
             particle's node pressed by a larger particle's coarser facets, or contact areas
             grown by flattening (die compaction diverged without it);
-        the contact mass only grows (previous value kept). Massless CLP copy nodes get theirs
-        too: their ties add it to the original's reduced mass. Without a target increment,
+        the contact mass only grows (previous value kept). A massless CLP copy node and its
+        original are one material point: its contact stiffness is added to the original's
+        before the max with the floor, and the copy node gets no mass of its own (a sum of two
+        floors would make particles with copies heavier than the others and break the
+        translation symmetry of an ordered packing). Without a target increment,
         reduce dt to 2 s sqrt(m / (k A_ref)) instead."""
         from ..contact.search import facet_areas
 
@@ -240,7 +248,10 @@ class ExplicitSolver:
         m_node = mass.x.array.reshape(-1, 3)[blocks, 0]
         s = self.settings.safety
         if settings.target_dt is not None:
-            added = np.maximum(self._spring_mass(k_node), self._contact_mass_needed(contact))
+            tied = np.isin(blocks, self.constraint.slaves // 3)
+            floor = np.where(tied, 0.0, self._spring_mass(k_node))
+            added = np.maximum(floor, self._merge_tied(blocks, self._contact_mass_needed(contact)))
+            added[tied] = 0.0
             if self._contact_mass is not None:
                 added = np.maximum(added, self._contact_mass)
             self._contact_mass = added
@@ -252,6 +263,20 @@ class ExplicitSolver:
             local = float((2.0 * s * np.sqrt(m_node[real] / k_node[real])).min()) if real.any() else np.inf
             self.dt = min(self.dt, self.comm.allreduce(local, op=MPI.MIN))
             self.contact_added_mass = 0.0
+
+    def _merge_tied(self, blocks: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """Per owned surface node (local ``blocks``), the sum of ``values`` over the material point:
+        a node tied to copies (CLP) gets its copies' values added, and the copies get that sum too
+        (u = P x: restrict with P^T, expand with P)."""
+        full = self.constraint.P.createVecLeft()
+        reduced = self.constraint.P.createVecRight()
+        full.array_w[3 * blocks] = values
+        self.constraint.P.multTranspose(full, reduced)
+        self.constraint.P.mult(reduced, full)
+        merged = full.array_r[3 * blocks].copy()
+        full.destroy()
+        reduced.destroy()
+        return merged
 
     def _spring_mass(self, stiffness: np.ndarray) -> np.ndarray:
         """Nodal mass (t) for which springs ``stiffness`` (N/mm) are stable at dt, with the
@@ -305,30 +330,23 @@ class ExplicitSolver:
         self.energies.plastic += self.problem.plastic_dissipation_increment()
 
     def _damping_force(self) -> None:
-        """f_d = c M (v - L x) at step n with the last half-step velocity (explicit in v), node by
-        node or with the mass-weighted mean velocity and position of each damped body."""
+        """f_d = c M w' at step n with the last half-step peculiar velocity w' = P v_red (explicit
+        in v), node by node or with the mass-weighted mean of each damped body."""
         n = self.constraint.num_owned
         m = self.mass.x.array[:n].reshape(-1, 3)[:, 0]
-        v = self.velocity.x.array[:n].reshape(-1, 3)
-        x = self._node_coordinates[: n // 3] + self.problem.u.x.array[:n].reshape(-1, 3)
+        v = self._v_half_prev.reshape(-1, 3)
         if self.damped_bodies is not None:
             b = self.damped_bodies
             nb = self._num_damped
-            sums = np.zeros((7, nb))
+            sums = np.zeros((4, nb))
             sums[0] = np.bincount(b, weights=m, minlength=nb)
             for d in range(3):
                 sums[1 + d] = np.bincount(b, weights=m * v[:, d], minlength=nb)
-                sums[4 + d] = np.bincount(b, weights=m * x[:, d], minlength=nb)
             sums = self.comm.allreduce(sums, op=MPI.SUM)
-            mass = np.where(sums[0] > 0, sums[0], 1.0)
-            v_body = (sums[1:4] / mass).T
-            if self.background is not None:
-                v_body -= (sums[4:7] / mass).T @ np.asarray(self.background(self.t), dtype=float).T
+            v_body = (sums[1:4] / np.where(sums[0] > 0, sums[0], 1.0)).T
             # remove the mean: the damping conserves momentum and ignores rigid translations
             v_body -= (sums[0] @ v_body) / sums[0].sum()
             v = v_body[b]
-        elif self.background is not None:
-            v = v - x @ np.asarray(self.background(self.t), dtype=float).T
         self.f_damp.array_w[:n] = (self.settings.damping * m[:, None] * v).ravel()
 
     def _dot(self, a: np.ndarray, b: np.ndarray) -> float:
@@ -336,15 +354,15 @@ class ExplicitSolver:
 
     def reactions(self, dofs: np.ndarray) -> float:
         """Sum over ranks of the reaction force (N) on the given local unrolled dofs at the last
-        step: R = f_int + f_bv + M a (inertia included, as Abaqus RF in explicit)."""
+        step: R = f_int + f_bv - f_c + f_d + M a_w (peculiar inertia included)."""
         dofs = np.asarray(dofs)
         owned = dofs[dofs < self.constraint.num_owned]
         return self.comm.allreduce(float(self._reaction_last[owned].sum()) if owned.size else 0.0)
 
     @property
     def reaction(self) -> np.ndarray:
-        """Reaction (N) on every owned unrolled dof at the last step, f_int + f_bv - f_c + M a
-        (non-zero on constrained dofs only, up to the dynamic residual)."""
+        """Reaction (N) on every owned unrolled dof at the last step, f_int + f_bv - f_c + f_d + M a_w
+        (a_w the peculiar acceleration; P^T R = 0 up to the lumping of M_red)."""
         return self._reaction_last
 
     # -- stepping ----------------------------------------------------------------------------
@@ -379,28 +397,34 @@ class ExplicitSolver:
         self.bcs.apply(t_new)
         self.constraint.expand(self.x, u)
         g_new = self.constraint.g.x.array[:n]
-        # full half-step velocity: free part from v_red, prescribed part from g
+        # half-step velocity: peculiar part w' = P v_red (the only one with inertia), plus the
+        # offsets' rate (g_{n+1} - g_n) / dt for the bulk viscosity's strain rate
         self.constraint.expand(self.v_red, self.velocity, with_offset=False)
+        v_half = self.velocity.x.array[:n].copy()
         self.velocity.x.array[:n] += (g_new - g_n) / dt
         self.velocity.x.scatter_forward()
-        v_half = self.velocity.x.array[:n].copy()
 
-        # reactions at step n: R = f + M a, a from the two half-step velocities
+        # reactions at step n: R = f + M a_w, a_w from the two peculiar half-step velocities
         mass = self.mass.x.array[:n]
         h = dt if self.step > 0 else 0.5 * dt
-        accel = (v_half - self._v_half_prev) / h
-        reaction = force.array_r[:n] + mass * accel
+        inertia = mass * (v_half - self._v_half_prev) / h
+        reaction = force.array_r[:n] + inertia
         self._reaction_last = reaction
-        # centred displacement increment around step n (one-sided at the start)
+        # centred displacement increment around step n (one-sided at the start) and its offset part
         du = 0.5 * (u.x.array[:n] - (self._u_prev if self.step > 0 else u_n))
+        dg = 0.5 * (g_new - (self._g_prev if self.step > 0 else g_n))
         e = self.energies
         e.external += self._dot(reaction, du)
         e.internal += self._dot(self.f_int.array_r[:n], du)
         e.viscous += self._dot(self.f_visc.array_r[:n], du)
         e.contact += self._dot(self.f_cont.array_r[:n], du)
+        carrier = inertia
         if self.settings.damping > 0:
-            e.damping += self._dot(self.f_damp.array_r[:n], du)
+            e.damping += self._dot(self.f_damp.array_r[:n], du - dg)
+            carrier = carrier + self.f_damp.array_r[:n]
+        e.carrier += self._dot(carrier, dg)
         self._u_prev[:] = u_n
+        self._g_prev[:] = g_n
         self._v_half_prev[:] = v_half
         self.timings.update += time.perf_counter() - t2
 

@@ -60,7 +60,8 @@ class ImplicitSolver:
                  petsc_options: dict | None = None, prefix: str = "mpfem_implicit_",
                  regularization: np.ndarray | None = None):
         """``regularization``: stiffness k_i (N/mm) per owned dof of a pseudo-time viscous drag
-        r_i += k_i (u_i - u_i,n) towards the last converged state: it makes free-floating bodies
+        r_i += k_i (w_i - w_i,n) towards the last converged state (w = u - g, the motion relative
+        to the moving offsets, e.g. a comoving homogeneous flow): it makes free-floating bodies
         (particles before contact) solvable and vanishes as the state stops changing; its work
         is accumulated in :attr:`regularization_work` (mJ) and must stay small."""
         if problem.jacobian_forms is None:
@@ -84,7 +85,7 @@ class ImplicitSolver:
         if regularization is not None:
             self.regularization = self.r_full.duplicate()
             self.regularization.array_w[:] = regularization
-            self._u_converged = problem.u.x.array[: self.constraint.num_owned].copy()
+            self._w_converged = self._peculiar().copy()
             # diagonal matrix on the dofs with k_i > 0 (their diagonal is in K's pattern)
             n = self.constraint.num_owned
             lo = self.K.getOwnershipRange()[0]
@@ -115,6 +116,11 @@ class ImplicitSolver:
         self.snes.setFunction(self._residual, self.r_red)
         self.snes.setJacobian(self._jacobian, self.J_red, self.J_red)
 
+    def _peculiar(self) -> np.ndarray:
+        """w = u - g on the owned dofs: the displacement relative to the moving offsets."""
+        n = self.constraint.num_owned
+        return self.problem.u.x.array[:n] - self.constraint.g.x.array[:n]
+
     # -- SNES callbacks -----------------------------------------------------------------------
     def _residual(self, snes, x: PETSc.Vec, r: PETSc.Vec) -> None:
         t0 = time.perf_counter()
@@ -125,7 +131,7 @@ class ImplicitSolver:
         t2 = time.perf_counter()
         if self.regularization is not None:
             n = self.constraint.num_owned
-            self.r_full.array_w[:n] += self.regularization.array_r * (self.problem.u.x.array[:n] - self._u_converged)
+            self.r_full.array_w[:n] += self.regularization.array_r * (self._peculiar() - self._w_converged)
         if self.contact is not None:
             self.contact.evaluate(self.problem.u, tangent=True)
             self.contact.add_residual(self.r_full)
@@ -258,11 +264,10 @@ class ImplicitSolver:
             if self.contact is not None:
                 self.contact.commit(self.problem.u)
             if self.regularization is not None:
-                n = self.constraint.num_owned
-                du = self.problem.u.x.array[:n] - self._u_converged
+                dw = self._peculiar() - self._w_converged
                 self.regularization_work += self.comm.allreduce(
-                    float(np.sum(self.regularization.array_r * du * du)))
-                self._u_converged[:] = self.problem.u.x.array[:n]
+                    float(np.sum(self.regularization.array_r * dw * dw)))
+                self._w_converged[:] = self._peculiar()
             self.t += dt
             steps += 1
             self.x.copy(self.x_old)

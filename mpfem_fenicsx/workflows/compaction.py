@@ -4,13 +4,24 @@ duplicated particles -> GDH / GDF / CLPS / CLP constraints -> contact -> solver 
 Sign convention: reported stresses are positive in compression (sigma_m > 0 in compaction);
 strains keep their sign (h_v < 0 in compaction). Units mm, N, MPa, s.
 
-History columns (one row per output): time, rho (solid volume / current cell volume, the cell
-from the least-squares gradient), rho_imposed (from F0), h_v, h_d (Hencky strain of the
-least-squares fit of the VEP centroids, appendix C), sigma_m, sigma_d (of the Love-Weber stress,
-appendix C), F11..F33 (least-squares fit), sigma11..sigma33 (Love-Weber, compression > 0),
-sigma_schmidt_11..33 (CLP/CLPS: from the constraint reactions conjugate to F0, P = R / V0,
-sigma = P F0^T / det F0, compression > 0; empty otherwise),
-n_contacts (contacting particle pairs), the energies (mJ) and the wall time (s).
+History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C):
+- time (s); rho = V_p / (V0 det F) (eq. 2.4-2.5: V_p = 4/3 pi sum r^3 of the particles' initial,
+  meshed radii; F the least-squares gradient of the VEP centroids, eq. 2.2, C.3-C.6);
+  rho_imposed (same with F0, the auxiliary-node gradient); rho_fe (finite-element particle
+  volumes / V0 det F: the faceted mesh holds less solid than the spheres, 6.5 % at 517 nodes);
+- h_v, h_d, h_tilde_d: Hencky strain invariants of F (eq. 2.3, 2.8-2.9, 4.3-4.4; natural sign,
+  h_v < 0 in compaction; Rendulic axis I = z, the die axis);
+- sigma_m, sigma_d, sigma_tilde_d: Love-Weber invariants (eq. 2.6, 2.10-2.11, 4.1-4.2; compression
+  > 0); F11..F33 (least squares), sigma11..sigma33 (Love-Weber tensor, compression > 0, counted
+  by the appendix-C rules), sigma_schmidt_11..33 (CLP/CLPS: from the constraint reactions
+  conjugate to F0, P = R / V0, sigma = P F0^T / det F0, eq. 2.19, compression > 0; empty
+  otherwise);
+- n_contacts (contacting particle pairs); Gamma = S / (V0 det F) (mm^-1, eq. 4.13, S the contact
+  area, one per pair);
+- energies (mJ): E_p plastic (eq. 4.11), E_f frictional (eq. 4.12), E_d = E_p + E_f (eq. 4.10),
+  E_c kinetic (of the motion relative to the imposed flow), E_int internal work, E_el stored
+  elastic, E_contact work absorbed by contact, E_visc bulk viscosity, E_damp relaxation damping,
+  W_ext external work; then wall_time (s).
 """
 
 from __future__ import annotations
@@ -25,8 +36,10 @@ from mpi4py import MPI
 from ..constraints.granular import KINDS, GranularBoundaryConditions, periodic_lattice
 from ..contact import ContactLaw, ContactModel
 from ..contact.laws import default_penalty
-from ..homogenization import (branch_vectors, contact_weights, hencky_strain, least_squares_gradient,
-                              love_weber_stress, piola_to_cauchy, strain_invariants, stress_invariants)
+from ..homogenization import (branch_vectors, contact_weights, dissipated_energy, hencky_strain,
+                              least_squares_gradient, love_weber_stress, piola_to_cauchy, relative_density,
+                              rendulic_strain, rendulic_stress, solid_volume, specific_contact_surface,
+                              strain_invariants, stress_invariants)
 from ..io import History
 from ..io.fields import CellFields, ParaViewWriter
 from ..io.render import render_deformed
@@ -60,8 +73,18 @@ class CompactionCase:
     r_max: float = 0.147
     packing_fraction: float | None = None  # generator: stop at this solid fraction (None: jammed)
     d_bc: float | None = None  # duplication distance / r_max (None: thesis table 2.3)
+    #: duplicate across edges and corners too (False: face copies only, e.g. the 12 copies of the
+    #: ordered simple cubic cell, thesis §2.6)
+    corners: bool = True
     radius_factor: float = 0.99  # radii shrunk before meshing: no initial interpenetration
     refinement: int = 1
+    #: cube-sphere hexahedra per inner-cube edge (meshes.cubesphere; odd: the contact points of
+    #: axis-aligned neighbours fall on facet centres instead of nodes)
+    divisions: int = 4
+    #: (3, 3) rotation of every particle mesh about its centre (None: cube-sphere axes along x, y,
+    #: z). One generic rotation for all keeps identical particles exact translates of each other
+    #: while their contact points fall inside facets, not on nodes (ordered packings)
+    mesh_rotation: np.ndarray | None = None
     material: ElastoPlastic = LEAD
     friction: float = 0.1
     gamma: float = 0.0  # mJ/mm^2
@@ -96,6 +119,12 @@ class CompactionCase:
             raise ValueError(f"target_density must be in (0, 1), got {self.target_density}")
         if not 0.5 <= self.radius_factor <= 1.0:
             raise ValueError(f"radius_factor must be in [0.5, 1], got {self.radius_factor}")
+        if not 1 <= self.divisions <= 16:
+            raise ValueError(f"divisions must be in [1, 16], got {self.divisions}")
+        if self.mesh_rotation is not None:
+            Q = np.asarray(self.mesh_rotation, dtype=float)
+            if Q.shape != (3, 3) or not np.allclose(Q @ Q.T, np.eye(3), atol=1e-12) or np.linalg.det(Q) < 0:
+                raise ValueError("mesh_rotation must be a (3, 3) proper rotation matrix")
         if self.increments < 10:
             raise ValueError(f"increments must be >= 10, got {self.increments}")
 
@@ -139,8 +168,9 @@ class CompactionModel:
     contact: ContactModel
     path: GradientPath
     volumes: ParticleVolumes
-    solid_volume0: float
-    rho0: float
+    solid_volume0: float  # V_p = 4/3 pi sum r^3 of the VEP particles' meshed radii (mm^3)
+    rho0: float  # V_p / V0
+    rho0_fe: float  # finite-element particle volumes / V0
     contact_length: float  # surface element edge of the smallest cube-sphere (mm)
 
     @property
@@ -156,14 +186,17 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     if case.images:  # CLP by periodic images: no copies
         copies = Duplicates(np.zeros(0, np.int64), np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(0))
     else:
-        copies = duplicate_particles(packing, d_bc, faces="half" if case.bc == "CLP" else "all")
+        copies = duplicate_particles(packing, d_bc, faces="half" if case.bc == "CLP" else "all",
+                                     corners=case.corners)
     centres, radii, original, shift = assembly_particles(packing, copies)
     radii = radii * case.radius_factor
     is_copy = np.any(shift != 0, axis=1)
     log(f"packing: {n} particles, solid fraction {packing.solid_fraction:.4f}, cell {packing.cell}; "
         f"{int(is_copy.sum())} duplicated particles (d_bc = {d_bc:.4g} mm, bc {case.bc})")
 
-    assembly = particle_mesh(centres, radii, comm, refinement=case.refinement)
+    rotations = None if case.mesh_rotation is None else np.broadcast_to(case.mesh_rotation, (radii.size, 3, 3))
+    assembly = particle_mesh(centres, radii, comm, divisions=case.divisions, refinement=case.refinement,
+                             rotations=rotations)
     mesh = assembly.mesh
     owned_cells = mesh.topology.index_map(3).size_local
     cell_particle = assembly.cell_tags.values[:owned_cells]
@@ -172,8 +205,9 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     V = problem.V
 
     volumes = ParticleVolumes(assembly, problem.u)
-    solid0 = float(volumes()[:n].sum())
+    solid0 = solid_volume(radii[:n])  # thesis eq. 2.5, initial (meshed) radii
     rho0 = solid0 / float(np.prod(packing.cell))
+    rho0_fe = float(volumes()[:n].sum()) / float(np.prod(packing.cell))
     F_target = compaction_gradient(case.loading, rho0, case.target_density)
     path = GradientPath([(case.duration, F_target)])
 
@@ -190,7 +224,7 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     bcs = GranularBoundaryConditions(V, cell_particle, centres, radii, original, shift, packing.cell, case.bc, path,
                                      images=contact if case.images else None, anchor=case.solver == "implicit")
     return CompactionModel(case, packing, centres, radii, original, shift, assembly, problem, bcs, contact, path,
-                           volumes, solid0, rho0, h_contact)
+                           volumes, solid0, rho0, rho0_fe, h_contact)
 
 
 def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> CompactionResult:
@@ -210,16 +244,14 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         settings = ExplicitSettings(t_end=case.duration, target_dt=case.duration / case.increments,
                                     damping=case.damping / case.duration)
 
-        def flow(t: float) -> np.ndarray:  # L = dF0/dt F0^-1 (1/s)
-            eps = 1e-6 * case.duration
-            return (path(t + eps) - path(t - eps)) / (2 * eps) @ np.linalg.inv(path(t))
-
-        # the damping relaxes each particle's rigid motion relative to the imposed flow
+        # every particle is carried by the imposed flow (comoving constraints): the damping relaxes
+        # each particle's rigid motion relative to it; a copy's nodes belong to their original
+        # (tied: one material body, whose copy nodes may hold contact mass)
         node_particle = node_particles(problem.V, assembly.cell_tags.values[: problem.num_cells])
-        solver = ExplicitSolver(problem, bcs, settings, contact=contact, background=flow,
-                                damped_bodies=node_particle)
+        solver = ExplicitSolver(problem, bcs, settings, contact=contact,
+                                damped_bodies=model.original[node_particle])
         log(f"model: {radii.size} particles, {num_dofs} dofs ({bcs.constraint.num_reduced_global} free), "
-            f"rho0 = {rho0:.4f} -> {case.target_density}, dt = {solver.dt:.3g} s "
+            f"rho0 = {rho0:.4f} (finite elements {model.rho0_fe:.4f}) -> {case.target_density}, dt = {solver.dt:.3g} s "
             f"(unscaled {solver.dt_stable_unscaled:.3g} s), {case.increments} increments")
     else:
         log("WARNING: implicit granular compaction is experimental: with the pseudo-time drag the free "
@@ -236,9 +268,11 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     centroids = ParticleCentroids(assembly, problem.u)
     X0 = centroids()[:n]
     comps = [f"{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
-    columns = ["time", "rho", "rho_imposed", "h_v", "h_d", "sigma_m", "sigma_d"] + [f"F{c}" for c in comps] + \
-        [f"sigma{c}" for c in comps] + [f"sigma_schmidt_{c}" for c in comps] + \
-        ["n_contacts", "E_int", "E_el", "E_p", "E_contact", "E_kin", "E_visc", "E_damp", "W_ext", "wall_time"]
+    columns = ["time", "rho", "rho_imposed", "rho_fe", "h_v", "h_d", "h_tilde_d", "sigma_m", "sigma_d",
+               "sigma_tilde_d"] + [f"F{c}" for c in comps] + [f"sigma{c}" for c in comps] + \
+        [f"sigma_schmidt_{c}" for c in comps] + \
+        ["n_contacts", "Gamma", "E_p", "E_f", "E_d", "E_c", "E_int", "E_el", "E_contact", "E_visc", "E_damp",
+         "W_ext", "wall_time"]
     periodic = case.bc in ("CLP", "CLPS")  # Schmidt stress defined
     history = History(out / "history.csv", columns, comm, flush_every_row=True)
     writer = None
@@ -249,10 +283,12 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     def record(s: ExplicitSolver) -> None:
         x = centroids()
         F, _ = least_squares_gradient(X0, x[:n])
-        h_v, h_d = strain_invariants(hencky_strain(F))
+        h = hencky_strain(F)
+        h_v, h_d = strain_invariants(h)
+        h_tilde_d = rendulic_strain(h)[1]
         F0 = path(s.t)
         volume = np.linalg.det(F) * cell_volume0
-        rho = float(volumes()[:n].sum()) / volume
+        rho = relative_density(solid0, cell_volume0, F)
         # Love-Weber over the model's contacts with the appendix-C counting weights
         pf = contact.pair_forces()
         pairs = pf["pairs"]
@@ -261,31 +297,36 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         sigma_lw = love_weber_stress(pf["force"], branch_vectors(x, pairs[:, 0], pairs[:, 1], pf["shift"]),
                                      volume, weights)  # tension > 0
         sigma_m, sigma_d = stress_invariants(sigma_lw)
+        sigma_tilde_d = rendulic_stress(sigma_lw)[1]
+        gamma = specific_contact_surface(pf["area"], cell_volume0, F, weights)
         sigma_s = np.full((3, 3), np.nan)
         if periodic:  # Schmidt: reactions conjugate to F0 (auxiliary nodes), eq. 2.14
             sigma_s = piola_to_cauchy(bcs.macroscopic_force(s.reaction) / cell_volume0, F0)
         if case.solver == "explicit":
             e = s.energies
             energies = dict(E_int=e.internal, E_el=e.elastic, E_p=e.plastic, E_contact=e.contact,
-                            E_kin=e.kinetic, E_visc=e.viscous, E_damp=e.damping, W_ext=e.external)
+                            E_c=e.kinetic, E_visc=e.viscous, E_damp=e.damping, W_ext=e.external)
             progress = s.step / case.increments
         else:  # quasi-static: no kinetic / viscous energy; E_damp = the regularization's work
             implicit_plastic[0] += problem.plastic_dissipation_increment()
             energies = dict(E_int=np.nan, E_el=problem.stored_energy(), E_p=implicit_plastic[0],
-                            E_contact=np.nan, E_kin=0.0, E_visc=0.0, E_damp=s.regularization_work, W_ext=np.nan)
+                            E_contact=np.nan, E_c=0.0, E_visc=0.0, E_damp=s.regularization_work, W_ext=np.nan)
             progress = s.t / case.duration
-        history.append(time=s.t, rho=rho, rho_imposed=solid0 / (np.linalg.det(F0) * cell_volume0), h_v=h_v,
-                       h_d=h_d, sigma_m=sigma_m, sigma_d=sigma_d,
+        energies["E_f"] = contact.frictional_work
+        energies["E_d"] = float(dissipated_energy(energies["E_p"], energies["E_f"]))
+        history.append(time=s.t, rho=rho, rho_imposed=relative_density(solid0, cell_volume0, F0),
+                       rho_fe=float(volumes()[:n].sum()) / volume, h_v=h_v, h_d=h_d, h_tilde_d=h_tilde_d,
+                       sigma_m=sigma_m, sigma_d=sigma_d, sigma_tilde_d=sigma_tilde_d,
                        **{f"F{c}": v for c, v in zip(comps, F.ravel())},
                        **{f"sigma{c}": v for c, v in zip(comps, -sigma_lw.ravel())},
                        **{f"sigma_schmidt_{c}": v for c, v in zip(comps, -sigma_s.ravel())},
-                       n_contacts=len(pairs), wall_time=time.perf_counter() - start, **energies)
+                       n_contacts=len(pairs), Gamma=gamma, wall_time=time.perf_counter() - start, **energies)
         if writer is not None:
             writer.write(s.t)
         elapsed = time.perf_counter() - start
         eta = elapsed / max(progress, 1e-9) * (1 - progress)
         log(f"  {100 * progress:5.1f} %  t={s.t:.3e} s  rho={rho:.4f}  sigma_m={sigma_m:8.3f} MPa  "
-            f"contacts={len(pairs)}  E_p={energies['E_p']:.3g} mJ  E_kin={energies['E_kin']:.2g}  "
+            f"contacts={len(pairs)}  E_p={energies['E_p']:.3g} mJ  E_c={energies['E_c']:.2g}  "
             f"E_damp={energies['E_damp']:.2g}  elapsed {elapsed:.0f} s  ETA {eta:.0f} s")
 
     if comm.rank == 0:

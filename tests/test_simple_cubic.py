@@ -1,0 +1,53 @@
+"""Simple cubic cell (thesis §2.6, issue 5): the homogenization of a whole compaction run checked
+against the exact answers of an ordered packing, isotropic and die loading to rho = 0.95."""
+
+import sys
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from mpfem_fenicsx.workflows.compaction import run_compaction
+
+#: CI-sized: fewer increments than the demo (4000); the end state is at rest either way
+INCREMENTS = 1500
+
+
+@pytest.fixture(scope="module")
+def simple_cubic(root):
+    sys.path.insert(0, str(root / "demos"))
+    import simple_cubic
+
+    return simple_cubic
+
+
+@pytest.mark.parametrize("loading", ["isotropic", "die"])
+def test_simple_cubic_homogenization(simple_cubic, loading, tmp_path):
+    case = simple_cubic.simple_cubic_case(loading, increments=INCREMENTS, out_dir=str(tmp_path), visual=False,
+                                          outputs=20)
+    res = run_compaction(case, MPI.COMM_SELF, log=lambda *a: None)
+    chk = simple_cubic.checks(res)
+    h = res.history
+    assert chk["rho"][-1] == pytest.approx(0.95, abs=2e-3)
+    # rho = V_p / (V0 det F) = pi / (6 det F), F the least-squares gradient (eq. 2.17)
+    assert np.max(np.abs(chk["rho"] - chk["rho_pi6"]) / chk["rho_pi6"]) < 1e-6
+    # the motion of the centroids stays affine: least squares = auxiliary-node Hencky strain
+    for a, b in simple_cubic.COMPONENTS:
+        name = f"{a + 1}{b + 1}"
+        assert np.max(np.abs(chk[f"h_lsq_{name}"] - chk[f"h_aux_{name}"])) < 1e-8, name
+    # at rest at the end: Love-Weber = Schmidt, component by component, within 2 % of sigma_m
+    sigma_m = chk["sigma_m_love_weber"][-1]
+    assert sigma_m > 5.0  # MPa: the cell is really compacted
+    for k in (1, 2, 3):
+        lw, schmidt = h.column(f"sigma{k}{k}")[-1], h.column(f"sigma_schmidt_{k}{k}")[-1]
+        assert abs(lw - schmidt) < 0.02 * sigma_m, (k, lw, schmidt)
+    # loading signature: isotropic keeps the three axes equal, die loads z most
+    s11, s33 = h.column("sigma11")[-1], h.column("sigma33")[-1]
+    if loading == "isotropic":
+        assert abs(s11 - s33) < 1e-6 * sigma_m
+        assert abs(h.column("sigma_tilde_d")[-1]) < 1e-6 * sigma_m
+    else:
+        assert s33 > s11 > 0 and h.column("sigma_tilde_d")[-1] > 0 and h.column("h_tilde_d")[-1] < 0
+    # energies: dissipation = plasticity (+ friction), contacts grow, specific surface > 0
+    assert h.column("E_d")[-1] == pytest.approx(h.column("E_p")[-1] + h.column("E_f")[-1], rel=1e-12)
+    assert h.column("E_p")[-1] > 0 and h.column("Gamma")[-1] > 0
