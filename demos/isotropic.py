@@ -9,10 +9,16 @@ thesis §2.2.1) -> one DOLFINx mesh of hexahedral cube-sphere particles -> Henck
 bulk + penalty/Coulomb/adhesive contact -> GDH/GDF/CLPS/CLP as PETSc multipoint constraints
 -> explicit central differences with mass scaling -> history and pictures.
 
-Outputs in --out (default results/isotropic/): history.csv (time, rho, h_v, h_d, sigma_m,
-sigma_d with compression > 0, F11..F33 from the least-squares fit, n_contacts, energies),
-packing.txt (the packing used), particles.xdmf (ParaView: displacement, von Mises, eps_p,
-particle id) and particles.png (deformed particles coloured by von Mises stress).
+Outputs in --out (default results/isotropic/): history.csv (one row per output: time; rho =
+V_p / (V0 det F) with the spheres' volumes (thesis eq. 2.4-2.5), rho_imposed, rho_fe (mesh
+volumes); h_v, h_d, h_tilde_d (Hencky strain of the least-squares gradient F of the centroids);
+sigma_m, sigma_d, sigma_tilde_d (Love-Weber, compression > 0); F11..F33; sigma11..33 (Love-Weber);
+sigma_schmidt_11..33 (auxiliary-node reactions, CLP/CLPS, empty otherwise); n_contacts; Gamma
+(specific contact surface, 1/mm); energies E_p, E_f, E_d = E_p + E_f, E_c (kinetic), E_int, E_el,
+E_contact, E_visc, E_damp, W_ext (mJ); wall_time), packing.txt (the packing used),
+particles.xdmf (ParaView: displacement, von Mises, eps_p, particle id) and particles.png
+(deformed particles coloured by von Mises stress). Columns are defined in
+mpfem_fenicsx/workflows/compaction.py.
 """
 
 from mpfem_fenicsx.cli.compaction import main

@@ -74,3 +74,4 @@ def test_explicit_is_stable_at_the_scaled_increment():
     e = s.energies
     assert np.isfinite(e.kinetic) and e.external > 0
     assert e.balance_error() < 1e-6 * e.external
+

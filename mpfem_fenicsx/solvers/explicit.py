@@ -115,9 +115,14 @@ class ExplicitSolver:
     def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, settings: ExplicitSettings,
                  contact=None, damped_bodies: np.ndarray | None = None):
         """``damped_bodies``: body id of every owned node: the damping then acts on each body's
-        mean (rigid) peculiar velocity only, c m_node (w_body - <w>), <.> the mass average, so
-        that rearrangements are relaxed while the bodies' deformation is not resisted and
-        momentum is conserved (default: node by node)."""
+        mean (rigid) peculiar velocity only, c m_node (w_b - <w>), <.> the mass average, so that
+        rearrangements are relaxed while the bodies' deformation is not resisted and momentum is
+        conserved (default: node by node). Its forces have a first moment sum f_b (x) x_b: a
+        viscous stress that the Schmidt reactions see and the Love-Weber contact sum does not
+        (measured on 50 particles: E_damp 2.9 % of E_p, Schmidt up to 5.2 % below Love-Weber).
+        Removing the bodies' affine velocity fit as well (no first moment) was tried: the
+        centroids then lag the imposed flow (rho 2.5 % low on 24 particles) and Love-Weber vs
+        Schmidt is no better (measured 6 %)."""
         self.problem = problem
         self.damped_bodies = None if damped_bodies is None else np.asarray(damped_bodies, dtype=np.int64)
         self.contact = contact  # optional ContactModel: its forces join the internal ones
@@ -331,7 +336,7 @@ class ExplicitSolver:
 
     def _damping_force(self) -> None:
         """f_d = c M w' at step n with the last half-step peculiar velocity w' = P v_red (explicit
-        in v), node by node or with the mass-weighted mean of each damped body."""
+        in v), node by node or per damped body (see ``__init__``)."""
         n = self.constraint.num_owned
         m = self.mass.x.array[:n].reshape(-1, 3)[:, 0]
         v = self._v_half_prev.reshape(-1, 3)
@@ -343,9 +348,10 @@ class ExplicitSolver:
             for d in range(3):
                 sums[1 + d] = np.bincount(b, weights=m * v[:, d], minlength=nb)
             sums = self.comm.allreduce(sums, op=MPI.SUM)
-            v_body = (sums[1:4] / np.where(sums[0] > 0, sums[0], 1.0)).T
+            mass = sums[0]
+            v_body = (sums[1:4] / np.where(mass > 0, mass, 1.0)).T
             # remove the mean: the damping conserves momentum and ignores rigid translations
-            v_body -= (sums[0] @ v_body) / sums[0].sum()
+            v_body -= (mass @ v_body) / mass.sum()
             v = v_body[b]
         self.f_damp.array_w[:n] = (self.settings.damping * m[:, None] * v).ravel()
 
