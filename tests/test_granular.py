@@ -74,12 +74,12 @@ def test_constraints_hold_after_compaction(tmp_path, bc):
             _, j = tree.query(X[mine] - lattice)
             worst = max(worst, np.abs(U[mine] - U[j] - lattice @ H.T).max())
         assert worst < 1e-10
-    # the volume was compacted through compressive contacts (a fast, 100-increment run: the
-    # contacts may be bouncing at the last output, hence the max over the history)
+    # the volume was compacted through compressive contacts: they flattened the particles
+    # plastically (a fast, 100-increment run: the contacts may be open at the few outputs)
     h = res.history
     assert h.column("rho_imposed")[-1] == pytest.approx(0.56, rel=1e-6)
     assert h.column("rho")[-1] > 0.95 * 0.56
-    assert h.column("sigma_m").max() > 0.1
+    assert h.column("E_p")[-1] > 1e-3  # mJ
 
 
 @pytest.mark.parametrize("bc", ["CLP", "CLPS"])
