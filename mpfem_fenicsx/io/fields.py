@@ -1,5 +1,6 @@
-"""Output fields: per-cell von Mises stress, equivalent plastic strain, particle id; ParaView
-time series (XDMF) of the displacement and these cell fields."""
+"""Output fields: per-cell von Mises stress, equivalent plastic strain, particle id; nodal contact
+pressure on the particle surfaces; ParaView time series (XDMF) of the displacement and these
+fields."""
 
 from __future__ import annotations
 
@@ -52,14 +53,42 @@ class CellFields:
         return fields + ([self.particle] if self.particle is not None else [])
 
 
-class ParaViewWriter:
-    """XDMF time series: displacement (mm) and the cell fields; open ``<path>`` in ParaView."""
+class ContactPressure:
+    """Nodal contact traction T1 (MPa, compression > 0, adhesion < 0) of the last contact
+    evaluation, on the surface nodes (zero elsewhere and where nothing touches): the normal
+    traction of each node's own slave points (two-pass contact, thesis §3.3), summed over the
+    bodies it touches. A degree-1 scalar field on the particles' mesh (ParaView: colour the
+    surface by ``contact_pressure_MPa``)."""
 
-    def __init__(self, path: str | Path, problem: SolidProblem, fields: CellFields):
+    def __init__(self, V: dolfinx.fem.FunctionSpace, contact):
+        self.contact = contact
+        Vs = dolfinx.fem.functionspace(V.mesh, ("Lagrange", 1))
+        self.function = dolfinx.fem.Function(Vs, name="contact_pressure_MPa")
+        surf = contact.surface
+        # surface node -> local node of this rank (slave points live on owned nodes only)
+        self._local = np.full(surf.num_nodes, -1, dtype=np.int64)
+        self._local[surf.owned_nodes] = surf.owned_local_blocks
+
+    def update(self) -> None:
+        values = self.function.x.array
+        values[:] = 0.0
+        c = self.contact
+        if c.points is not None and c.points.size:
+            nodes = self._local[c.points.slave]
+            np.add.at(values, nodes[nodes >= 0], c.T1[nodes >= 0])
+        self.function.x.scatter_forward()
+
+
+class ParaViewWriter:
+    """XDMF time series: displacement (mm), the cell fields and, with a contact model, the nodal
+    contact pressure; open ``<path>`` in ParaView."""
+
+    def __init__(self, path: str | Path, problem: SolidProblem, fields: CellFields, contact=None):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.problem = problem
         self.fields = fields
+        self.pressure = ContactPressure(problem.V, contact) if contact is not None else None
         self._file = dolfinx.io.XDMFFile(problem.comm, str(self.path), "w")
         self._file.write_mesh(problem.mesh)
 
@@ -68,6 +97,9 @@ class ParaViewWriter:
         self._file.write_function(self.problem.u, t)
         for fn in self.fields.functions():
             self._file.write_function(fn, t)
+        if self.pressure is not None:
+            self.pressure.update()
+            self._file.write_function(self.pressure.function, t)
 
     def close(self) -> None:
         self._file.close()

@@ -11,9 +11,12 @@ import dolfinx.plot
 
 
 def render_deformed(u: dolfinx.fem.Function, cell_field: dolfinx.fem.Function, path: str | Path,
-                    *, title: str = "", label: str = "von Mises (MPa)", cells: np.ndarray | None = None) -> Path | None:
+                    *, title: str = "", label: str = "von Mises (MPa)", cells: np.ndarray | None = None,
+                    save_grid: bool = False) -> Path | None:
     """Render u-deformed particles coloured by a DG0 field to a PNG (gathered on rank 0);
-    ``cells``: the local cells to show (default: all owned cells)."""
+    ``cells``: the local cells to show (default: all owned cells). ``save_grid``: also write the
+    deformed grid next to the PNG (``.vtu``, title in its field data) so that
+    :func:`render_grid_file` can draw it again without the run (``mpfem plot``)."""
     import pyvista
 
     mesh = u.function_space.mesh
@@ -35,6 +38,18 @@ def render_deformed(u: dolfinx.fem.Function, cell_field: dolfinx.fem.Function, p
         grid.cell_data[label] = val
         grids.append(grid)
     grid = grids[0] if len(grids) == 1 else grids[0].merge(grids[1:])
+    path = Path(path)
+    if save_grid:
+        grid.field_data["title"] = [title]
+        grid.save(str(path.with_suffix(".vtu")))
+    return render_grid(grid, path, title=title, label=label)
+
+
+def render_grid(grid, path: str | Path, *, title: str = "", label: str = "von Mises (MPa)") -> Path:
+    """Off-screen picture of a pyvista grid coloured by its cell array ``label``, with a scalar
+    bar (title = the label with its unit) and axes."""
+    import pyvista
+
     pyvista.OFF_SCREEN = True
     plotter = pyvista.Plotter(off_screen=True, window_size=(1000, 800))
     plotter.add_mesh(grid, scalars=label, cmap="viridis", show_edges=True, edge_color="#333333",
@@ -51,3 +66,12 @@ def render_deformed(u: dolfinx.fem.Function, cell_field: dolfinx.fem.Function, p
     plotter.screenshot(str(path))
     plotter.close()
     return path
+
+
+def render_grid_file(vtu: str | Path, path: str | Path, label: str = "von Mises (MPa)") -> Path:
+    """Render a grid saved by :func:`render_deformed` (``save_grid=True``) to ``path``."""
+    import pyvista
+
+    grid = pyvista.read(str(vtu))
+    title = str(grid.field_data["title"][0]) if "title" in grid.field_data else ""
+    return render_grid(grid, path, title=title, label=label)

@@ -101,6 +101,9 @@ class Energies:
 
 
 
+_ENERGY_FIELDS = tuple(Energies.__dataclass_fields__)
+
+
 @dataclass
 class _Timings:
     material: float = 0.0
@@ -446,6 +449,78 @@ class ExplicitSolver:
                 f"explicit integration diverged at step {self.step} (t={self.t:.4g} s, dt={dt:.3g} s): "
                 "reduce target_dt or deformation_margin")
         e.elastic = self.problem.stored_energy()
+
+    # -- checkpoints --------------------------------------------------------------------------
+    _SCALARS = ("t", "step", "dt", "mass_scaling_max", "total_mass", "contact_added_mass")
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """This rank's complete integrator state after a step (for checkpoints): time, step,
+        increment, reduced position and velocity, the previous step's displacement, peculiar
+        velocity and offsets, the forces at the current step, the (variable) mass scaling and
+        the contact mass, the lumped masses, the energies; with the material and contact
+        histories (prefixes ``material/`` and ``contact/``). Restoring it with :meth:`load_state`
+        on the same model and partition continues the run bit for bit."""
+        scale, cell_dofs, wave_speed, cell_length, c_d, xi = self._scaling
+        data = {name: np.array(getattr(self, name, 0.0)) for name in self._SCALARS}
+        data.update({
+            "x": self.x.array_r.copy(), "v_red": self.v_red.array_r.copy(), "u": self.problem.u.x.array.copy(),
+            "velocity": self.velocity.x.array.copy(), "u_prev": self._u_prev.copy(),
+            "v_half_prev": self._v_half_prev.copy(), "g_prev": self._g_prev.copy(),
+            "reaction": np.asarray(getattr(self, "_reaction_last", np.zeros(0))).copy(),
+            "mass_scale": scale.copy(), "cell_length": cell_length.x.array.copy(), "mass": self.mass.x.array.copy(),
+            "mass_red": self.mass_red.array_r.copy(),
+            "contact_mass": np.zeros(0) if self._contact_mass is None else self._contact_mass.copy(),
+            "energies": np.array([getattr(self.energies, f) for f in _ENERGY_FIELDS]),
+        })
+        for name, vec in (("f_int", self.f_int), ("f_visc", self.f_visc), ("f_cont", self.f_cont),
+                          ("f_damp", self.f_damp)):
+            with vec.localForm() as loc:
+                data[name] = loc.array_r.copy()
+        data.update({f"material/{k}": v for k, v in self.problem.material.state_dict().items()})
+        if self.contact is not None:
+            data.update({f"contact/{k}": v for k, v in self.contact.state_dict().items()})
+        return data
+
+    def load_state(self, data: dict[str, np.ndarray]) -> None:
+        """Restore :meth:`state_dict` (same model, same number of ranks and partition)."""
+        if data["x"].shape != self.x.array_r.shape or data["u"].shape != self.problem.u.x.array.shape:
+            raise ValueError("checkpoint: the integrator state does not match this model and partition "
+                             f"({data['u'].size} local displacement values, this model has "
+                             f"{self.problem.u.x.array.size})")
+        self.t, self.step, self.dt = float(data["t"]), int(data["step"]), float(data["dt"])
+        self.mass_scaling_max = float(data["mass_scaling_max"])
+        self.total_mass = float(data["total_mass"])
+        self.contact_added_mass = float(data["contact_added_mass"])
+        self.problem.material.load_state({k[9:]: v for k, v in data.items() if k.startswith("material/")})
+        self.x.array_w[:] = data["x"]
+        self.v_red.array_w[:] = data["v_red"]
+        self.bcs.apply(self.t)  # offsets g(t) (and periodic images) of the restored time
+        self.problem.u.x.array[:] = data["u"]
+        self.velocity.x.array[:] = data["velocity"]
+        self._u_prev[:], self._v_half_prev[:], self._g_prev[:] = data["u_prev"], data["v_half_prev"], data["g_prev"]
+        self._reaction_last = data["reaction"].copy()
+        # mass scaling as it was (not rebuilt: the contact mass depends on the contact history)
+        scale, cell_dofs, wave_speed, cell_length, c_d, xi = self._scaling
+        scale[:] = data["mass_scale"]
+        self.density.x.array[cell_dofs] = self.problem.params.density * scale
+        self.density.x.scatter_forward()
+        wave_speed.x.array[cell_dofs] = c_d / np.sqrt(scale)
+        wave_speed.x.scatter_forward()
+        cell_length.x.array[:] = data["cell_length"]
+        self._contact_mass = data["contact_mass"].copy() if data["contact_mass"].size else None
+        self.mass.x.array[:] = data["mass"]
+        self.mass_red.array_w[:] = data["mass_red"]
+        for name, value in zip(_ENERGY_FIELDS, data["energies"]):
+            setattr(self.energies, name, float(value))
+        for name, vec in (("f_int", self.f_int), ("f_visc", self.f_visc), ("f_cont", self.f_cont),
+                          ("f_damp", self.f_damp)):
+            with vec.localForm() as loc:
+                loc.array_w[:] = data[name]
+        if self.contact is not None:
+            self.contact.load_state({k[8:]: v for k, v in data.items() if k.startswith("contact/")})
+            # contact points of the restored state (the next mass re-check reads them); with the
+            # committed history at this very state the evaluation is the committed one
+            self.contact.evaluate(self.problem.u, tangent=False)
 
     def run(self, on_output: Callable[["ExplicitSolver"], None] | None = None, outputs: int = 100) -> int:
         """Integrate to settings.t_end; ``on_output`` about ``outputs`` times, and at the end."""

@@ -80,6 +80,7 @@ class ImplicitSolver:
         self._J_contact = None  # P^T K_total P with the current contact pattern
         self.t = 0.0
         self.iterations_total = 0
+        self.dt_next = None  # increment to try next (kept for restarts)
         self.regularization = None
         self.regularization_work = 0.0
         if regularization is not None:
@@ -239,10 +240,45 @@ class ImplicitSolver:
             self._tangent_valid = False
         return reason > 0, its
 
+    # -- checkpoints --------------------------------------------------------------------------
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """This rank's converged state (for checkpoints): time, next increment, reduced and full
+        displacement, regularization anchor and work, Newton count; with the material and contact
+        histories (prefixes ``material/`` and ``contact/``)."""
+        data = {"t": np.array(self.t), "dt_next": np.array(np.nan if self.dt_next is None else self.dt_next),
+                "iterations_total": np.array(self.iterations_total), "x": self.x.array_r.copy(),
+                "u": self.problem.u.x.array.copy(), "regularization_work": np.array(self.regularization_work)}
+        if self.regularization is not None:
+            data["w_converged"] = self._w_converged.copy()
+        data.update({f"material/{k}": v for k, v in self.problem.material.state_dict().items()})
+        if self.contact is not None:
+            data.update({f"contact/{k}": v for k, v in self.contact.state_dict().items()})
+        return data
+
+    def load_state(self, data: dict[str, np.ndarray]) -> None:
+        """Restore :meth:`state_dict` (same model, same number of ranks and partition)."""
+        if data["x"].shape != self.x.array_r.shape or data["u"].shape != self.problem.u.x.array.shape:
+            raise ValueError("checkpoint: the solver state does not match this model and partition")
+        self.t = float(data["t"])
+        self.dt_next = None if np.isnan(data["dt_next"]) else float(data["dt_next"])
+        self.iterations_total = int(data["iterations_total"])
+        self.regularization_work = float(data["regularization_work"])
+        self.problem.material.load_state({k[9:]: v for k, v in data.items() if k.startswith("material/")})
+        if self.contact is not None:
+            self.contact.load_state({k[8:]: v for k, v in data.items() if k.startswith("contact/")})
+        self.bcs.apply(self.t)
+        self.x.array_w[:] = data["x"]
+        self.problem.u.x.array[:] = data["u"]
+        if self.regularization is not None:
+            self._w_converged[:] = data["w_converged"]
+        self.x.copy(self.x_old)
+        self._refresh_tangent()
+
     def run(self, control: StepControl, on_step: Callable[["ImplicitSolver"], None] | None = None,
             log: Callable[[str], None] | None = None) -> int:
-        """Advance from the current time to control.t_end; ``on_step`` after each converged step."""
-        dt = control.dt
+        """Advance from the current time to control.t_end; ``on_step`` after each converged step
+        (a restarted solver continues with the increment it would have tried next)."""
+        dt = control.dt if self.dt_next is None else self.dt_next
         steps = 0
         self.x.copy(self.x_old)
         while self.t < control.t_end * (1 - 1e-12):
@@ -271,8 +307,9 @@ class ImplicitSolver:
             self.t += dt
             steps += 1
             self.x.copy(self.x_old)
-            if on_step:
-                on_step(self)
             if its <= control.easy_iterations:
                 dt = min(dt * control.grow, control.dt_max)
+            self.dt_next = dt  # before on_step: a checkpoint written there continues with it
+            if on_step:
+                on_step(self)
         return steps

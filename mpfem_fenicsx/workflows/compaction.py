@@ -41,7 +41,11 @@ from ..homogenization import (branch_vectors, contact_weights, dissipated_energy
                               rendulic_strain, rendulic_stress, solid_volume, specific_contact_surface,
                               strain_invariants, stress_invariants)
 from ..io import History
+from ..io.checkpoint import (CheckpointError, checkpoint_path, load_checkpoint, prune_checkpoints, read_meta,
+                             resolve_checkpoint, save_checkpoint)
 from ..io.fields import CellFields, ParaViewWriter
+from ..io.plots import plot_loading_path
+from ..io.progress import Progress
 from ..io.render import render_deformed
 from ..loading import GradientPath, compaction_gradient
 from ..material import LEAD, ElastoPlastic
@@ -50,6 +54,7 @@ from ..meshes.packing import Duplicates, Packing, assembly_particles, duplicate_
     write_packing
 from ..problem import SolidProblem
 from ..solvers import ImplicitSolver, StepControl
+from ..solvers.implicit import NonConvergence
 from ..solvers.explicit import ExplicitSettings, ExplicitSolver
 
 #: d_bc / r_max giving stabilized results with a 50-particle volume (thesis table 2.3)
@@ -101,6 +106,9 @@ class CompactionCase:
     #: state (V_i nodal volume, h contact element size): holds particles before contact
     regularization: float = 0.05
     outputs: int = 40
+    #: write a checkpoint every so many outputs (and at the end) into out_dir/checkpoints; 0: never
+    checkpoint_every: int = 10
+    checkpoint_keep: int = 2  # newest checkpoints kept (0: all)
     visual: bool = True
     out_dir: str = "results/isotropic"
 
@@ -127,6 +135,21 @@ class CompactionCase:
                 raise ValueError("mesh_rotation must be a (3, 3) proper rotation matrix")
         if self.increments < 10:
             raise ValueError(f"increments must be >= 10, got {self.increments}")
+        if self.outputs < 1:
+            raise ValueError(f"outputs must be >= 1, got {self.outputs}")
+        if self.checkpoint_keep < 0:
+            raise ValueError(f"checkpoint_keep must be >= 0 (0: keep all), got {self.checkpoint_keep}")
+        if self.checkpoint_every < 0:
+            raise ValueError(f"checkpoint_every must be >= 0 outputs (0: no checkpoints), got {self.checkpoint_every}")
+
+
+class RunFailure(RuntimeError):
+    """A run that diverged or did not converge: ``step`` and ``t`` where it stopped, the history
+    written so far and the last good checkpoint (None if none was written)."""
+
+    def __init__(self, message: str, step: int, t: float, history: Path, checkpoint: Path | None):
+        super().__init__(message)
+        self.step, self.t, self.history, self.checkpoint = step, t, history, checkpoint
 
 
 @dataclass
@@ -208,6 +231,9 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     solid0 = solid_volume(radii[:n])  # thesis eq. 2.5, initial (meshed) radii
     rho0 = solid0 / float(np.prod(packing.cell))
     rho0_fe = float(volumes()[:n].sum()) / float(np.prod(packing.cell))
+    if not rho0 < case.target_density < 1.0:
+        raise ValueError(f"loading.target_density = {case.target_density} is out of range: must be in "
+                         f"({rho0:.4f}, 1), above the packing's initial relative density V_p / V0 = {rho0:.4f}")
     F_target = compaction_gradient(case.loading, rho0, case.target_density)
     path = GradientPath([(case.duration, F_target)])
 
@@ -227,10 +253,24 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
                            volumes, solid0, rho0, rho0_fe, h_contact)
 
 
-def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> CompactionResult:
-    """Compact the volume to ``case.target_density``; see the module docstring for outputs."""
+def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print, *,
+                   restart: str | Path | None = None, progress: Progress | None = None) -> CompactionResult:
+    """Compact the volume to ``case.target_density``; see the module docstring for outputs.
+
+    ``restart``: a checkpoint directory written by an earlier run of the same case (same
+    packing, mesh and number of ranks): the run continues from it and reproduces the
+    uninterrupted one (explicit: bit for bit). Checkpoints go to ``out_dir/checkpoint`` every
+    ``case.checkpoint_every`` outputs and at the end. A diverging or non-converging run raises
+    :class:`RunFailure` after writing its history so far; the last good checkpoint stays."""
     start = time.perf_counter()
     out = Path(case.out_dir)
+    meta = None
+    if restart is not None:
+        restart = resolve_checkpoint(restart)
+        meta = read_meta(restart)
+        if case.packing is None and case.packing_file is None:  # the checkpoint's own packing
+            pk = meta["packing"]
+            case.packing = Packing(pk["cell"], pk["centres"], pk["radii"])
     model = build_compaction(case, comm, log)
     packing, problem, bcs, contact, path = model.packing, model.problem, model.bcs, model.contact, model.path
     assembly, volumes, radii = model.assembly, model.volumes, model.radii
@@ -238,8 +278,10 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     n = packing.num_particles
     solid0, rho0 = model.solid_volume0, model.rho0
     cell_volume0 = float(np.prod(packing.cell))
+    progress = progress or Progress(comm, stream=_LogStream(log))
 
     num_dofs = V.dofmap.index_map.size_global * 3
+    implicit_plastic = [0.0]
     if case.solver == "explicit":
         settings = ExplicitSettings(t_end=case.duration, target_dt=case.duration / case.increments,
                                     damping=case.damping / case.duration)
@@ -253,6 +295,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         log(f"model: {radii.size} particles, {num_dofs} dofs ({bcs.constraint.num_reduced_global} free), "
             f"rho0 = {rho0:.4f} (finite elements {model.rho0_fe:.4f}) -> {case.target_density}, dt = {solver.dt:.3g} s "
             f"(unscaled {solver.dt_stable_unscaled:.3g} s), {case.increments} increments")
+        total_steps = case.increments
     else:
         log("WARNING: implicit granular compaction is experimental: with the pseudo-time drag the free "
             "particles are solvable, but Newton needs many cut-backs once contacts yield (tested on an "
@@ -261,12 +304,12 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         nodal_volume = problem.lumped_mass(1.0).x.array[: bcs.constraint.num_owned]
         solver = ImplicitSolver(problem, bcs, contact=contact,
                                 regularization=case.regularization * case.material.E * nodal_volume / h ** 2)
-        implicit_plastic = [0.0]
         log(f"model: {radii.size} particles, {num_dofs} dofs ({bcs.constraint.num_reduced_global} free), "
             f"rho0 = {rho0:.4f} -> {case.target_density}, implicit, {case.steps} steps")
+        total_steps = case.steps
 
     centroids = ParticleCentroids(assembly, problem.u)
-    X0 = centroids()[:n]
+    X0 = np.ascontiguousarray(centroids()[:n])  # one memory layout: a restart reproduces the BLAS round-off
     comps = [f"{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
     columns = ["time", "rho", "rho_imposed", "rho_fe", "h_v", "h_d", "h_tilde_d", "sigma_m", "sigma_d",
                "sigma_tilde_d"] + [f"F{c}" for c in comps] + [f"sigma{c}" for c in comps] + \
@@ -275,12 +318,45 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
          "W_ext", "wall_time"]
     periodic = case.bc in ("CLP", "CLPS")  # Schmidt stress defined
     history = History(out / "history.csv", columns, comm, flush_every_row=True)
+    checkpoint_root = out / "checkpoints"
+    last_checkpoint = [None]
+    wall_offset = 0.0
+    if meta is not None:  # restart: model, solver, history and clocks as they were
+        arrays, meta = load_checkpoint(restart, comm)
+        if meta["num_dofs"] != num_dofs or meta["solver"] != case.solver or meta["bc"] != case.bc:
+            raise CheckpointError(f"restart: {restart} was written for another model ({meta['num_dofs']} dofs, "
+                                  f"{meta['solver']}, {meta['bc']}; this case: {num_dofs} dofs, {case.solver}, {case.bc})")
+        if arrays["dof_coordinates"].shape != _dof_coordinates(V).shape or \
+                not np.array_equal(arrays["dof_coordinates"], _dof_coordinates(V)):
+            raise CheckpointError(f"restart: {restart} was written with another mesh partition")
+        X0 = np.ascontiguousarray(meta["centroids0"], dtype=float)
+        solver.load_state({k[7:]: v for k, v in arrays.items() if k.startswith("solver/")})
+        implicit_plastic[0] = float(meta["implicit_plastic"])
+        history.rows = [list(map(float, row)) for row in meta["history"]]
+        wall_offset = float(meta["wall_time"])
+        log(f"restart from {restart}: step {meta['step']}, t = {meta['t']:.6g} s, {len(history.rows)} history rows")
     writer = None
     if case.visual:
         fields = CellFields(problem, assembly.cell_tags)
-        writer = ParaViewWriter(out / "particles.xdmf", problem, fields)
+        name = "particles.xdmf" if meta is None else f"particles_from_step{meta['step']}.xdmf"
+        writer = ParaViewWriter(out / name, problem, fields, contact=contact)
 
-    def record(s: ExplicitSolver) -> None:
+    def write_checkpoint(s) -> None:
+        arrays = {f"solver/{k}": v for k, v in s.state_dict().items()}
+        arrays["dof_coordinates"] = _dof_coordinates(V)
+        step = s.step if case.solver == "explicit" else len(history.rows)
+        directory = checkpoint_path(checkpoint_root, step)
+        save_checkpoint(directory, comm, arrays, {
+            "step": step, "t": s.t, "solver": case.solver, "bc": case.bc, "num_dofs": num_dofs,
+            "centroids0": X0.tolist(), "implicit_plastic": implicit_plastic[0], "history": history.rows,
+            "wall_time": wall_offset + time.perf_counter() - start,
+            "packing": {"cell": packing.cell.tolist(), "centres": packing.centres.tolist(),
+                        "radii": packing.radii.tolist()}})
+        if comm.rank == 0:
+            prune_checkpoints(checkpoint_root, case.checkpoint_keep)
+        last_checkpoint[0] = directory
+
+    def record(s) -> None:
         x = centroids()
         F, _ = least_squares_gradient(X0, x[:n])
         h = hencky_strain(F)
@@ -306,44 +382,85 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
             e = s.energies
             energies = dict(E_int=e.internal, E_el=e.elastic, E_p=e.plastic, E_contact=e.contact,
                             E_c=e.kinetic, E_visc=e.viscous, E_damp=e.damping, W_ext=e.external)
-            progress = s.step / case.increments
+            fraction, step = s.step / case.increments, s.step
         else:  # quasi-static: no kinetic / viscous energy; E_damp = the regularization's work
             implicit_plastic[0] += problem.plastic_dissipation_increment()
             energies = dict(E_int=np.nan, E_el=problem.stored_energy(), E_p=implicit_plastic[0],
                             E_contact=np.nan, E_c=0.0, E_visc=0.0, E_damp=s.regularization_work, W_ext=np.nan)
-            progress = s.t / case.duration
+            fraction, step = s.t / case.duration, len(history.rows) + 1
+        if not (np.isfinite(rho) and np.isfinite(sigma_lw).all() and np.isfinite(energies["E_p"])):
+            raise FloatingPointError(f"non-finite state at step {step} (t={s.t:.4g} s): rho={rho}, "
+                                     f"sigma_m={sigma_m}")
         energies["E_f"] = contact.frictional_work
         energies["E_d"] = float(dissipated_energy(energies["E_p"], energies["E_f"]))
+        wall = wall_offset + time.perf_counter() - start
         history.append(time=s.t, rho=rho, rho_imposed=relative_density(solid0, cell_volume0, F0),
                        rho_fe=float(volumes()[:n].sum()) / volume, h_v=h_v, h_d=h_d, h_tilde_d=h_tilde_d,
                        sigma_m=sigma_m, sigma_d=sigma_d, sigma_tilde_d=sigma_tilde_d,
                        **{f"F{c}": v for c, v in zip(comps, F.ravel())},
                        **{f"sigma{c}": v for c, v in zip(comps, -sigma_lw.ravel())},
                        **{f"sigma_schmidt_{c}": v for c, v in zip(comps, -sigma_s.ravel())},
-                       n_contacts=len(pairs), Gamma=gamma, wall_time=time.perf_counter() - start, **energies)
+                       n_contacts=len(pairs), Gamma=gamma, wall_time=wall, **energies)
         if writer is not None:
             writer.write(s.t)
-        elapsed = time.perf_counter() - start
-        eta = elapsed / max(progress, 1e-9) * (1 - progress)
-        log(f"  {100 * progress:5.1f} %  t={s.t:.3e} s  rho={rho:.4f}  sigma_m={sigma_m:8.3f} MPa  "
-            f"contacts={len(pairs)}  E_p={energies['E_p']:.3g} mJ  E_c={energies['E_c']:.2g}  "
-            f"E_damp={energies['E_damp']:.2g}  elapsed {elapsed:.0f} s  ETA {eta:.0f} s")
+        progress.update(fraction, step, total_steps, rho=rho, sigma_m=sigma_m,
+                        extra=f"contacts {len(pairs)}  E_p {energies['E_p']:.3g} mJ  E_c {energies['E_c']:.2g} mJ")
+        if case.checkpoint_every and len(history.rows) % case.checkpoint_every == 0:
+            write_checkpoint(s)
 
     if comm.rank == 0:
         out.mkdir(parents=True, exist_ok=True)
         write_packing(packing, out / "packing.txt")
-    if case.solver == "explicit":
-        total = solver.run(record, outputs=case.outputs)
-    else:
-        dt = case.duration / case.steps
-        total = solver.run(StepControl(t_end=case.duration, dt=dt, dt_max=dt, dt_min=dt / 256), on_step=record,
-                           log=log)
+    try:
+        if case.solver == "explicit":
+            total = solver.run(record, outputs=case.outputs)
+        else:
+            dt = case.duration / case.steps
+            total = solver.run(StepControl(t_end=case.duration, dt=dt, dt_max=dt, dt_min=dt / 256),
+                               on_step=record, log=log)
+    except (FloatingPointError, NonConvergence) as err:
+        progress.close()
+        history.write()
+        if writer is not None:
+            writer.close()
+        step = solver.step if case.solver == "explicit" else len(history.rows) + 1
+        kept = (f"last good checkpoint {last_checkpoint[0] or restart} (continue with --restart)"
+                if (last_checkpoint[0] or restart) else "no checkpoint was written yet")
+        raise RunFailure(f"the run stopped at step {step} (t = {solver.t:.6g} s): {err}; history so far in "
+                         f"{history.path}, {kept}", step, solver.t, history.path,
+                         last_checkpoint[0] or (Path(restart) if restart else None)) from err
+    progress.close()
+    if case.checkpoint_every and len(history.rows) % case.checkpoint_every != 0:
+        write_checkpoint(solver)  # the final state (the chapter-4 reloads start from it)
     history.write()
     if writer is not None:
         writer.close()
         # CLP shell copies carry no stress: show the volume's particles only
         render_deformed(problem.u, fields.von_mises, out / "particles.png", cells=problem.material_cells,
                         title=f"{n} lead particles, {case.loading} compaction, {case.bc}, "
-                              f"rho = {history.rows[-1][1]:.3f}")
+                              f"rho = {history.rows[-1][1]:.3f}", save_grid=True)
+        if comm.rank == 0:
+            plot_loading_path(history.path, out / "loading_path.png",
+                              title=f"{n} particles, {case.loading} compaction, {case.bc}")
     return CompactionResult(history, packing, num_dofs, radii.size, time.perf_counter() - start, total, out,
                             extra={"model": model, "solver": solver})
+
+
+def _dof_coordinates(V) -> np.ndarray:
+    """Coordinates of this rank's owned dof blocks (identifies the partition of a checkpoint)."""
+    return V.tabulate_dof_coordinates()[: V.dofmap.index_map.size_local]
+
+
+class _LogStream:
+    """A file-like wrapper of a ``log`` function (progress lines go where the log goes)."""
+
+    def __init__(self, log):
+        self._log = log
+
+    def write(self, text: str) -> None:
+        text = text.rstrip("\n")
+        if text:
+            self._log(text)
+
+    def flush(self) -> None:
+        pass
