@@ -20,9 +20,8 @@ CASES = {
                         ["explicit.csv"], 1e-6),
     # base and block land on different ranks: contact across the partition
     "flat-contact": ("flat_contact.py", [], ["normal.csv", "tangential.csv"], 1e-7),
-    # granular volume: 24 particles + CLP shell copies, particles and copies split over the ranks
-    "compaction-explicit": ("isotropic.py", ["--target-density", "0.64", "--increments", "150", "--outputs", "3",
-                                             "--no-visual"], ["history.csv"], 1e-5),
+    # the granular volume (24 particles + CLP shell copies over 2 ranks) runs through `mpfem run`
+    # in tests/test_cli.py::test_mpirun_two_ranks_run_and_restart
 }
 IGNORED = {"wall_time"}  # columns that legitimately differ
 

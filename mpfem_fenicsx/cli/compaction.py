@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 from mpi4py import MPI
 
 from ..constraints.granular import KINDS
-from ..workflows.compaction import CompactionCase, run_compaction
+from ..io.progress import Progress
+from ..workflows.compaction import CompactionCase, RunFailure, run_compaction
 
 
 def parser(loading: str, doc: str) -> argparse.ArgumentParser:
@@ -31,6 +33,10 @@ def parser(loading: str, doc: str) -> argparse.ArgumentParser:
     p.add_argument("--refinement", type=int, default=d.refinement, help="cube-sphere refinement")
     p.add_argument("--outputs", type=int, default=d.outputs, help="history rows / ParaView frames")
     p.add_argument("--no-visual", action="store_true", help="skip ParaView output and the PNG")
+    p.add_argument("--checkpoint-every", type=int, default=d.checkpoint_every,
+                   help="checkpoint every so many outputs, into OUT/checkpoints (0: none)")
+    p.add_argument("--restart", default=None, metavar="CHECKPOINT",
+                   help="continue from a checkpoint (directory, or a results folder: its newest one)")
     p.add_argument("--out", default=f"results/{loading}")
     return p
 
@@ -45,12 +51,16 @@ def main(loading: str, doc: str, argv=None) -> None:
                               packing_file=args.packing, packing_fraction=args.packing_fraction, d_bc=args.d_bc,
                               gamma=args.gamma, friction=args.friction, increments=args.increments, steps=args.steps,
                               refinement=args.refinement, outputs=args.outputs, visual=not args.no_visual,
-                              out_dir=args.out)
+                              checkpoint_every=args.checkpoint_every, out_dir=args.out)
     except ValueError as err:
         raise SystemExit(f"error: {err}")
     start = time.perf_counter()
     try:
-        res = run_compaction(case, comm, log=say)
+        res = run_compaction(case, comm, log=say, restart=args.restart, progress=Progress(comm))
+    except RunFailure as err:  # diverged: history and last checkpoint kept
+        if comm.rank == 0:
+            print(f"error: {err}", file=sys.stderr)
+        raise SystemExit(3)
     except ValueError as err:  # bad input found while building (packing file, unreachable density, ...)
         raise SystemExit(f"error: {err}")
     h = res.history
@@ -59,4 +69,5 @@ def main(loading: str, doc: str, argv=None) -> None:
         f"{int(h.column('n_contacts')[-1])} contacts; {res.num_particles_model} particles in the model, "
         f"{res.num_dofs} dofs, {res.increments} {'increments' if args.solver == 'explicit' else 'steps'}, wall {time.perf_counter() - start:.0f} s")
     say(f"outputs in {res.out_dir}/: history.csv, packing.txt"
-        + ("" if args.no_visual else ", particles.xdmf (ParaView), particles.png"))
+        + ("" if not args.checkpoint_every else ", checkpoints/")
+        + ("" if args.no_visual else ", particles.xdmf (ParaView), particles.png, loading_path.png"))

@@ -59,7 +59,7 @@ def render_grid(grid, path: str | Path, *, title: str = "", label: str = "von Mi
         plotter.add_text(title, font_size=11)
     plotter.view_isometric()
     plotter.reset_camera()
-    plotter.camera.zoom(0.8)
+    plotter.camera.zoom(1.1)
     plotter.show_axes()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

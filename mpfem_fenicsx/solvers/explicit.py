@@ -442,12 +442,12 @@ class ExplicitSolver:
         every = self.settings.rescale_every
         if every and self.settings.target_dt is not None and self.step % every == 0:
             self._rescale_mass()
-        self._forces()  # f_int(u_{n+1}), f_bv(u_{n+1}, v_{n+1/2})
         e.kinetic = 0.5 * self._dot(mass, v_half * v_half)
-        if not np.isfinite(e.kinetic):
+        if not np.isfinite(e.kinetic):  # before the contact search meets non-finite positions
             raise FloatingPointError(
                 f"explicit integration diverged at step {self.step} (t={self.t:.4g} s, dt={dt:.3g} s): "
-                "reduce target_dt or deformation_margin")
+                "non-finite velocities; use more increments (smaller target_dt) or a smaller deformation_margin")
+        self._forces()  # f_int(u_{n+1}), f_bv(u_{n+1}, v_{n+1/2})
         e.elastic = self.problem.stored_energy()
 
     # -- checkpoints --------------------------------------------------------------------------

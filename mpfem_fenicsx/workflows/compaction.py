@@ -217,6 +217,12 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     log(f"packing: {n} particles, solid fraction {packing.solid_fraction:.4f}, cell {packing.cell}; "
         f"{int(is_copy.sum())} duplicated particles (d_bc = {d_bc:.4g} mm, bc {case.bc})")
 
+    solid0 = solid_volume(radii[:n])  # thesis eq. 2.5, initial (meshed) radii
+    rho0 = solid0 / float(np.prod(packing.cell))
+    if not rho0 < case.target_density < 1.0:
+        raise ValueError(f"loading.target_density = {case.target_density} is out of range: must be in "
+                         f"({rho0:.4f}, 1), above the packing's initial relative density V_p / V0 = {rho0:.4f}")
+
     rotations = None if case.mesh_rotation is None else np.broadcast_to(case.mesh_rotation, (radii.size, 3, 3))
     assembly = particle_mesh(centres, radii, comm, divisions=case.divisions, refinement=case.refinement,
                              rotations=rotations)
@@ -228,12 +234,7 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     V = problem.V
 
     volumes = ParticleVolumes(assembly, problem.u)
-    solid0 = solid_volume(radii[:n])  # thesis eq. 2.5, initial (meshed) radii
-    rho0 = solid0 / float(np.prod(packing.cell))
     rho0_fe = float(volumes()[:n].sum()) / float(np.prod(packing.cell))
-    if not rho0 < case.target_density < 1.0:
-        raise ValueError(f"loading.target_density = {case.target_density} is out of range: must be in "
-                         f"({rho0:.4f}, 1), above the packing's initial relative density V_p / V0 = {rho0:.4f}")
     F_target = compaction_gradient(case.loading, rho0, case.target_density)
     path = GradientPath([(case.duration, F_target)])
 

@@ -1,0 +1,275 @@
+"""Case files: a TOML description of a compaction run, validated before any computation.
+
+One table, :data:`SCHEMA`, says every key: its section, type, default, allowed range, unit and
+meaning. It drives the validation (unknown section or key, wrong type, out-of-range value ->
+:class:`CaseError` naming the field and what is allowed), the documentation (``mpfem run
+--help``, ``mpfem init``) and the conversion into a :class:`CompactionCase`.
+
+Example (every key optional; defaults = the flagship demo)::
+
+    [packing]
+    particles = 50            # seeded frictionless packing ...
+    # file = "packing.txt"    # ... or a packing file (path relative to the case file)
+
+    [boundary]
+    condition = "CLP"
+
+    [loading]
+    path = "isotropic"
+    target_density = 0.95
+
+    [solver]
+    kind = "explicit"
+    increments = 4000
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..constraints.granular import KINDS
+from ..material import ElastoPlastic
+from ..workflows.compaction import CompactionCase
+
+
+class CaseError(ValueError):
+    """Invalid case file: the message names the file, the field and what is allowed."""
+
+
+@dataclass(frozen=True)
+class Key:
+    section: str
+    name: str
+    kind: type  # int, float, bool or str
+    default: Any
+    doc: str
+    low: float | None = None  # allowed range (inclusive unless open_low / open_high)
+    high: float | None = None
+    open_low: bool = False
+    open_high: bool = False
+    choices: tuple | None = None
+    optional: bool = False  # may be absent (no default value)
+    target: str | None = None  # CompactionCase attribute (material.<x>: ElastoPlastic field)
+
+    @property
+    def field(self) -> str:
+        return f"[{self.section}] {self.name}"
+
+    def allowed(self) -> str:
+        if self.choices:
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        parts = []
+        if self.low is not None:
+            parts.append(f"{'>' if self.open_low else '>='} {self.low:g}")
+        if self.high is not None:
+            parts.append(f"{'<' if self.open_high else '<='} {self.high:g}")
+        return " and ".join(parts) if parts else {int: "an integer", float: "a number", bool: "true or false",
+                                                    str: "a string"}[self.kind]
+
+    def check(self, value: Any, where: str) -> Any:
+        kinds = {int: "an integer", float: "a number", bool: "true or false", str: "a string"}
+        ok_type = (isinstance(value, bool) if self.kind is bool else
+                   isinstance(value, int) and not isinstance(value, bool) if self.kind is int else
+                   isinstance(value, (int, float)) and not isinstance(value, bool) if self.kind is float else
+                   isinstance(value, str))
+        if not ok_type:
+            raise CaseError(f"{where}: {self.field} = {value!r} has the wrong type: expected {kinds[self.kind]}")
+        if self.kind is float:
+            value = float(value)
+            if value != value or value in (float("inf"), float("-inf")):
+                raise CaseError(f"{where}: {self.field} = {value!r} must be a finite number")
+        if self.choices and value not in self.choices:
+            raise CaseError(f"{where}: {self.field} = {value!r} is not allowed: must be {self.allowed()}")
+        bad_low = self.low is not None and (value <= self.low if self.open_low else value < self.low)
+        bad_high = self.high is not None and (value >= self.high if self.open_high else value > self.high)
+        if bad_low or bad_high:
+            raise CaseError(f"{where}: {self.field} = {value!r} is out of range: must be {self.allowed()} "
+                            f"[{self.doc}]")
+        return value
+
+
+_D = CompactionCase()
+_M = ElastoPlastic()
+
+#: every key of a case file (section order = the order of the documentation)
+SCHEMA: tuple[Key, ...] = (
+    # particles: thesis table 2.1 (lead)
+    Key("material", "E", float, _M.E, "Young's modulus (MPa)", 0, None, open_low=True, target="material.E"),
+    Key("material", "nu", float, _M.nu, "Poisson's ratio (-)", -1, 0.5, True, True, target="material.nu"),
+    Key("material", "sigma_0", float, _M.sigma_0, "initial yield stress (MPa)", 0, None, open_low=True,
+        target="material.sigma_0"),
+    Key("material", "hardening", str, _M.hardening, "sigma_y = sigma_0 + K eps_p^n (power, eq. 2.1) or "
+        "sigma_0 + H eps_p (linear)", choices=("power", "linear"), target="material.hardening"),
+    Key("material", "K", float, _M.K, "power-law hardening modulus (MPa)", 0, None, target="material.K"),
+    Key("material", "n", float, _M.n, "power-law hardening exponent (-)", 0, 1, open_low=True, target="material.n"),
+    Key("material", "H", float, _M.H, "linear hardening modulus (MPa)", 0, None, target="material.H"),
+    Key("material", "density", float, _M.density, "mass density (t/mm^3)", 0, None, open_low=True,
+        target="material.density"),
+    # packing (thesis §2.2)
+    Key("packing", "particles", int, _D.particles, "particles of the generated periodic packing", 2, 5000,
+        target="particles"),
+    Key("packing", "r_min", float, _D.r_min, "smallest radius of the generated packing (mm)", 0, None,
+        open_low=True, target="r_min"),
+    Key("packing", "r_max", float, _D.r_max, "largest radius of the generated packing (mm)", 0, None,
+        open_low=True, target="r_max"),
+    Key("packing", "seed", int, _D.seed, "seed of the packing generator", 0, None, target="seed"),
+    Key("packing", "fraction", float, None, "stop the generator at this solid fraction (default: jammed, "
+        "~0.63) (-)", 0.1, 0.66, optional=True, target="packing_fraction"),
+    Key("packing", "file", str, None, "packing file instead of the generator: 'dx dy dz' then one "
+        "'x y z r' line per sphere (mm; path relative to the case file)", optional=True, target="packing_file"),
+    # meshing (SPEC §2)
+    Key("mesh", "refinement", int, _D.refinement, "cube-sphere refinement: 1 = 517 nodes per particle, "
+        "2 = ~3400", 1, 4, target="refinement"),
+    Key("mesh", "radius_factor", float, _D.radius_factor, "radii shrunk by this factor before meshing (-)", 0.5, 1,
+        target="radius_factor"),
+    # contact law (thesis §3.3)
+    Key("contact", "friction", float, _D.friction, "Coulomb friction coefficient mu (-)", 0, 2, target="friction"),
+    Key("contact", "gamma", float, _D.gamma, "Dupre adhesion energy (mJ/mm^2)", 0, 1, target="gamma"),
+    Key("contact", "delta_max", float, _D.delta_max, "opening at which adhesion vanishes (mm)", 0, 0.01,
+        open_low=True, target="delta_max"),
+    Key("contact", "asperity_yield", float, _D.asperity_yield, "asperity yield stress, p0 = 3 x it (MPa)", 0, None,
+        open_low=True, target="asperity_yield"),
+    Key("contact", "penalty_factor", float, _D.penalty_factor, "penalty k = factor x E / h, h the contact "
+        "element size (-)", 0, None, open_low=True, target="penalty_factor"),
+    # boundary conditions (thesis table 2.2)
+    Key("boundary", "condition", str, _D.bc, "GDH, GDF (driven particles), CLPS (simplified periodic) or CLP "
+        "(periodic)", choices=tuple(KINDS), target="bc"),
+    Key("boundary", "images", bool, _D.images, "CLP by contact with periodic images instead of tied copies",
+        target="images"),
+    Key("boundary", "d_bc", float, None, "duplication distance / r_max (default: thesis table 2.3: 1.8 CLP, "
+        "2.5 others) (-)", 0, 10, open_low=True, optional=True, target="d_bc"),
+    # loading path (thesis §2.2.3)
+    Key("loading", "path", str, _D.loading, "isotropic or die (uniaxial strain along z) compaction",
+        choices=("isotropic", "die"), target="loading"),
+    Key("loading", "target_density", float, _D.target_density, "relative density to reach, above the "
+        "packing's initial one (-)", 0, 1, True, True, target="target_density"),
+    Key("loading", "duration", float, _D.duration, "loading time, mass-scaled (s)", 0, None, open_low=True,
+        target="duration"),
+    # solver (SPEC §6)
+    Key("solver", "kind", str, _D.solver, "explicit (central differences, mass scaling) or implicit "
+        "(Newton; experimental for granular volumes)", choices=("explicit", "implicit"), target="solver"),
+    Key("solver", "increments", int, _D.increments, "explicit increments over the loading", 10, None,
+        target="increments"),
+    Key("solver", "steps", int, _D.steps, "implicit load steps (adaptive)", 1, None, target="steps"),
+    Key("solver", "damping", float, _D.damping, "explicit relaxation damping of the particles' motion relative "
+        "to the imposed flow (1/duration)", 0, None, target="damping"),
+    # outputs (SPEC §10)
+    Key("output", "directory", str, None, "results folder (default: results/<case file name>; --out "
+        "overrides)", optional=True, target="out_dir"),
+    Key("output", "outputs", int, _D.outputs, "history rows and ParaView frames", 1, 100000, target="outputs"),
+    Key("output", "visual", bool, _D.visual, "write ParaView files and PNG figures", target="visual"),
+    Key("output", "checkpoint_every", int, _D.checkpoint_every, "checkpoint every so many outputs (0: none)", 0,
+        None, target="checkpoint_every"),
+    Key("output", "checkpoint_keep", int, _D.checkpoint_keep, "newest checkpoints kept (0: all)", 0, None,
+        target="checkpoint_keep"),
+)
+
+SECTIONS = tuple(dict.fromkeys(k.section for k in SCHEMA))
+
+
+def _keys(section: str) -> dict[str, Key]:
+    return {k.name: k for k in SCHEMA if k.section == section}
+
+
+def parse_case(data: dict, where: str = "case", base: Path | None = None) -> dict[str, Any]:
+    """Validated values of a parsed TOML document: {(section, key): value} of the keys given."""
+    values: dict[tuple[str, str], Any] = {}
+    for section, table in data.items():
+        if section not in SECTIONS:
+            raise CaseError(f"{where}: unknown section [{section}] (allowed: {', '.join(SECTIONS)})")
+        if not isinstance(table, dict):
+            raise CaseError(f"{where}: {section} must be a [{section}] table, got {table!r}")
+        keys = _keys(section)
+        for name, value in table.items():
+            if name not in keys:
+                raise CaseError(f"{where}: unknown key [{section}] {name} (allowed: {', '.join(keys)})")
+            values[(section, name)] = keys[name].check(value, where)
+    # checks between keys
+    get = lambda s, k: values.get((s, k), next(x.default for x in SCHEMA if (x.section, x.name) == (s, k)))
+    if get("packing", "r_max") < get("packing", "r_min"):
+        raise CaseError(f"{where}: [packing] r_max = {get('packing', 'r_max')!r} is out of range: must be >= "
+                        f"r_min = {get('packing', 'r_min')!r} mm")
+    if ("packing", "file") in values:
+        given = [k for k in ("particles", "r_min", "r_max", "seed", "fraction") if ("packing", k) in values]
+        if given:
+            raise CaseError(f"{where}: [packing] file and [packing] {given[0]} exclude each other (the file "
+                            "gives the spheres; the other keys drive the generator)")
+        path = Path(values[("packing", "file")])
+        if not path.is_absolute() and base is not None:
+            path = base / path
+        if not path.is_file():
+            raise CaseError(f"{where}: [packing] file = {values[('packing', 'file')]!r}: no such file ({path})")
+        values[("packing", "file")] = str(path)
+    if get("boundary", "images") and get("boundary", "condition") != "CLP":
+        raise CaseError(f"{where}: [boundary] images = true realizes CLP only, got condition = "
+                        f"{get('boundary', 'condition')!r}")
+    return values
+
+
+def load_case(path: str | Path, out_dir: str | None = None) -> CompactionCase:
+    """Read, validate and convert a case file (raises :class:`CaseError`)."""
+    path = Path(path)
+    where = str(path)
+    if not path.is_file():
+        raise CaseError(f"{where}: no such case file")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise CaseError(f"{where}: not valid TOML: {err}") from None
+    values = parse_case(data, where, base=path.parent)
+    return to_case(values, out_dir or values.get(("output", "directory")) or f"results/{path.stem}", where)
+
+
+def to_case(values: dict[tuple[str, str], Any], out_dir: str, where: str = "case") -> CompactionCase:
+    """A CompactionCase from validated values (defaults for the keys not given)."""
+    material = {}
+    kwargs: dict[str, Any] = {"out_dir": out_dir}
+    for key in SCHEMA:
+        if (key.section, key.name) not in values or key.target == "out_dir":
+            continue
+        value = values[(key.section, key.name)]
+        if key.target.startswith("material."):
+            material[key.target[9:]] = value
+        else:
+            kwargs[key.target] = value
+    try:
+        if material:
+            kwargs["material"] = ElastoPlastic(**material)
+        return CompactionCase(**kwargs)
+    except ValueError as err:  # a rule of the case classes not expressed in the schema
+        raise CaseError(f"{where}: {err}") from None
+
+
+def documentation() -> str:
+    """The case-file reference: every section and key with type, default, range, meaning."""
+    lines = []
+    for section in SECTIONS:
+        lines.append(f"[{section}]")
+        for k in SCHEMA:
+            if k.section == section:
+                default = "(none)" if k.default is None else repr(k.default)
+                lines.append(f"  {k.name:<17} {k.kind.__name__:<5} default {default:<10} {k.allowed()}: {k.doc}")
+    return "\n".join(lines)
+
+
+def example_case() -> str:
+    """A complete, commented case file with every default (``mpfem init``)."""
+    out = ["# mpfem case file: compaction of a periodic volume of elastoplastic particles.",
+           "# Every key is optional; the values below are the defaults (the flagship demo).",
+           "# Units: mm, N, MPa, s, t/mm^3. Reference: `mpfem run --help`.", ""]
+    for section in SECTIONS:
+        out.append(f"[{section}]")
+        for k in SCHEMA:
+            if k.section != section:
+                continue
+            if k.default is None:
+                out.append(f"{'# ' + k.name + ' = ...':<30} # {k.doc}; {k.allowed()}")
+            else:
+                value = ("true" if k.default else "false") if k.kind is bool else (
+                    f'"{k.default}"' if k.kind is str else repr(k.default))
+                out.append(f"{k.name + ' = ' + value:<30} # {k.doc}; {k.allowed()}")
+        out.append("")
+    return "\n".join(out)

@@ -1,0 +1,191 @@
+"""mpfem: the command line of mpfem-fenicsx (multi-particle finite elements on DOLFINx).
+
+    mpfem run CASE.toml [--out DIR] [--restart CHECKPOINT]   compaction of a periodic volume
+    mpfem pack --particles N --out FILE | --input FILE --out FILE   make or check a packing file
+    mpfem plot DIR                                            figures again from a results folder
+    mpfem init CASE.toml                                      a commented case file with the defaults
+
+Exit codes: 0 done; 2 bad input (one line naming the field and the allowed range); 3 the run
+diverged or did not converge (history so far and the last good checkpoint are kept).
+Parallel: ``mpirun -n P mpfem run CASE.toml`` (progress and messages on rank 0 only).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from mpi4py import MPI
+
+BAD_INPUT = 2
+RUN_FAILED = 3
+
+
+class _Exit(Exception):
+    def __init__(self, code: int, message: str):
+        super().__init__(message)
+        self.code = code
+
+
+def _say(comm):
+    return print if comm.rank == 0 else (lambda *a, **k: None)
+
+
+def _parser() -> argparse.ArgumentParser:
+    from .casefile import documentation
+
+    p = argparse.ArgumentParser(prog="mpfem", description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter,
+                                epilog="Run 'mpfem <command> --help' for a command's options.")
+    sub = p.add_subparsers(dest="command", required=True, metavar="command")
+
+    run = sub.add_parser(
+        "run", help="compact a periodic volume described by a TOML case file",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Compaction of a periodic volume of elastoplastic particles (thesis chapter 2): packing -> "
+                    "meshed particles -> contact + periodic constraints -> explicit/implicit solver -> history.",
+        epilog="Outputs in the results folder: history.csv (one row per output; columns in README), "
+               "packing.txt, particles.xdmf (ParaView: displacement, von_mises_MPa, eps_p, particle, "
+               "contact_pressure_MPa), particles.png, loading_path.png, checkpoints/.\n\n"
+               "Case file keys (section, key, type, default, allowed, meaning):\n" + documentation())
+    run.add_argument("case", help="TOML case file (see below; 'mpfem init' writes one)")
+    run.add_argument("--out", default=None, help="results folder (overrides [output] directory)")
+    run.add_argument("--restart", default=None, metavar="CHECKPOINT",
+                     help="continue from a checkpoint directory (or a results folder: its newest checkpoint); "
+                          "same case file and number of MPI ranks")
+    run.add_argument("--check", action="store_true", help="validate the case file and stop")
+
+    pack = sub.add_parser("pack", help="generate a packing file, or check and convert one",
+                          description="Generate a seeded frictionless periodic packing (--particles), or read "
+                                      "a packing file (--input: 'dx dy dz' then 'x y z r' lines, e.g. a YADE "
+                                      "export), check it (overlaps, spheres outside the cell) and write it.")
+    src = pack.add_mutually_exclusive_group(required=True)
+    src.add_argument("--particles", type=int, help="number of spheres to generate (>= ~20 for a periodic cell)")
+    src.add_argument("--input", help="packing file to check / convert")
+    pack.add_argument("--r-min", type=float, default=0.082, help="smallest radius, mm (generator)")
+    pack.add_argument("--r-max", type=float, default=0.147, help="largest radius, mm (generator)")
+    pack.add_argument("--seed", type=int, default=1, help="generator seed")
+    pack.add_argument("--fraction", type=float, default=None,
+                      help="stop the generator at this solid fraction (default: jammed)")
+    pack.add_argument("--scale", type=float, default=1.0,
+                      help="multiply the input's radii by this factor (e.g. 0.99 for a DEM export with contact "
+                           "overlaps)")
+    pack.add_argument("--tolerance", type=float, default=1e-6,
+                      help="overlap tolerance, relative to the smaller radius of a pair")
+    pack.add_argument("--out", required=True, help="packing file to write")
+
+    plot = sub.add_parser("plot", help="draw the figures of a results folder again",
+                          description="Re-render loading_path.png from history.csv and particles.png from "
+                                      "particles.vtu (saved by every run with visual output).")
+    plot.add_argument("directory", help="results folder of a run")
+
+    init = sub.add_parser("init", help="write a commented case file with every default")
+    init.add_argument("case", help="file to write (refuses to overwrite)")
+    return p
+
+
+def _run(args, comm) -> None:
+    from ..io.checkpoint import CheckpointError
+    from ..io.progress import Progress
+    from ..workflows.compaction import RunFailure, run_compaction
+    from .casefile import CaseError, load_case
+
+    say = _say(comm)
+    try:
+        case = load_case(args.case, out_dir=args.out)
+    except CaseError as err:
+        raise _Exit(BAD_INPUT, str(err))
+    if args.check:
+        say(f"{args.case}: valid ({case.particles if case.packing_file is None else case.packing_file} particles, "
+            f"{case.bc}, {case.loading} to {case.target_density}, {case.solver})")
+        return
+    start = time.perf_counter()
+    try:
+        res = run_compaction(case, comm, log=say, restart=args.restart, progress=Progress(comm))
+    except CheckpointError as err:
+        raise _Exit(BAD_INPUT, str(err))
+    except RunFailure as err:
+        raise _Exit(RUN_FAILED, str(err))
+    except ValueError as err:  # bad input found while building: packing file, unreachable density
+        raise _Exit(BAD_INPUT, f"{args.case}: {err}")
+    h = res.history
+    say(f"done: rho = {h.column('rho')[-1]:.4f} (imposed {h.column('rho_imposed')[-1]:.4f}), sigma_m = "
+        f"{h.column('sigma_m')[-1]:.3f} MPa, {int(h.column('n_contacts')[-1])} contacts; "
+        f"{res.num_particles_model} particles in the model, {res.num_dofs} dofs, wall {time.perf_counter() - start:.0f} s")
+    say(f"outputs in {res.out_dir}/: history.csv, packing.txt, checkpoints/"
+        + (", particles.xdmf (ParaView), particles.png, loading_path.png" if case.visual else ""))
+
+
+def _pack(args, comm) -> None:
+    from ..meshes.packing import generate_packing, read_packing, write_packing
+
+    say = _say(comm)
+    try:
+        if args.input is not None:
+            if not 0.5 <= args.scale <= 1.5:
+                raise ValueError(f"--scale = {args.scale} is out of range: must be in [0.5, 1.5]")
+            packing = read_packing(args.input, validate=False)
+            if args.scale != 1.0:
+                packing = packing.scaled(args.scale)
+            packing.validate(overlap_tolerance=args.tolerance)
+        else:
+            if not 0 < args.r_min <= args.r_max:
+                raise ValueError(f"--r-min = {args.r_min}, --r-max = {args.r_max}: must be 0 < r_min <= r_max (mm)")
+            packing = generate_packing(args.particles, args.r_min, args.r_max, seed=args.seed,
+                                       target_fraction=args.fraction)
+    except (ValueError, OSError) as err:
+        raise _Exit(BAD_INPUT, f"{args.input or 'pack'}: {err}")
+    if comm.rank == 0:
+        write_packing(packing, args.out)
+    say(f"{args.out}: {packing.num_particles} spheres, cell {' x '.join(f'{d:.6g}' for d in packing.cell)} mm, "
+        f"radii {packing.radii.min():.4g}-{packing.radii.max():.4g} mm, solid fraction {packing.solid_fraction:.4f}")
+
+
+def _plot(args, comm) -> None:
+    from ..io.plots import plot_loading_path
+    from ..io.render import render_grid_file
+
+    say = _say(comm)
+    folder = Path(args.directory)
+    history = folder / "history.csv"
+    if not history.is_file():
+        raise _Exit(BAD_INPUT, f"{folder}: no history.csv (not a results folder of 'mpfem run')")
+    if comm.rank != 0:
+        return
+    try:
+        made = [plot_loading_path(history, folder / "loading_path.png", title=str(folder))]
+    except ValueError as err:
+        raise _Exit(BAD_INPUT, str(err))
+    if (folder / "particles.vtu").is_file():
+        made.append(render_grid_file(folder / "particles.vtu", folder / "particles.png"))
+    say("wrote " + ", ".join(str(m) for m in made))
+
+
+def _init(args, comm) -> None:
+    from .casefile import example_case
+
+    path = Path(args.case)
+    if path.exists():
+        raise _Exit(BAD_INPUT, f"{path}: exists already (not overwritten)")
+    if comm.rank == 0:
+        path.write_text(example_case())
+    _say(comm)(f"wrote {path}; edit it, then: mpfem run {path}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``mpfem`` console script; returns the exit code."""
+    comm = MPI.COMM_WORLD
+    args = _parser().parse_args(argv)
+    try:
+        {"run": _run, "pack": _pack, "plot": _plot, "init": _init}[args.command](args, comm)
+    except _Exit as err:
+        if comm.rank == 0:
+            print(f"mpfem: error: {err}", file=sys.stderr)
+        return err.code
+    return 0
+
+
+def console() -> None:
+    sys.exit(main())

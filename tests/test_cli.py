@@ -1,0 +1,219 @@
+"""The `mpfem` command line (issue 7): case-file validation, an end-to-end run with its outputs,
+figures drawn again, a forced divergence, and restart from a checkpoint."""
+
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from mpfem_fenicsx.cli.casefile import SCHEMA, example_case, load_case
+from mpfem_fenicsx.cli.main import main
+from mpfem_fenicsx.io import read_csv
+
+TINY = "demos/cases/tiny.toml"
+
+
+def _case(tmp_path, text, name="case.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+BAD_CASES = [
+    # (case text, words the one-line error must contain)
+    ("[contact]\nfrction = 0.1\n", ["unknown key", "[contact] frction", "friction"]),
+    ("[solvr]\nkind = 'explicit'\n", ["unknown section", "[solvr]"]),
+    ("[packing]\nparticles = 'fifty'\n", ["[packing] particles", "wrong type", "integer"]),
+    ("[packing]\nparticles = 50.5\n", ["[packing] particles", "wrong type"]),
+    ("[packing]\nr_min = -0.1\n", ["[packing] r_min", "-0.1", "out of range", "> 0"]),
+    ("[packing]\nr_min = 0.2\nr_max = 0.1\n", ["[packing] r_max", "r_min"]),
+    ("[loading]\ntarget_density = 1.0\n", ["[loading] target_density", "< 1"]),
+    ("[loading]\ntarget_density = 0.0\n", ["[loading] target_density", "> 0"]),
+    ("[contact]\nfriction = -0.1\n", ["[contact] friction", ">= 0"]),
+    ("[contact]\ngamma = -1e-3\n", ["[contact] gamma", ">= 0", "mJ/mm^2"]),
+    ("[boundary]\ncondition = 'PBC'\n", ["[boundary] condition", "'PBC'", "'GDH', 'GDF', 'CLPS', 'CLP'"]),
+    ("[boundary]\ncondition = 'GDF'\nimages = true\n", ["[boundary] images", "CLP"]),
+    ("[material]\nnu = 0.5\n", ["[material] nu", "< 0.5"]),
+    ("[solver]\nincrements = 5\n", ["[solver] increments", ">= 10"]),
+    ("[packing]\nfile = 'missing.txt'\n", ["[packing] file", "no such file"]),
+    ("[loading\n", ["not valid TOML"]),
+]
+
+
+@pytest.mark.parametrize("text, words", BAD_CASES)
+def test_bad_case_exits_2_naming_the_field(tmp_path, capsys, text, words):
+    code = main(["run", _case(tmp_path, text)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert len(err.splitlines()) == 1 and err.startswith("mpfem: error: ")
+    for w in words:
+        assert w in err, (w, err)
+
+
+def _packing_file(tmp_path, rows, cell=1.0):
+    path = tmp_path / "packing.txt"
+    path.write_text(f"{cell} {cell} {cell}\n" + "".join(f"{x} {y} {z} {r}\n" for x, y, z, r in rows))
+    return path
+
+
+@pytest.mark.parametrize("rows, words", [
+    ([(0.2, 0.2, 0.2, 0.1), (0.35, 0.2, 0.2, 0.1), (0.7, 0.7, 0.7, 0.1)], ["overlap", "0", "1"]),
+    ([(0.2, 0.2, 0.2, 0.1), (1.3, 0.5, 0.5, 0.1)], ["particle 1", "outside"]),
+    ([(0.2, 0.2, 0.2, -0.1), (0.6, 0.6, 0.6, 0.1)], ["radius", "particle 0"]),
+])
+def test_bad_packing_file_is_rejected_with_sphere_indices(tmp_path, capsys, rows, words):
+    _packing_file(tmp_path, rows)
+    code = main(["run", _case(tmp_path, "[packing]\nfile = 'packing.txt'\n")])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    for w in words:
+        assert w in err, (w, err)
+    # the same check through `mpfem pack --input`
+    assert main(["pack", "--input", str(tmp_path / "packing.txt"), "--out", str(tmp_path / "o.txt")]) == 2
+
+
+def test_unreachable_target_density_exits_2(tmp_path, capsys):
+    # simple cubic cell: rho0 = pi / 6 * 0.99^3 = 0.508 (meshed radii) > the target
+    _packing_file(tmp_path, [(x, y, z, 0.1) for x in (0.1, 0.3) for y in (0.1, 0.3) for z in (0.1, 0.3)], 0.4)
+    code = main(["run", _case(tmp_path, "[packing]\nfile = 'packing.txt'\n[loading]\ntarget_density = 0.45\n")])
+    err = capsys.readouterr().err
+    assert code == 2 and "loading.target_density = 0.45" in err and "0.508" in err, err
+
+
+def test_example_case_is_valid_and_documents_every_key(tmp_path):
+    text = example_case()
+    for key in SCHEMA:
+        assert f"[{key.section}]" in text and key.name in text
+    case = load_case(_case(tmp_path, text))
+    assert case.bc == "CLP" and case.target_density == 0.92 and case.out_dir == "results/case"
+    assert main(["init", str(tmp_path / "case.toml")]) == 2  # refuses to overwrite
+
+
+def test_pack_generates_a_valid_file(tmp_path):
+    out = tmp_path / "p.txt"
+    assert main(["pack", "--particles", "30", "--seed", "4", "--fraction", "0.5", "--out", str(out)]) == 0
+    assert main(["pack", "--input", str(out), "--scale", "0.99", "--out", str(tmp_path / "q.txt")]) == 0
+    a, b = np.loadtxt(out, skiprows=1), np.loadtxt(tmp_path / "q.txt", skiprows=1)
+    assert a.shape == (30, 4) and np.allclose(b[:, 3], 0.99 * a[:, 3], rtol=1e-14)
+
+
+def _not_uniform(png):
+    import matplotlib.image
+
+    img = matplotlib.image.imread(png)[..., :3]
+    return img.std() > 0.02 and len(np.unique(img.reshape(-1, 3), axis=0)) > 50
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory, root):
+    """`mpfem run` of the tiny case as a user runs it: the console script in a subprocess."""
+    out = tmp_path_factory.mktemp("tiny") / "run"
+    mpfem = shutil.which("mpfem", path=str(root / ".venv" / "bin")) or str(root / ".venv" / "bin" / "mpfem")
+    proc = subprocess.run([mpfem, "run", str(root / TINY), "--out", str(out)], capture_output=True, text=True,
+                          cwd=root, timeout=900)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return out, proc.stdout
+
+
+def test_run_writes_history_paraview_figures_and_checkpoints(tiny_run):
+    out, stdout = tiny_run
+    h = read_csv(out / "history.csv")
+    assert h["rho"].size == 10
+    assert h["rho_imposed"][-1] == pytest.approx(0.64, abs=1e-9)
+    assert abs(h["rho"][-1] - 0.64) < 0.01 and h["E_p"][-1] > 0 and h["n_contacts"][-1] > 10
+    assert "step 150/150" in stdout and "ETA" in stdout  # the progress bar's last line
+    xdmf = (out / "particles.xdmf").read_text()
+    for name in ("displacement", "von_mises_MPa", "eps_p", "particle", "contact_pressure_MPa"):
+        assert f'Name="{name}"' in xdmf, name
+    assert (out / "particles.h5").stat().st_size > 1e5
+    for png in ("particles.png", "loading_path.png"):
+        assert _not_uniform(out / png), png
+    steps = sorted(p.name for p in (out / "checkpoints").iterdir())
+    assert steps == ["step0000075", "step0000150"]
+
+
+def test_plot_regenerates_the_figures(tiny_run, tmp_path):
+    out, _ = tiny_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy, ignore=shutil.ignore_patterns("checkpoints", "*.png"))
+    assert main(["plot", str(copy)]) == 0
+    for png in ("particles.png", "loading_path.png"):
+        assert _not_uniform(copy / png), png
+    assert main(["plot", str(tmp_path)]) == 2  # not a results folder
+
+
+def test_restart_reproduces_the_uninterrupted_run(tiny_run, tmp_path, root):
+    """Explicit restart from the mid-run checkpoint: identical history (bit for bit, wall time
+    aside), contact history (alpha with adhesion) included."""
+    out, _ = tiny_run
+    code = main(["run", str(root / TINY), "--out", str(tmp_path), "--restart", str(out / "checkpoints" / "step0000075")])
+    assert code == 0
+    a, b = read_csv(out / "history.csv"), read_csv(tmp_path / "history.csv")
+    for name in a:
+        if name != "wall_time":
+            np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+    from mpfem_fenicsx.io.checkpoint import load_checkpoint
+    from mpi4py import MPI
+
+    ca, _ = load_checkpoint(out / "checkpoints" / "step0000150", MPI.COMM_SELF)
+    cb, _ = load_checkpoint(tmp_path / "checkpoints" / "step0000150", MPI.COMM_SELF)
+    assert ca["solver/contact/alpha"].max() > 0.1  # adhesive memory exists and survived
+    for key in ("solver/u", "solver/contact/alpha", "solver/contact/sigma_max", "solver/material/eps_p"):
+        np.testing.assert_array_equal(ca[key], cb[key], err_msg=key)
+
+
+def test_forced_divergence_keeps_checkpoint_and_history(tmp_path, capsys, monkeypatch, root):
+    """A NaN injected in the velocities after step 100 is caught by the integrator's own check:
+    exit code 3, the message names the step, the checkpoint of step 90 and the history remain."""
+    from mpfem_fenicsx.solvers.explicit import ExplicitSolver
+
+    advance = ExplicitSolver.advance
+
+    def poisoned(self):
+        advance(self)
+        if self.step == 100:
+            self.v_red.array_w[:] = np.nan
+
+    monkeypatch.setattr(ExplicitSolver, "advance", poisoned)
+    case = (root / TINY).read_text().replace("checkpoint_every = 5", "checkpoint_every = 2")
+    code = main(["run", _case(tmp_path, case), "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert code == 3, err
+    assert "stopped at step 101" in err and "step0000090" in err and "--restart" in err, err
+    assert (tmp_path / "run" / "checkpoints" / "step0000090" / "meta.json").is_file()
+    h = read_csv(tmp_path / "run" / "history.csv")
+    assert h["rho"].size == 6 and np.isfinite(h["rho"]).all()
+
+
+def test_console_script_exit_code(tmp_path, root):
+    proc = subprocess.run([str(root / ".venv" / "bin" / "mpfem"), "run", _case(tmp_path, "[contact]\nmu = 0.1\n")],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2 and "unknown key [contact] mu" in proc.stderr
+
+
+@pytest.mark.mpi
+def test_mpirun_two_ranks_run_and_restart(tiny_run, tmp_path, root):
+    """`mpirun -n 2 mpfem run`: the serial history within 1e-5 (relative to each column family's
+    magnitude; SPEC §9 case 8), and a 2-rank restart equal to the 2-rank run bit for bit."""
+    out, _ = tiny_run
+    bin_ = root / ".venv" / "bin"
+    for args in ([], ["--restart", str(tmp_path / "a" / "checkpoints" / "step0000075")]):
+        dest = tmp_path / ("b" if args else "a")
+        proc = subprocess.run([str(bin_ / "mpirun"), "-n", "2", str(bin_ / "mpfem"), "run", str(root / TINY),
+                               "--out", str(dest), *args], capture_output=True, text=True, cwd=root, timeout=900)
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+        assert proc.stdout.count("step 150/150") == 1  # progress on rank 0 only
+    serial, a, b = (read_csv(p / "history.csv") for p in (out, tmp_path / "a", tmp_path / "b"))
+    for name in serial:
+        if name == "wall_time":
+            continue
+        family = name.rstrip("0123456789_")
+        scale = max(np.nanmax(np.abs(serial[k])) for k in serial if k.rstrip("0123456789_") == family) + 1e-30
+        assert np.nanmax(np.abs(serial[name] - a[name])) <= 1e-5 * scale, name
+        np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+    # a checkpoint of 2 ranks is refused by a serial restart, with the command to use
+    from mpfem_fenicsx.cli.main import main as mpfem
+
+    assert mpfem(["run", str(root / TINY), "--out", str(tmp_path / "c"), "--restart", str(tmp_path / "a")]) == 2
