@@ -3,7 +3,6 @@ figures drawn again, a forced divergence, and restart from a checkpoint."""
 
 import shutil
 import subprocess
-import sys
 
 import numpy as np
 import pytest

@@ -18,6 +18,7 @@ nodes owned by another rank reach their owner.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numba
@@ -220,6 +221,7 @@ class ContactModel:
         self._node_facets = (order // nv).astype(np.int64)
         self._node_facet_ptr = np.searchsorted(f[order], np.arange(self.surface.num_nodes + 1)).astype(np.int64)
         self.frictional_work = 0.0  # committed, summed over ranks, mJ
+        self.search_time = 0.0  # accumulated wall time of the search (s), for benchmarks
         self._V = V
 
     def set_periodic_images(self, lattice: np.ndarray, cell_vectors: np.ndarray) -> None:
@@ -253,7 +255,9 @@ class ContactModel:
         s = self.surface
         U = s.gather(u)
         x = s.X + U
+        start = time.perf_counter()
         pts = self.search(x)
+        self.search_time += time.perf_counter() - start
         keys, shift_id = self._keys(pts)
         # image shifts at the last converged state: a deforming periodic cell moves the images
         shift_n = self.shifts_committed[shift_id] if self.shifts_committed.shape == self.search.shifts.shape \

@@ -31,7 +31,8 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from contextlib import contextmanager
+from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
@@ -46,6 +47,7 @@ from .. import forms
 from ..contact.model import PASS_WEIGHT
 from ..loading import PrescribedDisplacements
 from ..problem import SolidProblem
+from .state import check_layout, histories_state, load_histories
 
 
 @dataclass
@@ -104,12 +106,21 @@ class Energies:
 _ENERGY_FIELDS = tuple(Energies.__dataclass_fields__)
 
 
-@dataclass
-class _Timings:
-    material: float = 0.0
-    assembly: float = 0.0
-    update: float = 0.0
-    extra: dict = field(default_factory=dict)
+class PhaseTimes(dict):
+    """Wall time (s) per phase of the time step, accumulated: ``with times("material"): ...``.
+
+    Phases of an explicit step: material (return mapping at the quadrature points), assembly
+    (bulk and bulk-viscosity force vectors), contact_search, contact_forces (law, nodal forces,
+    history), constraints (offsets, u = P x + g, P^T f), update (central difference and energy
+    balance), mass_scaling (variable mass scaling re-checks)."""
+
+    @contextmanager
+    def __call__(self, phase: str):
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self[phase] = self.get(phase, 0.0) + time.perf_counter() - start
 
 
 class ExplicitSolver:
@@ -187,7 +198,7 @@ class ExplicitSolver:
         self.t = 0.0
         self.step = 0
         self.energies = Energies()
-        self.timings = _Timings()
+        self.timings = PhaseTimes()
         n = self.constraint.num_owned
         self._u_prev = np.zeros(n)
         self._v_half_prev = np.zeros(n)  # peculiar half-step velocity P v_red
@@ -319,22 +330,24 @@ class ExplicitSolver:
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
 
     def _forces(self) -> None:
-        t0 = time.perf_counter()
-        self.problem.update_material(tangent=False)
-        self.problem.commit()
-        t1 = time.perf_counter()
-        self.problem.assemble_residual(self.f_int)
-        self._assemble(self.f_visc, self.viscous_form)
-        with self.f_cont.localForm() as loc:
-            loc.set(0.0)
+        with self.timings("material"):
+            self.problem.update_material(tangent=False)
+            self.problem.commit()
+        with self.timings("assembly"):
+            self.problem.assemble_residual(self.f_int)
+            self._assemble(self.f_visc, self.viscous_form)
+            with self.f_cont.localForm() as loc:
+                loc.set(0.0)
         if self.contact is not None:
-            tc = time.perf_counter()
+            searched = self.contact.search_time
+            start = time.perf_counter()
             self.contact.evaluate(self.problem.u, tangent=False)
             self.contact.add_residual(self.f_cont)
             self.contact.commit(self.problem.u)
-            self.timings.extra["contact"] = self.timings.extra.get("contact", 0.0) + time.perf_counter() - tc
-        self.timings.material += t1 - t0
-        self.timings.assembly += time.perf_counter() - t1
+            search = self.contact.search_time - searched
+            self.timings["contact_search"] = self.timings.get("contact_search", 0.0) + search
+            self.timings["contact_forces"] = (self.timings.get("contact_forces", 0.0)
+                                              + time.perf_counter() - start - search)
         self.energies.plastic += self.problem.plastic_dissipation_increment()
 
     def _damping_force(self) -> None:
@@ -386,6 +399,7 @@ class ExplicitSolver:
             self._u_prev[:] = u.x.array[:n]
             self._forces()
         t2 = time.perf_counter()
+        constraints0 = self.timings.get("constraints", 0.0)
         # reduced acceleration and velocity (half step at the start)
         force = self._force
         self.f_int.copy(force)
@@ -394,7 +408,8 @@ class ExplicitSolver:
         if self.settings.damping > 0:
             self._damping_force()
             force.axpy(1.0, self.f_damp)
-        self.constraint.restrict(force, self.r_red)
+        with self.timings("constraints"):
+            self.constraint.restrict(force, self.r_red)
         self.a_red.pointwiseDivide(self.r_red, self.mass_red)
         self.a_red.scale(-1.0)
         self.v_red.axpy(0.5 * dt if self.step == 0 else dt, self.a_red)
@@ -403,12 +418,14 @@ class ExplicitSolver:
         u_n = u.x.array[:n].copy()
         g_n = self.constraint.g.x.array[:n].copy()
         t_new = self.t + dt
-        self.bcs.apply(t_new)
-        self.constraint.expand(self.x, u)
+        with self.timings("constraints"):
+            self.bcs.apply(t_new)
+            self.constraint.expand(self.x, u)
         g_new = self.constraint.g.x.array[:n]
         # half-step velocity: peculiar part w' = P v_red (the only one with inertia), plus the
         # offsets' rate (g_{n+1} - g_n) / dt for the bulk viscosity's strain rate
-        self.constraint.expand(self.v_red, self.velocity, with_offset=False)
+        with self.timings("constraints"):
+            self.constraint.expand(self.v_red, self.velocity, with_offset=False)
         v_half = self.velocity.x.array[:n].copy()
         self.velocity.x.array[:n] += (g_new - g_n) / dt
         self.velocity.x.scatter_forward()
@@ -435,13 +452,15 @@ class ExplicitSolver:
         self._u_prev[:] = u_n
         self._g_prev[:] = g_n
         self._v_half_prev[:] = v_half
-        self.timings.update += time.perf_counter() - t2
+        self.timings["update"] = (self.timings.get("update", 0.0) + time.perf_counter() - t2
+                                  - (self.timings["constraints"] - constraints0))
 
         self.t = t_new
         self.step += 1
         every = self.settings.rescale_every
         if every and self.settings.target_dt is not None and self.step % every == 0:
-            self._rescale_mass()
+            with self.timings("mass_scaling"):
+                self._rescale_mass()
         e.kinetic = 0.5 * self._dot(mass, v_half * v_half)
         if not np.isfinite(e.kinetic):  # before the contact search meets non-finite positions
             raise FloatingPointError(
@@ -476,22 +495,16 @@ class ExplicitSolver:
                           ("f_damp", self.f_damp)):
             with vec.localForm() as loc:
                 data[name] = loc.array_r.copy()
-        data.update({f"material/{k}": v for k, v in self.problem.material.state_dict().items()})
-        if self.contact is not None:
-            data.update({f"contact/{k}": v for k, v in self.contact.state_dict().items()})
+        data.update(histories_state(self.problem, self.contact))
         return data
 
     def load_state(self, data: dict[str, np.ndarray]) -> None:
         """Restore :meth:`state_dict` (same model, same number of ranks and partition)."""
-        if data["x"].shape != self.x.array_r.shape or data["u"].shape != self.problem.u.x.array.shape:
-            raise ValueError("checkpoint: the integrator state does not match this model and partition "
-                             f"({data['u'].size} local displacement values, this model has "
-                             f"{self.problem.u.x.array.size})")
+        check_layout(data, self.x, self.problem.u)
         self.t, self.step, self.dt = float(data["t"]), int(data["step"]), float(data["dt"])
         self.mass_scaling_max = float(data["mass_scaling_max"])
         self.total_mass = float(data["total_mass"])
         self.contact_added_mass = float(data["contact_added_mass"])
-        self.problem.material.load_state({k[9:]: v for k, v in data.items() if k.startswith("material/")})
         self.x.array_w[:] = data["x"]
         self.v_red.array_w[:] = data["v_red"]
         self.bcs.apply(self.t)  # offsets g(t) (and periodic images) of the restored time
@@ -516,19 +529,24 @@ class ExplicitSolver:
                           ("f_damp", self.f_damp)):
             with vec.localForm() as loc:
                 loc.array_w[:] = data[name]
+        load_histories(self.problem, self.contact, data)
         if self.contact is not None:
-            self.contact.load_state({k[8:]: v for k, v in data.items() if k.startswith("contact/")})
             # contact points of the restored state (the next mass re-check reads them); with the
             # committed history at this very state the evaluation is the committed one
             self.contact.evaluate(self.problem.u, tangent=False)
 
-    def run(self, on_output: Callable[["ExplicitSolver"], None] | None = None, outputs: int = 100) -> int:
-        """Integrate to settings.t_end; ``on_output`` about ``outputs`` times, and at the end."""
+    def run(self, on_output: Callable[["ExplicitSolver"], None] | None = None, outputs: int = 100,
+            max_steps: int | None = None) -> int:
+        """Integrate to settings.t_end; ``on_output`` about ``outputs`` times, and at the end.
+        ``max_steps``: stop after so many increments of this call (benchmarks: the cost of a part
+        of a run with the increment of the whole)."""
         total = int(np.ceil(self.settings.t_end / self.dt - 1e-9))
         every = max(1, total // max(outputs, 1))
         self.dt = self.settings.t_end / total
-        while self.step < total:
+        stop = total if max_steps is None else min(total, self.step + max_steps)
+        while self.step < stop:
             self.advance()
             if on_output and (self.step % every == 0 or self.step == total):
-                on_output(self)
+                with self.timings("output"):
+                    on_output(self)
         return total

@@ -18,6 +18,7 @@ from petsc4py import PETSc
 
 from ..loading import PrescribedDisplacements
 from ..problem import SolidProblem
+from .state import check_layout, histories_state, load_histories
 
 
 class NonConvergence(RuntimeError):
@@ -250,22 +251,17 @@ class ImplicitSolver:
                 "u": self.problem.u.x.array.copy(), "regularization_work": np.array(self.regularization_work)}
         if self.regularization is not None:
             data["w_converged"] = self._w_converged.copy()
-        data.update({f"material/{k}": v for k, v in self.problem.material.state_dict().items()})
-        if self.contact is not None:
-            data.update({f"contact/{k}": v for k, v in self.contact.state_dict().items()})
+        data.update(histories_state(self.problem, self.contact))
         return data
 
     def load_state(self, data: dict[str, np.ndarray]) -> None:
         """Restore :meth:`state_dict` (same model, same number of ranks and partition)."""
-        if data["x"].shape != self.x.array_r.shape or data["u"].shape != self.problem.u.x.array.shape:
-            raise ValueError("checkpoint: the solver state does not match this model and partition")
+        check_layout(data, self.x, self.problem.u)
         self.t = float(data["t"])
         self.dt_next = None if np.isnan(data["dt_next"]) else float(data["dt_next"])
         self.iterations_total = int(data["iterations_total"])
         self.regularization_work = float(data["regularization_work"])
-        self.problem.material.load_state({k[9:]: v for k, v in data.items() if k.startswith("material/")})
-        if self.contact is not None:
-            self.contact.load_state({k[8:]: v for k, v in data.items() if k.startswith("contact/")})
+        load_histories(self.problem, self.contact, data)
         self.bcs.apply(self.t)
         self.x.array_w[:] = data["x"]
         self.problem.u.x.array[:] = data["u"]

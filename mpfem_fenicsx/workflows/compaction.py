@@ -109,6 +109,9 @@ class CompactionCase:
     #: write a checkpoint every so many outputs (and at the end) into out_dir/checkpoints; 0: never
     checkpoint_every: int = 10
     checkpoint_keep: int = 2  # newest checkpoints kept (0: all)
+    #: explicit: stop after so many increments (0: run to the end); benchmarks time a part of a
+    #: run at the increment of the whole
+    stop_after: int = 0
     visual: bool = True
     out_dir: str = "results/isotropic"
 
@@ -414,7 +417,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         write_packing(packing, out / "packing.txt")
     try:
         if case.solver == "explicit":
-            total = solver.run(record, outputs=case.outputs)
+            total = solver.run(record, outputs=case.outputs, max_steps=case.stop_after or None)
         else:
             dt = case.duration / case.steps
             total = solver.run(StepControl(t_end=case.duration, dt=dt, dt_max=dt, dt_min=dt / 256),
@@ -431,6 +434,9 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
                          f"{history.path}, {kept}", step, solver.t, history.path,
                          last_checkpoint[0] or (Path(restart) if restart else None)) from err
     progress.close()
+    if case.stop_after:  # a benchmark's part of a run: no final outputs
+        return CompactionResult(history, packing, num_dofs, radii.size, time.perf_counter() - start, total, out,
+                                extra={"model": model, "solver": solver})
     if case.checkpoint_every and len(history.rows) % case.checkpoint_every != 0:
         write_checkpoint(solver)  # the final state (the chapter-4 reloads start from it)
     history.write()

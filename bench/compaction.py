@@ -1,0 +1,128 @@
+"""Cost of a granular compaction step, split by phase (issue 8, SPEC §11).
+
+    python bench/compaction.py                                   # 50 particles, CLP, 200 increments
+    python bench/compaction.py --particles 50 --bc GDF --steps 200
+    python bench/compaction.py --particles 50 --bc CLP --full    # the whole run to --target-density
+    mpirun -n 2 python bench/compaction.py --particles 350 --bc GDF
+
+Short mode (default): the compaction of the reference case (isotropic, lead, thesis table 2.1,
+explicit with the increment of a full ``--increments`` run) is built, then ``--steps`` increments
+are timed from a state already in contact (``--warmup`` increments first, not timed), so the
+figure is the cost per step of the contact-rich part of a run. Full mode: the whole run.
+
+Prints one JSON object: case, dofs, particles in the model, nodes per particle, steps, wall_s
+(timed part), s_per_step, us_per_dof_step, phases (s: material, assembly, contact_search,
+contact_forces, constraints, update, mass_scaling, output; plus setup), their shares, peak
+resident memory (MB, max and sum over ranks), rho reached and the number of ranks.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import sys
+import tempfile
+import time
+
+from mpi4py import MPI
+
+import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
+from mpfem_fenicsx.constraints.granular import KINDS
+from mpfem_fenicsx.meshes.cubesphere import unit_ball_hex
+from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
+
+
+def divisions_for(nodes: int) -> tuple[int, int]:
+    """Cube-sphere inner-cube divisions (4 shell layers, as the compaction meshes) whose node
+    count is closest to ``nodes``."""
+    counts = {d: unit_ball_hex(d, 4).num_nodes for d in range(2, 13)}
+    best = min(counts, key=lambda d: abs(counts[d] - nodes))
+    return best, counts[best]
+
+
+def main(argv=None) -> dict:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--particles", type=int, default=50)
+    p.add_argument("--bc", choices=KINDS, default="CLP")
+    p.add_argument("--solver", choices=("explicit",), default="explicit",
+                   help="explicit (the implicit granular solver is experimental)")
+    p.add_argument("--steps", type=int, default=200, help="timed increments (short mode)")
+    p.add_argument("--warmup", type=int, default=None,
+                   help="untimed increments before (default: 55 %% of --increments, contacts established)")
+    p.add_argument("--increments", type=int, default=4000, help="increments of the whole run (sets dt)")
+    p.add_argument("--full", action="store_true", help="time the whole run to --target-density")
+    p.add_argument("--nodes-per-particle", type=int, default=517,
+                   help="cube-sphere resolution (closest count: 517 = default, thesis ~560)")
+    p.add_argument("--target-density", type=float, default=0.95)
+    p.add_argument("--seed", type=int, default=1)
+    args = p.parse_args(argv)
+    comm = MPI.COMM_WORLD
+
+    divisions, nodes = divisions_for(args.nodes_per_particle)
+    out = tempfile.mkdtemp(prefix="mpfem-bench-") if comm.rank == 0 else None
+    out = comm.bcast(out)
+    base = dict(particles=args.particles, bc=args.bc, solver=args.solver, seed=args.seed,
+                target_density=args.target_density, increments=args.increments, divisions=divisions,
+                visual=False, checkpoint_every=0, out_dir=out)
+    quiet = lambda *a, **k: None  # noqa: E731
+    warmup = 0 if args.full else (int(0.55 * args.increments) if args.warmup is None else args.warmup)
+    start = time.perf_counter()
+    if args.full:
+        case = CompactionCase(**base, outputs=40)
+        res = run_compaction(case, comm, log=quiet)
+        timed_steps = res.extra["solver"].step
+        solver = res.extra["solver"]
+        phases = dict(solver.timings)
+        wall = time.perf_counter() - start
+        setup = wall - sum(phases.values())
+    else:
+        # build + warm-up to the contact-rich state, then the timed increments (outputs: none in
+        # between, one at the end to include the homogenization's cost once)
+        every = args.increments // 40  # 40 outputs: rho and contacts known at the end of the warm-up
+        warmup = max(every, warmup // every * every)
+        case = CompactionCase(**base, outputs=40, stop_after=warmup)
+        res = run_compaction(case, comm, log=quiet)
+        solver = res.extra["solver"]
+        setup = time.perf_counter() - start
+        before = dict(solver.timings)
+        comm.Barrier()
+        t0 = time.perf_counter()
+        step0 = solver.step
+        solver.run(None, max_steps=args.steps)
+        comm.Barrier()
+        wall = time.perf_counter() - t0
+        timed_steps = solver.step - step0
+        phases = {k: v - before.get(k, 0.0) for k, v in solver.timings.items()}
+        phases.pop("output", None)
+    phases = {k: comm.allreduce(v, op=MPI.MAX) for k, v in phases.items()}
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # MB (Linux: KB)
+    rho = float(res.history.column("rho")[-1]) if res.history.rows else float("nan")
+    result = {
+        "case": f"{args.particles} particles, {args.bc}, isotropic, {args.solver}",
+        "mode": "full" if args.full else "short",
+        "ranks": comm.size,
+        "particles_in_model": res.num_particles_model,
+        "nodes_per_particle": nodes,
+        "dofs": res.num_dofs,
+        "free_dofs": res.extra["model"].bcs.constraint.num_reduced_global,
+        "increments_of_run": args.increments,
+        "steps": timed_steps,
+        "wall_s": round(wall, 3),
+        "setup_s": round(setup, 3),
+        "s_per_step": wall / max(timed_steps, 1),
+        "us_per_dof_step": 1e6 * wall / max(timed_steps, 1) / res.num_dofs,
+        "phases_s": {k: round(v, 4) for k, v in sorted(phases.items())},
+        "phase_share": {k: round(v / wall, 4) for k, v in sorted(phases.items())},
+        "peak_rss_mb_max": round(comm.allreduce(rss, op=MPI.MAX), 1),
+        "peak_rss_mb_sum": round(comm.allreduce(rss, op=MPI.SUM), 1),
+        "rho": rho,
+    }
+    if comm.rank == 0:
+        print(json.dumps(result))
+        sys.stdout.flush()
+    return result
+
+
+if __name__ == "__main__":
+    main()
