@@ -272,6 +272,9 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     if restart is not None:
         restart = resolve_checkpoint(restart)
         meta = read_meta(restart)
+        if meta.get("num_ranks") != comm.size:  # before building anything
+            raise CheckpointError(f"restart: the checkpoint was written by {meta.get('num_ranks')} MPI ranks; "
+                                  f"restart it with mpirun -n {meta.get('num_ranks')} (this run has {comm.size})")
         if case.packing is None and case.packing_file is None:  # the checkpoint's own packing
             pk = meta["packing"]
             case.packing = Packing(pk["cell"], pk["centres"], pk["radii"])
