@@ -14,7 +14,8 @@ History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C)
 - sigma_m, sigma_d, sigma_tilde_d: Love-Weber invariants (eq. 2.6, 2.10-2.11, 4.1-4.2; compression
   > 0); F11..F33 (least squares), sigma11..sigma33 (Love-Weber tensor, compression > 0, counted
   by the appendix-C rules), sigma_schmidt_11..33 (CLP/CLPS: from the constraint reactions
-  conjugate to F0, P = R / V0, sigma = P F0^T / det F0, eq. 2.19, compression > 0; empty
+  conjugate to F0, P = R / V0, sigma = P F0^T / det F0, eq. 2.19, compression > 0; explicit: R
+  = f_int + f_bv - f_c, the medium's forces without the relaxation damping and inertia; empty
   otherwise);
 - n_contacts (contacting particle pairs); Gamma = S / (V0 det F) (mm^-1, eq. 4.13, S the contact
   area, one per pair);
@@ -384,7 +385,9 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         gamma = specific_contact_surface(pf["area"], cell_volume0, F, weights)
         sigma_s = np.full((3, 3), np.nan)
         if periodic:  # Schmidt: reactions conjugate to F0 (auxiliary nodes), eq. 2.14
-            sigma_s = piola_to_cauchy(bcs.macroscopic_force(s.reaction) / cell_volume0, F0)
+            # explicit: the medium's forces only (damping and inertia of the pseudo-dynamics out)
+            reaction = s.static_reaction if case.solver == "explicit" else s.reaction
+            sigma_s = piola_to_cauchy(bcs.macroscopic_force(reaction) / cell_volume0, F0)
         if case.solver == "explicit":
             e = s.energies
             energies = dict(E_int=e.internal, E_el=e.elastic, E_p=e.plastic, E_contact=e.contact,
