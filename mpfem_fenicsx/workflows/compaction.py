@@ -42,7 +42,7 @@ from ..homogenization import (branch_vectors, contact_weights, dissipated_energy
                               rendulic_strain, rendulic_stress, solid_volume, specific_contact_surface,
                               strain_invariants, stress_invariants)
 from ..io import History
-from ..io.checkpoint import (CheckpointError, checkpoint_path, load_checkpoint, prune_checkpoints, read_meta,
+from ..io.checkpoint import (CheckpointError, checkpoint_path, load_checkpoint, prune_checkpoints,
                              resolve_checkpoint, save_checkpoint)
 from ..io.fields import CellFields, ParaViewWriter
 from ..io.plots import plot_loading_path
@@ -272,10 +272,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     meta = None
     if restart is not None:
         restart = resolve_checkpoint(restart)
-        meta = read_meta(restart)
-        if meta.get("num_ranks") != comm.size:  # before building anything
-            raise CheckpointError(f"restart: the checkpoint was written by {meta.get('num_ranks')} MPI ranks; "
-                                  f"restart it with mpirun -n {meta.get('num_ranks')} (this run has {comm.size})")
+        arrays, meta = load_checkpoint(restart, comm)  # checks the number of ranks before any build
         if case.packing is None and case.packing_file is None:  # the checkpoint's own packing
             pk = meta["packing"]
             case.packing = Packing(pk["cell"], pk["centres"], pk["radii"])
@@ -330,7 +327,6 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     last_checkpoint = [None]
     wall_offset = 0.0
     if meta is not None:  # restart: model, solver, history and clocks as they were
-        arrays, meta = load_checkpoint(restart, comm)
         if meta["num_dofs"] != num_dofs or meta["solver"] != case.solver or meta["bc"] != case.bc:
             raise CheckpointError(f"restart: {restart} was written for another model ({meta['num_dofs']} dofs, "
                                   f"{meta['solver']}, {meta['bc']}; this case: {num_dofs} dofs, {case.solver}, {case.bc})")
