@@ -201,30 +201,37 @@ class ParticleVolumes:
 
 
 class ParticleCentroids:
-    """Current centroid (mm) of each particle, int_p (X + u) J dX / int_p J dX (compiled once)."""
+    """Current centroid (mm) of each particle, int_p (X + u) J dX / int_p J dX (compiled once).
+
+    One assembly of a 4-component DG0 form gives the three first moments and the volumes
+    together (the geometry and grad u are evaluated once per cell, not once per moment);
+    :attr:`volumes` keeps the particle volumes (mm^3) of the last call.
+    """
 
     def __init__(self, assembly: ParticleAssembly, u: dolfinx.fem.Function):
         mesh = assembly.mesh
-        V0 = dolfinx.fem.functionspace(mesh, ("DG", 0))
-        w = ufl.TestFunction(V0)
+        W = dolfinx.fem.functionspace(mesh, ("DG", 0, (4,)))
+        w = ufl.TestFunction(W)
         x = ufl.SpatialCoordinate(mesh) + u
         J = ufl.det(ufl.Identity(3) + ufl.grad(u))
         dx = ufl.dx(domain=mesh, metadata={"quadrature_degree": 4})
-        self._forms = [dolfinx.fem.form(x[d] * J * w * dx) for d in range(3)] + [dolfinx.fem.form(J * w * dx)]
+        moments = ufl.as_vector([x[0] * J, x[1] * J, x[2] * J, J])
+        self._form = dolfinx.fem.form(ufl.inner(moments, w) * dx)
         owned = mesh.topology.index_map(mesh.topology.dim).size_local
-        self._dofs = V0.dofmap.list[:owned, 0]
+        self._dofs = W.dofmap.list[:owned, 0]
         self._pid = assembly.cell_tags.values[:owned]
         self._n = assembly.num_particles
         self._comm = mesh.comm
-        self._vec = dolfinx.fem.Function(V0)
+        self._vec = dolfinx.fem.Function(W)
+        self.volumes = np.zeros(self._n)
 
     def __call__(self) -> np.ndarray:
-        sums = np.zeros((4, self._n))
-        for k, form in enumerate(self._forms):
-            self._vec.x.array[:] = 0.0
-            dolfinx.fem.assemble_vector(self._vec.x.array, form)
-            sums[k] = np.bincount(self._pid, weights=self._vec.x.array[self._dofs], minlength=self._n)
+        self._vec.x.array[:] = 0.0
+        dolfinx.fem.assemble_vector(self._vec.x.array, self._form)
+        cell_moments = self._vec.x.array.reshape(-1, 4)[self._dofs]
+        sums = np.stack([np.bincount(self._pid, weights=cell_moments[:, k], minlength=self._n) for k in range(4)])
         sums = self._comm.allreduce(sums, op=MPI.SUM)
+        self.volumes = sums[3].copy()
         return (sums[:3] / sums[3]).T
 
 

@@ -41,12 +41,10 @@ def parser(loading: str, doc: str) -> argparse.ArgumentParser:
     return p
 
 
-def main(loading: str, doc: str, argv=None) -> None:
-    args = parser(loading, doc).parse_args(argv)
-    comm = MPI.COMM_WORLD
-    say = print if comm.rank == 0 else (lambda *a, **k: None)
+def case_from_args(args: argparse.Namespace, loading: str) -> CompactionCase:
+    """The compaction case of parsed :func:`parser` arguments (exits with a one-line error on bad input)."""
     try:
-        case = CompactionCase(particles=args.particles, target_density=args.target_density, loading=loading,
+        return CompactionCase(particles=args.particles, target_density=args.target_density, loading=loading,
                               bc=args.bc, images=args.images, solver=args.solver, seed=args.seed,
                               packing_file=args.packing, packing_fraction=args.packing_fraction, d_bc=args.d_bc,
                               gamma=args.gamma, friction=args.friction, increments=args.increments, steps=args.steps,
@@ -54,6 +52,13 @@ def main(loading: str, doc: str, argv=None) -> None:
                               checkpoint_every=args.checkpoint_every, out_dir=args.out)
     except ValueError as err:
         raise SystemExit(f"error: {err}")
+
+
+def main(loading: str, doc: str, argv=None) -> None:
+    args = parser(loading, doc).parse_args(argv)
+    comm = MPI.COMM_WORLD
+    say = print if comm.rank == 0 else (lambda *a, **k: None)
+    case = case_from_args(args, loading)
     start = time.perf_counter()
     try:
         res = run_compaction(case, comm, log=say, restart=args.restart, progress=Progress(comm))

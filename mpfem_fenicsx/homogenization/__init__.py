@@ -39,6 +39,7 @@ from .stress import (
     schmidt_stress,
     second_order_work,
     stress_invariants,
+    uniaxial_strengths,
 )
 
 __all__ = [
@@ -68,4 +69,5 @@ __all__ = [
     "specific_contact_surface",
     "strain_invariants",
     "stress_invariants",
+    "uniaxial_strengths",
 ]

@@ -250,8 +250,10 @@ def dissipated_energy(plastic, frictional):
     return np.asarray(plastic, dtype=float) + np.asarray(frictional, dtype=float)
 
 
-def first_crossing(indicator, level, *series, rising: bool = True):
-    """First crossing of ``level`` by ``indicator`` (T,) and the series linearly interpolated there.
+def first_crossing(indicator, level, *series, rising: bool = True, last: bool = False):
+    """First crossing of ``level`` by ``indicator`` (T,) and the series linearly interpolated there
+    (``last``: the latest crossing instead, e.g. an iso-Gamma threshold on a non-monotonic Gamma,
+    thesis §4.3: "le seuil le plus tardif").
 
     Used for the thesis ch. 4 thresholds: yield (iso-dissipation, E_d reaching E_0 (1 + 0.3 %),
     §4.2.2, rising), damage (iso-Gamma, falling) and Hill's rupture (W2 <= threshold, falling).
@@ -272,6 +274,32 @@ def first_crossing(indicator, level, *series, rising: bool = True):
             raise ValueError(f"series of length {s.shape[:1]} do not match the indicator ({g.size})")
     if hits.size == 0:
         return (np.nan, *[np.full(s.shape[1:], np.nan) for s in arrays])
-    k = int(hits[0])
+    k = int(hits[-1] if last else hits[0])
     theta = -g[k] / (g[k + 1] - g[k])
     return (k + theta, *[(1 - theta) * s[k] + theta * s[k + 1] for s in arrays])
+
+
+def uniaxial_strengths(sigma_m, sigma_tilde_d):
+    """Uniaxial compressive and tensile strengths (MPa, > 0) of a closed surface in the Rendulic
+    plane: its intersections with the uniaxial line sigma~_d = 3 sigma_m (thesis §4.4-4.5; a
+    uniaxial stress s along axis I gives sigma_m = s / 3, sigma~_d = s).
+
+    ``sigma_m``, ``sigma_tilde_d`` (N,): the polygon's vertices in order (reported convention,
+    compression > 0), closed implicitly (last -> first). Returns (compressive, tensile): the
+    value |sigma~_d| at the intersection with sigma_m > 0 farthest from the origin, and at the one
+    with sigma_m < 0; NaN where the line does not cross the polygon on that side.
+    """
+    p = np.asarray(sigma_m, dtype=float).ravel()
+    q = np.asarray(sigma_tilde_d, dtype=float).ravel()
+    if p.shape != q.shape or p.size < 3:
+        raise ValueError(f"a closed surface needs >= 3 vertices of (sigma_m, sigma_tilde_d), got {p.size}")
+    g = q - 3.0 * p  # signed distance (up to a factor) to the uniaxial line
+    g1, p1, q1 = np.roll(g, -1), np.roll(p, -1), np.roll(q, -1)
+    cross = (g == 0) | (g * g1 < 0)
+    theta = np.where(g1 != g, g / np.where(g1 != g, g - g1, 1.0), 0.0)
+    ps = p + theta * (p1 - p)
+    qs = q + theta * (q1 - q)
+    ps, qs = ps[cross], qs[cross]
+    compressive = float(np.max(qs[ps > 0])) if np.any(ps > 0) else np.nan
+    tensile = float(-np.min(qs[ps < 0])) if np.any(ps < 0) else np.nan
+    return compressive, tensile

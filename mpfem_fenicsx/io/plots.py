@@ -56,3 +56,68 @@ def plot_loading_path(history_csv: str | Path, png: str | Path, title: str = "")
     fig.savefig(png, dpi=110)
     plt.close(fig)
     return png
+
+
+def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surfaces_csv: str | Path,
+                       png: str | Path, title: str = "") -> Path:
+    """Draw a chapter-4 fan in the style of thesis fig. 4.5 / 4.7 / 4.18: (a) strain paths
+    (h_v, h~_d) of the loading, the unload and the reloads; (b) stress paths (sigma_m, sigma~_d)
+    with the yield surface (iso-dissipation), the iso-Gamma curves, Hill's W2 <= 0 points and the
+    uniaxial line sigma~_d = 3 sigma_m. Stresses compression > 0, strains natural sign."""
+    import csv
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    path = read_csv(unload_history_csv)
+    fan = read_csv(fan_csv)
+    surfaces: dict[str, list[tuple[float, float, float]]] = {}
+    with open(surfaces_csv) as fh:
+        for row in csv.DictReader(fh):
+            surfaces.setdefault(row["kind"], []).append(
+                (float(row["phi"]), float(row["sigma_m"]), float(row["sigma_tilde_d"])))
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5.6), constrained_layout=True)
+    for ax, (x, y) in zip(axes, (("h_v", "h_tilde_d"), ("sigma_m", "sigma_tilde_d"))):
+        ax.plot(path[x], path[y], "k.-", ms=3, lw=1.2, label="loading + isotropic unload")
+        for phi in np.unique(fan["phi"]):
+            rows = fan["phi"] == phi
+            ax.plot(fan[x][rows], fan[y][rows], "-", lw=0.8, color=plt.cm.hsv(phi / (2 * np.pi)))
+        ax.grid(alpha=0.3)
+    # zoom on the unload and the reloads (the loading path runs far off to the left)
+    near = np.r_[fan["h_v"], path["h_v"][-1:]], np.r_[fan["h_tilde_d"], path["h_tilde_d"][-1:]]
+    for lim, values in zip((axes[0].set_xlim, axes[0].set_ylim), near):
+        lo, hi = np.nanmin(values), np.nanmax(values)
+        pad = 0.15 * max(hi - lo, 1e-6)
+        lim(lo - pad, hi + pad)
+    axes[0].set_xlabel("h_v (-)")
+    axes[0].set_ylabel("h~_d (-)")
+    axes[0].set_title("(a) strain paths near the unloaded state (reload colour = phi)")
+    ax = axes[1]
+    styles = {"yield": ("o-", "tab:red", "yield (iso-dissipation)"), "w2": ("x", "tab:purple", "Hill W2 <= 0")}
+    greys = iter(plt.cm.Blues(np.linspace(0.45, 0.95, max(1, len(surfaces)))))
+    for kind, pts in surfaces.items():
+        p = np.array(sorted(pts))
+        if kind.startswith("gamma_"):
+            marker, colour, label = "s--", next(greys), f"Gamma = {kind[6:]} 1/mm"
+        else:
+            marker, colour, label = styles[kind]
+        closed = np.vstack([p, p[:1]]) if kind != "w2" and len(p) > 2 else p
+        ax.plot(closed[:, 1], closed[:, 2], marker, color=colour, ms=4, lw=1.4, label=label)
+    lim = np.nanmax(np.abs(np.r_[fan["sigma_m"], path["sigma_m"]]))
+    s = np.linspace(-lim / 3, lim / 3, 2)
+    ax.plot(s, 3 * s, ":", color="0.4", lw=1, label="uniaxial sigma~_d = 3 sigma_m")
+    ax.axhline(0.0, color="0.6", lw=0.8)
+    ax.axvline(0.0, color="0.6", lw=0.8)
+    ax.set_xlabel("sigma_m (MPa, compression > 0)")
+    ax.set_ylabel("sigma~_d = sigma_I - (sigma_II + sigma_III)/2 (MPa)")
+    ax.set_title("(b) Rendulic plane (axis I = z)")
+    ax.legend(fontsize=8, loc="best")
+    if title:
+        fig.suptitle(title)
+    png = Path(png)
+    png.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    return png

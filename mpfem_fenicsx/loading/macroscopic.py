@@ -36,6 +36,30 @@ def compaction_gradient(path: str, rho_initial: float, rho_target: float) -> np.
     return np.diag([1.0, 1.0, ratio])
 
 
+def unload_gradient(h_v: float) -> np.ndarray:
+    """Isotropic increment gradient F^d = exp(h_v / 3) I of volumetric Hencky strain ``h_v``
+    (natural sign: h_v > 0 unloads a compact by expansion). The thesis writes it
+    1 + zeta (1 - tr F^c) with zeta found by trial (eq. 4.7); the yield-surface workflow instead
+    finds h_v for a prescribed residual mean stress."""
+    return np.exp(h_v / 3.0) * np.eye(3)
+
+
+def reload_gradient(phi: float, amplitude: float, axis: int = 2) -> np.ndarray:
+    """Reload increment gradient F^r = diag(exp h^r) of thesis eq. 4.8-4.9 in direction ``phi`` (rad)
+    of the Rendulic strain plane, axis I = ``axis`` (default z, the die axis):
+    h_I = -A (cos phi / 3 + sin phi), h_II = h_III = -A (cos phi / 3 - sin phi / 2), so that the
+    compression-positive volumetric and signed deviatoric strains are A cos phi and A sin phi
+    (h_v = -A cos phi, h~_d = -A sin phi in the natural sign of the histories): phi = 0 is
+    isotropic compression, pi isotropic expansion, pi / 2 axial compression at constant volume."""
+    if not amplitude > 0:
+        raise ValueError(f"reload amplitude A must be > 0, got {amplitude}")
+    if axis not in (0, 1, 2):
+        raise ValueError(f"axis must be 0, 1 or 2, got {axis}")
+    h = np.full(3, -amplitude * (np.cos(phi) / 3.0 - np.sin(phi) / 2.0))
+    h[axis] = -amplitude * (np.cos(phi) / 3.0 + np.sin(phi))
+    return np.diag(np.exp(h))
+
+
 @dataclass
 class GradientPath:
     """Piecewise smooth-step path of the macroscopic gradient, F0(0) = I (or ``start``).

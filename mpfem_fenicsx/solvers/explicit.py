@@ -548,13 +548,18 @@ class ExplicitSolver:
             self.contact.evaluate(self.problem.u, tangent=False)
 
     def run(self, on_output: Callable[["ExplicitSolver"], None] | None = None, outputs: int = 100,
-            max_steps: int | None = None) -> int:
-        """Integrate to settings.t_end; ``on_output`` about ``outputs`` times, and at the end.
-        ``max_steps``: stop after so many increments of this call (benchmarks: the cost of a part
-        of a run with the increment of the whole)."""
+            max_steps: int | None = None, every: int | None = None) -> int:
+        """Integrate to settings.t_end; ``on_output`` about ``outputs`` times (or every ``every``
+        increments, counted from t = 0), and at the end. ``max_steps``: stop after so many
+        increments of this call (benchmarks: the cost of a part of a run with the increment of
+        the whole)."""
         total = int(np.ceil(self.settings.t_end / self.dt - 1e-9))
-        every = max(1, total // max(outputs, 1))
-        self.dt = self.settings.t_end / total
+        every = every or max(1, total // max(outputs, 1))
+        target = self.settings.target_dt
+        # a path made of whole increments keeps the target increment itself (a run split into
+        # stages, e.g. load -> checkpoint -> unload -> reload, then steps exactly as the whole)
+        exact = target is not None and abs(total * target - self.settings.t_end) <= 1e-9 * self.settings.t_end
+        self.dt = target if exact else self.settings.t_end / total
         stop = total if max_steps is None else min(total, self.step + max_steps)
         while self.step < stop:
             self.advance()

@@ -99,6 +99,10 @@ class CompactionCase:
     penalty_factor: float = 10.0  # k = factor E / h (contact.laws.default_penalty)
     duration: float = 1e-3  # s of (mass-scaled) loading time
     increments: int = 4000
+    #: further segments of the macroscopic path after the compaction, ((duration s, increment
+    #: gradient G (3, 3)), ...): e.g. the unload F^d and a reload F^r of thesis eq. 4.7-4.9. Explicit
+    #: runs keep the compaction's increment duration / increments (make durations multiples of it)
+    segments_after: tuple = ()
     #: relaxation damping of each particle's rigid motion relative to the imposed homogeneous
     #: flow, in units of 1 / duration (ExplicitSettings.damping); dissipation = history's E_damp
     damping: float = 100.0
@@ -107,6 +111,8 @@ class CompactionCase:
     #: state (V_i nodal volume, h contact element size): holds particles before contact
     regularization: float = 0.05
     outputs: int = 40
+    #: explicit: a history row every so many increments (0: ``outputs`` rows over the whole path)
+    output_every: int = 0
     #: write a checkpoint every so many outputs (and at the end) into out_dir/checkpoints; 0: never
     checkpoint_every: int = 10
     checkpoint_keep: int = 2  # newest checkpoints kept (0: all)
@@ -141,6 +147,8 @@ class CompactionCase:
             raise ValueError(f"increments must be >= 10, got {self.increments}")
         if self.outputs < 1:
             raise ValueError(f"outputs must be >= 1, got {self.outputs}")
+        if self.output_every < 0:
+            raise ValueError(f"output_every must be >= 0 increments (0: from outputs), got {self.output_every}")
         if self.checkpoint_keep < 0:
             raise ValueError(f"checkpoint_keep must be >= 0 (0: keep all), got {self.checkpoint_keep}")
         if self.checkpoint_every < 0:
@@ -205,6 +213,12 @@ class CompactionModel:
         return np.any(self.shift != 0, axis=1)
 
 
+def loading_path(case: CompactionCase, rho0: float) -> GradientPath:
+    """F0(t): the compaction from ``rho0`` to the target density, then ``case.segments_after``."""
+    return GradientPath([(case.duration, compaction_gradient(case.loading, rho0, case.target_density)),
+                         *case.segments_after])
+
+
 def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> CompactionModel:
     """Packing, duplicated particles, mesh, bulk problem, constraints and contact of a case."""
     packing = _packing(case)
@@ -239,8 +253,7 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
 
     volumes = ParticleVolumes(assembly, problem.u)
     rho0_fe = float(volumes()[:n].sum()) / float(np.prod(packing.cell))
-    F_target = compaction_gradient(case.loading, rho0, case.target_density)
-    path = GradientPath([(case.duration, F_target)])
+    path = loading_path(case, rho0)
 
     h_contact = float(radii.min()) * np.pi / (8 * case.refinement)
     law = ContactLaw(penalty=default_penalty(case.material.E, h_contact, case.penalty_factor),
@@ -259,12 +272,16 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
 
 
 def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print, *,
-                   restart: str | Path | None = None, progress: Progress | None = None) -> CompactionResult:
+                   restart: str | Path | None = None, progress: Progress | None = None,
+                   model: CompactionModel | None = None) -> CompactionResult:
     """Compact the volume to ``case.target_density``; see the module docstring for outputs.
 
     ``restart``: a checkpoint directory written by an earlier run of the same case (same
     packing, mesh and number of ranks): the run continues from it and reproduces the
-    uninterrupted one (explicit: bit for bit). Checkpoints go to ``out_dir/checkpoint`` every
+    uninterrupted one (explicit: bit for bit). ``model``: a model built earlier for the same
+    packing, mesh and contact settings on ``comm`` (a fan of reloads restarts one checkpoint many
+    times; only the path of ``case`` and its outputs may differ), whose state the restart
+    overwrites. Checkpoints go to ``out_dir/checkpoint`` every
     ``case.checkpoint_every`` outputs and at the end. A diverging or non-converging run raises
     :class:`RunFailure` after writing its history so far; the last good checkpoint stays."""
     start = time.perf_counter()
@@ -276,7 +293,13 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         if case.packing is None and case.packing_file is None:  # the checkpoint's own packing
             pk = meta["packing"]
             case.packing = Packing(pk["cell"], pk["centres"], pk["radii"])
-    model = build_compaction(case, comm, log)
+    if model is None:
+        model = build_compaction(case, comm, log)
+    else:  # reuse: only the path changes (the restart then restores every state variable)
+        if restart is None:
+            raise ValueError("run_compaction: a reused model needs a restart checkpoint")
+        model.case = case
+        model.path = model.bcs.gradient = loading_path(case, model.rho0)
     packing, problem, bcs, contact, path = model.packing, model.problem, model.bcs, model.contact, model.path
     assembly, volumes, radii = model.assembly, model.volumes, model.radii
     V = problem.V
@@ -288,7 +311,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     num_dofs = V.dofmap.index_map.size_global * 3
     implicit_plastic = [0.0]
     if case.solver == "explicit":
-        settings = ExplicitSettings(t_end=case.duration, target_dt=case.duration / case.increments,
+        settings = ExplicitSettings(t_end=path.duration, target_dt=case.duration / case.increments,
                                     damping=case.damping / case.duration)
 
         # every particle is carried by the imposed flow (comoving constraints): the damping relaxes
@@ -300,7 +323,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         log(f"model: {radii.size} particles, {num_dofs} dofs ({bcs.constraint.num_reduced_global} free), "
             f"rho0 = {rho0:.4f} (finite elements {model.rho0_fe:.4f}) -> {case.target_density}, dt = {solver.dt:.3g} s "
             f"(unscaled {solver.dt_stable_unscaled:.3g} s), {case.increments} increments")
-        total_steps = case.increments
+        total_steps = int(np.ceil(path.duration / settings.target_dt - 1e-9))
     else:
         log("WARNING: implicit granular compaction is experimental: with the pseudo-time drag the free "
             "particles are solvable, but Newton needs many cut-backs once contacts yield (tested on an "
@@ -388,12 +411,12 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
             e = s.energies
             energies = dict(E_int=e.internal, E_el=e.elastic, E_p=e.plastic, E_contact=e.contact,
                             E_c=e.kinetic, E_visc=e.viscous, E_damp=e.damping, W_ext=e.external)
-            fraction, step = s.step / case.increments, s.step
+            fraction, step = s.step / total_steps, s.step
         else:  # quasi-static: no kinetic / viscous energy; E_damp = the regularization's work
             implicit_plastic[0] += problem.plastic_dissipation_increment()
             energies = dict(E_int=np.nan, E_el=problem.stored_energy(), E_p=implicit_plastic[0],
                             E_contact=np.nan, E_c=0.0, E_visc=0.0, E_damp=s.regularization_work, W_ext=np.nan)
-            fraction, step = s.t / case.duration, len(history.rows) + 1
+            fraction, step = s.t / path.duration, len(history.rows) + 1
         if not (np.isfinite(rho) and np.isfinite(sigma_lw).all() and np.isfinite(energies["E_p"])):
             raise FloatingPointError(f"non-finite state at step {step} (t={s.t:.4g} s): rho={rho}, "
                                      f"sigma_m={sigma_m}")
@@ -401,7 +424,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         energies["E_d"] = float(dissipated_energy(energies["E_p"], energies["E_f"]))
         wall = wall_offset + time.perf_counter() - start
         history.append(time=s.t, rho=rho, rho_imposed=relative_density(solid0, cell_volume0, F0),
-                       rho_fe=float(volumes()[:n].sum()) / volume, h_v=h_v, h_d=h_d, h_tilde_d=h_tilde_d,
+                       rho_fe=float(centroids.volumes[:n].sum()) / volume, h_v=h_v, h_d=h_d, h_tilde_d=h_tilde_d,
                        sigma_m=sigma_m, sigma_d=sigma_d, sigma_tilde_d=sigma_tilde_d,
                        **{f"F{c}": v for c, v in zip(comps, F.ravel())},
                        **{f"sigma{c}": v for c, v in zip(comps, -sigma_lw.ravel())},
@@ -419,10 +442,11 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         write_packing(packing, out / "packing.txt")
     try:
         if case.solver == "explicit":
-            total = solver.run(record, outputs=case.outputs, max_steps=case.stop_after or None)
+            total = solver.run(record, outputs=case.outputs, every=case.output_every or None,
+                               max_steps=case.stop_after or None)
         else:
             dt = case.duration / case.steps
-            total = solver.run(StepControl(t_end=case.duration, dt=dt, dt_max=dt, dt_min=dt / 256),
+            total = solver.run(StepControl(t_end=path.duration, dt=dt, dt_max=dt, dt_min=dt / 256),
                                on_step=record, log=log)
     except (FloatingPointError, NonConvergence) as err:
         progress.close()

@@ -1,0 +1,67 @@
+"""Yield, damage and rupture surfaces of a compacted periodic volume (thesis chapter 4).
+
+    python demos/yield_surface.py                                  # small default (~10 min on 2 cores)
+    mpirun -n 2 python demos/yield_surface.py                      # two reloads at a time
+    python demos/yield_surface.py --loading die --target-density 0.85 --gamma 1e-3 --nphi 24
+
+Load (isotropic or die) to --target-density, unload isotropically until the mean stress is a
+small fraction of its loaded value, checkpoint, then reload in --nphi directions phi of the
+Rendulic strain plane (h_v = A cos phi, h~_d = A sin phi, compression > 0, A = 1.5 |h_v(unload)|,
+thesis eq. 4.7-4.9), each reload restarted from the checkpoint with its contact history
+(adhesion alpha, stick anchors) intact. Thresholds along each reload give the yield surface
+(E_d = E_0 (1 + 0.3 %)), iso-Gamma damage curves and Hill's W2 <= 0 rupture points.
+
+Outputs in --out (default results/yield_surface/): fan.csv (phi, sigma_m, sigma_tilde_d, h_v,
+h_tilde_d, E_d, Gamma, W2 per reload output), surfaces.csv (kind, phi, sigma_m, sigma_tilde_d;
+kind = yield | gamma_<value> | w2), uniaxial.csv (uniaxial compressive / tensile strength of
+each closed surface), yield_surface.png, and load/, unload/, reload_<k>/ with their histories.
+Stresses in MPa, compression > 0.
+"""
+
+import sys
+
+from mpi4py import MPI
+
+from mpfem_fenicsx.cli.compaction import case_from_args, parser
+from mpfem_fenicsx.workflows.compaction import RunFailure
+from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase, run_yield_surface
+
+# the small default: 24 particles compacted to rho = 0.80, 16 reloads
+DEFAULTS = dict(particles=24, target_density=0.80, increments=2000, gamma=1e-2, outputs=20)
+
+
+def main(argv=None) -> None:
+    p = parser("isotropic", __doc__)
+    p.set_defaults(out="results/yield_surface", **DEFAULTS)
+    p.add_argument("--loading", choices=("isotropic", "die"), default="isotropic", help="initial loading path")
+    p.add_argument("--nphi", type=int, default=16, help="reload directions in [0, 2 pi)")
+    p.add_argument("--unload-ratio", type=float, default=YieldSurfaceCase.unload_stress_ratio,
+                   help="unload until sigma_m = this fraction of its loaded value")
+    p.add_argument("--amplitude-factor", type=float, default=YieldSurfaceCase.amplitude_factor,
+                   help="reload amplitude A / |h_v(unload)| (thesis: 1.5)")
+    p.add_argument("--threshold", type=float, default=YieldSurfaceCase.dissipation_threshold,
+                   help="yield: relative increase of the dissipated energy (thesis: 0.003)")
+    p.add_argument("--gamma-thresholds", type=float, nargs="*", default=(),
+                   help="iso-Gamma levels (1/mm; default: 0.25..1 x Gamma after the unload)")
+    args = p.parse_args(argv)
+    comm = MPI.COMM_WORLD
+    say = print if comm.rank == 0 else (lambda *a, **k: None)
+    args.no_visual = True  # the stages write histories, the fan its own figure
+    base = case_from_args(args, args.loading)
+    try:
+        case = YieldSurfaceCase(base=base, nphi=args.nphi, unload_stress_ratio=args.unload_ratio,
+                                amplitude_factor=args.amplitude_factor, dissipation_threshold=args.threshold,
+                                gamma_thresholds=tuple(args.gamma_thresholds), out_dir=args.out)
+    except ValueError as err:
+        raise SystemExit(f"error: {err}")
+    try:
+        result = run_yield_surface(case, comm, log=say)
+    except RunFailure as err:
+        if comm.rank == 0:
+            print(f"error: {err}", file=sys.stderr)
+        raise SystemExit(3)
+    say(f"done in {result['wall_time']:.0f} s: {args.out}/fan.csv, surfaces.csv, uniaxial.csv, yield_surface.png")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,352 @@
+"""Yield, damage and rupture surfaces of a compacted granular volume (thesis chapter 4, SPEC §8).
+
+Stages (data flow: compaction -> unload -> checkpoint -> fan of reloads -> surfaces):
+1. **load**: the compaction of ``base`` (isotropic or die) to its target density, ending with
+   a checkpoint (``out/load``);
+2. **unload**: isotropic expansion F^d = exp(h_v^d / 3) I (eq. 4.7) from that checkpoint. The
+   thesis found the amplitude by trial (zeta = 0.01); here a probe unload (``out/unload_probe``)
+   records sigma_m against the imposed volumetric strain and h_v^d is interpolated where the
+   mean stress has dropped to ``unload_stress_ratio`` of its loaded value; the real unload
+   (``out/unload``) then ends at rest there, with a checkpoint. E_0 = E_d at its end;
+3. **reloads**: ``nphi`` directions phi_k = 2 pi k / nphi, F^r = diag(exp h^r) with
+   h_v = A cos phi, h~_d = A sin phi (compression > 0), A = ``amplitude_factor`` h_v^d
+   (eq. 4.8-4.9), each restarted from the unload checkpoint **with the contact history kept**
+   (alpha, sigma_max, stick anchors, W_f: unlike Abaqus in the thesis, no spurious dissipation
+   at the restart). Reloads are independent: under ``mpirun -n P`` each rank runs every P-th
+   direction on its own communicator (the load and unload run on rank 0 alone, since a
+   checkpoint restarts on the number of ranks that wrote it);
+4. **surfaces** (rank 0): yield where E_d first reaches E_0 (1 + ``dissipation_threshold``)
+   (iso-dissipation, §4.2.2); iso-Gamma points where the specific contact surface crosses each
+   threshold for the last time (§4.3, "le seuil le plus tardif"); Hill's rupture where the
+   second-order work W2 = dsigma : dh first becomes <= 0 (eq. 4.15); all interpolated linearly
+   in (sigma_m, sigma~_d) between history rows. Uniaxial compressive yield / tensile rupture
+   stresses are the intersections with sigma~_d = 3 sigma_m.
+
+Outputs in ``out_dir``: ``fan.csv`` (one row per reload output: phi, sigma_m, sigma_tilde_d,
+h_v, h_tilde_d, E_d, Gamma, W2), ``surfaces.csv`` (kind, phi, sigma_m, sigma_tilde_d; kind in
+yield | gamma_<value> | w2), ``uniaxial.csv`` (kind, compressive_MPa, tensile_MPa),
+``yield_surface.png`` and the stage directories with their histories and checkpoints.
+Units mm, N, MPa, mJ; reported stresses compression > 0, strains natural sign (h_v < 0 in
+compaction).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from ..homogenization import first_crossing, hencky_strain, second_order_work, uniaxial_strengths
+from ..io.history import read_csv
+from ..io.plots import plot_yield_surface
+from ..loading import reload_gradient, unload_gradient
+from ..meshes.packing import Packing
+from .compaction import CompactionCase, CompactionModel, build_compaction, run_compaction
+
+#: fan.csv columns (one row per reload output)
+FAN_COLUMNS = ("phi", "sigma_m", "sigma_tilde_d", "h_v", "h_tilde_d", "E_d", "Gamma", "W2")
+
+_FINAL_ONLY = 10 ** 9  # checkpoint_every that writes the final checkpoint only
+
+
+@dataclass
+class YieldSurfaceCase:
+    """A chapter-4 fan. ``base``: the loading stage (loading path, target density rho_f, gamma,
+    packing, increments, ...); its ``out_dir`` is ignored (stages go under ``out_dir``)."""
+
+    base: CompactionCase = field(default_factory=CompactionCase)
+    nphi: int = 16
+    #: the unload stops where sigma_m = this fraction of sigma_m at the end of the loading
+    unload_stress_ratio: float = 0.05
+    amplitude_factor: float = 1.5  # A = factor |h_v^d| (thesis: 1.5)
+    dissipation_threshold: float = 3e-3  # yield: E_d >= E_0 (1 + threshold) (thesis: 0.3 %)
+    #: iso-Gamma levels (1/mm); empty: 0.25, 0.5, 0.75 and 1.0 x Gamma at the end of the unload
+    gamma_thresholds: tuple = ()
+    #: explicit increments of a reload; 0: the compaction's strain rate slowed by ``slowdown``,
+    #: and at least ``min_increments`` (an elastic unload / reload is quasi-static only if it
+    #: lasts many elastic wave transits of the cell: ~10-20 increments per particle diameter)
+    reload_increments: int = 0
+    slowdown: float = 4.0
+    min_increments: int = 400
+    rows_per_reload: int = 40
+    w2_window: int = 7  # rows of the Savitzky-Golay derivatives of W2 (0: raw differences)
+    out_dir: str = "results/yield_surface"
+
+    def __post_init__(self):
+        if self.base.solver != "explicit":
+            raise ValueError(f"solver: the yield-surface fan runs with the explicit solver (bit-identical "
+                             f"restarts), got {self.base.solver!r}")
+        if self.base.bc not in ("CLP", "CLPS"):
+            raise ValueError(f"bc must be CLP or CLPS for a yield surface (periodic volume whose macroscopic "
+                             f"gradient is imposed), got {self.base.bc!r}")
+        if not 3 <= self.nphi <= 720:
+            raise ValueError(f"nphi must be in [3, 720] reload directions, got {self.nphi}")
+        if not 0.0 <= self.unload_stress_ratio < 1.0:
+            raise ValueError(f"unload_stress_ratio must be in [0, 1), got {self.unload_stress_ratio}")
+        if not 0.0 < self.amplitude_factor <= 20.0:
+            raise ValueError(f"amplitude_factor must be in (0, 20], got {self.amplitude_factor}")
+        if not 0.0 < self.dissipation_threshold < 1.0:
+            raise ValueError(f"dissipation_threshold must be in (0, 1), got {self.dissipation_threshold}")
+        if any(not g > 0 for g in self.gamma_thresholds):
+            raise ValueError(f"gamma_thresholds must be > 0 (1/mm), got {self.gamma_thresholds}")
+        if self.reload_increments < 0 or not self.slowdown > 0 or self.min_increments < 10:
+            raise ValueError("reload_increments must be >= 0 (0: automatic), slowdown > 0, min_increments >= 10")
+        if not 4 <= self.rows_per_reload <= 10000:
+            raise ValueError(f"rows_per_reload must be in [4, 10000], got {self.rows_per_reload}")
+
+    @property
+    def phis(self) -> np.ndarray:
+        return 2.0 * np.pi * np.arange(self.nphi) / self.nphi
+
+
+@dataclass
+class Unloaded:
+    """State after stages 1-2 (what every reload needs)."""
+
+    checkpoint: str  # unload checkpoint directory
+    segment: tuple  # (duration s, F^d) of the unload
+    h_v_unload: float  # imposed volumetric strain of the unload (> 0: expansion)
+    E_0: float  # dissipated energy at the end of the unload (mJ)
+    sigma_m_loaded: float  # MPa
+    sigma_m_unloaded: float  # MPa
+    Gamma_unloaded: float  # 1/mm
+    t_unloaded: float  # s
+    increments: int  # explicit increments of the unload
+    dt: float  # the compaction's increment (s)
+    packing: Packing  # the loaded volume's packing (every reload rebuilds the same model)
+
+
+def _last_checkpoint(directory: Path) -> str:
+    steps = sorted((directory / "checkpoints").glob("step*"))
+    if not steps:
+        raise RuntimeError(f"no checkpoint in {directory / 'checkpoints'}")
+    return str(steps[-1])
+
+
+def _imposed_expansion(h: dict, rho_imposed_ref: float) -> np.ndarray:
+    """Imposed volumetric strain since the reference row, > 0 in expansion: ln(rho_ref / rho)."""
+    return np.log(rho_imposed_ref / h["rho_imposed"])
+
+
+def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print) -> tuple[Unloaded, CompactionModel]:
+    """Stages 1-2 on ``comm``; returns the unload checkpoint and E_0, and the model (reused by
+    the probe, the unload and the reloads of this rank)."""
+    base, out = case.base, Path(case.out_dir)
+    dt = base.duration / base.increments
+    quiet = _quiet(log)
+    log(f"[load] {base.loading} compaction to rho = {base.target_density} ({base.increments} increments)")
+    loaded = run_compaction(replace(base, out_dir=str(out / "load"), checkpoint_every=_FINAL_ONLY,
+                                    checkpoint_keep=1), comm, log)
+    h = loaded.history
+    model = loaded.extra["model"]
+    base = replace(base, packing=loaded.packing)
+    sigma_m_c = float(h.column("sigma_m")[-1])
+    rho_imp_c = float(h.column("rho_imposed")[-1])
+    h_v_c = abs(float(h.column("h_v")[-1]))
+    t_c = float(h.column("time")[-1])
+    load_checkpoint_dir = _last_checkpoint(out / "load")
+    log(f"[load] rho = {h.column('rho')[-1]:.4f}, sigma_m = {sigma_m_c:.4g} MPa, h_v = {-h_v_c:.4g}; "
+        f"{loaded.wall_time:.0f} s")
+
+    def increments_for(strain: float) -> int:  # the compaction's strain rate / slowdown
+        return max(case.min_increments, int(math.ceil(case.slowdown * base.increments * strain / h_v_c)))
+
+    # probe: how much expansion brings sigma_m to the target (linear elastic guess x 30: the
+    # porous compact is much softer than its solid)
+    K_solid = base.material.E / (3.0 * (1.0 - 2.0 * base.material.nu))
+    target = case.unload_stress_ratio * sigma_m_c
+    guess = 30.0 * max(sigma_m_c, 1e-3 * base.material.sigma_0) / K_solid
+    h_d = np.nan
+    for attempt in range(3):
+        n_p = increments_for(guess)
+        probe = run_compaction(replace(base, out_dir=str(out / "unload_probe"), checkpoint_every=0, visual=False,
+                                       segments_after=((n_p * dt, unload_gradient(guess)),),
+                                       output_every=max(1, n_p // 50)), comm, quiet, restart=load_checkpoint_dir,
+                               model=model)
+        hp = {c: probe.history.column(c) for c in ("time", "sigma_m", "rho_imposed")}
+        after = hp["time"] >= t_c * (1 - 1e-12)
+        h_d = first_crossing(hp["sigma_m"][after], target,
+                             _imposed_expansion({k: v[after] for k, v in hp.items()}, rho_imp_c),
+                             rising=False)[1]
+        log(f"[unload probe] expansion {guess:.3g}: sigma_m {hp['sigma_m'][after][0]:.4g} -> "
+            f"{hp['sigma_m'][-1]:.4g} MPa ({n_p} increments)")
+        if np.isfinite(h_d):
+            break
+        # not far enough: extrapolate the probe's secant, with margin
+        drop = max(float(hp["sigma_m"][after][0] - hp["sigma_m"][-1]), 1e-9 * abs(sigma_m_c))
+        guess = float(np.clip(1.5 * guess * (hp["sigma_m"][after][0] - target) / drop, 2.0 * guess, 50.0 * guess))
+    if not np.isfinite(h_d):
+        raise RuntimeError(f"unload: sigma_m did not drop to {target:.3g} MPa within an isotropic expansion of "
+                           f"{guess:.3g}; raise unload_stress_ratio or check the loading stage")
+    n_d = increments_for(float(h_d))
+    segment = (n_d * dt, unload_gradient(float(h_d)))
+    unload = run_compaction(replace(base, out_dir=str(out / "unload"), checkpoint_every=_FINAL_ONLY,
+                                    checkpoint_keep=1, visual=False, segments_after=(segment,),
+                                    output_every=max(1, n_d // 20)), comm, quiet, restart=load_checkpoint_dir,
+                            model=model)
+    hu = unload.history
+    E_0 = float(hu.column("E_d")[-1])
+    log(f"[unload] isotropic expansion h_v^d = {h_d:.4g} ({n_d} increments): sigma_m = "
+        f"{hu.column('sigma_m')[-1]:.4g} MPa (target {target:.3g}), E_0 = {E_0:.5g} mJ, "
+        f"Gamma = {hu.column('Gamma')[-1]:.4g} 1/mm")
+    return Unloaded(_last_checkpoint(out / "unload"), segment, float(h_d), E_0, sigma_m_c,
+                    float(hu.column("sigma_m")[-1]), float(hu.column("Gamma")[-1]), float(hu.column("time")[-1]),
+                    n_d, dt, loaded.packing), model
+
+
+def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> CompactionCase:
+    """The compaction case of reload ``k`` (direction phi_k), to restart from the unload checkpoint."""
+    A = case.amplitude_factor * unloaded.h_v_unload
+    n_r = case.reload_increments or max(case.min_increments,
+                                        int(math.ceil(case.amplitude_factor * unloaded.increments)))
+    segment = (n_r * unloaded.dt, reload_gradient(float(case.phis[k]), A))
+    return replace(case.base, packing=unloaded.packing, out_dir=str(Path(case.out_dir) / f"reload_{k:03d}"),
+                   checkpoint_every=0,
+                   visual=False, segments_after=(unloaded.segment, segment),
+                   output_every=max(1, n_r // case.rows_per_reload))
+
+
+def fan_rows(history_csv: str | Path, phi: float, t_unloaded: float, w2_window: int = 7) -> dict[str, np.ndarray]:
+    """The reload part of a history (rows from the end of the unload on) as fan.csv columns, with
+    Hill's W2 = dsigma : dh per output increment (MPa; tension-positive Cauchy stress, natural
+    Hencky strain, eq. 4.15). The increments are Savitzky-Golay derivatives (quadratic fits over
+    ``w2_window`` rows) rather than raw row differences: an explicit reload carries small elastic
+    oscillations that flip the sign of raw increments (the thesis low-pass filtered W2 for the
+    same reason, §4.5); 0 or a too short reload: raw differences (first row NaN)."""
+    from scipy.signal import savgol_filter
+
+    h = read_csv(history_csv)
+    rows = h["time"] >= t_unloaded * (1 - 1e-12)
+    m = int(rows.sum())
+    comps = [f"{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
+    sigma = -np.stack([h[f"sigma{c}"][rows] for c in comps], axis=1).reshape(-1, 3, 3)  # tension > 0
+    F = np.stack([h[f"F{c}"][rows] for c in comps], axis=1).reshape(-1, 3, 3)
+    hencky = hencky_strain(F)
+    if w2_window >= 3 and m >= w2_window:
+        dsigma = savgol_filter(sigma, w2_window, 2, deriv=1, axis=0)
+        dh = savgol_filter(hencky, w2_window, 2, deriv=1, axis=0)
+    else:
+        dsigma = np.concatenate([np.full((1, 3, 3), np.nan), np.diff(sigma, axis=0)])
+        dh = np.concatenate([np.full((1, 3, 3), np.nan), np.diff(hencky, axis=0)])
+    fan = {"phi": np.full(m, phi), "W2": second_order_work(dsigma, dh)}
+    for c in FAN_COLUMNS:
+        if c not in fan:
+            fan[c] = h[c][rows]
+    fan["_dh"] = np.linalg.norm(dh, axis=(1, 2))
+    return fan
+
+
+def surface_points(fan: dict[str, np.ndarray], E_0: float, dissipation_threshold: float,
+                   gamma_thresholds) -> dict[str, tuple[float, float]]:
+    """Threshold points of one reload: {kind: (sigma_m, sigma_tilde_d)} for kind in yield,
+    gamma_<value>, w2 (absent when not crossed). W2 is only read where the strain increment is
+    at least 20 % of the reload's largest (the smooth-step amplitude stops the loading at both
+    ends, where dsigma : dh is round-off, thesis §4.5)."""
+    sm, sd = fan["sigma_m"], fan["sigma_tilde_d"]
+    points = {}
+    _, m, d = first_crossing(fan["E_d"], E_0 * (1.0 + dissipation_threshold), sm, sd, rising=True)
+    if np.isfinite(m):
+        points["yield"] = (float(m), float(d))
+    for level in gamma_thresholds:
+        best = (-1.0, np.nan, np.nan)
+        for rising in (True, False):
+            pos, m, d = first_crossing(fan["Gamma"], level, sm, sd, rising=rising, last=True)
+            if np.isfinite(pos) and pos > best[0]:
+                best = (pos, m, d)
+        if np.isfinite(best[1]):
+            points[f"gamma_{level:.4g}"] = (float(best[1]), float(best[2]))
+    moving = np.flatnonzero(fan["_dh"] >= 0.2 * np.nanmax(fan["_dh"]))
+    if moving.size >= 2:
+        sel = slice(moving[0], moving[-1] + 1)
+        _, m, d = first_crossing(fan["W2"][sel], 0.0, sm[sel], sd[sel], rising=False)
+        if np.isfinite(m):
+            points["w2"] = (float(m), float(d))
+    return points
+
+
+def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> dict:
+    """Stages 1-4; returns (on every rank) {"unloaded", "points", "uniaxial", "wall_time", "reload_wall"}."""
+    start = time.perf_counter()
+    out = Path(case.out_dir)
+    alone = comm.Split(color=comm.rank, key=0)  # each rank on its own communicator
+    unloaded, model = load_and_unload(case, alone, log) if comm.rank == 0 else (None, None)
+    unloaded = comm.bcast(unloaded, root=0)
+    t_fan = time.perf_counter()
+    quiet = _quiet(log)
+    for k in range(comm.rank, case.nphi, comm.size):
+        t0 = time.perf_counter()
+        reload = reload_case(case, unloaded, k)
+        if model is None:  # one model per rank, reused by all its reloads
+            model = build_compaction(reload, alone, quiet)
+        run_compaction(reload, alone, quiet, restart=unloaded.checkpoint, model=model)
+        log(f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg on rank {comm.rank}: "
+            f"{time.perf_counter() - t0:.0f} s")
+    comm.Barrier()
+    reload_wall = time.perf_counter() - t_fan
+    result = None
+    if comm.rank == 0:
+        result = _postprocess(case, unloaded, log)
+        result.update(unloaded=unloaded, reload_wall=reload_wall, wall_time=time.perf_counter() - start)
+        log(f"[fan] {case.nphi} reloads on {comm.size} rank(s) in {reload_wall:.0f} s; total "
+            f"{result['wall_time']:.0f} s; outputs in {out}")
+    alone.Free()
+    return comm.bcast(result, root=0)
+
+
+def _postprocess(case: YieldSurfaceCase, unloaded: Unloaded, log) -> dict:
+    out = Path(case.out_dir)
+    gammas = tuple(case.gamma_thresholds) or tuple(
+        float(f"{f * unloaded.Gamma_unloaded:.4g}") for f in (0.25, 0.5, 0.75, 1.0)) if unloaded.Gamma_unloaded > 0 \
+        else tuple(case.gamma_thresholds)
+    fans, points = [], {}
+    for k, phi in enumerate(case.phis):
+        fan = fan_rows(out / f"reload_{k:03d}" / "history.csv", float(phi), unloaded.t_unloaded, case.w2_window)
+        fans.append(fan)
+        for kind, p in surface_points(fan, unloaded.E_0, case.dissipation_threshold, gammas).items():
+            points.setdefault(kind, []).append((float(phi), *p))
+    with open(out / "fan.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(FAN_COLUMNS)
+        for fan in fans:
+            for i in range(fan["phi"].size):
+                w.writerow(["" if not np.isfinite(fan[c][i]) else repr(float(fan[c][i])) for c in FAN_COLUMNS])
+    with open(out / "surfaces.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(("kind", "phi", "sigma_m", "sigma_tilde_d"))
+        for kind, pts in points.items():
+            for p in pts:
+                w.writerow((kind, *map(repr, p)))
+    uniaxial = {}
+    for kind, pts in points.items():
+        if len(pts) == case.nphi:  # a closed surface: every direction crossed
+            pts_arr = np.array(pts)
+            uniaxial[kind] = uniaxial_strengths(pts_arr[:, 1], pts_arr[:, 2])
+    with open(out / "uniaxial.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(("kind", "compressive_MPa", "tensile_MPa"))
+        for kind, (c, t) in uniaxial.items():
+            w.writerow((kind, "" if not np.isfinite(c) else repr(c), "" if not np.isfinite(t) else repr(t)))
+    n_yield = len(points.get("yield", []))
+    log(f"[surfaces] yield points {n_yield}/{case.nphi}" + ("" if n_yield == case.nphi else
+        " (the surface is not closed: raise amplitude_factor)") +
+        "".join(f"; {kind}: {len(p)}" for kind, p in points.items() if kind != "yield"))
+    for kind, (c, t) in uniaxial.items():
+        log(f"[surfaces] {kind}: uniaxial compressive {c:.4g} MPa, tensile {t:.4g} MPa")
+    plot_yield_surface(out / "unload" / "history.csv", out / "fan.csv", out / "surfaces.csv",
+                       out / "yield_surface.png",
+                       title=f"{case.base.loading} compaction to rho = {case.base.target_density}, "
+                             f"gamma = {case.base.gamma:g} mJ/mm^2, {case.nphi} reloads")
+    return {"points": points, "uniaxial": uniaxial, "gamma_thresholds": gammas}
+
+
+def _quiet(log):
+    """Keep warnings and errors of a stage's log, drop its progress lines."""
+    def quiet(message: str) -> None:
+        if "WARNING" in message or "rror" in message:
+            log(message)
+    return quiet
