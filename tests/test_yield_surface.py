@@ -1,6 +1,8 @@
 """Chapter-4 workflow (thesis §4.2-4.5): reload gradients, threshold detection, uniaxial strengths
 (plain arrays), and a small fan restarted from an unload checkpoint (finite elements)."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -51,3 +53,112 @@ def test_uniaxial_strengths_of_an_ellipse():
     assert tensile == pytest.approx(-3 * roots.min(), rel=1e-4)
     # a surface entirely in compression has no tensile strength
     assert np.isnan(uniaxial_strengths(sm + 10.0, sd)[1])
+
+
+# -- a small fan on the simple cubic cell (finite elements) --------------------------------------
+@pytest.fixture(scope="module")
+def fan(root, tmp_path_factory):
+    """Simple cubic cell (8 spheres, CLP), adhesive (gamma = 1e-2), isotropic compaction to
+    rho = 0.70 in 600 increments, unload, 4 reloads of 200 increments with A = 3 |h_v^d|."""
+    import sys
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase, run_yield_surface
+
+    sys.path.insert(0, str(root / "demos"))
+    from simple_cubic import simple_cubic_case
+
+    out = tmp_path_factory.mktemp("fan")
+    base = replace(simple_cubic_case("isotropic", target_density=0.70, increments=600, visual=False, outputs=10),
+                   gamma=1e-2)
+    case = YieldSurfaceCase(base=base, nphi=4, amplitude_factor=3.0, min_increments=200, reload_increments=200,
+                            rows_per_reload=20, out_dir=str(out))
+    return case, run_yield_surface(case, MPI.COMM_SELF, log=lambda *a: None)
+
+
+def test_fan_outputs_and_closed_yield_surface(fan):
+    from mpfem_fenicsx.io import read_csv
+
+    case, result = fan
+    out = Path(case.out_dir)
+    for name, size in (("fan.csv", 5000), ("surfaces.csv", 200), ("uniaxial.csv", 40), ("yield_surface.png", 20000)):
+        assert (out / name).stat().st_size > size, name
+    f = read_csv(out / "fan.csv")
+    assert np.array_equal(np.unique(f["phi"]), case.phis)
+    # every reload starts from the unloaded state: same first row, E_d = E_0
+    E_0 = result["unloaded"].E_0
+    first = np.flatnonzero(np.r_[True, np.diff(f["phi"]) != 0])
+    assert np.allclose(f["E_d"][first], E_0, rtol=1e-12)
+    assert np.ptp(f["sigma_m"][first]) == 0.0
+    # the unload brought sigma_m close to the target fraction of the loaded value
+    u = result["unloaded"]
+    assert abs(u.sigma_m_unloaded) < 0.2 * u.sigma_m_loaded
+    # yield polygon closed (every direction crossed E_0 (1 + 0.3 %)) and ordered by phi
+    yield_points = result["points"]["yield"]
+    assert [p[0] for p in yield_points] == pytest.approx(list(case.phis))
+    pts = np.array(yield_points)
+    # the polygon winds once around the unloaded state: its angles about it increase with phi
+    centre = np.array([u.sigma_m_unloaded, 0.0])
+    angles = np.unwrap(np.arctan2(pts[:, 2] - centre[1], pts[:, 1] - centre[0]))
+    assert np.all(np.diff(angles) > 0) and angles[-1] - angles[0] < 2 * np.pi
+    compressive, tensile = result["uniaxial"]["yield"]
+    assert compressive > 0 and tensile > 0  # adhesion: the compact holds some tension
+
+
+def test_reload_restarted_with_contact_history_equals_uninterrupted_run(fan, tmp_path):
+    """The fan's reload (load -> checkpoint -> unload -> checkpoint -> restart on a reused model)
+    steps exactly as one uninterrupted run of the same path: identical history rows."""
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.io import read_csv
+    from mpfem_fenicsx.io.checkpoint import load_checkpoint
+    from mpfem_fenicsx.workflows.compaction import run_compaction
+    from mpfem_fenicsx.workflows.yield_surface import reload_case
+
+    case, result = fan
+    u = result["unloaded"]
+    arrays, _ = load_checkpoint(u.checkpoint, MPI.COMM_SELF)
+    assert arrays["solver/contact/alpha"].max() > 0.5  # adhesive contacts at the restart point
+    k = 1
+    whole = replace_out(reload_case(case, u, k), tmp_path / "whole")
+    res = run_compaction(whole, MPI.COMM_SELF, log=lambda *a: None)
+    a = read_csv(Path(case.out_dir) / f"reload_{k:03d}" / "history.csv")
+    b = {c: res.history.column(c) for c in res.history.columns}
+    # the same output steps (the restarted run also has the unload's last row)
+    rb = b["time"] >= u.t_unloaded * (1 - 1e-12)
+    ra = np.isin(a["time"], b["time"][rb])
+    assert ra.sum() == rb.sum() >= 20
+    for c in res.history.columns:
+        if c != "wall_time":
+            assert np.array_equal(a[c][ra], b[c][rb], equal_nan=True), c
+
+
+def test_reload_inside_does_not_yield_and_far_outside_does(fan, tmp_path):
+    """Isotropic recompression (phi = 0): a reload recovering half the unload stays elastic
+    (E_d below E_0 (1 + 0.3 %)); one going 6 unload amplitudes beyond yields."""
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.workflows.compaction import build_compaction, run_compaction
+    from mpfem_fenicsx.workflows.yield_surface import reload_case
+
+    case, result = fan
+    u = result["unloaded"]
+    threshold = u.E_0 * (1 + case.dissipation_threshold)
+    model = None
+    E_d = {}
+    for factor in (0.5, 6.0):
+        rc = replace_out(reload_case(replace(case, amplitude_factor=factor), u, 0), tmp_path / f"a{factor}")
+        model = model or build_compaction(rc, MPI.COMM_SELF, lambda *a: None)
+        res = run_compaction(rc, MPI.COMM_SELF, lambda *a: None, restart=u.checkpoint, model=model)
+        E_d[factor] = res.history.column("E_d")[-1]
+    assert E_d[0.5] < threshold < E_d[6.0], (E_d, threshold)
+
+
+def replace_out(case, out):
+    from dataclasses import replace
+
+    return replace(case, out_dir=str(out))

@@ -204,9 +204,25 @@ class ImplicitSolver:
 
     # -- stepping -----------------------------------------------------------------------------
     def _refresh_tangent(self) -> None:
-        """Residual and tangent at the current (converged) x, e.g. after a failed increment."""
+        """Residual and tangent at the current (converged) x, in a fresh reduced matrix.
+
+        Called at every converged state and after a restart: the next increment's predictor and
+        first Newton step then see the same tangent, with the same sparsity pattern (the pattern
+        of the current contacts only, not the union of every pattern met so far, which would
+        change MUMPS' pivoting and round-off), whether the run was interrupted or not."""
         self._residual(None, self.x, self.r_red)
-        self._jacobian(None, self.x, self.J_red, self.J_red)
+        self._assemble_tangent()
+        if self._J_contact is not None:
+            self._J_contact.destroy()
+            self._J_contact = None
+        reduced = self.constraint.reduce_matrix(self.K_total)
+        if self.contact is not None:
+            self._J_contact = reduced
+            reduced = reduced.duplicate(copy=True)
+        self.J_red.destroy()
+        self.J_red = reduced
+        self.snes.setJacobian(self._jacobian, self.J_red, self.J_red)
+        self.snes.getKSP().getPC().reset()
         self._tangent_valid = True
 
     def solve_increment(self, t_new: float) -> tuple[bool, int]:
@@ -303,6 +319,7 @@ class ImplicitSolver:
             self.t += dt
             steps += 1
             self.x.copy(self.x_old)
+            self._refresh_tangent()  # as a restart from here would (restarts are exact)
             if its <= control.easy_iterations:
                 dt = min(dt * control.grow, control.dt_max)
             self.dt_next = dt  # before on_step: a checkpoint written there continues with it

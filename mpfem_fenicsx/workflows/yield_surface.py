@@ -38,6 +38,7 @@ import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numba
 import numpy as np
 from mpi4py import MPI
 
@@ -117,6 +118,7 @@ class Unloaded:
     Gamma_unloaded: float  # 1/mm
     t_unloaded: float  # s
     increments: int  # explicit increments of the unload
+    increments_per_strain: float  # the compaction's increments per unit |h_v|, x slowdown
     dt: float  # the compaction's increment (s)
     packing: Packing  # the loaded volume's packing (every reload rebuilds the same model)
 
@@ -194,16 +196,17 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print) -> tuple[
     log(f"[unload] isotropic expansion h_v^d = {h_d:.4g} ({n_d} increments): sigma_m = "
         f"{hu.column('sigma_m')[-1]:.4g} MPa (target {target:.3g}), E_0 = {E_0:.5g} mJ, "
         f"Gamma = {hu.column('Gamma')[-1]:.4g} 1/mm")
-    return Unloaded(_last_checkpoint(out / "unload"), segment, float(h_d), E_0, sigma_m_c,
-                    float(hu.column("sigma_m")[-1]), float(hu.column("Gamma")[-1]), float(hu.column("time")[-1]),
-                    n_d, dt, loaded.packing), model
+    return Unloaded(checkpoint=_last_checkpoint(out / "unload"), segment=segment, h_v_unload=float(h_d), E_0=E_0,
+                    sigma_m_loaded=sigma_m_c, sigma_m_unloaded=float(hu.column("sigma_m")[-1]),
+                    Gamma_unloaded=float(hu.column("Gamma")[-1]), t_unloaded=float(hu.column("time")[-1]),
+                    increments=n_d, increments_per_strain=case.slowdown * base.increments / h_v_c, dt=dt,
+                    packing=loaded.packing), model
 
 
 def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> CompactionCase:
     """The compaction case of reload ``k`` (direction phi_k), to restart from the unload checkpoint."""
     A = case.amplitude_factor * unloaded.h_v_unload
-    n_r = case.reload_increments or max(case.min_increments,
-                                        int(math.ceil(case.amplitude_factor * unloaded.increments)))
+    n_r = case.reload_increments or max(case.min_increments, int(math.ceil(unloaded.increments_per_strain * A)))
     segment = (n_r * unloaded.dt, reload_gradient(float(case.phis[k]), A))
     return replace(case.base, packing=unloaded.packing, out_dir=str(Path(case.out_dir) / f"reload_{k:03d}"),
                    checkpoint_every=0,
@@ -274,7 +277,15 @@ def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, l
     start = time.perf_counter()
     out = Path(case.out_dir)
     alone = comm.Split(color=comm.rank, key=0)  # each rank on its own communicator
-    unloaded, model = load_and_unload(case, alone, log) if comm.rank == 0 else (None, None)
+    unloaded, model = None, None
+    if comm.rank == 0:  # the other ranks sleep meanwhile: rank 0 may use every core of the node
+        threads = numba.get_num_threads()
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        try:
+            unloaded, model = load_and_unload(case, alone, log)
+        finally:
+            numba.set_num_threads(threads)
+    _sleeping_barrier(comm)
     unloaded = comm.bcast(unloaded, root=0)
     t_fan = time.perf_counter()
     quiet = _quiet(log)
@@ -286,7 +297,7 @@ def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, l
         run_compaction(reload, alone, quiet, restart=unloaded.checkpoint, model=model)
         log(f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg on rank {comm.rank}: "
             f"{time.perf_counter() - t0:.0f} s")
-    comm.Barrier()
+    _sleeping_barrier(comm)
     reload_wall = time.perf_counter() - t_fan
     result = None
     if comm.rank == 0:
@@ -342,6 +353,14 @@ def _postprocess(case: YieldSurfaceCase, unloaded: Unloaded, log) -> dict:
                        title=f"{case.base.loading} compaction to rho = {case.base.target_density}, "
                              f"gamma = {case.base.gamma:g} mJ/mm^2, {case.nphi} reloads")
     return {"points": points, "uniaxial": uniaxial, "gamma_thresholds": gammas}
+
+
+def _sleeping_barrier(comm: MPI.Comm, poll: float = 0.05) -> None:
+    """Barrier whose waiting ranks sleep instead of spinning (MPICH polls): an idle rank then
+    leaves its core to the working ones."""
+    request = comm.Ibarrier()
+    while not request.Test():
+        time.sleep(poll)
 
 
 def _quiet(log):
