@@ -24,7 +24,7 @@ from mpi4py import MPI
 
 from mpfem_fenicsx.cli.compaction import case_from_args, parser
 from mpfem_fenicsx.workflows.compaction import RunFailure
-from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase, run_yield_surface
+from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase, run_yield_surface, surfaces
 
 # the small default: 24 particles compacted to rho = 0.80, 16 reloads
 DEFAULTS = dict(particles=24, target_density=0.80, increments=2000, gamma=1e-2, outputs=20)
@@ -43,6 +43,9 @@ def main(argv=None) -> None:
                    help="yield: relative increase of the dissipated energy (thesis: 0.003)")
     p.add_argument("--gamma-thresholds", type=float, nargs="*", default=(),
                    help="iso-Gamma levels (1/mm; default: 0.25..1 x Gamma after the unload)")
+    p.add_argument("--surfaces-only", action="store_true",
+                   help="recompute fan.csv, surfaces.csv, uniaxial.csv and the PNG from a finished fan in --out "
+                        "(e.g. with another --threshold or --gamma-thresholds)")
     args = p.parse_args(argv)
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
@@ -54,6 +57,10 @@ def main(argv=None) -> None:
                                 gamma_thresholds=tuple(args.gamma_thresholds), out_dir=args.out)
     except ValueError as err:
         raise SystemExit(f"error: {err}")
+    if args.surfaces_only:
+        if comm.rank == 0:
+            surfaces(case, log=say)
+        return
     try:
         result = run_yield_surface(case, comm, log=say)
     except RunFailure as err:

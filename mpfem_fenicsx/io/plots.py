@@ -78,7 +78,7 @@ def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surf
         for row in csv.DictReader(fh):
             surfaces.setdefault(row["kind"], []).append(
                 (float(row["phi"]), float(row["sigma_m"]), float(row["sigma_tilde_d"])))
-    fig, axes = plt.subplots(1, 2, figsize=(13, 5.6), constrained_layout=True)
+    fig, axes = plt.subplots(1, 2, figsize=(15, 5.6), constrained_layout=True)
     for ax, (x, y) in zip(axes, (("h_v", "h_tilde_d"), ("sigma_m", "sigma_tilde_d"))):
         ax.plot(path[x], path[y], "k.-", ms=3, lw=1.2, label="loading + isotropic unload")
         for phi in np.unique(fan["phi"]):
@@ -103,8 +103,12 @@ def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surf
             marker, colour, label = "s--", next(greys), f"Gamma = {kind[6:]} 1/mm"
         else:
             marker, colour, label = styles[kind]
-        closed = np.vstack([p, p[:1]]) if kind != "w2" and len(p) > 2 else p
-        ax.plot(closed[:, 1], closed[:, 2], marker, color=colour, ms=4, lw=1.4, label=label)
+        complete = len(p) == np.unique(fan["phi"]).size  # a closed curve: every reload crossed
+        if kind == "w2" or not complete:  # points only: joining a partial set would draw false chords
+            ax.plot(p[:, 1], p[:, 2], marker[0], color=colour, ms=5, label=f"{label} ({len(p)} reloads)")
+        else:
+            closed = np.vstack([p, p[:1]])
+            ax.plot(closed[:, 1], closed[:, 2], marker, color=colour, ms=4, lw=1.4, label=label)
     lim = np.nanmax(np.abs(np.r_[fan["sigma_m"], path["sigma_m"]]))
     s = np.linspace(-lim / 3, lim / 3, 2)
     ax.plot(s, 3 * s, ":", color="0.4", lw=1, label="uniaxial sigma~_d = 3 sigma_m")
@@ -113,7 +117,7 @@ def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surf
     ax.set_xlabel("sigma_m (MPa, compression > 0)")
     ax.set_ylabel("sigma~_d = sigma_I - (sigma_II + sigma_III)/2 (MPa)")
     ax.set_title("(b) Rendulic plane (axis I = z)")
-    ax.legend(fontsize=8, loc="best")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     if title:
         fig.suptitle(title)
     png = Path(png)

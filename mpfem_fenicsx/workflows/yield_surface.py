@@ -33,6 +33,7 @@ compaction).
 from __future__ import annotations
 
 import csv
+import json
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -196,11 +197,15 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print) -> tuple[
     log(f"[unload] isotropic expansion h_v^d = {h_d:.4g} ({n_d} increments): sigma_m = "
         f"{hu.column('sigma_m')[-1]:.4g} MPa (target {target:.3g}), E_0 = {E_0:.5g} mJ, "
         f"Gamma = {hu.column('Gamma')[-1]:.4g} 1/mm")
-    return Unloaded(checkpoint=_last_checkpoint(out / "unload"), segment=segment, h_v_unload=float(h_d), E_0=E_0,
-                    sigma_m_loaded=sigma_m_c, sigma_m_unloaded=float(hu.column("sigma_m")[-1]),
-                    Gamma_unloaded=float(hu.column("Gamma")[-1]), t_unloaded=float(hu.column("time")[-1]),
-                    increments=n_d, increments_per_strain=case.slowdown * base.increments / h_v_c, dt=dt,
-                    packing=loaded.packing), model
+    unloaded = Unloaded(checkpoint=_last_checkpoint(out / "unload"), segment=segment, h_v_unload=float(h_d), E_0=E_0,
+                        sigma_m_loaded=sigma_m_c, sigma_m_unloaded=float(hu.column("sigma_m")[-1]),
+                        Gamma_unloaded=float(hu.column("Gamma")[-1]), t_unloaded=float(hu.column("time")[-1]),
+                        increments=n_d, increments_per_strain=case.slowdown * base.increments / h_v_c, dt=dt,
+                        packing=loaded.packing)
+    state = {k: v for k, v in vars(unloaded).items() if k not in ("packing", "segment")}
+    state["segment"] = [segment[0], segment[1].tolist()]
+    (out / "unloaded.json").write_text(json.dumps(state, indent=1))
+    return unloaded, model
 
 
 def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> CompactionCase:
@@ -212,6 +217,17 @@ def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> Compactio
                    checkpoint_every=0,
                    visual=False, segments_after=(unloaded.segment, segment),
                    output_every=max(1, n_r // case.rows_per_reload))
+
+
+def default_gamma_levels(gamma_unloaded: float, gamma_fan: np.ndarray) -> tuple[float, ...]:
+    """Iso-Gamma levels when none are given (1/mm): two between the unloaded value and the fan's
+    smallest Gamma (loss of contact surface, damage) and two towards its largest (contacts
+    growing), at 1/3 and 2/3 of the way. The thesis picked absolute levels per density; the
+    reloads' Gamma range depends on the amplitude A, so levels are taken inside it."""
+    lo, hi = float(np.nanmin(gamma_fan)), float(np.nanmax(gamma_fan))
+    levels = [gamma_unloaded + f * (lo - gamma_unloaded) for f in (2 / 3, 1 / 3)] + \
+             [gamma_unloaded + f * (hi - gamma_unloaded) for f in (1 / 3, 2 / 3)]
+    return tuple(sorted({float(f"{g:.5g}") for g in levels if g > 0 and abs(g - gamma_unloaded) > 1e-9 * gamma_unloaded}))
 
 
 def fan_rows(history_csv: str | Path, phi: float, t_unloaded: float, w2_window: int = 7) -> dict[str, np.ndarray]:
@@ -301,7 +317,7 @@ def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, l
     reload_wall = time.perf_counter() - t_fan
     result = None
     if comm.rank == 0:
-        result = _postprocess(case, unloaded, log)
+        result = surfaces(case, unloaded, log)
         result.update(unloaded=unloaded, reload_wall=reload_wall, wall_time=time.perf_counter() - start)
         log(f"[fan] {case.nphi} reloads on {comm.size} rank(s) in {reload_wall:.0f} s; total "
             f"{result['wall_time']:.0f} s; outputs in {out}")
@@ -309,17 +325,23 @@ def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, l
     return comm.bcast(result, root=0)
 
 
-def _postprocess(case: YieldSurfaceCase, unloaded: Unloaded, log) -> dict:
+def surfaces(case: YieldSurfaceCase, unloaded: Unloaded | None = None, log=print) -> dict:
+    """Stage 4 alone, from the files of a finished fan in ``case.out_dir`` (rank 0): fan.csv,
+    surfaces.csv, uniaxial.csv and the PNG again, e.g. with other thresholds (thesis §4.2.2
+    discusses the yield threshold's influence). ``unloaded``: None reads ``unloaded.json``."""
     out = Path(case.out_dir)
-    gammas = tuple(case.gamma_thresholds) or tuple(
-        float(f"{f * unloaded.Gamma_unloaded:.4g}") for f in (0.25, 0.5, 0.75, 1.0)) if unloaded.Gamma_unloaded > 0 \
-        else tuple(case.gamma_thresholds)
-    fans, points = [], {}
-    for k, phi in enumerate(case.phis):
-        fan = fan_rows(out / f"reload_{k:03d}" / "history.csv", float(phi), unloaded.t_unloaded, case.w2_window)
-        fans.append(fan)
+    if unloaded is None:
+        state = json.loads((out / "unloaded.json").read_text())
+        unloaded = Unloaded(**{**state, "segment": (state["segment"][0], np.array(state["segment"][1])),
+                               "packing": None})
+    fans = [fan_rows(out / f"reload_{k:03d}" / "history.csv", float(phi), unloaded.t_unloaded, case.w2_window)
+            for k, phi in enumerate(case.phis)]
+    gammas = tuple(case.gamma_thresholds) or default_gamma_levels(unloaded.Gamma_unloaded,
+                                                                  np.concatenate([f["Gamma"] for f in fans]))
+    points = {}
+    for fan in fans:
         for kind, p in surface_points(fan, unloaded.E_0, case.dissipation_threshold, gammas).items():
-            points.setdefault(kind, []).append((float(phi), *p))
+            points.setdefault(kind, []).append((float(fan["phi"][0]), *p))
     with open(out / "fan.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(FAN_COLUMNS)
