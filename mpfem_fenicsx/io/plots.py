@@ -49,13 +49,7 @@ def plot_loading_path(history_csv: str | Path, png: str | Path, title: str = "")
     ax.set_title("(c) Rendulic plane (axis I = z)")
     for ax in axes:
         ax.grid(alpha=0.3)
-    if title:
-        fig.suptitle(title)
-    png = Path(png)
-    png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png, dpi=110)
-    plt.close(fig)
-    return png
+    return _save(fig, png, title)
 
 
 def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surfaces_csv: str | Path,
@@ -118,6 +112,13 @@ def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surf
     ax.set_ylabel("sigma~_d = sigma_I - (sigma_II + sigma_III)/2 (MPa)")
     ax.set_title("(b) Rendulic plane (axis I = z)")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    return _save(fig, png, title)
+
+
+def _save(fig, png: str | Path, title: str = "") -> Path:
+    """Title, write (creating the folder) and close a figure."""
+    import matplotlib.pyplot as plt
+
     if title:
         fig.suptitle(title)
     png = Path(png)
