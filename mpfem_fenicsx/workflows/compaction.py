@@ -50,7 +50,7 @@ from ..io.progress import Progress
 from ..io.render import render_deformed
 from ..loading import GradientPath, compaction_gradient
 from ..material import LEAD, ElastoPlastic
-from ..meshes import ParticleCentroids, ParticleVolumes, node_particles, particle_mesh
+from ..meshes import ParticleCentroids, node_particles, particle_mesh, particle_volumes
 from ..meshes.packing import Duplicates, Packing, assembly_particles, duplicate_particles, generate_packing, read_packing, \
     write_packing
 from ..problem import SolidProblem
@@ -202,7 +202,6 @@ class CompactionModel:
     bcs: GranularBoundaryConditions
     contact: ContactModel
     path: GradientPath
-    volumes: ParticleVolumes
     solid_volume0: float  # V_p = 4/3 pi sum r^3 of the VEP particles' meshed radii (mm^3)
     rho0: float  # V_p / V0
     rho0_fe: float  # finite-element particle volumes / V0
@@ -251,8 +250,7 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     problem = SolidProblem(mesh, case.material, tangent=case.solver == "implicit", active_cells=active)
     V = problem.V
 
-    volumes = ParticleVolumes(assembly, problem.u)
-    rho0_fe = float(volumes()[:n].sum()) / float(np.prod(packing.cell))
+    rho0_fe = float(particle_volumes(assembly, problem.u)[:n].sum()) / float(np.prod(packing.cell))
     path = loading_path(case, rho0)
 
     h_contact = float(radii.min()) * np.pi / (8 * case.refinement)
@@ -268,7 +266,7 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     bcs = GranularBoundaryConditions(V, cell_particle, centres, radii, original, shift, packing.cell, case.bc, path,
                                      images=contact if case.images else None, anchor=case.solver == "implicit")
     return CompactionModel(case, packing, centres, radii, original, shift, assembly, problem, bcs, contact, path,
-                           volumes, solid0, rho0, rho0_fe, h_contact)
+                           solid0, rho0, rho0_fe, h_contact)
 
 
 def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print, *,
@@ -301,7 +299,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         model.case = case
         model.path = model.bcs.gradient = loading_path(case, model.rho0)
     packing, problem, bcs, contact, path = model.packing, model.problem, model.bcs, model.contact, model.path
-    assembly, volumes, radii = model.assembly, model.volumes, model.radii
+    assembly, radii = model.assembly, model.radii
     V = problem.V
     n = packing.num_particles
     solid0, rho0 = model.solid_volume0, model.rho0
