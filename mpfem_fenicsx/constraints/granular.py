@@ -132,6 +132,7 @@ class GranularBoundaryConditions:
         nodes = _gather_nodes(V, np.asarray(cell_particle, dtype=np.int64))
         self.num_particles = radii.size
         self.comoving = comoving
+        self.anchor_block = None  # global dof block of the anchored node (CLP/CLPS with anchor)
         self._nodes = nodes
         self._centres = centres
         self._rows: list[tuple] = []  # (slave blocks, component, masters (k, m) blocks, coeffs, G (k, 9))
@@ -225,6 +226,7 @@ class GranularBoundaryConditions:
         # held at u = 0: any fixed translation is equivalent by periodicity, and a node that
         # followed the affine field would drag its particle before any contact carries it
         self._prescribed.append((np.array([nodes.block[k]]), np.zeros((1, 3, 9))))
+        self.anchor_block = int(nodes.block[k])
 
     def _build(self) -> None:
         """Keep the rows whose slave this rank owns; create the AffineConstraint."""

@@ -89,6 +89,11 @@ class GradientPath:
     def duration(self) -> float:
         return self._knots[-1]
 
+    @property
+    def knots(self) -> list[float]:
+        """Start and end times (s) of the segments: [0, t_1, ..., duration]."""
+        return list(self._knots)
+
     def __call__(self, t: float) -> np.ndarray:
         k = int(np.searchsorted(self._knots, t, side="right")) - 1
         if k >= len(self.segments):

@@ -84,6 +84,9 @@ class ImplicitSolver:
         self.dt_next = None  # increment to try next (kept for restarts)
         self.regularization = None
         self.regularization_work = 0.0
+        #: plastic dissipation of the converged increments (mJ), accumulated before each commit
+        #: (after it the material's trial increment is the converged state's: zero)
+        self.plastic_work = 0.0
         if regularization is not None:
             self.regularization = self.r_full.duplicate()
             self.regularization.array_w[:] = regularization
@@ -260,11 +263,12 @@ class ImplicitSolver:
     # -- checkpoints --------------------------------------------------------------------------
     def state_dict(self) -> dict[str, np.ndarray]:
         """This rank's converged state (for checkpoints): time, next increment, reduced and full
-        displacement, regularization anchor and work, Newton count; with the material and contact
+        displacement, regularization anchor and work, plastic work, Newton count; with the material and contact
         histories (prefixes ``material/`` and ``contact/``)."""
         data = {"t": np.array(self.t), "dt_next": np.array(np.nan if self.dt_next is None else self.dt_next),
                 "iterations_total": np.array(self.iterations_total), "x": self.x.array_r.copy(),
-                "u": self.problem.u.x.array.copy(), "regularization_work": np.array(self.regularization_work)}
+                "u": self.problem.u.x.array.copy(), "regularization_work": np.array(self.regularization_work),
+                "plastic_work": np.array(self.plastic_work)}
         if self.regularization is not None:
             data["w_converged"] = self._w_converged.copy()
         data.update(histories_state(self.problem, self.contact))
@@ -277,6 +281,7 @@ class ImplicitSolver:
         self.dt_next = None if np.isnan(data["dt_next"]) else float(data["dt_next"])
         self.iterations_total = int(data["iterations_total"])
         self.regularization_work = float(data["regularization_work"])
+        self.plastic_work = float(data["plastic_work"])
         load_histories(self.problem, self.contact, data)
         self.bcs.apply(self.t)
         self.x.array_w[:] = data["x"]
@@ -286,11 +291,40 @@ class ImplicitSolver:
         self.x.copy(self.x_old)
         self._refresh_tangent()
 
+    def adopt_state(self, data: dict[str, np.ndarray], translation: np.ndarray | None = None) -> None:
+        """Continue from another solver's state on the same model and partition, e.g. an explicit
+        checkpoint relaxed to rest: time, displacement, material and contact histories. The
+        reduced coordinates are recomputed from u, the stepping starts afresh (``dt_next``, the
+        regularization work, the plastic work and the Newton count from zero: set
+        :attr:`plastic_work` to continue a tally). ``translation`` (mm): a rigid
+        translation subtracted from u and from the contact's committed surface displacement
+        (slip increments are unchanged), e.g. the displacement of the node an anchored periodic
+        model holds at zero; a periodic state is invariant under it."""
+        check_layout({"x": self.x.array_r, "u": data["u"]}, self.x, self.problem.u)
+        data = dict(data)
+        if translation is not None:
+            c = np.asarray(translation, dtype=float)
+            data["u"] = (data["u"].reshape(-1, 3) - c).ravel()
+            key = "contact/surface_displacement"
+            if key in data:
+                data[key] = data[key] - c
+        self.t = float(data["t"])
+        self.dt_next, self.iterations_total, self.regularization_work, self.plastic_work = None, 0, 0.0, 0.0
+        load_histories(self.problem, self.contact, data)
+        self.bcs.apply(self.t)
+        self.problem.u.x.array[:] = data["u"]
+        self.constraint.reduce_values(self.problem.u, self.x)
+        self.constraint.expand(self.x, self.problem.u)
+        if self.regularization is not None:
+            self._w_converged[:] = self._peculiar()
+        self.x.copy(self.x_old)
+        self._refresh_tangent()
+
     def run(self, control: StepControl, on_step: Callable[["ImplicitSolver"], None] | None = None,
             log: Callable[[str], None] | None = None) -> int:
         """Advance from the current time to control.t_end; ``on_step`` after each converged step
         (a restarted solver continues with the increment it would have tried next)."""
-        dt = control.dt if self.dt_next is None else self.dt_next
+        dt = control.dt if self.dt_next is None else min(self.dt_next, control.dt_max)
         steps = 0
         self.x.copy(self.x_old)
         while self.t < control.t_end * (1 - 1e-12):
@@ -308,6 +342,7 @@ class ImplicitSolver:
                     raise NonConvergence(
                         f"Newton did not converge at t={self.t:.6g} even with dt={dt:.3g} < dt_min")
                 continue
+            self.plastic_work += self.problem.plastic_dissipation_increment()
             self.problem.commit()
             if self.contact is not None:
                 self.contact.commit(self.problem.u)

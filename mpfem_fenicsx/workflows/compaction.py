@@ -107,6 +107,9 @@ class CompactionCase:
     #: flow, in units of 1 / duration (ExplicitSettings.damping); dissipation = history's E_damp
     damping: float = 100.0
     steps: int = 100  # implicit: load steps (adaptive, cut back when Newton fails)
+    #: implicit: steps of each of ``segments_after`` (missing ones: the compaction's increment
+    #: duration / steps); each segment is stepped on its own, from its start to its end
+    segment_steps: tuple = ()
     #: implicit: pseudo-time drag k_i = regularization E V_i / h^2 towards the last converged
     #: state (V_i nodal volume, h contact element size): holds particles before contact
     regularization: float = 0.05
@@ -151,6 +154,9 @@ class CompactionCase:
             raise ValueError(f"output_every must be >= 0 increments (0: from outputs), got {self.output_every}")
         if self.checkpoint_keep < 0:
             raise ValueError(f"checkpoint_keep must be >= 0 (0: keep all), got {self.checkpoint_keep}")
+        if any(int(n) < 1 for n in self.segment_steps) or len(self.segment_steps) > len(self.segments_after):
+            raise ValueError(f"segment_steps must hold >= 1 implicit steps for at most the {len(self.segments_after)} "
+                             f"segments_after, got {self.segment_steps}")
         if self.checkpoint_every < 0:
             raise ValueError(f"checkpoint_every must be >= 0 outputs (0: no checkpoints), got {self.checkpoint_every}")
 
@@ -307,7 +313,6 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     progress = progress or Progress(comm, stream=_LogStream(log))
 
     num_dofs = V.dofmap.index_map.size_global * 3
-    implicit_plastic = [0.0]
     if case.solver == "explicit":
         settings = ExplicitSettings(t_end=path.duration, target_dt=case.duration / case.increments,
                                     damping=case.damping / case.duration)
@@ -328,11 +333,14 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
             "8-particle cell only); use the explicit solver for production runs")
         h = model.contact_length
         nodal_volume = problem.lumped_mass(1.0).x.array[: bcs.constraint.num_owned]
-        solver = ImplicitSolver(problem, bcs, contact=contact,
+        # backtracking line search: frictional stick / slip switches make full Newton steps cycle
+        # (an explicit state relaxed to rest stalled at 1e-1 of its residual without it)
+        solver = ImplicitSolver(problem, bcs, contact=contact, petsc_options={"snes_linesearch_type": "bt"},
                                 regularization=case.regularization * case.material.E * nodal_volume / h ** 2)
+        controls = implicit_step_controls(case, path)
+        total_steps = sum(round((c.t_end - start) / c.dt) for c, start in zip(controls, path.knots))
         log(f"model: {radii.size} particles, {num_dofs} dofs ({bcs.constraint.num_reduced_global} free), "
-            f"rho0 = {rho0:.4f} -> {case.target_density}, implicit, {case.steps} steps")
-        total_steps = case.steps
+            f"rho0 = {rho0:.4f} -> {case.target_density}, implicit, {total_steps} steps")
 
     centroids = ParticleCentroids(assembly, problem.u)
     X0 = np.ascontiguousarray(centroids()[:n])  # one memory layout: a restart reproduces the BLAS round-off
@@ -348,16 +356,22 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     last_checkpoint = [None]
     wall_offset = 0.0
     if meta is not None:  # restart: model, solver, history and clocks as they were
-        if meta["num_dofs"] != num_dofs or meta["solver"] != case.solver or meta["bc"] != case.bc:
+        # an explicit state (relaxed to rest) may be continued implicitly, not the reverse (no velocities)
+        adopt = meta["solver"] == "explicit" and case.solver == "implicit"
+        if meta["num_dofs"] != num_dofs or (meta["solver"] != case.solver and not adopt) or meta["bc"] != case.bc:
             raise CheckpointError(f"restart: {restart} was written for another model ({meta['num_dofs']} dofs, "
                                   f"{meta['solver']}, {meta['bc']}; this case: {num_dofs} dofs, {case.solver}, {case.bc})")
         if arrays["dof_coordinates"].shape != _dof_coordinates(V).shape or \
                 not np.array_equal(arrays["dof_coordinates"], _dof_coordinates(V)):
             raise CheckpointError(f"restart: {restart} was written with another mesh partition")
         X0 = np.ascontiguousarray(meta["centroids0"], dtype=float)
-        solver.load_state({k[7:]: v for k, v in arrays.items() if k.startswith("solver/")})
-        implicit_plastic[0] = float(meta["implicit_plastic"])
         history.rows = [list(map(float, row)) for row in meta["history"]]
+        state = {k[7:]: v for k, v in arrays.items() if k.startswith("solver/")}
+        if adopt:
+            solver.adopt_state(state, translation=_anchor_displacement(bcs, V, state["u"]))
+            solver.plastic_work = history.rows[-1][columns.index("E_p")]  # the tally goes on
+        else:
+            solver.load_state(state)
         wall_offset = float(meta["wall_time"])
         log(f"restart from {restart}: step {meta['step']}, t = {meta['t']:.6g} s, {len(history.rows)} history rows")
     writer = None
@@ -373,7 +387,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         directory = checkpoint_path(checkpoint_root, step)
         save_checkpoint(directory, comm, arrays, {
             "step": step, "t": s.t, "solver": case.solver, "bc": case.bc, "num_dofs": num_dofs,
-            "centroids0": X0.tolist(), "implicit_plastic": implicit_plastic[0], "history": history.rows,
+            "centroids0": X0.tolist(), "history": history.rows,
             "wall_time": wall_offset + time.perf_counter() - start,
             "packing": {"cell": packing.cell.tolist(), "centres": packing.centres.tolist(),
                         "radii": packing.radii.tolist()}})
@@ -411,8 +425,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
                             E_c=e.kinetic, E_visc=e.viscous, E_damp=e.damping, W_ext=e.external)
             fraction, step = s.step / total_steps, s.step
         else:  # quasi-static: no kinetic / viscous energy; E_damp = the regularization's work
-            implicit_plastic[0] += problem.plastic_dissipation_increment()
-            energies = dict(E_int=np.nan, E_el=problem.stored_energy(), E_p=implicit_plastic[0],
+            energies = dict(E_int=np.nan, E_el=problem.stored_energy(), E_p=s.plastic_work,
                             E_contact=np.nan, E_c=0.0, E_visc=0.0, E_damp=s.regularization_work, W_ext=np.nan)
             fraction, step = s.t / path.duration, len(history.rows) + 1
         if not (np.isfinite(rho) and np.isfinite(sigma_lw).all() and np.isfinite(energies["E_p"])):
@@ -443,9 +456,10 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
             total = solver.run(record, outputs=case.outputs, every=case.output_every or None,
                                max_steps=case.stop_after or None)
         else:
-            dt = case.duration / case.steps
-            total = solver.run(StepControl(t_end=path.duration, dt=dt, dt_max=dt, dt_min=dt / 256),
-                               on_step=record, log=log)
+            total = 0
+            for control in controls:  # each segment stepped on its own (a restart enters one)
+                if solver.t < control.t_end * (1 - 1e-12):
+                    total += solver.run(control, on_step=record, log=log)
     except (FloatingPointError, NonConvergence) as err:
         progress.close()
         history.write()
@@ -475,6 +489,38 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
                               title=f"{n} particles, {case.loading} compaction, {case.bc}")
     return CompactionResult(history, packing, num_dofs, radii.size, time.perf_counter() - start, total, out,
                             extra={"model": model, "solver": solver})
+
+
+def implicit_step_controls(case: CompactionCase, path: GradientPath) -> list[StepControl]:
+    """One step control per path segment: the compaction in ``case.steps`` steps, then each of
+    ``segments_after`` in its ``segment_steps`` (default: the compaction's increment). Segments
+    end exactly at their knots; an increment carried over from a segment is capped by the next
+    one's (StepControl.dt_max)."""
+    knots = path.knots
+    controls = []
+    for k in range(len(knots) - 1):
+        duration = knots[k + 1] - knots[k]
+        if k == 0:
+            n = case.steps
+        elif k - 1 < len(case.segment_steps):
+            n = int(case.segment_steps[k - 1])
+        else:
+            n = max(1, round(duration * case.steps / case.duration))
+        dt = duration / n
+        controls.append(StepControl(t_end=knots[k + 1], dt=dt, dt_max=dt, dt_min=dt / 256))
+    return controls
+
+
+def _anchor_displacement(bcs: GranularBoundaryConditions, V, u: np.ndarray) -> np.ndarray:
+    """Displacement (mm) of the node an implicit periodic model anchors, in a state ``u`` (local
+    array, blocks of 3) of a model without anchor (zero when there is none)."""
+    c = np.zeros(3)
+    if bcs.anchor_block is not None:
+        lo, hi = V.dofmap.index_map.local_range
+        if lo <= bcs.anchor_block < hi:
+            i = 3 * (bcs.anchor_block - lo)
+            c = np.asarray(u[i:i + 3], dtype=float)
+    return V.mesh.comm.allreduce(c)
 
 
 def _dof_coordinates(V) -> np.ndarray:

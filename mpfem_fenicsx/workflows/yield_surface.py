@@ -76,13 +76,25 @@ class YieldSurfaceCase:
     slowdown: float = 4.0
     min_increments: int = 400
     rows_per_reload: int = 40
-    w2_window: int = 7  # rows of the Savitzky-Golay derivatives of W2 (0: raw differences)
+    #: explicit reloads: rows of the Savitzky-Golay derivatives of W2 (0: raw differences);
+    #: implicit reloads always use raw differences (no dynamic oscillation to filter)
+    w2_window: int = 7
+    #: solver of the reloads: explicit, or implicit (Newton, quasi-static: W2 needs no filter).
+    #: The loading and the unload always run explicit; an implicit fan first relaxes the unloaded
+    #: state to static equilibrium (stage "settle", out/settle) and restarts from it
+    solver: str = "explicit"
+    reload_steps: int = 40  # implicit: load steps of a reload (each one a history row)
     out_dir: str = "results/yield_surface"
 
     def __post_init__(self):
         if self.base.solver != "explicit":
-            raise ValueError(f"solver: the yield-surface fan runs with the explicit solver (bit-identical "
-                             f"restarts), got {self.base.solver!r}")
+            raise ValueError(f"base.solver: the loading and unload of a fan run with the explicit solver "
+                             f"(implicit granular compaction is experimental), got {self.base.solver!r}; "
+                             f"choose the reloads' solver with YieldSurfaceCase.solver")
+        if self.solver not in ("explicit", "implicit"):
+            raise ValueError(f"solver (of the reloads) must be explicit or implicit, got {self.solver!r}")
+        if not 4 <= self.reload_steps <= 10000:
+            raise ValueError(f"reload_steps must be in [4, 10000] implicit steps, got {self.reload_steps}")
         if self.base.bc not in ("CLP", "CLPS"):
             raise ValueError(f"bc must be CLP or CLPS for a yield surface (periodic volume whose macroscopic "
                              f"gradient is imposed), got {self.base.bc!r}")
@@ -110,8 +122,8 @@ class YieldSurfaceCase:
 class Unloaded:
     """State after stages 1-2 (what every reload needs)."""
 
-    checkpoint: str  # unload checkpoint directory
-    segment: tuple  # (duration s, F^d) of the unload
+    checkpoint: str  # checkpoint the reloads restart from (end of the unload, or of the settle)
+    segments: tuple  # ((duration s, increment gradient), ...) after the loading: the unload [, hold]
     h_v_unload: float  # imposed volumetric strain of the unload (> 0: expansion)
     E_0: float  # dissipated energy at the end of the unload (mJ)
     sigma_m_loaded: float  # MPa
@@ -187,9 +199,9 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print) -> tuple[
         raise RuntimeError(f"unload: sigma_m did not drop to {target:.3g} MPa within an isotropic expansion of "
                            f"{guess:.3g}; raise unload_stress_ratio or check the loading stage")
     n_d = increments_for(float(h_d))
-    segment = (n_d * dt, unload_gradient(float(h_d)))
+    segments = ((n_d * dt, unload_gradient(float(h_d))),)
     unload = run_compaction(replace(base, out_dir=str(out / "unload"), checkpoint_every=_FINAL_ONLY,
-                                    checkpoint_keep=1, visual=False, segments_after=(segment,),
+                                    checkpoint_keep=1, visual=False, segments_after=segments,
                                     output_every=max(1, n_d // 20)), comm, quiet, restart=load_checkpoint_dir,
                             model=model)
     hu = unload.history
@@ -197,26 +209,60 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print) -> tuple[
     log(f"[unload] isotropic expansion h_v^d = {h_d:.4g} ({n_d} increments): sigma_m = "
         f"{hu.column('sigma_m')[-1]:.4g} MPa (target {target:.3g}), E_0 = {E_0:.5g} mJ, "
         f"Gamma = {hu.column('Gamma')[-1]:.4g} 1/mm")
-    unloaded = Unloaded(checkpoint=_last_checkpoint(out / "unload"), segment=segment, h_v_unload=float(h_d), E_0=E_0,
-                        sigma_m_loaded=sigma_m_c, sigma_m_unloaded=float(hu.column("sigma_m")[-1]),
+    unloaded = Unloaded(checkpoint=_last_checkpoint(out / "unload"), segments=segments, h_v_unload=float(h_d),
+                        E_0=E_0, sigma_m_loaded=sigma_m_c, sigma_m_unloaded=float(hu.column("sigma_m")[-1]),
                         Gamma_unloaded=float(hu.column("Gamma")[-1]), t_unloaded=float(hu.column("time")[-1]),
                         increments=n_d, increments_per_strain=case.slowdown * base.increments / h_v_c, dt=dt,
                         packing=loaded.packing)
-    state = {k: v for k, v in vars(unloaded).items() if k not in ("packing", "segment")}
-    state["segment"] = [segment[0], segment[1].tolist()]
+    if case.solver == "implicit":
+        unloaded, model = settle(case, unloaded, comm, log)
+    state = {k: v for k, v in vars(unloaded).items() if k not in ("packing", "segments")}
+    state["segments"] = [[d, G.tolist()] for d, G in unloaded.segments]
     (out / "unloaded.json").write_text(json.dumps(state, indent=1))
     return unloaded, model
+
+
+def _reload_duration(case: YieldSurfaceCase, unloaded: Unloaded) -> tuple[float, int]:
+    """Duration (s) and explicit increments of every reload (the same for all directions)."""
+    A = case.amplitude_factor * unloaded.h_v_unload
+    n_r = case.reload_increments or max(case.min_increments, int(math.ceil(unloaded.increments_per_strain * A)))
+    return n_r * unloaded.dt, n_r
+
+
+def settle(case: YieldSurfaceCase, unloaded: Unloaded, comm: MPI.Comm, log=print) -> tuple[Unloaded, CompactionModel]:
+    """Implicit fans: continue the explicit unload checkpoint with the implicit solver at a fixed
+    macroscopic gradient (a hold segment, two Newton steps) so that every reload starts from a
+    static equilibrium; E_0, sigma_m and Gamma of the unloaded state are read at its end. Returns
+    the updated state (checkpoint out/settle) and the implicit model the reloads reuse."""
+    out = Path(case.out_dir)
+    hold = (2.0 * _reload_duration(case, unloaded)[0] / case.reload_steps, np.eye(3))
+    segments = (*unloaded.segments, hold)
+    settled = run_compaction(replace(case.base, solver="implicit", packing=unloaded.packing,
+                                     out_dir=str(out / "settle"), checkpoint_every=_FINAL_ONLY, checkpoint_keep=1,
+                                     visual=False, segments_after=segments,
+                                     segment_steps=(1,) * len(unloaded.segments) + (2,)),
+                             comm, _quiet(log), restart=unloaded.checkpoint)
+    hs = settled.history
+    E_0 = float(hs.column("E_d")[-1])
+    log(f"[settle] implicit equilibrium of the unloaded state: sigma_m {unloaded.sigma_m_unloaded:.4g} -> "
+        f"{hs.column('sigma_m')[-1]:.4g} MPa, E_d {unloaded.E_0:.5g} -> {E_0:.5g} mJ "
+        f"({settled.wall_time:.0f} s)")
+    return replace(unloaded, checkpoint=_last_checkpoint(out / "settle"), segments=segments, E_0=E_0,
+                   sigma_m_unloaded=float(hs.column("sigma_m")[-1]), Gamma_unloaded=float(hs.column("Gamma")[-1]),
+                   t_unloaded=float(hs.column("time")[-1])), settled.extra["model"]
 
 
 def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> CompactionCase:
     """The compaction case of reload ``k`` (direction phi_k), to restart from the unload checkpoint."""
     A = case.amplitude_factor * unloaded.h_v_unload
-    n_r = case.reload_increments or max(case.min_increments, int(math.ceil(unloaded.increments_per_strain * A)))
-    segment = (n_r * unloaded.dt, reload_gradient(float(case.phis[k]), A))
-    return replace(case.base, packing=unloaded.packing, out_dir=str(Path(case.out_dir) / f"reload_{k:03d}"),
-                   checkpoint_every=0,
-                   visual=False, segments_after=(unloaded.segment, segment),
-                   output_every=max(1, n_r // case.rows_per_reload))
+    duration, n_r = _reload_duration(case, unloaded)
+    segments = (*unloaded.segments, (duration, reload_gradient(float(case.phis[k]), A)))
+    reload = replace(case.base, packing=unloaded.packing, out_dir=str(Path(case.out_dir) / f"reload_{k:03d}"),
+                     checkpoint_every=0, visual=False, segments_after=segments,
+                     output_every=max(1, n_r // case.rows_per_reload))
+    if case.solver == "implicit":  # every step a history row
+        reload = replace(reload, solver="implicit", segment_steps=(1,) * (len(segments) - 1) + (case.reload_steps,))
+    return reload
 
 
 def default_gamma_levels(gamma_unloaded: float, gamma_fan: np.ndarray) -> tuple[float, ...]:
@@ -332,9 +378,10 @@ def surfaces(case: YieldSurfaceCase, unloaded: Unloaded | None = None, log=print
     out = Path(case.out_dir)
     if unloaded is None:
         state = json.loads((out / "unloaded.json").read_text())
-        unloaded = Unloaded(**{**state, "segment": (state["segment"][0], np.array(state["segment"][1])),
+        unloaded = Unloaded(**{**state, "segments": tuple((d, np.array(G)) for d, G in state["segments"]),
                                "packing": None})
-    fans = [fan_rows(out / f"reload_{k:03d}" / "history.csv", float(phi), unloaded.t_unloaded, case.w2_window)
+    window = case.w2_window if case.solver == "explicit" else 0
+    fans = [fan_rows(out / f"reload_{k:03d}" / "history.csv", float(phi), unloaded.t_unloaded, window)
             for k, phi in enumerate(case.phis)]
     gammas = tuple(case.gamma_thresholds) or default_gamma_levels(unloaded.Gamma_unloaded,
                                                                   np.concatenate([f["Gamma"] for f in fans]))
