@@ -27,6 +27,14 @@ def test_true_stress_follows_hardening_law(uniaxial):
     assert res.eps_p[-1] == pytest.approx(0.5 - res.true_stress[-1] / LEAD.E, abs=2e-3)
 
 
+def test_solver_tallies_the_plastic_work(uniaxial):
+    """Both solvers' plastic dissipation = integral of sigma_y d eps_p over the 1 mm^3 block
+    (the implicit tally is taken before each commit, after which the trial increment is zero)."""
+    _, res = uniaxial
+    eps = np.linspace(0.0, res.eps_p[-1], 2001)
+    assert res.plastic_work == pytest.approx(np.trapezoid(LEAD.yield_stress(eps), eps), rel=0.01)
+
+
 def test_csv_contract(uniaxial):
     _, res = uniaxial
     data = read_csv(res.csv)

@@ -190,3 +190,75 @@ def test_implicit_restart_reproduces_the_uninterrupted_run(tmp_path):
     keep = [j for j, c in enumerate(columns) if c != "wall_time"]
     scale = np.nanmax(np.abs(a[:, keep]), axis=0) + 1e-300
     assert np.nanmax(np.abs(a[:, keep] - b[:, keep]) / scale) <= 1e-8
+
+
+def test_limit_specific_surface_of_a_collapsing_fan():
+    """Synthetic fan: along every direction the stress radius grows as 5 t to a peak of 3 MPa at
+    t = 0.6 while Gamma falls slowly (G0 - 0.1 t), then the contacts collapse (Gamma drops by 1
+    in one row) at constant stress. Levels above G0 - 0.06 are crossed at distinct stresses;
+    every lower one at the collapse, on the same curve: Gamma_l is the highest grid level
+    below G0 - 0.06. A fan hardening without peak or collapse has none."""
+    from mpfem_fenicsx.workflows.yield_surface import limit_specific_surface, w2_sign_changes
+
+    G0, t = 2.5, np.linspace(0.0, 1.0, 51)
+    radius = np.minimum(5.0 * t, 3.0)
+    gamma = np.where(t <= 0.6 + 1e-12, G0 - 0.1 * t, G0 - 0.06 - 1.0)
+    fans = [{"sigma_m": radius * np.cos(phi), "sigma_tilde_d": radius * np.sin(phi), "Gamma": gamma}
+            for phi in np.linspace(0, 2 * np.pi, 6, endpoint=False)]
+    spacing = 1.06 / 24
+    g_l = limit_specific_surface(fans, G0, scale=3.0)
+    assert G0 - 0.06 - spacing < g_l <= G0 - 0.06
+    hardening = [{"sigma_m": 5 * t * np.cos(phi), "sigma_tilde_d": 5 * t * np.sin(phi), "Gamma": G0 - 0.1 * t}
+                 for phi in np.linspace(0, 2 * np.pi, 6, endpoint=False)]  # no peak, no collapse
+    assert np.isnan(limit_specific_surface(hardening, G0, scale=3.0))
+    # raw W2: positive then negative once (quasi-static rupture) vs sign noise
+    w = {"_W2_raw": np.r_[np.nan, np.linspace(1.0, -1.0, 20)], "_dh": np.ones(21)}
+    assert w2_sign_changes(w) == 1
+    w["_W2_raw"][1:] = np.tile([1.0, -1.0], 10)
+    assert w2_sign_changes(w) == 19
+
+
+def test_explicit_unload_state_continued_implicitly(fan, tmp_path):
+    """Settle stage of an implicit fan: the explicit unload checkpoint (dynamic relaxation at
+    rest) continued by Newton at a fixed gradient converges, keeps the contact history (E_d,
+    W_f and alpha unchanged: no dissipation at the solver change, unlike a restart without
+    history) and removes the relaxation's residual stress."""
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.io.checkpoint import load_checkpoint
+    from mpfem_fenicsx.workflows.yield_surface import settle
+
+    case, result = fan
+    u = result["unloaded"]
+    implicit = replace(case, solver="implicit", reload_steps=20, out_dir=str(tmp_path))
+    settled, model = settle(implicit, u, MPI.COMM_SELF, log=lambda *a: None)
+    assert settled.E_0 == pytest.approx(u.E_0, rel=1e-5)
+    assert abs(settled.sigma_m_unloaded) < abs(u.sigma_m_unloaded)
+    before, _ = load_checkpoint(u.checkpoint, MPI.COMM_SELF)
+    after, meta = load_checkpoint(settled.checkpoint, MPI.COMM_SELF)
+    assert meta["solver"] == "implicit"
+    assert after["solver/contact/alpha"].max() == pytest.approx(before["solver/contact/alpha"].max(), rel=1e-6)
+    assert len(settled.segments) == len(u.segments) + 1
+
+
+@pytest.mark.heavy  # ~8 min (4 implicit reloads of 20 Newton steps): pytest -m heavy
+def test_implicit_fan_needs_no_w2_filter(fan, tmp_path):
+    """The fan of the fixture with implicit reloads: closed yield polygon near the explicit one
+    (within 25 % of its size: the explicit 200-increment reloads lag dynamically), and raw W2
+    changes sign at most once per reload (the explicit raw W2 flips several times)."""
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.workflows.yield_surface import run_yield_surface
+
+    case, result = fan
+    implicit = replace(case, solver="implicit", reload_steps=20, out_dir=str(tmp_path))
+    res = run_yield_surface(implicit, MPI.COMM_SELF, log=lambda *a: None)
+    assert max(res["w2_raw_sign_changes"]) <= 1 < max(result["w2_raw_sign_changes"])
+    pi, pe = np.array(res["points"]["yield"]), np.array(result["points"]["yield"])
+    assert pi.shape == pe.shape == (case.nphi, 3)
+    size = np.hypot(pe[:, 1], pe[:, 2]).max()
+    assert np.hypot(*(pi[:, 1:] - pe[:, 1:]).T).max() < 0.25 * size

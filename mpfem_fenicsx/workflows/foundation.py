@@ -48,6 +48,7 @@ class UniaxialResult:
     energies: History | None
     wall_time: float
     csv: Path
+    plastic_work: float = 0.0  # mJ, the solver's tally of the plastic dissipation
 
 
 def run_uniaxial(solver: str = "implicit", material: ElastoPlastic = LEAD, log_strain: float = 0.5,
@@ -111,7 +112,8 @@ def run_uniaxial(solver: str = "implicit", material: ElastoPlastic = LEAD, log_s
     wall = time.perf_counter() - start
     csv = history.write()
     data = history.array()
-    return UniaxialResult(data[:, 0], data[:, 1], data[:, 2], energy, wall, csv)
+    plastic_work = s.plastic_work if solver == "implicit" else s.energies.plastic
+    return UniaxialResult(data[:, 0], data[:, 1], data[:, 2], energy, wall, csv, plastic_work)
 
 
 @dataclass

@@ -20,12 +20,19 @@ Stages (data flow: compaction -> unload -> checkpoint -> fan of reloads -> surfa
    threshold for the last time (§4.3, "le seuil le plus tardif"); Hill's rupture where the
    second-order work W2 = dsigma : dh first becomes <= 0 (eq. 4.15); all interpolated linearly
    in (sigma_m, sigma~_d) between history rows. Uniaxial compressive yield / tensile rupture
-   stresses are the intersections with sigma~_d = 3 sigma_m.
+   stresses are the intersections with sigma~_d = 3 sigma_m. The limit specific contact surface
+   Gamma_l (table 4.2) is the level below which the iso-Gamma curves superpose.
+
+Reload solver (``solver``): explicit (cheap; W2 from Savitzky-Golay derivatives, as the thesis
+filtered its explicit W2), or implicit: the explicit unload state is continued with Newton at a
+fixed gradient (stage "settle": the dynamic relaxation's residual removed, E_0 read there) and
+every reload is a sequence of ``reload_steps`` static equilibria, whose raw W2 needs no filter.
 
 Outputs in ``out_dir``: ``fan.csv`` (one row per reload output: phi, sigma_m, sigma_tilde_d,
 h_v, h_tilde_d, E_d, Gamma, W2), ``surfaces.csv`` (kind, phi, sigma_m, sigma_tilde_d; kind in
-yield | gamma_<value> | w2), ``uniaxial.csv`` (kind, compressive_MPa, tensile_MPa),
-``yield_surface.png`` and the stage directories with their histories and checkpoints.
+yield | gamma_<value> | w2; the limit iso-Gamma curve Gamma_l among the gamma kinds),
+``uniaxial.csv`` (kind, compressive_MPa, tensile_MPa), ``summary.json`` (E_0, Gamma_l, points
+per surface, raw W2 sign changes per reload), ``yield_surface.png`` and the stage directories with their histories and checkpoints.
 Units mm, N, MPa, mJ; reported stresses compression > 0, strains natural sign (h_v < 0 in
 compaction).
 """
@@ -298,7 +305,8 @@ def fan_rows(history_csv: str | Path, phi: float, t_unloaded: float, w2_window: 
     else:
         dsigma = np.concatenate([np.full((1, 3, 3), np.nan), np.diff(sigma, axis=0)])
         dh = np.concatenate([np.full((1, 3, 3), np.nan), np.diff(hencky, axis=0)])
-    fan = {"phi": np.full(m, phi), "W2": second_order_work(dsigma, dh)}
+    raw = second_order_work(np.diff(sigma, axis=0), np.diff(hencky, axis=0))
+    fan = {"phi": np.full(m, phi), "W2": second_order_work(dsigma, dh), "_W2_raw": np.concatenate([[np.nan], raw])}
     for c in FAN_COLUMNS:
         if c not in fan:
             fan[c] = h[c][rows]
@@ -318,20 +326,73 @@ def surface_points(fan: dict[str, np.ndarray], E_0: float, dissipation_threshold
     if np.isfinite(m):
         points["yield"] = (float(m), float(d))
     for level in gamma_thresholds:
-        best = (-1.0, np.nan, np.nan)
-        for rising in (True, False):
-            pos, m, d = first_crossing(fan["Gamma"], level, sm, sd, rising=rising, last=True)
-            if np.isfinite(pos) and pos > best[0]:
-                best = (pos, m, d)
-        if np.isfinite(best[1]):
-            points[f"gamma_{level:.4g}"] = (float(best[1]), float(best[2]))
-    moving = np.flatnonzero(fan["_dh"] >= 0.2 * np.nanmax(fan["_dh"]))
-    if moving.size >= 2:
-        sel = slice(moving[0], moving[-1] + 1)
-        _, m, d = first_crossing(fan["W2"][sel], 0.0, sm[sel], sd[sel], rising=False)
-        if np.isfinite(m):
-            points["w2"] = (float(m), float(d))
+        p = iso_gamma_point(fan, level)
+        if p is not None:
+            points[f"gamma_{level:.4g}"] = p
+    sel = _moving(fan)
+    _, m, d = first_crossing(fan["W2"][sel], 0.0, sm[sel], sd[sel], rising=False)
+    if np.isfinite(m):
+        points["w2"] = (float(m), float(d))
     return points
+
+
+def _moving(fan: dict[str, np.ndarray]) -> slice:
+    """Rows where the strain increment is >= 20 % of the reload's largest (W2 is read there)."""
+    moving = np.flatnonzero(fan["_dh"] >= 0.2 * np.nanmax(fan["_dh"]))
+    return slice(moving[0], moving[-1] + 1) if moving.size >= 2 else slice(0, 0)
+
+
+def iso_gamma_point(fan: dict[str, np.ndarray], level: float) -> tuple[float, float] | None:
+    """(sigma_m, sigma~_d) where a reload's specific contact surface crosses ``level`` (1/mm) for
+    the last time, either way (thesis §4.3, "le seuil le plus tardif"); None if it never does."""
+    best = (-1.0, np.nan, np.nan)
+    for rising in (True, False):
+        pos, m, d = first_crossing(fan["Gamma"], level, fan["sigma_m"], fan["sigma_tilde_d"], rising=rising, last=True)
+        if np.isfinite(pos) and pos > best[0]:
+            best = (pos, m, d)
+    return (float(best[1]), float(best[2])) if np.isfinite(best[1]) else None
+
+
+def limit_specific_surface(fans: list[dict], gamma_unloaded: float, scale: float, tolerance: float = 0.02,
+                           levels: int = 24, min_directions: int = 3) -> float:
+    """Limit specific contact surface Gamma_l (1/mm, thesis §4.3 and table 4.2): the threshold
+    below which the iso-Gamma curves superpose (the contacts collapse at the stress peak, so
+    every lower threshold is crossed at almost the same stress; the thesis reads it off the
+    curves and takes the limit curve as the rupture surface). Operationally: ``levels`` levels
+    from the unloaded value down to the lowest one still crossed by ``min_directions`` reloads;
+    consecutive curves, compared on the directions crossing both, superpose when no point
+    moves by more than ``tolerance`` x ``scale`` (MPa, e.g. the yield surface's largest
+    stress); Gamma_l is the highest level from which every lower pair superposes. Crossings
+    within 10 % of ``scale`` of the unloaded state are not counted (levels just below the
+    unloaded value are crossed at the start of every reload, trivially together). NaN when
+    the curves never superpose (reloads too short to break the contacts)."""
+    minima = np.sort([float(np.nanmin(f["Gamma"])) for f in fans])
+    if minima.size < min_directions or not minima[min_directions - 1] < gamma_unloaded:
+        return float("nan")
+    grid = np.linspace(gamma_unloaded, minima[min_directions - 1], levels + 1)[1:]
+
+    def away(fan, p):
+        start = (fan["sigma_m"][0], fan["sigma_tilde_d"][0])
+        return p if p is not None and math.dist(p, start) > 0.1 * scale else None
+
+    curves = [{k: away(f, iso_gamma_point(f, g)) for k, f in enumerate(fans)} for g in grid]
+    superposed = []
+    for upper, lower in zip(curves[:-1], curves[1:]):
+        common = [k for k in upper if upper[k] is not None and lower[k] is not None]
+        moved = max((math.dist(upper[k], lower[k]) for k in common), default=np.inf)
+        superposed.append(len(common) >= min_directions and moved <= tolerance * scale)
+    j = len(superposed)
+    while j > 0 and superposed[j - 1]:
+        j -= 1
+    return float(grid[j]) if j < len(superposed) else float("nan")
+
+
+def w2_sign_changes(fan: dict[str, np.ndarray]) -> int:
+    """Sign changes of the raw (unfiltered) W2 of a reload where it is read (:func:`_moving`): a
+    quasi-static reload has at most one (W2 > 0, then <= 0 at rupture); dynamic noise many."""
+    w = fan["_W2_raw"][_moving(fan)]
+    signs = np.sign(w[np.isfinite(w) & (w != 0)])
+    return int(np.count_nonzero(signs[1:] != signs[:-1]))
 
 
 def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> dict:
@@ -389,6 +450,14 @@ def surfaces(case: YieldSurfaceCase, unloaded: Unloaded | None = None, log=print
     for fan in fans:
         for kind, p in surface_points(fan, unloaded.E_0, case.dissipation_threshold, gammas).items():
             points.setdefault(kind, []).append((float(fan["phi"][0]), *p))
+    scale = max((math.hypot(m, d) for _, m, d in points.get("yield", [])), default=abs(unloaded.sigma_m_loaded))
+    gamma_limit = limit_specific_surface(fans, unloaded.Gamma_unloaded, scale)
+    if np.isfinite(gamma_limit):  # the limit iso-Gamma curve (the thesis' rupture surface)
+        for fan in fans:
+            p = iso_gamma_point(fan, gamma_limit)
+            if p is not None:
+                points.setdefault(f"gamma_{gamma_limit:.4g}", []).append((float(fan["phi"][0]), *p))
+    sign_changes = [w2_sign_changes(f) for f in fans]
     with open(out / "fan.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(FAN_COLUMNS)
@@ -411,17 +480,28 @@ def surfaces(case: YieldSurfaceCase, unloaded: Unloaded | None = None, log=print
         w.writerow(("kind", "compressive_MPa", "tensile_MPa"))
         for kind, (c, t) in uniaxial.items():
             w.writerow((kind, "" if not np.isfinite(c) else repr(c), "" if not np.isfinite(t) else repr(t)))
+    summary = {"solver": case.solver, "E_0_mJ": unloaded.E_0, "sigma_m_unloaded_MPa": unloaded.sigma_m_unloaded,
+               "Gamma_unloaded_per_mm": unloaded.Gamma_unloaded, "gamma_thresholds_per_mm": list(gammas),
+               "Gamma_limit_per_mm": gamma_limit, "points": {k: len(v) for k, v in points.items()},
+               "w2_raw_sign_changes": sign_changes,
+               "uniaxial_MPa": {k: {"compressive": c, "tensile": t} for k, (c, t) in uniaxial.items()}}
+    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
     n_yield = len(points.get("yield", []))
     log(f"[surfaces] yield points {n_yield}/{case.nphi}" + ("" if n_yield == case.nphi else
         " (the surface is not closed: raise amplitude_factor)") +
         "".join(f"; {kind}: {len(p)}" for kind, p in points.items() if kind != "yield"))
     for kind, (c, t) in uniaxial.items():
         log(f"[surfaces] {kind}: uniaxial compressive {c:.4g} MPa, tensile {t:.4g} MPa")
+    log(f"[surfaces] limit specific contact surface Gamma_l = {gamma_limit:.5g} 1/mm" +
+        ("" if np.isfinite(gamma_limit) else " (the iso-Gamma curves do not superpose within these reloads)"))
+    log(f"[surfaces] raw W2 sign changes per reload ({case.solver}): median {np.median(sign_changes):.0f}, "
+        f"max {max(sign_changes)}")
     plot_yield_surface(out / "unload" / "history.csv", out / "fan.csv", out / "surfaces.csv",
                        out / "yield_surface.png",
                        title=f"{case.base.loading} compaction to rho = {case.base.target_density}, "
                              f"gamma = {case.base.gamma:g} mJ/mm^2, {case.nphi} reloads")
-    return {"points": points, "uniaxial": uniaxial, "gamma_thresholds": gammas}
+    return {"points": points, "uniaxial": uniaxial, "gamma_thresholds": gammas, "gamma_limit": gamma_limit,
+            "w2_raw_sign_changes": sign_changes}
 
 
 def _sleeping_barrier(comm: MPI.Comm, poll: float = 0.05) -> None:
