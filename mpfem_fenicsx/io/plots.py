@@ -53,11 +53,12 @@ def plot_loading_path(history_csv: str | Path, png: str | Path, title: str = "")
 
 
 def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surfaces_csv: str | Path,
-                       png: str | Path, title: str = "") -> Path:
+                       png: str | Path, title: str = "", gamma_limit: float = float("nan")) -> Path:
     """Draw a chapter-4 fan in the style of thesis fig. 4.5 / 4.7 / 4.18: (a) strain paths
     (h_v, h~_d) of the loading, the unload and the reloads; (b) stress paths (sigma_m, sigma~_d)
     with the yield surface (iso-dissipation), the iso-Gamma curves, Hill's W2 <= 0 points and the
-    uniaxial line sigma~_d = 3 sigma_m. Stresses compression > 0, strains natural sign."""
+    uniaxial line sigma~_d = 3 sigma_m; the iso-Gamma curve at ``gamma_limit`` (Gamma_l, 1/mm) is
+    marked as the limit one. Stresses compression > 0, strains natural sign."""
     import csv
 
     import matplotlib
@@ -93,7 +94,9 @@ def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surf
     greys = iter(plt.cm.Blues(np.linspace(0.45, 0.95, max(1, len(surfaces)))))
     for kind, pts in surfaces.items():
         p = np.array(sorted(pts))
-        if kind.startswith("gamma_"):
+        if np.isfinite(gamma_limit) and kind == f"gamma_{gamma_limit:.6g}":
+            marker, colour, label = "D-", "tab:green", f"limit Gamma_l = {kind[6:]} 1/mm"
+        elif kind.startswith("gamma_"):
             marker, colour, label = "s--", next(greys), f"Gamma = {kind[6:]} 1/mm"
         else:
             marker, colour, label = styles[kind]

@@ -456,7 +456,7 @@ def surfaces(case: YieldSurfaceCase, unloaded: Unloaded | None = None, log=print
         for fan in fans:
             p = iso_gamma_point(fan, gamma_limit)
             if p is not None:
-                points.setdefault(f"gamma_{gamma_limit:.4g}", []).append((float(fan["phi"][0]), *p))
+                points.setdefault(f"gamma_{gamma_limit:.6g}", []).append((float(fan["phi"][0]), *p))
     sign_changes = [w2_sign_changes(f) for f in fans]
     with open(out / "fan.csv", "w", newline="") as fh:
         w = csv.writer(fh)
@@ -499,7 +499,8 @@ def surfaces(case: YieldSurfaceCase, unloaded: Unloaded | None = None, log=print
     plot_yield_surface(out / "unload" / "history.csv", out / "fan.csv", out / "surfaces.csv",
                        out / "yield_surface.png",
                        title=f"{case.base.loading} compaction to rho = {case.base.target_density}, "
-                             f"gamma = {case.base.gamma:g} mJ/mm^2, {case.nphi} reloads")
+                             f"gamma = {case.base.gamma:g} mJ/mm^2, {case.nphi} {case.solver} reloads",
+                       gamma_limit=gamma_limit)
     return {"points": points, "uniaxial": uniaxial, "gamma_thresholds": gammas, "gamma_limit": gamma_limit,
             "w2_raw_sign_changes": sign_changes}
 
