@@ -328,9 +328,10 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
             f"(unscaled {solver.dt_stable_unscaled:.3g} s), {case.increments} increments")
         total_steps = int(np.ceil(path.duration / settings.target_dt - 1e-9))
     else:
-        log("WARNING: implicit granular compaction is experimental: with the pseudo-time drag the free "
-            "particles are solvable, but Newton needs many cut-backs once contacts yield (tested on an "
-            "8-particle cell only); use the explicit solver for production runs")
+        log("WARNING: implicit granular runs are experimental: with the pseudo-time drag the free "
+            "particles are solvable, but Newton needs many cut-backs once contacts yield, and may stall on "
+            "frictional stick / slip switches (verified on the 8-sphere simple cubic cell: compaction, "
+            "restart, chapter-4 reloads); use the explicit solver for production runs")
         h = model.contact_length
         nodal_volume = problem.lumped_mass(1.0).x.array[: bcs.constraint.num_owned]
         # backtracking line search: frictional stick / slip switches make full Newton steps cycle
