@@ -49,6 +49,7 @@ def main():
     problem.assemble_jacobian(K)
 
     phases = {
+        "deformation_gradient_expression": lambda: problem._F_expr.eval(problem.mesh, problem.material_cells),
         "deformation_gradient_eval": problem.deformation_gradients,
         "material_update_stress": lambda: problem.update_material(tangent=False),
         "material_update_stress_tangent": lambda: problem.update_material(tangent=True),

@@ -126,3 +126,34 @@ def test_assembled_jacobian_matches_residual_on_distorted_hexahedra():
     h = 1e-7
     fd = (residual(u0 + h * du) - residual(u0 - h * du)) / (2 * h)
     assert np.abs(vout.array - fd).max() < 1e-8 * np.abs(fd).max()
+
+
+@pytest.mark.parametrize("kind", ["cube-sphere Q1", "tetrahedra P2"])
+def test_deformation_gradient_kernel_matches_the_compiled_expression(kind):
+    """The threaded F kernel (forms.kinematics) reproduces FFCx's Expression of I + Grad u on
+    curved hexahedra and on P2 tetrahedra, for a random displacement and a subset of cells, and
+    the problem uses it (the residual packing is handed the kernel's P_dev directly as well)."""
+    import warnings
+
+    import dolfinx
+
+    if kind.startswith("cube"):
+        mesh = particle_mesh([[0, 0, 0], [2.1, 0, 0]], [1.0, 1.0], MPI.COMM_SELF).mesh
+        degree = None
+    else:
+        mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 2, 3, 2, dolfinx.mesh.CellType.tetrahedron)
+        degree = 2
+    cells = np.arange(0, mesh.topology.index_map(3).size_local, 3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        prob = SolidProblem(mesh, LEAD, degree=degree, active_cells=cells)
+    assert prob._F_kernel is not None and prob._residual_key is not None
+    rng = np.random.default_rng(3)
+    prob.u.x.array[:] = 0.05 * rng.standard_normal(prob.u.x.array.size)
+    F_expr = prob._F_expr.eval(prob.mesh, prob.material_cells).reshape(-1, 3, 3)
+    F = prob.deformation_gradients()
+    assert F.shape == F_expr.shape and np.abs(F - np.eye(3)).max() > 1e-2
+    assert np.allclose(F, F_expr, rtol=0, atol=1e-13)
+    prob.update_material(tangent=True)
+    packed = dolfinx.fem.pack_coefficients(prob.residual_forms[0])[prob._residual_key]
+    assert np.array_equal(packed, prob.material.P_dev.reshape(cells.size, -1))
