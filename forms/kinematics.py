@@ -16,6 +16,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ..material.hencky_j2 import _inverse3
+
+_CHUNK = 64  # cells per parallel chunk: scratch matrices are allocated once per chunk
+
 
 @numba.njit(parallel=True, cache=True)
 def _gradients(cells, x, gdofs, dpsi, u, dofs, dphi, out):
@@ -23,42 +27,34 @@ def _gradients(cells, x, gdofs, dpsi, u, dofs, dphi, out):
     npts = dpsi.shape[0]
     ng = dpsi.shape[1]
     nd = dphi.shape[1]
-    for c in numba.prange(cells.size):
-        cell = cells[c]
-        for q in range(npts):
-            J = np.zeros((3, 3))
-            for a in range(ng):
-                node = gdofs[cell, a]
+    nchunks = (cells.size + _CHUNK - 1) // _CHUNK
+    for chunk in numba.prange(nchunks):
+        J = np.empty((3, 3))
+        K = np.empty((3, 3))
+        G = np.empty((3, 3))
+        for c in range(chunk * _CHUNK, min(cells.size, (chunk + 1) * _CHUNK)):
+            cell = cells[c]
+            for q in range(npts):
+                J[:] = 0.0  # J = sum_a X_a (x) dpsi_a/dxi
+                for a in range(ng):
+                    node = gdofs[cell, a]
+                    for i in range(3):
+                        xi = x[node, i]
+                        for j in range(3):
+                            J[i, j] += xi * dpsi[q, a, j]
+                _inverse3(J, K)
+                G[:] = 0.0  # G = sum_b u_b (x) dphi_b/dxi, so that Grad u = G J^-1
+                for b in range(nd):
+                    dof = dofs[cell, b]
+                    for i in range(3):
+                        ui = u[3 * dof + i]
+                        for k in range(3):
+                            G[i, k] += ui * dphi[q, b, k]
+                row = c * npts + q
                 for i in range(3):
-                    xi = x[node, i]
                     for j in range(3):
-                        J[i, j] += xi * dpsi[q, a, j]
-            det = (J[0, 0] * (J[1, 1] * J[2, 2] - J[1, 2] * J[2, 1])
-                   - J[0, 1] * (J[1, 0] * J[2, 2] - J[1, 2] * J[2, 0])
-                   + J[0, 2] * (J[1, 0] * J[2, 1] - J[1, 1] * J[2, 0]))
-            inv = 1.0 / det
-            K = np.empty((3, 3))  # K = J^-1
-            K[0, 0] = (J[1, 1] * J[2, 2] - J[1, 2] * J[2, 1]) * inv
-            K[0, 1] = (J[0, 2] * J[2, 1] - J[0, 1] * J[2, 2]) * inv
-            K[0, 2] = (J[0, 1] * J[1, 2] - J[0, 2] * J[1, 1]) * inv
-            K[1, 0] = (J[1, 2] * J[2, 0] - J[1, 0] * J[2, 2]) * inv
-            K[1, 1] = (J[0, 0] * J[2, 2] - J[0, 2] * J[2, 0]) * inv
-            K[1, 2] = (J[0, 2] * J[1, 0] - J[0, 0] * J[1, 2]) * inv
-            K[2, 0] = (J[1, 0] * J[2, 1] - J[1, 1] * J[2, 0]) * inv
-            K[2, 1] = (J[0, 1] * J[2, 0] - J[0, 0] * J[2, 1]) * inv
-            K[2, 2] = (J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]) * inv
-            G = np.zeros((3, 3))  # G = sum_b u_b (x) dphi_b/dxi ; Grad u = G J^-1
-            for b in range(nd):
-                dof = dofs[cell, b]
-                for i in range(3):
-                    ui = u[3 * dof + i]
-                    for k in range(3):
-                        G[i, k] += ui * dphi[q, b, k]
-            row = c * npts + q
-            for i in range(3):
-                for j in range(3):
-                    out[row, i, j] = (1.0 if i == j else 0.0) + G[i, 0] * K[0, j] + G[i, 1] * K[1, j] \
-                        + G[i, 2] * K[2, j]
+                        out[row, i, j] = (1.0 if i == j else 0.0) + G[i, 0] * K[0, j] + G[i, 1] * K[1, j] \
+                            + G[i, 2] * K[2, j]
 
 
 class DeformationGradients:
