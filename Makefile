@@ -1,7 +1,7 @@
 # Every target bootstraps .venv/ first (Python >= 3.12, DOLFINx 0.11 from PyPI); idempotent.
 PY := .venv/bin/python
 
-.PHONY: bootstrap demo test test-all bench clean
+.PHONY: bootstrap demo test test-all bench bench-compaction clean
 
 bootstrap:
 	@bash scripts/bootstrap.sh
@@ -18,6 +18,12 @@ test-all: bootstrap  ## also the heavy cases
 bench: bootstrap
 	$(PY) bench/material_assembly.py
 	$(PY) bench/contact.py
+
+# issue-8 compaction step benchmark (one JSON object), e.g.
+#   make bench-compaction ARGS="--particles 350 --bc GDF --increments 40 --warmup 20 --steps 10" NP=2
+ARGS ?= --particles 50 --bc CLP --increments 40 --warmup 20 --steps 20
+bench-compaction: bootstrap
+	$(if $(NP),.venv/bin/mpirun -n $(NP) )$(PY) bench/compaction.py $(ARGS)
 
 clean:
 	rm -rf results .pytest_cache
