@@ -21,8 +21,16 @@ at first contact and each iteration costs ~4 s (MUMPS LU), so a full ratio takes
 minutes. With size_min = 0.05 the monitor shows why: each time a new ring of nodes enters the
 contact the active set flips between iterations and Newton diverges (NaN from inverted cells)
 unless the step is cut to ~1e-5 r of approach; capping the Newton correction (tried: a tenth of
-a contact element) only makes it wander. A penalty smoothed over a small gap band (C1 at first
-contact) is the next thing to try. The earlier full-sphere cube-sphere version had the same first-contact trouble.
+a contact element) only makes it wander. The earlier full-sphere cube-sphere version had the same
+first-contact trouble. Diagnosis (size_min = 0.05): with an *elastic* material (sigma_0 = 1e6)
+the first contact converges in 4 iterations, but at approach 0.004 r Newton enters an exact
+period-3 cycle (residual 1.4e-2 -> 1.01 -> 2.57 N, repeated to max_it): an active-set / closest-
+facet cycle of the node-to-facet search on these non-matching tetrahedra-split hexahedra, not a
+plasticity problem; a backtracking line search (bt) only turns the cycle into stagnation (1e-3 of
+the initial residual after 25 iterations, 4 cut-backs at first contact with plasticity). Next
+thing to try: freeze the contact pairs (slave node -> master facet, re-projected on that facet)
+after a few iterations, as Abaqus fixes the contact status after "severe discontinuity"
+iterations, then check the converged state with a fresh search; or a smoothed penalty at gap 0.
 """
 
 from __future__ import annotations
