@@ -27,10 +27,15 @@ the first contact converges in 4 iterations, but at approach 0.004 r Newton ente
 period-3 cycle (residual 1.4e-2 -> 1.01 -> 2.57 N, repeated to max_it): an active-set / closest-
 facet cycle of the node-to-facet search on these non-matching tetrahedra-split hexahedra, not a
 plasticity problem; a backtracking line search (bt) only turns the cycle into stagnation (1e-3 of
-the initial residual after 25 iterations, 4 cut-backs at first contact with plasticity). Next
-thing to try: freeze the contact pairs (slave node -> master facet, re-projected on that facet)
-after a few iterations, as Abaqus fixes the contact status after "severe discontinuity"
-iterations, then check the converged state with a fresh search; or a smoothed penalty at gap 0.
+the initial residual after 25 iterations, 4 cut-backs at first contact with plasticity).
+Freezing the pairs (slave node -> master facet, re-projected on that facet) after 8 iterations
+(branch ``contact-freeze``) makes that Newton converge quadratically, but a fresh search then
+disagrees: one penetrated slave node sits at the edge between two master facets, its projection
+leaves the frozen facet (gap -2.7e-5 mm, clamped) while the searched neighbour facet gives
+-1.5e-4 mm. The cycle is the closest-facet switch of a penetrated node across the normal
+discontinuity of the faceted master surface. Next: a gap with a continuous normal field across
+facet edges (interpolated nodal normals, or projection on the nearest edge/vertex) for
+penetrated nodes, then freezing as the fallback.
 """
 
 from __future__ import annotations
