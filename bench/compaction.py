@@ -57,6 +57,12 @@ def main(argv=None) -> dict:
     p.add_argument("--target-density", type=float, default=0.95)
     p.add_argument("--seed", type=int, default=1)
     args = p.parse_args(argv)
+    for name, value, low in (("--particles", args.particles, 1), ("--steps", args.steps, 1),
+                             ("--increments", args.increments, 2), ("--nodes-per-particle", args.nodes_per_particle, 1)):
+        if value < low:
+            p.error(f"{name} = {value} must be >= {low}")
+    if args.warmup is not None and not 0 <= args.warmup < args.increments:
+        p.error(f"--warmup = {args.warmup} must be in [0, --increments = {args.increments})")
     comm = MPI.COMM_WORLD
 
     divisions, nodes = divisions_for(args.nodes_per_particle)
@@ -79,7 +85,7 @@ def main(argv=None) -> dict:
     else:
         # build + warm-up to the contact-rich state, then the timed increments (outputs: none in
         # between, one at the end to include the homogenization's cost once)
-        every = args.increments // 40  # 40 outputs: rho and contacts known at the end of the warm-up
+        every = max(1, args.increments // 40)  # 40 outputs: rho and contacts known at the end of the warm-up
         warmup = max(every, warmup // every * every)
         case = CompactionCase(**base, outputs=40, stop_after=warmup)
         res = run_compaction(case, comm, log=quiet)
