@@ -162,6 +162,14 @@ def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type:
     raise ValueError(f"cell_type must be 'hexahedron' or 'tetrahedron', got {cell_type!r}")
 
 
+def _moment_degree(mesh: dolfinx.mesh.Mesh) -> int:
+    """Quadrature degree of the volume / first-moment integrals: on Q1 hexahedra J dX =
+    det(d(X + u)/d xi) d xi has degree 2 per direction and (X + u) J degree 3, so 2 Gauss points
+    per direction are exact (27 cost 3x for nothing); other cells keep degree 4."""
+    q1_hexahedra = mesh.topology.cell_name() == "hexahedron" and mesh.geometry.cmaps[0].degree == 1
+    return 3 if q1_hexahedra else 4
+
+
 class CellVolumes:
     """Current volume (mm^3) of each owned cell, int_cell det(I + grad u) dX (exact for Q1).
 
@@ -172,9 +180,7 @@ class CellVolumes:
         V0 = dolfinx.fem.functionspace(mesh, ("DG", 0))
         w = ufl.TestFunction(V0)
         J = 1.0 if u is None else ufl.det(ufl.Identity(3) + ufl.grad(u))
-        # J dX = det(d(X + u)/d xi) d xi: degree 2 per direction on Q1 cells, (X + u) J degree 3,
-        # so 2 Gauss points per direction (degree 3) are exact (27 points cost 3x for nothing)
-        dx = ufl.dx(domain=mesh, metadata={"quadrature_degree": 3})
+        dx = ufl.dx(domain=mesh, metadata={"quadrature_degree": _moment_degree(mesh)})
         self._form = dolfinx.fem.form(J * w * dx)
         owned = mesh.topology.index_map(mesh.topology.dim).size_local
         self._dofs = V0.dofmap.list[:owned, 0]
@@ -216,7 +222,7 @@ class ParticleCentroids:
         w = ufl.TestFunction(W)
         x = ufl.SpatialCoordinate(mesh) + u
         J = ufl.det(ufl.Identity(3) + ufl.grad(u))
-        dx = ufl.dx(domain=mesh, metadata={"quadrature_degree": 3})
+        dx = ufl.dx(domain=mesh, metadata={"quadrature_degree": _moment_degree(mesh)})
         moments = ufl.as_vector([x[0] * J, x[1] * J, x[2] * J, J])
         self._form = dolfinx.fem.form(ufl.inner(moments, w) * dx)
         owned = mesh.topology.index_map(mesh.topology.dim).size_local
