@@ -136,6 +136,10 @@ class SolidProblem:
         (key, array), = packed.items()
         return key if array.shape == (rows, self.points_per_cell * width) else None
 
+    def _material_coefficients(self, key, values: np.ndarray):
+        """The material array as a deviatoric form's packed coefficients (None: let DOLFINx pack)."""
+        return None if key is None else {key: values.reshape(self.material_cells.size, -1)}
+
     # -- assembly ------------------------------------------------------------------------------
     def create_vector(self) -> PETSc.Vec:
         return dolfinx.fem.petsc.create_vector(self.V)
@@ -148,9 +152,7 @@ class SolidProblem:
         with b.localForm() as loc:
             loc.set(0.0)
         for k, form in enumerate(self.residual_forms):
-            coeffs = None
-            if k == 0 and self._residual_key is not None:
-                coeffs = {self._residual_key: self.material.P_dev.reshape(self.material_cells.size, -1)}
+            coeffs = self._material_coefficients(self._residual_key, self.material.P_dev) if k == 0 else None
             dolfinx.fem.petsc.assemble_vector(b, form, coeffs=coeffs)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
 
@@ -158,9 +160,7 @@ class SolidProblem:
         """K = consistent tangent stiffness (N/mm) at the current material state."""
         K.zeroEntries()
         for k, form in enumerate(self.jacobian_forms):
-            coeffs = None
-            if k == 0 and self._jacobian_key is not None:
-                coeffs = {self._jacobian_key: self.material.A_dev.reshape(self.material_cells.size, -1)}
+            coeffs = self._material_coefficients(self._jacobian_key, self.material.A_dev) if k == 0 else None
             dolfinx.fem.petsc.assemble_matrix(K, form, coeffs=coeffs)
             K.assemble(PETSc.Mat.AssemblyType.FLUSH)
         K.assemble()
