@@ -29,7 +29,7 @@ from petsc4py import PETSc
 import dolfinx
 
 from .laws import ContactLaw, evaluate_law, law_point
-from .search import FACING, ContactPoints, ContactSearch, _project, facet_areas, surface_normals
+from .search import FACING, ContactPoints, ContactSearch, _project, corner_normals, facet_areas, surface_normals
 from .surface import ContactSurface
 
 PASS_WEIGHT = 0.5  # two-pass symmetric treatment
@@ -67,11 +67,12 @@ def _point_weights(facets, nv, slave, facet, xi, nodes, weights):
 
 
 @numba.njit(cache=True)
-def _point_forces(pos, pos_n, nv, branch, alpha_n, smax_n, tpx, tpy, tpz, scale, k, kt, mu, sigma_c,
+def _point_forces(pos, pos_n, nv, cn, branch, alpha_n, smax_n, tpx, tpy, tpz, scale, k, kt, mu, sigma_c,
                   delta_max, p0, alpha_forced, forces, res, law_out, facet_index, N):
     """Nodal forces (on the bodies) of one contact point for node positions ``pos`` (nn, 3):
-    projection of pos[0] on the facet pos[1:], gap, normal, slip since pos_n, law."""
-    _project(pos[0], pos, facet_index, nv, res)
+    projection of pos[0] on the facet pos[1:] (corner normals ``cn``), gap, normal, slip since
+    pos_n, law."""
+    _project(pos[0], pos, facet_index, nv, cn, res)
     _shape(nv, res[0], res[1], N)
     nx, ny, nz = res[3], res[4], res[5]
     s = np.zeros(3)
@@ -94,7 +95,7 @@ def _point_forces(pos, pos_n, nv, branch, alpha_n, smax_n, tpx, tpy, tpz, scale,
 
 
 @numba.njit(parallel=True, cache=True)
-def _point_tangents(x, x_n, facets, nv, slave, facet, branch, shift, shift_n, alpha_n, smax_n, tt_n, scale, k, kt, mu,
+def _point_tangents(x, x_n, facets, nv, corner, slave, facet, branch, shift, shift_n, alpha_n, smax_n, tt_n, scale, k, kt, mu,
                     sigma_c, delta_max, p0, alpha_forced, K):
     """Consistent tangent of every contact point by central differences of :func:`_point_forces`
     over the positions of its nodes: K (n, 3 nn, 3 nn) = d r / d u, r = -forces on the bodies.
@@ -103,7 +104,9 @@ def _point_tangents(x, x_n, facets, nv, slave, facet, branch, shift, shift_n, al
 
     Differentiating the whole point evaluation (projection, normal, gap, slip, law) gives the
     complete node-to-surface linearization (normal rotation, sliding of the projection point)
-    that the frozen-normal tangent misses, at 2 x 3 nn point evaluations per point.
+    that the frozen-normal tangent misses, at 2 x 3 nn point evaluations per point. The corner
+    normals of the master facets are those of the last converged configuration (constant over
+    an increment), so the tangent is that of the residual Newton actually solves.
     """
     n = slave.size
     nn = 1 + nv
@@ -134,11 +137,11 @@ def _point_tangents(x, x_n, facets, nv, slave, facet, branch, shift, shift_n, al
         for b in range(nn):
             for j in range(3):
                 pos[b, j] += h
-                _point_forces(pos, pos_n, nv, branch[p], alpha_n[p], smax_n[p], tt_n[p, 0], tt_n[p, 1], tt_n[p, 2],
+                _point_forces(pos, pos_n, nv, corner[facet[p]], branch[p], alpha_n[p], smax_n[p], tt_n[p, 0], tt_n[p, 1], tt_n[p, 2],
                               scale[p], k, kt, mu, sigma_c, delta_max, p0, alpha_forced, fp, res, law_out,
                               facet_index, N)
                 pos[b, j] -= 2.0 * h
-                _point_forces(pos, pos_n, nv, branch[p], alpha_n[p], smax_n[p], tt_n[p, 0], tt_n[p, 1], tt_n[p, 2],
+                _point_forces(pos, pos_n, nv, corner[facet[p]], branch[p], alpha_n[p], smax_n[p], tt_n[p, 0], tt_n[p, 1], tt_n[p, 2],
                               scale[p], k, kt, mu, sigma_c, delta_max, p0, alpha_forced, fm, res, law_out,
                               facet_index, N)
                 pos[b, j] += h
@@ -215,11 +218,7 @@ class ContactModel:
         self.U_committed = np.zeros((self.surface.num_nodes, 3))
         self.shifts_committed = self.search.shifts.copy()
         self.points: ContactPoints | None = None
-        nv = self.surface.vertices_per_facet
-        f = self.surface.facets[:, :nv].ravel()
-        order = np.argsort(f, kind="stable")
-        self._node_facets = (order // nv).astype(np.int64)
-        self._node_facet_ptr = np.searchsorted(f[order], np.arange(self.surface.num_nodes + 1)).astype(np.int64)
+        self._corner: np.ndarray | None = None
         self.frictional_work = 0.0  # committed, summed over ranks, mJ
         self.search_time = 0.0  # accumulated wall time of the search (s), for benchmarks
         self._V = V
@@ -256,7 +255,7 @@ class ContactModel:
         U = s.gather(u)
         x = s.X + U
         start = time.perf_counter()
-        pts = self.search(x)
+        pts = self.search(x, self.corner_normals())
         self.search_time += time.perf_counter() - start
         keys, shift_id = self._keys(pts)
         # image shifts at the last converged state: a deforming periodic cell moves the images
@@ -283,7 +282,7 @@ class ContactModel:
         facet_normal, _ = surface_normals(x, s.facets, s.vertices_per_facet)
         area = np.empty(n)
         if n:
-            _contact_areas(pts.slave, pts.normal, self._node_facet_ptr, self._node_facets,
+            _contact_areas(pts.slave, pts.normal, s.node_facet_ptr, s.node_facets,
                            facet_areas(x, s.facets, s.vertices_per_facet), facet_normal,
                            s.vertices_per_facet, area)
 
@@ -311,7 +310,7 @@ class ContactModel:
             K = np.empty((n, 3 * nn, 3 * nn))
             x_n = s.X + self.U_committed
             if n:
-                _point_tangents(x, x_n, s.facets, s.vertices_per_facet, pts.slave, pts.facet, branch,
+                _point_tangents(x, x_n, s.facets, s.vertices_per_facet, self.corner_normals(), pts.slave, pts.facet, branch,
                                 pts.shift, shift_n, alpha_n, smax_n, tt_n, scale, *params, K)
             size = n * 9 * nn * nn
             rows = np.empty(size, PETSc.IntType)
@@ -346,10 +345,19 @@ class ContactModel:
         K.assemble()
         return K
 
+    def corner_normals(self) -> np.ndarray:
+        """Masters' corner normals (:func:`~mpfem_fenicsx.contact.search.corner_normals`) at the
+        last converged configuration: the smoothed normal field is held over an increment so that
+        the residual is a function of the current positions only (quadratic Newton)."""
+        if self._corner is None:
+            self._corner = corner_normals(self.surface.X + self.U_committed, self.surface)
+        return self._corner
+
     # -- history -------------------------------------------------------------------------------
     def commit(self, u: dolfinx.fem.Function) -> None:
         self.state = self.trial
         self.U_committed = self.surface.gather(u)
+        self._corner = None
         self.shifts_committed = self.search.shifts.copy()
         self.frictional_work += self.comm.allreduce(self._trial_dissipation, op=MPI.SUM)
 
@@ -371,6 +379,7 @@ class ContactModel:
                                   np.asarray(data["frictional_work"]))
         self.trial = self.state
         self.U_committed = np.asarray(data["surface_displacement"]).copy()
+        self._corner = None
         if "image_shifts" in data:
             self.shifts_committed = np.asarray(data["image_shifts"], dtype=float).copy()
             self.search.shifts = self.shifts_committed.copy()

@@ -26,6 +26,9 @@ FACING = 0.2
 #: a master facet is a candidate for a slave node only if n_master . n_node < -SEARCH_FACING
 #: (opposing surfaces; 0 = anything beyond perpendicular)
 SEARCH_FACING = 0.0
+#: facets meeting at less than this angle (degrees) share their corner normals (smoothed master
+#: normal); the facets of a particle mesh meet at ~10-30 degrees, a block's edges at 90
+FEATURE_ANGLE = 45.0
 
 
 @dataclass
@@ -108,44 +111,88 @@ def _facet_point(x, f, nv, xi, eta, out_p, out_dxi, out_deta):
 
 
 @numba.njit(cache=True)
-def _project(p, x, f, nv, res):
-    """Closest point of facet f to p. res = [xi, eta, gap, nx, ny, nz, distance, inside]."""
+def _solve3(a, b):
+    """Solution of the 3x3 system a y = b (Cramer); zeros if singular."""
+    c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
+    c01 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
+    c02 = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
+    det = a[0, 0] * c00 + a[0, 1] * c01 + a[0, 2] * c02
+    y = np.zeros(3)
+    if det == 0.0:
+        return y
+    inv = np.empty((3, 3))
+    inv[0, 0] = c00
+    inv[1, 0] = c01
+    inv[2, 0] = c02
+    inv[0, 1] = a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2]
+    inv[1, 1] = a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]
+    inv[2, 1] = a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1]
+    inv[0, 2] = a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]
+    inv[1, 2] = a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]
+    inv[2, 2] = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+    for i in range(3):
+        y[i] = (inv[i, 0] * b[0] + inv[i, 1] * b[1] + inv[i, 2] * b[2]) / det
+    return y
+
+
+@numba.njit(cache=True)
+def _project(p, x, f, nv, cn, res):
+    """Projection of p on facet f along the facet's smoothed normal field.
+
+    The master normal is interpolated from the facet's corner normals ``cn`` (nv, 3) with the
+    facet's shape functions, m(xi) = sum_i N_i(xi) cn_i, and the projection solves
+    p = x(xi) + t m(xi) for (xi, eta, t) by Newton: a ray from the surface along m through p.
+    Corner normals shared by neighbouring facets make the normal, the projection and the gap
+    continuous across facet edges (a penetrated node near an edge of a convex master no longer
+    jumps between two facets' planes). With equal corner normals (a planar facet, or a sharp
+    feature) this is the closest-point projection.
+
+    res = [xi, eta, gap, nx, ny, nz, distance, inside]: parametric point (clamped to the facet
+    when the ray leaves it), normal gap (mm, < 0 = overlap), unit normal m / |m|, distance from
+    p to the facet point, and 1 if the ray hits the facet.
+    """
     xi = 1.0 / 3.0 if nv == 3 else 0.5
     eta = xi
     q = np.empty(3)
     a = np.empty(3)
     b = np.empty(3)
-    inside = True
-    for _it in range(12):
-        _facet_point(x, f, nv, xi, eta, q, a, b)
-        r0 = 0.0
-        r1 = 0.0
-        h00 = 0.0
-        h01 = 0.0
-        h11 = 0.0
+    m = np.empty(3)
+    ma = np.empty(3)
+    mb = np.empty(3)
+    jac = np.empty((3, 3))
+    rhs = np.empty(3)
+    corners = np.arange(4)
+    _facet_point(x, f, nv, xi, eta, q, a, b)
+    _facet_point(cn, corners, nv, xi, eta, m, ma, mb)
+    mm = m[0] * m[0] + m[1] * m[1] + m[2] * m[2]
+    t = ((p[0] - q[0]) * m[0] + (p[1] - q[1]) * m[1] + (p[2] - q[2]) * m[2]) / mm
+    converged = False
+    for _it in range(20):
         for d in range(3):
-            diff = q[d] - p[d]
-            r0 += a[d] * diff
-            r1 += b[d] * diff
-            h00 += a[d] * a[d]
-            h01 += a[d] * b[d]
-            h11 += b[d] * b[d]
-        det = h00 * h11 - h01 * h01
-        if det <= 0.0:
+            rhs[d] = p[d] - q[d] - t * m[d]
+            jac[d, 0] = a[d] + t * ma[d]
+            jac[d, 1] = b[d] + t * mb[d]
+            jac[d, 2] = m[d]
+        step = _solve3(jac, rhs)
+        xi += step[0]
+        eta += step[1]
+        t += step[2]
+        _facet_point(x, f, nv, xi, eta, q, a, b)
+        _facet_point(cn, corners, nv, xi, eta, m, ma, mb)
+        if abs(step[0]) + abs(step[1]) < 1e-12:
+            converged = True
             break
-        dxi = (h11 * r0 - h01 * r1) / det
-        deta = (h00 * r1 - h01 * r0) / det
-        xi -= dxi
-        eta -= deta
-        if abs(dxi) + abs(deta) < 1e-12:
+        if abs(xi) + abs(eta) > 10.0:  # no ray through p near this facet
             break
+    # a ray that did not converge does not hit the facet (far points, strongly curved fields):
+    # the facet then only competes through its clamped point
     tol = 1e-6
     if nv == 4:
-        inside = (-tol <= xi <= 1 + tol) and (-tol <= eta <= 1 + tol)
+        inside = converged and (-tol <= xi <= 1 + tol) and (-tol <= eta <= 1 + tol)
         xi = min(max(xi, 0.0), 1.0)
         eta = min(max(eta, 0.0), 1.0)
     else:
-        inside = xi >= -tol and eta >= -tol and xi + eta <= 1 + tol
+        inside = converged and xi >= -tol and eta >= -tol and xi + eta <= 1 + tol
         xi = max(xi, 0.0)
         eta = max(eta, 0.0)
         s = xi + eta
@@ -153,13 +200,11 @@ def _project(p, x, f, nv, res):
             xi /= s
             eta /= s
     _facet_point(x, f, nv, xi, eta, q, a, b)
-    nx = a[1] * b[2] - a[2] * b[1]
-    ny = a[2] * b[0] - a[0] * b[2]
-    nz = a[0] * b[1] - a[1] * b[0]
-    norm = np.sqrt(nx * nx + ny * ny + nz * nz)
-    nx /= norm
-    ny /= norm
-    nz /= norm
+    _facet_point(cn, corners, nv, xi, eta, m, ma, mb)
+    norm = np.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
+    nx = m[0] / norm
+    ny = m[1] / norm
+    nz = m[2] / norm
     gap = (p[0] - q[0]) * nx + (p[1] - q[1]) * ny + (p[2] - q[2]) * nz
     dist = np.sqrt((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2)
     res[0] = xi
@@ -173,7 +218,7 @@ def _project(p, x, f, nv, res):
 
 
 @numba.njit(parallel=True, cache=True)
-def _narrow_phase(x, facets, nv, facet_box, facet_normal, node_normal, body_box, body_facet_ptr, body_facets, slave_ptr,
+def _narrow_phase(x, facets, nv, corner, facet_box, facet_normal, node_normal, body_box, body_facet_ptr, body_facets, slave_ptr,
                   slave_nodes, pairs, pair_shift, distance, offsets, out_slave, out_master, out_facet,
                   out_xi, out_gap, out_normal, out_shift, out_valid):
     npairs = pairs.shape[0]
@@ -212,7 +257,7 @@ def _narrow_phase(x, facets, nv, facet_box, facet_normal, node_normal, body_box,
                         facing += facet_normal[f, d] * node_normal[s, d]
                     if facing > -SEARCH_FACING:
                         continue
-                    _project(p, x, facets[f], nv, res)
+                    _project(p, x, facets[f], nv, corner[f], res)
                     # prefer projections inside a facet; among them the smallest distance
                     score = res[6] + (0.0 if res[7] > 0.5 else 1e3 * distance + res[6])
                     if score < best_score:
@@ -261,6 +306,43 @@ def surface_normals(x: np.ndarray, facets: np.ndarray, nv: int) -> tuple[np.ndar
     return facet_n, node / np.where(norm > 0, norm, 1.0)
 
 
+@numba.njit(parallel=True, cache=True)
+def _corner_normals(area_vectors, facets, nv, node_facet_ptr, node_facets, cos_feature, out):
+    nf = facets.shape[0]
+    for f in numba.prange(nf):
+        af = area_vectors[f]
+        nf_ = np.sqrt(af[0] ** 2 + af[1] ** 2 + af[2] ** 2)
+        for v in range(4):
+            if v >= nv:
+                out[f, v, :] = 0.0
+                continue
+            node = facets[f, v]
+            acc = np.zeros(3)
+            for j in range(node_facet_ptr[node], node_facet_ptr[node + 1]):
+                g = node_facets[j]
+                ag = area_vectors[g]
+                ng = np.sqrt(ag[0] ** 2 + ag[1] ** 2 + ag[2] ** 2)
+                if ag[0] * af[0] + ag[1] * af[1] + ag[2] * af[2] >= cos_feature * nf_ * ng:
+                    for d in range(3):
+                        acc[d] += ag[d]
+            norm = np.sqrt(acc[0] ** 2 + acc[1] ** 2 + acc[2] ** 2)
+            for d in range(3):
+                out[f, v, d] = acc[d] / norm
+
+
+def corner_normals(x: np.ndarray, surface, feature_angle: float = FEATURE_ANGLE) -> np.ndarray:
+    """(nF, 4, 3) unit normal at every facet corner in configuration x: the area-weighted mean
+    of the normals of the facets around the vertex that meet the facet at less than
+    ``feature_angle`` (degrees). Smooth surfaces get one normal per node (a continuous normal
+    field); a sharper edge (a block's 90-degree edge) keeps each side's own normal. The 4th
+    corner of a triangle is zero."""
+    nv = surface.vertices_per_facet
+    out = np.empty((surface.facets.shape[0], 4, 3))
+    _corner_normals(_area_vectors(x, surface.facets, nv), surface.facets, nv, surface.node_facet_ptr,
+                    surface.node_facets, np.cos(np.radians(feature_angle)), out)
+    return out
+
+
 @numba.njit(cache=True)
 def _facet_boxes(x, facets, nv):
     nf = facets.shape[0]
@@ -299,8 +381,9 @@ class ContactSearch:
         self.slave_nodes = slaves[order].astype(np.int64)
         self.slave_ptr = np.searchsorted(sbody[order], np.arange(nb + 1)).astype(np.int64)
 
-    def __call__(self, x: np.ndarray) -> ContactPoints:
-        """Contact points for current surface positions ``x`` (nS, 3)."""
+    def __call__(self, x: np.ndarray, corner: np.ndarray | None = None) -> ContactPoints:
+        """Contact points for current surface positions ``x`` (nS, 3); ``corner`` (nF, 4, 3):
+        the masters' corner normals (:func:`corner_normals`; default: those of ``x``)."""
         s = self.surface
         boxes = body_boxes(x, s.node_body, s.num_bodies)
         pairs, shift_index = candidate_pairs(boxes, self.distance, self.shifts, self.allowed)
@@ -318,7 +401,9 @@ class ContactSearch:
         if n:
             facet_box = _facet_boxes(x, s.facets, s.vertices_per_facet)
             facet_normal, node_normal = surface_normals(x, s.facets, s.vertices_per_facet)
-            _narrow_phase(x, s.facets, s.vertices_per_facet, facet_box, facet_normal, node_normal, boxes, self.body_facet_ptr,
+            if corner is None:
+                corner = corner_normals(x, s)
+            _narrow_phase(x, s.facets, s.vertices_per_facet, corner, facet_box, facet_normal, node_normal, boxes, self.body_facet_ptr,
                           self.body_facets, self.slave_ptr, self.slave_nodes, pairs,
                           self.shifts[shift_index], self.distance, offsets, out_slave, out_master,
                           out_facet, out_xi, out_gap, out_normal, out_shift, valid)

@@ -30,6 +30,7 @@ class ContactSurface:
         facets: (nF, 4) surface-node indices (-1 as 4th vertex of triangles).
         facet_body: (nF,) body id of each facet.
         node_body: (nS,) body id of each surface node.
+        node_facet_ptr, node_facets: facets around each node (CSR).
     Per rank:
         owned_nodes: surface nodes whose dof block this rank owns (its slave nodes).
     """
@@ -98,6 +99,11 @@ class ContactSurface:
         node_body = np.zeros(self.blocks.size, dtype=np.int32)
         node_body[inverse] = np.repeat(all_bodies, nv)
         self.node_body = node_body
+        # node -> facets incidence (CSR), for nodal quantities gathered from the facets
+        flat = self.facets[:, :nv].ravel()
+        order = np.argsort(flat, kind="stable")
+        self.node_facets = (order // nv).astype(np.int64)
+        self.node_facet_ptr = np.searchsorted(flat[order], np.arange(self.blocks.size + 1)).astype(np.int64)
 
         # local access: which surface nodes this rank owns, and their local dof blocks
         lo, hi = imap.local_range
