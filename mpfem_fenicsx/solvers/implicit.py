@@ -35,10 +35,19 @@ class StepControl:
     dt_max: float = 0.1
     grow: float = 1.5  # increment growth after an easy step (<= easy_iterations)
     easy_iterations: int = 6
+    #: times that increments land on exactly (e.g. the end of loading before unloading)
+    breakpoints: tuple[float, ...] = ()
 
     def __post_init__(self):
         if not 0 < self.dt_min <= self.dt <= self.t_end:
             raise ValueError(f"step control needs 0 < dt_min <= dt <= t_end, got {self}")
+        if any(not 0 < b < self.t_end for b in self.breakpoints):
+            raise ValueError(f"step control breakpoints must lie in (0, t_end = {self.t_end}), got {self.breakpoints}")
+
+    def next_stop(self, t: float) -> float:
+        """First breakpoint (or t_end) after time t."""
+        later = [b for b in self.breakpoints if b > t * (1 + 1e-12) + 1e-300]
+        return min(later) if later else self.t_end
 
 
 DEFAULT_OPTIONS = {
@@ -118,6 +127,7 @@ class ImplicitSolver:
         for key, value in {**DEFAULT_OPTIONS, **(petsc_options or {})}.items():
             opts[prefix + key] = value
         self.snes.setFromOptions()
+        self.snes.setConvergenceHistory(reset=True)
         self.snes.setFunction(self._residual, self.r_red)
         self.snes.setJacobian(self._jacobian, self.J_red, self.J_red)
 
@@ -254,6 +264,8 @@ class ImplicitSolver:
         for vec in (g_old, dg, force, rhs, dx):
             vec.destroy()
         self.snes.solve(None, self.x)
+        #: residual norms of the last Newton solve (N), for convergence-rate checks
+        self.residual_norms = np.array(self.snes.getConvergenceHistory()[0], dtype=float)
         its = self.snes.getIterationNumber()
         reason = self.snes.getConvergedReason()
         if reason <= 0:
@@ -328,8 +340,12 @@ class ImplicitSolver:
         steps = 0
         self.x.copy(self.x_old)
         while self.t < control.t_end * (1 - 1e-12):
-            dt = min(dt, control.t_end - self.t)
-            ok, its = self.solve_increment(self.t + dt)
+            stop = control.next_stop(self.t)
+            dt = min(dt, stop - self.t)
+            # land on the stop instead of leaving a sliver of an increment before it
+            t_new = stop if self.t + dt > stop - 1e-9 * control.t_end else self.t + dt
+            dt = t_new - self.t
+            ok, its = self.solve_increment(t_new)
             self.iterations_total += its
             if not ok:
                 self.x_old.copy(self.x)  # restore the last converged state
@@ -351,7 +367,7 @@ class ImplicitSolver:
                 self.regularization_work += self.comm.allreduce(
                     float(np.sum(self.regularization.array_r * dw * dw)))
                 self._w_converged[:] = self._peculiar()
-            self.t += dt
+            self.t = t_new
             steps += 1
             self.x.copy(self.x_old)
             self._refresh_tangent()  # as a restart from here would (restarts are exact)

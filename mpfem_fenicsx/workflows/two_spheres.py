@@ -110,6 +110,8 @@ class TwoSphereResult:
     a_unload: np.ndarray  # contact radius (mm) on the unloading branch, 0 < a < a0
     F_unload: np.ndarray  # force (N, compression > 0) there
     F_mj: np.ndarray  # Mesarovic-Johnson force (N) at the same radii
+    newton_iterations: list  # per converged increment
+    residual_norms: list  # per converged increment: Newton residual norms (N), initial first
 
 
 def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path = "results/two_spheres",
@@ -127,7 +129,9 @@ def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path =
     t_load, t_end = 1.0, 1.0 + case.unload_steps / case.load_steps
 
     def approach(t):
-        return r * float(np.interp(t, [0.0, t_load, t_end], [0.0, case.approach, case.unload_to]))
+        if t <= t_load:
+            return r * case.approach * t / t_load
+        return r * float(np.interp(t, [t_load, t_end], [case.approach, case.unload_to]))
 
     bcs = PrescribedDisplacements(V)
     tol = 1e-9 * r
@@ -143,7 +147,11 @@ def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path =
                       ["time", "approach_mm", "force_N", "contact_radius_mm", "loaded_points"], comm,
                       flush_every_row=True)  # a long run keeps its history if stopped
 
+    newton_iterations, residual_norms = [], []
+
     def record(s):
+        newton_iterations.append(s.snes.getIterationNumber())
+        residual_norms.append(s.residual_norms)
         pairs = contact.pair_forces()
         area = 4.0 * float(pairs["area"].sum())  # quarter model
         history.append(time=s.t, approach_mm=approach(s.t), force_N=-4.0 * s.reactions(upper),
@@ -154,7 +162,7 @@ def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path =
     start = time.perf_counter()
     solver = ImplicitSolver(problem, bcs, contact=contact, petsc_options=petsc_options)
     dt = 1.0 / case.load_steps
-    solver.run(StepControl(t_end=t_end, dt=dt, dt_max=dt, dt_min=dt / 1024), on_step=record, log=log)
+    solver.run(StepControl(t_end=t_end, dt=dt, dt_max=dt, dt_min=dt / 1024, breakpoints=(t_load,) if t_end > t_load else ()), on_step=record, log=log)
     history.write()
     data = history.array()
     t, F, a = data[:, 0], data[:, 2], data[:, 3]
@@ -164,4 +172,4 @@ def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path =
     F_mj = case.mesarovic_johnson(a[unloading], a0, F0)
     error = float(np.sqrt(np.sum(((F[unloading] - F_mj) / F0) ** 2)))
     return TwoSphereResult(history, a0, F0, error, V.dofmap.index_map.size_global * 3, time.perf_counter() - start,
-                           a[unloading], F[unloading], F_mj)
+                           a[unloading], F[unloading], F_mj, newton_iterations, residual_norms)
