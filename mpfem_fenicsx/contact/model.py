@@ -300,6 +300,7 @@ class ContactModel:
         self.points = pts
         self.nodes, self.weights = nodes, weights
         self.T1, self.Tt, self.area = T1, Tt, area
+        self.branch = branch  # law branch codes (laws.law_point), for diagnostics
         self.point_force = scale[:, None] * (T1[:, None] * pts.normal + Tt)  # N, on the slave
         order = np.argsort(keys)
         self.trial = ContactState(keys[order], alpha[order], smax[order], Tt[order],
@@ -318,6 +319,32 @@ class ContactModel:
             vals = np.empty(size)
             k = _coo_entries(nodes[:, :nn], s.blocks, K, rows, cols, vals) if n else 0
             self._coo = (rows[:k], cols[:k], vals[:k])
+
+    def penetration_step_limit(self, direction: dolfinx.fem.Function) -> float:
+        """Largest fraction (0, 1] of a displacement update ``direction`` that keeps every open
+        contact point (gap >= 0 at the last evaluation) from penetrating deeper than the deepest
+        current penetration, on the linearized gaps (same on all ranks).
+
+        Newton's linearization gives an open point no contact stiffness, so on a soft (plastic)
+        substrate one iteration can drive it far into the master, the next pushes it back out:
+        the period-2 open / closed cycles at the rim of a growing contact. Limiting the step to
+        the scale of the existing penetrations lets the point enter the contact gently and carry
+        its stiffness into the next iteration (a penetration-controlled step, not a change of
+        the solution)."""
+        lam = 1.0
+        pts = self.points
+        if pts is not None and pts.size:
+            dU = self.surface.gather(direction)
+            used = self.nodes >= 0
+            jump = np.einsum("pa,pad->pd", self.weights * used, dU[np.where(used, self.nodes, 0)])
+            dgap = np.einsum("pd,pd->p", jump, pts.normal)
+            closed = pts.gap < 0
+            depth = max(-pts.gap[closed].min(), 0.0) if closed.any() else 0.0
+            depth = max(depth, 1e-12 * np.ptp(self.surface.X))
+            limited = (pts.gap >= 0) & (pts.gap + dgap < -depth)
+            if limited.any():
+                lam = float(np.min((pts.gap[limited] + depth) / -dgap[limited]))
+        return self.comm.allreduce(lam, op=MPI.MIN)
 
     def nodal_forces(self) -> tuple[np.ndarray, np.ndarray]:
         """Global dof indices and values of the contact forces on the bodies (N)."""

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 from petsc4py import PETSc
 
+import dolfinx
+
 from ..loading import PrescribedDisplacements
 from ..problem import SolidProblem
 from .state import check_layout, histories_state, load_histories
@@ -93,6 +95,7 @@ class ImplicitSolver:
         self.dt_next = None  # increment to try next (kept for restarts)
         self.regularization = None
         self.regularization_work = 0.0
+        self.step_limits: list[float] = []  # contact step fractions applied (diagnostics)
         #: plastic dissipation of the converged increments (mJ), accumulated before each commit
         #: (after it the material's trial increment is the converged state's: zero)
         self.plastic_work = 0.0
@@ -128,6 +131,9 @@ class ImplicitSolver:
             opts[prefix + key] = value
         self.snes.setFromOptions()
         self.snes.setConvergenceHistory(reset=True)
+        if contact is not None:
+            self._direction = dolfinx.fem.Function(problem.V)
+            self.snes.setLineSearchPreCheck(self._limit_contact_step)
         self.snes.setFunction(self._residual, self.r_red)
         self.snes.setJacobian(self._jacobian, self.J_red, self.J_red)
 
@@ -155,6 +161,17 @@ class ImplicitSolver:
         self.timings["material"] += t1 - t0
         self.timings["residual"] += t2 - t1
         self.timings["contact"] += t3 - t2
+
+    def _limit_contact_step(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        """Line-search pre-check: shorten the Newton update (x <- x - y) so that open contact
+        points do not overshoot into the masters (:meth:`ContactModel.penetration_step_limit`);
+        at least a tenth of the step is kept so that Newton cannot stall."""
+        self.constraint.expand(y, self._direction, with_offset=False)
+        self._direction.x.array[:] *= -1.0
+        lam = max(self.contact.penetration_step_limit(self._direction), 0.1)
+        if lam < 1.0:
+            y.scale(lam)
+        self.step_limits.append(lam)
 
     def _assemble_tangent(self) -> bool:
         """Assemble K (and K_total = K + K_contact); True when the sparsity pattern changed."""
