@@ -15,27 +15,29 @@ with a0, F0 at the end of loading, p0 = F0 / (pi a0^2), E* = E / (2 (1 - nu^2)).
 eq. 3.21): e = sqrt(sum_a ((F - F_MJ) / (pi a0^2 p0))^2) over the unloading samples with
 0 < a < a0 (one per unloading step: e grows with their number, so it is reported with it).
 
-Status: EXPERIMENTAL, not yet verified against the issue-3 targets. On the quarter model with
-size_min = 0.03 (hexahedra ~0.015 r at the contact, 47 772 dofs) Newton needs three cut-backs
-at first contact and each iteration costs ~4 s (MUMPS LU), so a full ratio takes tens of
-minutes. With size_min = 0.05 the monitor shows why: each time a new ring of nodes enters the
-contact the active set flips between iterations and Newton diverges (NaN from inverted cells)
-unless the step is cut to ~1e-5 r of approach; capping the Newton correction (tried: a tenth of
-a contact element) only makes it wander. The earlier full-sphere cube-sphere version had the same
-first-contact trouble. Diagnosis (size_min = 0.05): with an *elastic* material (sigma_0 = 1e6)
-the first contact converges in 4 iterations, but at approach 0.004 r Newton enters an exact
-period-3 cycle (residual 1.4e-2 -> 1.01 -> 2.57 N, repeated to max_it): an active-set / closest-
-facet cycle of the node-to-facet search on these non-matching tetrahedra-split hexahedra, not a
-plasticity problem; a backtracking line search (bt) only turns the cycle into stagnation (1e-3 of
-the initial residual after 25 iterations, 4 cut-backs at first contact with plasticity).
-Freezing the pairs (slave node -> master facet, re-projected on that facet) after 8 iterations
-(branch ``contact-freeze``) makes that Newton converge quadratically, but a fresh search then
-disagrees: one penetrated slave node sits at the edge between two master facets, its projection
-leaves the frozen facet (gap -2.7e-5 mm, clamped) while the searched neighbour facet gives
--1.5e-4 mm. The cycle is the closest-facet switch of a penetrated node across the normal
-discontinuity of the faceted master surface. Next: a gap with a continuous normal field across
-facet edges (interpolated nodal normals, or projection on the nearest edge/vertex) for
-penetrated nodes, then freezing as the fallback.
+Newton on this faceted, non-matching quarter model (history of the fixes):
+- The closest-point projection on the facets made Newton cycle (exact period 3 at approach 0.004 r,
+  elastic): a penetrated node near the edge of two master facets switched between their planes,
+  whose gaps differ. The projection now follows the smoothed master normal field (corner normals
+  of the last converged configuration, ``contact.search._project``): gap and normal are continuous
+  across facet edges. Elastic (sigma_y = 1e6 MPa), size_min = 0.05 (22 518 dofs): 3-4 Newton
+  iterations per step, superlinear (contraction 1e-2 -> 2e-3 -> 1.5e-4), F within 0.3 % of Hertz at
+  0.02 r, 50 steps in 200 s (``tests/test_two_spheres.py`` asserts a CI-sized version).
+- With plasticity (table 3.2 steel) the rim of the growing contact cycled open / closed (period 2:
+  an open node gets no contact stiffness in the linearization and the soft plastic substrate lets
+  one Newton step drive it ~5e-4 mm into the master). The implicit solver limits the Newton step so
+  that open points do not penetrate deeper than the existing penetrations
+  (``ContactModel.penetration_step_limit``): 4 load steps to 0.008 r, 5 increments / 1 cut-back
+  instead of 17 / 5 (59 s instead of 168 s).
+- Unloading with adhesion (still open): the loading of the plastic spheres now reaches 0.02 r
+  (10 steps, a few cut-backs, F0 = 40.5 N, a0 = 0.148 mm, ratio 1), elastic unloading converges
+  in 3 iterations per step, but when the rim starts to peel Newton stalls (max_it, cut-backs to
+  dt_min). Cause: the adhesive softening slope ~ sigma_c^2 / (2 gamma) per unit area (2.7e7 N/mm^3
+  at ratio 1) exceeds a surface node's own stiffness on this mesh (E* h / h^2 with h = 0.025 mm):
+  each node snaps off, and a static Newton has no continuous path through a snap. It does not on
+  the thesis' mesh (h = 0.00125 r, below E* / slope = 0.004 mm), which it ran with explicit
+  dynamics. Next: a finer contact mesh (size_min <= 0.01), or a dynamic / viscous-regularized
+  unloading; holding the softening traction in the tangent (tried) did not suffice.
 """
 
 from __future__ import annotations
