@@ -66,6 +66,13 @@ def _point_weights(facets, nv, slave, facet, xi, nodes, weights):
                 weights[p, 1 + v] = 0.0
 
 
+def _relative_motion(nodes: np.ndarray, weights: np.ndarray, dU: np.ndarray) -> np.ndarray:
+    """(n, 3) motion of each contact point's slave relative to its master point,
+    sum_a c_a dU_a over the point's nodes (unused slots: node -1)."""
+    used = nodes >= 0
+    return np.einsum("pa,pad->pd", weights * used, dU[np.where(used, nodes, 0)])
+
+
 @numba.njit(cache=True)
 def _point_forces(pos, pos_n, nv, cn, branch, alpha_n, smax_n, tpx, tpy, tpz, scale, k, kt, mu, sigma_c,
                   delta_max, p0, alpha_forced, forces, res, law_out, facet_index, N):
@@ -275,9 +282,7 @@ class ContactModel:
         nodes = np.empty((n, 5), np.int64)
         weights = np.empty((n, 5))
         _point_weights(s.facets, s.vertices_per_facet, pts.slave, pts.facet, pts.xi, nodes, weights)
-        dU = U - self.U_committed
-        used = nodes >= 0
-        jump = np.einsum("pa,pad->pd", weights * used, dU[np.where(used, nodes, 0)])
+        jump = _relative_motion(nodes, weights, U - self.U_committed)
         jump -= pts.shift - shift_n  # relative motion includes the image's displacement
         facet_normal, _ = surface_normals(x, s.facets, s.vertices_per_facet)
         area = np.empty(n)
@@ -334,9 +339,7 @@ class ContactModel:
         lam = 1.0
         pts = self.points
         if pts is not None and pts.size:
-            dU = self.surface.gather(direction)
-            used = self.nodes >= 0
-            jump = np.einsum("pa,pad->pd", self.weights * used, dU[np.where(used, self.nodes, 0)])
+            jump = _relative_motion(self.nodes, self.weights, self.surface.gather(direction))
             dgap = np.einsum("pd,pd->p", jump, pts.normal)
             closed = pts.gap < 0
             depth = max(-pts.gap[closed].min(), 0.0) if closed.any() else 0.0
