@@ -36,6 +36,9 @@ def main(argv=None):
     parser.add_argument("--ratios", type=float, nargs="+", default=RATIOS, help="sigma_c / sigma_y values")
     parser.add_argument("--gamma", type=float, default=d.gamma, help="adhesion energy, mJ/mm^2")
     parser.add_argument("--size-min", type=float, default=d.size_min, help="element size at the contact / r")
+    parser.add_argument("--grading", type=float, default=d.grading,
+                        help="refine the contact cap only: element size grows by this per unit distance from it")
+    parser.add_argument("--refine-radius", type=float, default=d.refine_radius, help="refined zone / r")
     parser.add_argument("--load-steps", type=int, default=d.load_steps)
     parser.add_argument("--unload-steps", type=int, default=d.unload_steps)
     parser.add_argument("--out", default="results/two_spheres")
@@ -47,7 +50,8 @@ def main(argv=None):
                       comm)
     curves = {}
     for ratio in args.ratios:
-        case = replace(d, ratio=ratio, gamma=args.gamma, size_min=args.size_min, load_steps=args.load_steps,
+        case = replace(d, ratio=ratio, gamma=args.gamma, size_min=args.size_min, grading=args.grading,
+                       refine_radius=args.refine_radius, load_steps=args.load_steps,
                        unload_steps=args.unload_steps)
         say(f"sigma_c / sigma_y = {ratio:g}: sigma_c = {case.sigma_c:g} MPa, delta_max = {case.delta_max:.3g} mm")
         res = run_two_spheres(case, out, comm, log=say)

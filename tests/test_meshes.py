@@ -101,3 +101,36 @@ def test_quarter_sphere_pair_hexahedra_refined_at_the_contact():
     far = np.linalg.norm(mid_cells, axis=1) > 1.0
     assert near.any() and far.any()
     assert np.median(h[near]) < 0.4 * np.median(h[far])
+
+
+def test_quarter_sphere_pair_graded_from_the_contact_cap():
+    """grading: the element size is size_min on the contact cap (sphere surface within
+    refine_radius of the axis) and grows with the distance from it, into the bulk and along the
+    surface."""
+    import dolfinx
+
+    from mpfem_fenicsx.meshes.sphere_pair import quarter_sphere_pair
+
+    size_min, cap = 0.04, 0.15
+    graded = quarter_sphere_pair(1.0, MPI.COMM_SELF, size_min=size_min, refine_radius=cap, grading=0.5)
+    mesh = graded.mesh
+    mesh.topology.create_connectivity(2, 3)
+    facets = graded.facet_tags.indices
+    h = dolfinx.cpp.mesh.h(mesh._cpp_object, 2, facets)
+    mid = dolfinx.mesh.compute_midpoints(mesh, 2, facets)
+    rho = np.hypot(mid[:, 0], mid[:, 1])
+    # contact-cap facets: hexahedra half the tetrahedra's size_min (longest edge incl. diagonal)
+    on_cap = rho < 0.8 * cap
+    assert 0.35 * size_min < np.median(h[on_cap]) < 0.9 * size_min
+    # the surface coarsens away from the cap: 0.5 per unit distance, capped at size_max = 0.3
+    away = (rho > cap + 0.3) & (rho < cap + 0.4)
+    assert np.median(h[away]) > 2.5 * np.median(h[on_cap])
+    # and the bulk coarsens with the depth under the cap (the ball keeps size_min down to 0.15 r)
+    hc = dolfinx.cpp.mesh.h(mesh._cpp_object, 3, np.arange(mesh.topology.index_map(3).size_local, dtype=np.int32))
+    xc = dolfinx.mesh.compute_midpoints(mesh, 3, np.arange(hc.size, dtype=np.int32))
+    depth = 1.0 - np.linalg.norm(xc - np.where(xc[:, 2:] < 0, [0, 0, -1.0], [0, 0, 1.0]), axis=1)
+    deep = (np.hypot(xc[:, 0], xc[:, 1]) < 0.1) & (depth > 0.08) & (depth < 0.12)
+    assert deep.any() and np.median(hc[deep]) > 1.5 * np.median(h[on_cap])
+    # bad input names the field and its range
+    with pytest.raises(ValueError, match="grading"):
+        quarter_sphere_pair(1.0, MPI.COMM_SELF, size_min=size_min, grading=5.0)

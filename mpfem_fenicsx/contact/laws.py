@@ -86,13 +86,15 @@ def default_penalty(E: float, length: float, factor: float = 10.0) -> float:
 
 @numba.njit(cache=True)
 def law_point(d, sx, sy, sz, nx, ny, nz, alpha_n, smax_n, tpx, tpy, tpz, k, kt, mu, sigma_c, delta_max,
-              p0, alpha_forced, branch, out):
+              p0, alpha_forced, branch, t1_held, out):
     """Contact law at one point (module docstring).
 
     Inputs: gap d (mm); slip increment (sx, sy, sz) (mm); unit normal (nx, ny, nz); history
     alpha_n, smax_n (MPa) and previous tangential traction (tpx, tpy, tpz) (MPa); ``branch``:
     -1 to select the branches from the state, or the code returned in out[8] to stay on given
-    branches (used to differentiate across the kinks of the law for the tangent).
+    branches (used to differentiate across the kinks of the law for the tangent); ``t1_held``:
+    NaN, or a traction (MPa) that the softening branch returns unchanged (zero slope: the
+    tangent of a peeling point, see ``contact.model._point_tangents``).
     out = [T1, Ttx, Tty, Ttz, alpha, smax, dT1/d gap, dissipation per area, branch code].
     Branch code = 4 * tangential (0 none, 1 stick, 2 slip) + normal (0 overlap, 1 adhesive
     loading line, 2 softening, 3 separated).
@@ -121,8 +123,12 @@ def law_point(d, sx, sy, sz, nx, ny, nz, alpha_n, smax_n, tpx, tpy, tpz, k, kt, 
         t1 = -k * d
         dt1 = -k
     elif nb == 2:
-        t1 = -peak * (delta_max - d) / (delta_max - d1)
-        dt1 = peak / (delta_max - d1)
+        if np.isnan(t1_held):
+            t1 = -peak * (delta_max - d) / (delta_max - d1)
+            dt1 = peak / (delta_max - d1)
+        else:
+            t1 = t1_held
+            dt1 = 0.0
     else:
         t1 = 0.0
         dt1 = 0.0
@@ -189,7 +195,7 @@ def evaluate_law(gap, slip, normal, alpha_n, smax_n, tt_n, k, kt, mu, sigma_c, d
         out = np.empty(9)
         law_point(gap[i], slip[i, 0], slip[i, 1], slip[i, 2], normal[i, 0], normal[i, 1], normal[i, 2],
                   alpha_n[i], smax_n[i], tt_n[i, 0], tt_n[i, 1], tt_n[i, 2], k, kt, mu, sigma_c,
-                  delta_max, p0, alpha_forced, -1, out)
+                  delta_max, p0, alpha_forced, -1, np.nan, out)
         branch[i] = int(out[8])
         T1[i] = out[0]
         Tt[i, 0] = out[1]

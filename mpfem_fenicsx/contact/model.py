@@ -74,7 +74,7 @@ def _relative_motion(nodes: np.ndarray, weights: np.ndarray, dU: np.ndarray) -> 
 
 
 @numba.njit(cache=True)
-def _point_forces(pos, pos_n, nv, cn, branch, alpha_n, smax_n, tpx, tpy, tpz, scale, k, kt, mu, sigma_c,
+def _point_forces(pos, pos_n, nv, cn, branch, t1_held, alpha_n, smax_n, tpx, tpy, tpz, scale, k, kt, mu, sigma_c,
                   delta_max, p0, alpha_forced, forces, res, law_out, facet_index, N):
     """Nodal forces (on the bodies) of one contact point for node positions ``pos`` (nn, 3):
     projection of pos[0] on the facet pos[1:] (corner normals ``cn``), gap, normal, slip since
@@ -88,7 +88,7 @@ def _point_forces(pos, pos_n, nv, cn, branch, alpha_n, smax_n, tpx, tpy, tpz, sc
         for v in range(nv):
             s[d] -= N[v] * (pos[1 + v, d] - pos_n[1 + v, d])
     law_point(res[2], s[0], s[1], s[2], nx, ny, nz, alpha_n, smax_n, tpx, tpy, tpz, k, kt, mu, sigma_c,
-              delta_max, p0, alpha_forced, branch, law_out)
+              delta_max, p0, alpha_forced, branch, t1_held, law_out)
     fx = scale * (law_out[0] * nx + law_out[1])
     fy = scale * (law_out[0] * ny + law_out[2])
     fz = scale * (law_out[0] * nz + law_out[3])
@@ -102,7 +102,7 @@ def _point_forces(pos, pos_n, nv, cn, branch, alpha_n, smax_n, tpx, tpy, tpz, sc
 
 
 @numba.njit(parallel=True, cache=True)
-def _point_tangents(x, x_n, facets, nv, corner, slave, facet, branch, shift, shift_n, alpha_n, smax_n, tt_n, scale, k, kt, mu,
+def _point_tangents(x, x_n, facets, nv, corner, slave, facet, branch, held, T1, shift, shift_n, alpha_n, smax_n, tt_n, scale, k, kt, mu,
                     sigma_c, delta_max, p0, alpha_forced, K):
     """Consistent tangent of every contact point by central differences of :func:`_point_forces`
     over the positions of its nodes: K (n, 3 nn, 3 nn) = d r / d u, r = -forces on the bodies.
@@ -114,6 +114,9 @@ def _point_tangents(x, x_n, facets, nv, corner, slave, facet, branch, shift, shi
     that the frozen-normal tangent misses, at 2 x 3 nn point evaluations per point. The corner
     normals of the master facets are those of the last converged configuration (constant over
     an increment), so the tangent is that of the residual Newton actually solves.
+
+    Exception: at the points flagged ``held`` that are on the softening branch, the traction is
+    held at its current value ``T1`` (zero slope; see ``ContactModel.evaluate``).
     """
     n = slave.size
     nn = 1 + nv
@@ -141,14 +144,15 @@ def _point_tangents(x, x_n, facets, nv, corner, slave, facet, branch, shift, shi
         law_out = np.empty(9)
         N = np.empty(4)
         facet_index = np.arange(1, 5)
+        hold = T1[p] if (held[p] and branch[p] % 4 == 2) else np.nan
         for b in range(nn):
             for j in range(3):
                 pos[b, j] += h
-                _point_forces(pos, pos_n, nv, corner[facet[p]], branch[p], alpha_n[p], smax_n[p], tt_n[p, 0], tt_n[p, 1], tt_n[p, 2],
+                _point_forces(pos, pos_n, nv, corner[facet[p]], branch[p], hold, alpha_n[p], smax_n[p], tt_n[p, 0], tt_n[p, 1], tt_n[p, 2],
                               scale[p], k, kt, mu, sigma_c, delta_max, p0, alpha_forced, fp, res, law_out,
                               facet_index, N)
                 pos[b, j] -= 2.0 * h
-                _point_forces(pos, pos_n, nv, corner[facet[p]], branch[p], alpha_n[p], smax_n[p], tt_n[p, 0], tt_n[p, 1], tt_n[p, 2],
+                _point_forces(pos, pos_n, nv, corner[facet[p]], branch[p], hold, alpha_n[p], smax_n[p], tt_n[p, 0], tt_n[p, 1], tt_n[p, 2],
                               scale[p], k, kt, mu, sigma_c, delta_max, p0, alpha_forced, fm, res, law_out,
                               facet_index, N)
                 pos[b, j] += h
@@ -226,6 +230,14 @@ class ContactModel:
         self.shifts_committed = self.search.shifts.copy()
         self.points: ContactPoints | None = None
         self._corner: np.ndarray | None = None
+        #: keys of the points whose adhesive memory an iterate of the current increment erased
+        #: (gap beyond delta_max): the erasure is irreversible within the increment
+        self._separated = np.zeros(0, np.int64)
+        #: keys of the points that an iterate of this increment moved from softening back to the
+        #: adhesive loading line or into overlap, and the branch codes of the last evaluation
+        self._held = np.zeros(0, np.int64)
+        self._returned = np.zeros(0, np.int64)
+        self._last = (np.zeros(0, np.int64), np.zeros(0, np.int64))
         self.frictional_work = 0.0  # committed, summed over ranks, mJ
         self.search_time = 0.0  # accumulated wall time of the search (s), for benchmarks
         self._V = V
@@ -277,6 +289,9 @@ class ContactModel:
             known = old.keys[pos] == keys
             alpha_n[known], smax_n[known] = old.alpha[pos[known]], old.smax[pos[known]]
             tt_n[known], work_n[known] = old.tt[pos[known]], old.work[pos[known]]
+        if self._separated.size:  # memory erased by an earlier iterate of this increment
+            gone = np.isin(keys, self._separated)
+            alpha_n[gone], smax_n[gone] = 0.0, 0.0
 
         n = pts.size
         nodes = np.empty((n, 5), np.int64)
@@ -301,6 +316,29 @@ class ContactModel:
         if n:
             evaluate_law(pts.gap, jump, pts.normal, alpha_n, smax_n, tt_n, *params,
                          T1, Tt, alpha, smax, dissipation, branch)
+        held = np.zeros(n, np.bool_)
+        if n and self.law.gamma > 0:
+            snapped = (branch % 4 == 3) & (smax_n > 0)
+            if snapped.any():
+                self._separated = np.union1d(self._separated, keys[snapped])
+            # A point that the last iterate put on the softening branch and this one sends back
+            # (gap < delta_1) for the second time in the increment is cycling: the negative softening slope, steeper than the node's
+            # own stiffness on the substrate, made Newton aim back into the contact, and the
+            # penalty sends it out again. Its softening tangent is held at zero slope for the
+            # rest of the increment; the next update then carries a point past the fold of its
+            # adhered branch beyond delta_max (memory erased, see :meth:`begin_increment`).
+            # Points whose softening is stable keep the exact slope (quadratic convergence).
+            last_keys, last_branch = self._last
+            if last_keys.size:
+                pos = np.minimum(np.searchsorted(last_keys, keys), last_keys.size - 1)
+                was_softening = (last_keys[pos] == keys) & (last_branch[pos] % 4 == 2)
+                back = keys[was_softening & (branch % 4 < 2)]
+                if back.size:  # held from the second return on (a first one can be a plain kink crossing)
+                    again = np.isin(back, self._returned)
+                    self._held = np.union1d(self._held, back[again])
+                    self._returned = np.union1d(self._returned, back)
+            if self._held.size:
+                held = np.isin(keys, self._held)
         scale = PASS_WEIGHT * area
         self.points = pts
         self.nodes, self.weights = nodes, weights
@@ -308,6 +346,7 @@ class ContactModel:
         self.branch = branch  # law branch codes (laws.law_point), for diagnostics
         self.point_force = scale[:, None] * (T1[:, None] * pts.normal + Tt)  # N, on the slave
         order = np.argsort(keys)
+        self._last = (keys[order], branch[order])
         self.trial = ContactState(keys[order], alpha[order], smax[order], Tt[order],
                                   (work_n + scale * dissipation)[order])
         self._trial_dissipation = float(np.sum(scale * dissipation))
@@ -316,7 +355,7 @@ class ContactModel:
             K = np.empty((n, 3 * nn, 3 * nn))
             x_n = s.X + self.U_committed
             if n:
-                _point_tangents(x, x_n, s.facets, s.vertices_per_facet, self.corner_normals(), pts.slave, pts.facet, branch,
+                _point_tangents(x, x_n, s.facets, s.vertices_per_facet, self.corner_normals(), pts.slave, pts.facet, branch, held, T1,
                                 pts.shift, shift_n, alpha_n, smax_n, tt_n, scale, *params, K)
             size = n * 9 * nn * nn
             rows = np.empty(size, PETSc.IntType)
@@ -384,8 +423,24 @@ class ContactModel:
         return self._corner
 
     # -- history -------------------------------------------------------------------------------
+    def begin_increment(self) -> None:
+        """Start (or restart after a cut-back) an increment from the committed state.
+
+        An adhesive point that an iterate pulls beyond delta_max loses its memory for the rest of
+        the increment, as the law's erasure is irreversible (SPEC §4). Without this, a node
+        peeling off a soft substrate re-adheres at the next iterate (the reversible trial law
+        sees the committed memory again) and Newton cycles between adhered and separated: when
+        the softening slope sigma_c / (delta_max - delta_1) exceeds a surface node's stiffness the
+        node snaps, and the adhered branch ends at a fold. The points held at zero softening slope
+        (:meth:`evaluate`) are released too."""
+        self._separated = np.zeros(0, np.int64)
+        self._held = np.zeros(0, np.int64)
+        self._returned = np.zeros(0, np.int64)
+        self._last = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+
     def commit(self, u: dolfinx.fem.Function) -> None:
         self.state = self.trial
+        self.begin_increment()
         self.U_committed = self.surface.gather(u)
         self._corner = None
         self.shifts_committed = self.search.shifts.copy()
@@ -408,6 +463,7 @@ class ContactModel:
                                   np.asarray(data["sigma_max"]), np.asarray(data["tangential_traction"]),
                                   np.asarray(data["frictional_work"]))
         self.trial = self.state
+        self.begin_increment()
         self.U_committed = np.asarray(data["surface_displacement"]).copy()
         self._corner = None
         if "image_shifts" in data:

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 import dolfinx
@@ -183,7 +184,8 @@ class ImplicitSolver:
         K_c = self.contact.tangent_matrix(self.K)
         rows, cols, _ = self.contact._coo
         key = (rows.size, hash(rows.tobytes()), hash(cols.tobytes()))
-        changed = key != getattr(self, "_contact_pattern", None)
+        # collective: another rank's contact points may add entries to this rank's rows
+        changed = self.comm.allreduce(key != getattr(self, "_contact_pattern", None), op=MPI.LOR)
         self._contact_pattern = key
         if self.K_total is self.K or changed:
             if self.K_total is not self.K:
@@ -264,6 +266,8 @@ class ImplicitSolver:
         """
         if not self._tangent_valid:
             self._refresh_tangent()
+        if self.contact is not None:
+            self.contact.begin_increment()
         g_old = self.constraint.g.x.petsc_vec.copy()
         self.bcs.apply(t_new)
         dg = self.constraint.g.x.petsc_vec.copy()

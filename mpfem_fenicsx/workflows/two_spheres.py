@@ -66,7 +66,10 @@ class TwoSphereCase:
     approach: float = 0.02  # maximum centre approach / r
     radius: float = 1.0
     size_min: float = 0.03  # tetrahedron size at the contact / r (hexahedra about half)
-    refine_radius: float = 0.2  # size_min within this distance of the contact point / r
+    refine_radius: float = 0.2  # size_min within this distance of the contact point (of the axis with grading) / r
+    #: None: ball refinement around the contact point; a number: size_min on the contact cap, growing
+    #: by ``grading`` per unit distance from it (``meshes.sphere_pair``), for fine contact meshes
+    grading: float | None = None
     core: float = 0.3
     #: N/mm^3; default 10 E / h with h = size_min r / 2 the hexahedra's size at the contact (the
     #: thesis' 1e9 with these meshes makes Newton cut back whenever a ring of nodes enters contact)
@@ -120,7 +123,8 @@ def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path =
                     comm: MPI.Comm = MPI.COMM_WORLD, petsc_options: dict | None = None,
                     log=print) -> TwoSphereResult:
     r = case.radius
-    assembly = quarter_sphere_pair(r, comm, size_min=case.size_min, refine_radius=case.refine_radius)
+    assembly = quarter_sphere_pair(r, comm, size_min=case.size_min, refine_radius=case.refine_radius,
+                                   grading=case.grading)
     problem = SolidProblem(assembly.mesh, case.material)
     V = problem.V
     contact = ContactModel(V, assembly.facet_tags, 2, case.law(), search_distance=max(0.02 * r, 2 * case.delta_max))
