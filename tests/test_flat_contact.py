@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from mpfem_fenicsx.workflows.flat_contact import FlatContactCase, run_flat_contact
+from mpfem_fenicsx.workflows.flat_contact import FlatContactCase, run_flat_contact, run_normal
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "demos"))
 from flat_contact import summarize  # noqa: E402
@@ -34,6 +34,29 @@ def test_adhesive_opening(checks):
     assert c["zero_crossing_of_softening_mm"] == pytest.approx(case.delta_max, rel=0.02)
     assert c["max_abs_T1_beyond_delta_max"] == 0.0
     assert c["alpha_beyond_delta_max"] == 0.0  # memory erased
+
+
+def test_implicit_newton_through_an_adhesive_snap(tmp_path):
+    """A tall block (h = 2 mm) is softer than the adhesive softening: E' / h < peak / (delta_max -
+    delta_1), so no static state exists on the softening branch and the contact must snap from
+    the peak tension straight to separation. Newton converges through it (the erased memory stays
+    erased within the increment; a point cycling back from softening gets a zero-slope tangent);
+    before, it cycled adhered <-> separated until dt_min (NonConvergence at the peak)."""
+    case = FlatContactCase(height=2.0)
+    law = case.law()
+    M = case.E * (1 - case.nu) / ((1 + case.nu) * (1 - 2 * case.nu))
+    peak = 0.5 * law.sigma_c  # alpha = 0.5
+    d1 = peak / law.penalty
+    assert M / case.height < peak / (case.delta_max - d1)  # the premise: unstable softening
+    rows = run_normal(case, tmp_path, MPI.COMM_SELF).array()
+    delta, T1 = rows[:, 0], rows[:, 1]
+    assert -T1.min() == pytest.approx(peak, rel=2e-3)  # snap at the peak tension
+    # no converged state on the (unstable) softening branch: every tensile state is on the
+    # adhesive loading line T1 = -k delta, and the next one after the peak is separated
+    tension = T1 < 0
+    assert np.allclose(T1[tension], -law.penalty * delta[tension], rtol=1e-6)
+    after = int(np.argmin(T1)) + 1
+    assert T1[after] == 0.0 and delta[after] > case.delta_max
 
 
 def test_friction_slip_onset_and_dissipation(checks):
