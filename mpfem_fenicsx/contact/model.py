@@ -236,7 +236,6 @@ class ContactModel:
         #: keys of the points that an iterate of this increment moved from softening back to the
         #: adhesive loading line or into overlap, and the branch codes of the last evaluation
         self._held = np.zeros(0, np.int64)
-        self._returned = np.zeros(0, np.int64)
         self._last = (np.zeros(0, np.int64), np.zeros(0, np.int64))
         self.frictional_work = 0.0  # committed, summed over ranks, mJ
         self.search_time = 0.0  # accumulated wall time of the search (s), for benchmarks
@@ -322,21 +321,24 @@ class ContactModel:
             if snapped.any():
                 self._separated = np.union1d(self._separated, keys[snapped])
             # A point that the last iterate put on the softening branch and this one sends back
-            # (gap < delta_1) for the second time in the increment is cycling: the negative softening slope, steeper than the node's
+            # (gap < delta_1) is cycling: the negative softening slope, steeper than the node's
             # own stiffness on the substrate, made Newton aim back into the contact, and the
             # penalty sends it out again. Its softening tangent is held at zero slope for the
-            # rest of the increment; the next update then carries a point past the fold of its
-            # adhered branch beyond delta_max (memory erased, see :meth:`begin_increment`).
-            # Points whose softening is stable keep the exact slope (quadratic convergence).
+            # rest of the increment, so that the next update carries a point past the fold of
+            # its adhered branch beyond delta_max (memory erased, see :meth:`begin_increment`).
+            # A second return (the coupled update of a rim of such points can still cycle) snaps
+            # the point: its memory is erased for the rest of the increment, as a dynamic
+            # snap-off would. A point whose softening is stable converges on it without returning
+            # and keeps the exact slope (quadratic convergence); a kink overshoot returns once
+            # and then converges on the exact adhesive loading line.
             last_keys, last_branch = self._last
             if last_keys.size:
                 pos = np.minimum(np.searchsorted(last_keys, keys), last_keys.size - 1)
                 was_softening = (last_keys[pos] == keys) & (last_branch[pos] % 4 == 2)
                 back = keys[was_softening & (branch % 4 < 2)]
-                if back.size:  # held from the second return on (a first one can be a plain kink crossing)
-                    again = np.isin(back, self._returned)
-                    self._held = np.union1d(self._held, back[again])
-                    self._returned = np.union1d(self._returned, back)
+                if back.size:
+                    self._separated = np.union1d(self._separated, back[np.isin(back, self._held)])
+                    self._held = np.union1d(self._held, back)
             if self._held.size:
                 held = np.isin(keys, self._held)
         scale = PASS_WEIGHT * area
@@ -435,7 +437,6 @@ class ContactModel:
         (:meth:`evaluate`) are released too."""
         self._separated = np.zeros(0, np.int64)
         self._held = np.zeros(0, np.int64)
-        self._returned = np.zeros(0, np.int64)
         self._last = (np.zeros(0, np.int64), np.zeros(0, np.int64))
 
     def commit(self, u: dolfinx.fem.Function) -> None:
