@@ -71,7 +71,7 @@ def test_plastic_adhesive_pair_unloads_through_peeling_to_separation(tmp_path):
     assert abs(force[-1]) < 1e-9 and radius[-1] == 0.0  # separated
     assert res.a_unload.size >= 4
     assert res.error_rms < 0.08, (res.error_rms, res.error, res.a_unload.size)
-    # 15 increments: measured 17 converged (2 extra after cut-backs); before, cut-backs to dt_min
-    assert len(res.newton_iterations) <= 20
+    # 15 increments: measured 17-19 converged (a few cut-backs); before, cut-backs to dt_min
+    assert len(res.newton_iterations) <= 25
     print(f"rms {res.error_rms:.4f} e {res.error:.4f} samples {res.a_unload.size} F_min {force.min():.4f} "
           f"increments {len(res.newton_iterations)} its {res.newton_iterations}")

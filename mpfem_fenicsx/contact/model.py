@@ -235,7 +235,7 @@ class ContactModel:
         self._separated = np.zeros(0, np.int64)
         #: keys of the points that an iterate of this increment moved from softening back to the
         #: adhesive loading line or into overlap, and the branch codes of the last evaluation
-        self._held = np.zeros(0, np.int64)
+        self._returned = np.zeros(0, np.int64)
         self._last = (np.zeros(0, np.int64), np.zeros(0, np.int64))
         self.frictional_work = 0.0  # committed, summed over ranks, mJ
         self.search_time = 0.0  # accumulated wall time of the search (s), for benchmarks
@@ -323,24 +323,28 @@ class ContactModel:
             # A point that the last iterate put on the softening branch and this one sends back
             # (gap < delta_1) is cycling: the negative softening slope, steeper than the node's
             # own stiffness on the substrate, made Newton aim back into the contact, and the
-            # penalty sends it out again. Its softening tangent is held at zero slope for the
-            # rest of the increment, so that the next update carries a point past the fold of
-            # its adhered branch beyond delta_max (memory erased, see :meth:`begin_increment`).
-            # A second return (the coupled update of a rim of such points can still cycle) snaps
-            # the point: its memory is erased for the rest of the increment, as a dynamic
-            # snap-off would. A point whose softening is stable converges on it without returning
-            # and keeps the exact slope (quadratic convergence); a kink overshoot returns once
-            # and then converges on the exact adhesive loading line.
+            # penalty sends it out again. When it re-enters softening, its tangent is held at zero
+            # slope for that update, so that it carries a point past the fold of its adhered
+            # branch beyond delta_max (memory erased, see :meth:`begin_increment`). A second
+            # return (the coupled update of a rim of such points can still cycle) snaps the
+            # point: its memory is erased for the rest of the increment, as a dynamic snap-off
+            # would. A point whose softening is stable converges on it with the exact slope
+            # (quadratic); after a kink overshoot it is held for one update only.
             last_keys, last_branch = self._last
             if last_keys.size:
                 pos = np.minimum(np.searchsorted(last_keys, keys), last_keys.size - 1)
-                was_softening = (last_keys[pos] == keys) & (last_branch[pos] % 4 == 2)
-                back = keys[was_softening & (branch % 4 < 2)]
+                known = last_keys[pos] == keys
+                was_softening = known & (last_branch[pos] % 4 == 2)
+                softening = branch % 4 == 2
+                back = keys[was_softening & ~softening]
                 if back.size:
-                    self._separated = np.union1d(self._separated, back[np.isin(back, self._held)])
-                    self._held = np.union1d(self._held, back)
-            if self._held.size:
-                held = np.isin(keys, self._held)
+                    self._separated = np.union1d(self._separated, back[np.isin(back, self._returned)])
+                    self._returned = np.union1d(self._returned, back)
+                # held for the one update after it re-enters softening: if it stays there, its
+                # softening is stable and the exact slope returns (quadratic, not linear, rate)
+                reentered = known & (last_branch[pos] % 4 < 2) & softening
+                if reentered.any() and self._returned.size:
+                    held = reentered & np.isin(keys, self._returned)
         scale = PASS_WEIGHT * area
         self.points = pts
         self.nodes, self.weights = nodes, weights
@@ -436,7 +440,7 @@ class ContactModel:
         node snaps, and the adhered branch ends at a fold. The points held at zero softening slope
         (:meth:`evaluate`) are released too."""
         self._separated = np.zeros(0, np.int64)
-        self._held = np.zeros(0, np.int64)
+        self._returned = np.zeros(0, np.int64)
         self._last = (np.zeros(0, np.int64), np.zeros(0, np.int64))
 
     def commit(self, u: dolfinx.fem.Function) -> None:
