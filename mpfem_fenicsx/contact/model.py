@@ -336,7 +336,7 @@ class ContactModel:
                 known = last_keys[pos] == keys
                 was_softening = known & (last_branch[pos] % 4 == 2)
                 softening = branch % 4 == 2
-                back = keys[was_softening & ~softening]
+                back = keys[was_softening & (branch % 4 < 2)]  # not on to separation
                 if back.size:
                     self._separated = np.union1d(self._separated, back[np.isin(back, self._returned)])
                     self._returned = np.union1d(self._returned, back)
