@@ -66,6 +66,12 @@ def _point_weights(facets, nv, slave, facet, xi, nodes, weights):
                 weights[p, 1 + v] = 0.0
 
 
+def _lookup(sorted_keys: np.ndarray, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions of ``keys`` in ``sorted_keys`` (non-empty) and the mask of those found."""
+    pos = np.minimum(np.searchsorted(sorted_keys, keys), sorted_keys.size - 1)
+    return pos, sorted_keys[pos] == keys
+
+
 def _relative_motion(nodes: np.ndarray, weights: np.ndarray, dU: np.ndarray) -> np.ndarray:
     """(n, 3) motion of each contact point's slave relative to its master point,
     sum_a c_a dU_a over the point's nodes (unused slots: node -1)."""
@@ -284,8 +290,7 @@ class ContactModel:
         alpha_n, smax_n, work_n = np.zeros(keys.size), np.zeros(keys.size), np.zeros(keys.size)
         tt_n = np.zeros((keys.size, 3))
         if old.keys.size:  # new points start with an empty history
-            pos = np.minimum(np.searchsorted(old.keys, keys), old.keys.size - 1)
-            known = old.keys[pos] == keys
+            pos, known = _lookup(old.keys, keys)
             alpha_n[known], smax_n[known] = old.alpha[pos[known]], old.smax[pos[known]]
             tt_n[known], work_n[known] = old.tt[pos[known]], old.work[pos[known]]
         if self._separated.size:  # memory erased by an earlier iterate of this increment
@@ -315,36 +320,8 @@ class ContactModel:
         if n:
             evaluate_law(pts.gap, jump, pts.normal, alpha_n, smax_n, tt_n, *params,
                          T1, Tt, alpha, smax, dissipation, branch)
-        held = np.zeros(n, np.bool_)
-        if n and self.law.gamma > 0:
-            snapped = (branch % 4 == 3) & (smax_n > 0)
-            if snapped.any():
-                self._separated = np.union1d(self._separated, keys[snapped])
-            # A point that the last iterate put on the softening branch and this one sends back
-            # (gap < delta_1) is cycling: the negative softening slope, steeper than the node's
-            # own stiffness on the substrate, made Newton aim back into the contact, and the
-            # penalty sends it out again. When it re-enters softening, its tangent is held at zero
-            # slope for that update, so that it carries a point past the fold of its adhered
-            # branch beyond delta_max (memory erased, see :meth:`begin_increment`). A second
-            # return (the coupled update of a rim of such points can still cycle) snaps the
-            # point: its memory is erased for the rest of the increment, as a dynamic snap-off
-            # would. A point whose softening is stable converges on it with the exact slope
-            # (quadratic); after a kink overshoot it is held for one update only.
-            last_keys, last_branch = self._last
-            if last_keys.size:
-                pos = np.minimum(np.searchsorted(last_keys, keys), last_keys.size - 1)
-                known = last_keys[pos] == keys
-                was_softening = known & (last_branch[pos] % 4 == 2)
-                softening = branch % 4 == 2
-                back = keys[was_softening & (branch % 4 < 2)]  # not on to separation
-                if back.size:
-                    self._separated = np.union1d(self._separated, back[np.isin(back, self._returned)])
-                    self._returned = np.union1d(self._returned, back)
-                # held for the one update after it re-enters softening: if it stays there, its
-                # softening is stable and the exact slope returns (quadratic, not linear, rate)
-                reentered = known & (last_branch[pos] % 4 < 2) & softening
-                if reentered.any() and self._returned.size:
-                    held = reentered & np.isin(keys, self._returned)
+        adhesive = n and self.law.gamma > 0
+        held = self._track_peeling(keys, branch, smax_n) if adhesive else np.zeros(n, np.bool_)
         scale = PASS_WEIGHT * area
         self.points = pts
         self.nodes, self.weights = nodes, weights
@@ -369,6 +346,39 @@ class ContactModel:
             vals = np.empty(size)
             k = _coo_entries(nodes[:, :nn], s.blocks, K, rows, cols, vals) if n else 0
             self._coo = (rows[:k], cols[:k], vals[:k])
+
+    def _track_peeling(self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray) -> np.ndarray:
+        """Snap bookkeeping of the adhesive points over the iterates of an increment; returns the
+        mask of the points whose softening slope the tangent holds at zero."""
+        held = np.zeros(keys.size, np.bool_)
+        snapped = (branch % 4 == 3) & (smax_n > 0)
+        if snapped.any():
+            self._separated = np.union1d(self._separated, keys[snapped])
+        # A point that the last iterate put on the softening branch and this one sends back
+        # (gap < delta_1) is cycling: the negative softening slope, steeper than the node's
+        # own stiffness on the substrate, made Newton aim back into the contact, and the
+        # penalty sends it out again. When it re-enters softening, its tangent is held at zero
+        # slope for that update, so that it carries a point past the fold of its adhered
+        # branch beyond delta_max (memory erased, see :meth:`begin_increment`). A second
+        # return (the coupled update of a rim of such points can still cycle) snaps the
+        # point: its memory is erased for the rest of the increment, as a dynamic snap-off
+        # would. A point whose softening is stable converges on it with the exact slope
+        # (quadratic); after a kink overshoot it is held for one update only.
+        last_keys, last_branch = self._last
+        if last_keys.size:
+            pos, known = _lookup(last_keys, keys)
+            was_softening = known & (last_branch[pos] % 4 == 2)
+            softening = branch % 4 == 2
+            back = keys[was_softening & (branch % 4 < 2)]  # not on to separation
+            if back.size:
+                self._separated = np.union1d(self._separated, back[np.isin(back, self._returned)])
+                self._returned = np.union1d(self._returned, back)
+            # held for the one update after it re-enters softening: if it stays there, its
+            # softening is stable and the exact slope returns (quadratic, not linear, rate)
+            reentered = known & (last_branch[pos] % 4 < 2) & softening
+            if reentered.any() and self._returned.size:
+                held = reentered & np.isin(keys, self._returned)
+        return held
 
     def penetration_step_limit(self, direction: dolfinx.fem.Function) -> float:
         """Largest fraction (0, 1] of a displacement update ``direction`` that keeps every open
