@@ -9,7 +9,7 @@ import numpy as np
 import dolfinx
 import dolfinx.fem
 
-from ..constraints import AffineConstraint
+from ..constraints import AffineConstraint, CouplingRows
 
 
 def component_dofs(V: dolfinx.fem.FunctionSpace, marker: Callable, component: int) -> np.ndarray:
@@ -41,14 +41,20 @@ class PrescribedDisplacements:
         self.V = V
         self._groups: list[tuple[np.ndarray, Callable | float]] = []
         self.constraint: AffineConstraint | None = None
+        #: fixed multipoint rows (e.g. an inclined roller), built with the prescribed dofs
+        self.couplings: CouplingRows | None = None
 
     def add(self, dofs: np.ndarray, value: Callable | float = 0.0) -> "PrescribedDisplacements":
         self._groups.append((np.asarray(dofs, dtype=np.int32), value))
         return self
 
+    @property
+    def prescribed_dofs(self) -> np.ndarray:
+        """All dofs of the groups added so far (local unrolled indices)."""
+        return np.concatenate([d for d, _ in self._groups]) if self._groups else np.zeros(0, np.int32)
+
     def build(self) -> AffineConstraint:
-        all_dofs = np.concatenate([d for d, _ in self._groups]) if self._groups else np.zeros(0, np.int32)
-        self.constraint = AffineConstraint(self.V, all_dofs)
+        self.constraint = AffineConstraint(self.V, self.prescribed_dofs, self.couplings)
         prescribed = self.constraint.prescribed
         self._positions = []
         for dofs, _ in self._groups:
@@ -65,3 +71,29 @@ class PrescribedDisplacements:
 
     def apply(self, t: float) -> None:
         self.constraint.set_prescribed(self.values(t))
+
+
+def plane_roller(V: dolfinx.fem.FunctionSpace, normal, marker: Callable, prescribed: np.ndarray) -> CouplingRows:
+    """Roller on a plane through the origin of unit ``normal`` (n_y != 0): u . n = 0 at the nodes
+    where ``marker(x)`` is True, as slave rows u_y = -(n_x u_x + n_z u_z) / n_y. Nodes with any
+    of their dofs in ``prescribed`` (local unrolled indices) are left out (a prescribed node must
+    satisfy the roller through its own values)."""
+    n = np.asarray(normal, dtype=float)
+    if abs(n[1]) < 1e-6:
+        raise ValueError(f"plane_roller needs a normal with a y component, got {normal}")
+    bs = V.dofmap.index_map_bs
+    imap = V.dofmap.index_map
+    blocks = dolfinx.fem.locate_dofs_geometrical(V, marker).astype(np.int64)
+    blocks = blocks[blocks < imap.size_local]
+    blocks = blocks[~np.isin(blocks, np.asarray(prescribed, np.int64) // bs)]
+    global_blocks = imap.local_to_global(blocks.astype(np.int32)).astype(np.int64)
+    masters, coefficients = [], []
+    for c in (0, 2):  # u_y depends on u_x and u_z
+        masters.append(global_blocks * bs + c)
+        coefficients.append(np.full(blocks.size, -n[c] / n[1]))
+    masters = np.stack(masters, axis=1).ravel()
+    coefficients = np.stack(coefficients, axis=1).ravel()
+    keep = coefficients != 0.0
+    counts = keep.reshape(-1, 2).sum(axis=1)
+    indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    return CouplingRows((blocks * bs + 1).astype(np.int32), indptr, masters[keep], coefficients[keep])

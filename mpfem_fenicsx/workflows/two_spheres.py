@@ -54,12 +54,17 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+import dolfinx
+
 from ..contact import ContactLaw, ContactModel
 from ..contact.laws import default_penalty
 from ..io import History
+from ..constraints import CouplingRows
 from ..loading import PrescribedDisplacements, component_dofs
+from ..loading.prescribed import plane_roller
 from ..material import STEEL_LINEAR, ElastoPlastic
-from ..meshes.sphere_pair import quarter_sphere_pair
+from ..meshes import node_particles
+from ..meshes.sphere_pair import quarter_sphere_pair, wedge_sphere_pair
 from ..problem import SolidProblem
 from ..solvers import ImplicitSolver, StepControl
 
@@ -76,6 +81,11 @@ class TwoSphereCase:
     #: by ``grading`` per unit distance from it (``meshes.sphere_pair``), for fine contact meshes
     grading: float | None = None
     core: float = 0.3
+    #: "quarter" (3-D quarter, symmetry planes x = 0, y = 0) or "wedge" (a one-cell wedge of
+    #: ``wedge_angle`` degrees with rollers on both planes: the axisymmetric problem, resolved at
+    #: the thesis' contact mesh size for the cost of a 2-D model; ``meshes.sphere_pair``)
+    model: str = "quarter"
+    wedge_angle: float = 2.0
     #: N/mm^3; default 10 E / h with h = size_min r / 2 the hexahedra's size at the contact (the
     #: thesis' 1e9 with these meshes makes Newton cut back whenever a ring of nodes enters contact)
     penalty: float | None = None
@@ -83,6 +93,15 @@ class TwoSphereCase:
     unload_steps: int = 40
     unload_to: float = 0.016  # final centre approach / r (past separation: elastic recovery ~1.5e-3 r)
     material: ElastoPlastic = STEEL_LINEAR
+
+    def __post_init__(self):
+        if self.model not in ("quarter", "wedge"):
+            raise ValueError(f"TwoSphereCase.model must be 'quarter' or 'wedge', got {self.model!r}")
+
+    @property
+    def symmetry_factor(self) -> float:
+        """Whole pair / modelled part: 4 for the quarter, 360 / angle for the wedge."""
+        return 4.0 if self.model == "quarter" else 360.0 / self.wedge_angle
 
     @property
     def sigma_c(self) -> float:
@@ -129,8 +148,12 @@ def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path =
                     comm: MPI.Comm = MPI.COMM_WORLD, petsc_options: dict | None = None,
                     log=print) -> TwoSphereResult:
     r = case.radius
-    assembly = quarter_sphere_pair(r, comm, size_min=case.size_min, refine_radius=case.refine_radius,
-                                   grading=case.grading)
+    if case.model == "wedge":
+        assembly = wedge_sphere_pair(r, comm, angle=case.wedge_angle, size_min=case.size_min,
+                                     cap_radius=case.refine_radius, grading=case.grading or 0.3)
+    else:
+        assembly = quarter_sphere_pair(r, comm, size_min=case.size_min, refine_radius=case.refine_radius,
+                                       grading=case.grading)
     problem = SolidProblem(assembly.mesh, case.material)
     V = problem.V
     contact = ContactModel(V, assembly.facet_tags, 2, case.law(), search_distance=max(0.02 * r, 2 * case.delta_max))
@@ -147,7 +170,12 @@ def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path =
 
     bcs = PrescribedDisplacements(V)
     tol = 1e-9 * r
-    bcs.add(component_dofs(V, lambda x: np.abs(x[0]) < tol, 0))  # symmetry planes
+    if case.model == "quarter":
+        bcs.add(component_dofs(V, lambda x: np.abs(x[0]) < tol, 0))  # symmetry planes
+    else:
+        on_axis = lambda x: x[0] ** 2 + x[1] ** 2 < tol ** 2  # noqa: E731
+        bcs.add(component_dofs(V, on_axis, 0))
+        bcs.add(component_dofs(V, on_axis, 1))
     bcs.add(component_dofs(V, lambda x: np.abs(x[1]) < tol, 1))
     for sign in (-1.0, 1.0):
         for c in (0, 1):
@@ -155,6 +183,10 @@ def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path =
     upper = component_dofs(V, in_core(1.0), 2)
     bcs.add(component_dofs(V, in_core(-1.0), 2), lambda t: 0.5 * approach(t))
     bcs.add(upper, lambda t: -0.5 * approach(t))
+    if case.model == "wedge":
+        bcs.couplings = _wedge_couplings(V, assembly.cell_tags, bcs.prescribed_dofs,
+                                         np.radians(case.wedge_angle), tol)
+    factor = case.symmetry_factor
     history = History(Path(out_dir) / f"history_{case.ratio:g}.csv",
                       ["time", "approach_mm", "force_N", "contact_radius_mm", "loaded_points"], comm,
                       flush_every_row=True)  # a long run keeps its history if stopped
@@ -165,8 +197,8 @@ def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path =
         newton_iterations.append(s.snes.getIterationNumber())
         residual_norms.append(s.residual_norms)
         pairs = contact.pair_forces()
-        area = 4.0 * float(pairs["area"].sum())  # quarter model
-        history.append(time=s.t, approach_mm=approach(s.t), force_N=-4.0 * s.reactions(upper),
+        area = factor * float(pairs["area"].sum())
+        history.append(time=s.t, approach_mm=approach(s.t), force_N=-factor * s.reactions(upper),
                        contact_radius_mm=np.sqrt(area / np.pi), loaded_points=float(pairs["points"].sum()))
         log(f"  t={s.t:.3f} approach/r={approach(s.t) / r:.5f} F={history.rows[-1][2]:.4f} N "
             f"a={history.rows[-1][3]:.4f} mm points={history.rows[-1][4]:.0f} its={s.snes.getIterationNumber()}")
@@ -187,3 +219,34 @@ def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path =
     error_rms = float(np.sqrt(np.mean(deviation ** 2))) if deviation.size else float("nan")
     return TwoSphereResult(history, a0, F0, error, error_rms, V.dofmap.index_map.size_global * 3, time.perf_counter() - start,
                            a[unloading], F[unloading], F_mj, newton_iterations, residual_norms)
+
+
+def _wedge_couplings(V, cell_tags, prescribed: np.ndarray, theta: float, tol: float) -> CouplingRows:
+    """Constraint rows of the wedge: a roller on the plane at angle theta (u . n = 0, n = (-sin,
+    cos, 0)), and the two copies of each axis node (one per plane, ``meshes.sphere_pair``) tied
+    in z (their x, y are prescribed to zero): the copy with the larger global index follows the
+    other."""
+    normal = (-np.sin(theta), np.cos(theta), 0.0)
+    roller = plane_roller(V, normal, lambda x: (np.abs(normal[0] * x[0] + normal[1] * x[1]) < tol)
+                          & (x[0] ** 2 + x[1] ** 2 >= tol ** 2), prescribed)
+    imap = V.dofmap.index_map
+    bs = V.dofmap.index_map_bs
+    axis = dolfinx.fem.locate_dofs_geometrical(V, lambda x: x[0] ** 2 + x[1] ** 2 < tol ** 2).astype(np.int64)
+    axis = axis[(axis < imap.size_local) & ~np.isin(axis * bs + 2, prescribed)]
+    body = node_particles(V, cell_tags.values[: V.mesh.topology.index_map(3).size_local])[axis]
+    z = V.tabulate_dof_coordinates()[axis, 2]
+    gid = imap.local_to_global(axis.astype(np.int32)).astype(np.int64)
+    comm = V.mesh.comm
+    allb, allz, allg = (np.concatenate(comm.allgather(a)) for a in (body, z, gid))
+    order = np.lexsort((allg, allz, allb))
+    allb, allz, allg = allb[order], allz[order], allg[order]
+    same = (allb[1:] == allb[:-1]) & (np.abs(allz[1:] - allz[:-1]) < tol)
+    if allg.size and (2 * same.sum() != allg.size or np.any(same[1:] & same[:-1])):
+        raise RuntimeError("wedge axis nodes do not come in coincident pairs (one per plane)")
+    masters, slaves = allg[:-1][same], allg[1:][same]
+    lo, hi = imap.local_range
+    mine = (slaves >= lo) & (slaves < hi)
+    local = (slaves[mine] - lo) * bs + 2
+    ties = CouplingRows(local.astype(np.int32), np.arange(local.size + 1, dtype=np.int64), masters[mine] * bs + 2,
+                        np.ones(local.size))
+    return CouplingRows.concatenate(roller, ties)
