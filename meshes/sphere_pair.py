@@ -97,9 +97,10 @@ def wedge_sphere_pair(radius: float = 1.0, comm: MPI.Comm = MPI.COMM_WORLD, *, a
     """Thin wedge (``angle`` degrees about the z axis) of the same two spheres: one layer of
     hexahedra revolved from a quadrilateral mesh of the meridian half-disks (x >= 0 in the plane
     y = 0), for axisymmetric loadings. The wedge lies between the plane y = 0 and the plane at
-    ``angle`` from it; the workflow puts rollers on both (``wedge_symmetry``), which makes a one-cell
-    wedge an exact axisymmetric model up to the chord of the angle (1 - cos(angle / 2) = 1.5e-4 at
-    2 degrees). A contact can then be resolved at the thesis' size (0.00125 r) with ~1e4 cells: the
+    ``angle`` from it; the workflow ties every node of the second plane to its partner in the first,
+    rotated (cyclic symmetry, ``workflows.two_spheres``), which makes the one-cell wedge an
+    axisymmetric model (trilinear across the angle: the chord error 1 - cos(angle / 2) is 1.5e-4
+    at 2 degrees). A contact can then be resolved at the thesis' size (0.00125 r) with ~1e4 cells: the
     cost of a 2-D model, the code of the 3-D one.
 
     gmsh meshes the meridian half-disks with triangles of size ``size_min`` r on the spherical arc

@@ -134,3 +134,45 @@ def test_quarter_sphere_pair_graded_from_the_contact_cap():
     # bad input names the field and its range
     with pytest.raises(ValueError, match="grading"):
         quarter_sphere_pair(1.0, MPI.COMM_SELF, size_min=size_min, grading=5.0)
+
+
+def test_wedge_sphere_pair_is_one_revolved_layer_of_hexahedra():
+    """The wedge: a quadrilateral meridian mesh revolved by ``angle`` (one layer of hexahedra,
+    those at the axis with a collapsed edge); its volume is the spheres' share of the angle, the
+    facet tags hold only the spherical surfaces, refined to ~size_min / 2 on the contact cap."""
+    import dolfinx
+    import ufl
+
+    from mpfem_fenicsx.meshes.sphere_pair import wedge_sphere_pair
+
+    angle, size_min, cap = 3.0, 0.02, 0.2
+    wedge = wedge_sphere_pair(1.0, MPI.COMM_SELF, angle=angle, size_min=size_min, cap_radius=cap, grading=0.5)
+    mesh = wedge.mesh
+    assert mesh.topology.cell_name() == "hexahedron"
+    volume = dolfinx.fem.assemble_scalar(dolfinx.fem.form(1.0 * ufl.dx(domain=mesh)))
+    assert volume == pytest.approx(2 * 4 / 3 * np.pi * angle / 360, rel=5e-3)
+    x = mesh.geometry.x
+    phi = np.degrees(np.arctan2(x[:, 1], x[:, 0]))
+    rho = np.hypot(x[:, 0], x[:, 1])
+    assert np.all(np.isclose(phi, 0, atol=1e-9) | np.isclose(phi, angle) | (rho < 1e-12))
+    # one layer: every node lies in one of the two planes, as many in each
+    assert np.sum(np.isclose(phi, angle)) == np.sum(np.isclose(phi, 0, atol=1e-9) & (rho > 1e-12))
+    # tagged facets: all vertices on the sphere of their body
+    mesh.topology.create_connectivity(2, 0)
+    f2v = mesh.topology.connectivity(2, 0)
+    for body, sign in ((0, -1.0), (1, 1.0)):
+        facets = wedge.facet_tags.find(body)
+        assert facets.size > 0
+        v = np.concatenate([f2v.links(f) for f in facets])
+        centre = np.array([0.0, 0.0, sign])
+        assert np.allclose(np.linalg.norm(x[v] - centre, axis=1), 1.0, atol=1e-9)
+    mid = dolfinx.mesh.compute_midpoints(mesh, 2, wedge.facet_tags.indices)
+    radial = np.hypot(mid[:, 0], mid[:, 1])
+    on_cap = radial < 0.8 * cap
+    # radial facet length on the cap: quadrilaterals half the triangles' size_min
+    mesh.topology.create_connectivity(2, 1)
+    h = dolfinx.cpp.mesh.h(mesh._cpp_object, 2, wedge.facet_tags.indices)  # longest edge (hoop or radial)
+    assert on_cap.sum() > 2 * 0.8 * cap / size_min
+    assert np.median(h[on_cap]) < 0.8 * size_min
+    with pytest.raises(ValueError, match="angle"):
+        wedge_sphere_pair(1.0, MPI.COMM_SELF, angle=90.0)

@@ -75,3 +75,23 @@ def test_plastic_adhesive_pair_unloads_through_peeling_to_separation(tmp_path):
     assert len(res.newton_iterations) <= 25
     print(f"rms {res.error_rms:.4f} e {res.error:.4f} samples {res.a_unload.size} F_min {force.min():.4f} "
           f"increments {len(res.newton_iterations)} its {res.newton_iterations}")
+
+
+def test_elastic_wedge_follows_hertz(tmp_path):
+    """The one-cell wedge (2 degrees, cyclic symmetry rows, ``model="wedge"``) at a contact mesh
+    of 0.005 r: the axisymmetric model of the same pair, with x 90 the symmetry factor. Measured:
+    F within 0.5 % of Hertz from 0.002 r (contact radius >= 6 quadrilaterals), 3-4 Newton
+    iterations per step."""
+    case = TwoSphereCase(model="wedge", size_min=0.01, refine_radius=0.1, approach=0.004, load_steps=4,
+                         unload_steps=0, material=replace(STEEL_LINEAR, sigma_0=1e6), gamma=1e-9)
+    assert case.symmetry_factor == pytest.approx(180.0)
+    res = run_two_spheres(case, tmp_path, MPI.COMM_SELF, log=lambda *a: None)
+    data = res.history.array()
+    approach, force, radius = data[:, 1], data[:, 2], data[:, 3]
+    hertz = 4.0 / 3.0 * case.e_star * np.sqrt(case.radius / 2) * approach ** 1.5
+    resolved = approach >= 0.002 * case.radius
+    assert resolved.sum() >= 3
+    assert np.abs(force[resolved] / hertz[resolved] - 1).max() < 0.02, force / hertz
+    # contact radius (from the loaded points' area) within a quadrilateral of Hertz's sqrt(R delta)
+    assert np.abs(radius - np.sqrt(0.5 * case.radius * approach)).max() < 0.5 * case.size_min
+    assert len(res.newton_iterations) == case.load_steps and max(res.newton_iterations) <= 5

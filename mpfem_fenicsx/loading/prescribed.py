@@ -72,28 +72,3 @@ class PrescribedDisplacements:
     def apply(self, t: float) -> None:
         self.constraint.set_prescribed(self.values(t))
 
-
-def plane_roller(V: dolfinx.fem.FunctionSpace, normal, marker: Callable, prescribed: np.ndarray) -> CouplingRows:
-    """Roller on a plane through the origin of unit ``normal`` (n_y != 0): u . n = 0 at the nodes
-    where ``marker(x)`` is True, as slave rows u_y = -(n_x u_x + n_z u_z) / n_y. Nodes with any
-    of their dofs in ``prescribed`` (local unrolled indices) are left out (a prescribed node must
-    satisfy the roller through its own values)."""
-    n = np.asarray(normal, dtype=float)
-    if abs(n[1]) < 1e-6:
-        raise ValueError(f"plane_roller needs a normal with a y component, got {normal}")
-    bs = V.dofmap.index_map_bs
-    imap = V.dofmap.index_map
-    blocks = dolfinx.fem.locate_dofs_geometrical(V, marker).astype(np.int64)
-    blocks = blocks[blocks < imap.size_local]
-    blocks = blocks[~np.isin(blocks, np.asarray(prescribed, np.int64) // bs)]
-    global_blocks = imap.local_to_global(blocks.astype(np.int32)).astype(np.int64)
-    masters, coefficients = [], []
-    for c in (0, 2):  # u_y depends on u_x and u_z
-        masters.append(global_blocks * bs + c)
-        coefficients.append(np.full(blocks.size, -n[c] / n[1]))
-    masters = np.stack(masters, axis=1).ravel()
-    coefficients = np.stack(coefficients, axis=1).ravel()
-    keep = coefficients != 0.0
-    counts = keep.reshape(-1, 2).sum(axis=1)
-    indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    return CouplingRows((blocks * bs + 1).astype(np.int32), indptr, masters[keep], coefficients[keep])

@@ -61,7 +61,6 @@ from ..contact.laws import default_penalty
 from ..io import History
 from ..constraints import CouplingRows
 from ..loading import PrescribedDisplacements, component_dofs
-from ..loading.prescribed import plane_roller
 from ..material import STEEL_LINEAR, ElastoPlastic
 from ..meshes import node_particles
 from ..meshes.sphere_pair import quarter_sphere_pair, wedge_sphere_pair
@@ -82,7 +81,8 @@ class TwoSphereCase:
     grading: float | None = None
     core: float = 0.3
     #: "quarter" (3-D quarter, symmetry planes x = 0, y = 0) or "wedge" (a one-cell wedge of
-    #: ``wedge_angle`` degrees with rollers on both planes: the axisymmetric problem, resolved at
+    #: ``wedge_angle`` degrees whose second plane follows the first rotated (cyclic symmetry):
+    #: the axisymmetric problem, resolved at
     #: the thesis' contact mesh size for the cost of a 2-D model; ``meshes.sphere_pair``)
     model: str = "quarter"
     wedge_angle: float = 2.0
@@ -222,31 +222,42 @@ def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path =
 
 
 def _wedge_couplings(V, cell_tags, prescribed: np.ndarray, theta: float, tol: float) -> CouplingRows:
-    """Constraint rows of the wedge: a roller on the plane at angle theta (u . n = 0, n = (-sin,
-    cos, 0)), and the two copies of each axis node (one per plane, ``meshes.sphere_pair``) tied
-    in z (their x, y are prescribed to zero): the copy with the larger global index follows the
-    other."""
-    normal = (-np.sin(theta), np.cos(theta), 0.0)
-    roller = plane_roller(V, normal, lambda x: (np.abs(normal[0] * x[0] + normal[1] * x[1]) < tol)
-                          & (x[0] ** 2 + x[1] ** 2 >= tol ** 2), prescribed)
+    """Cyclic-symmetry rows of the one-cell wedge: every node of the plane at angle theta follows
+    its partner in the plane y = 0 (same body, radius and height) rotated by theta,
+    u' = (cos theta u_x, sin theta u_x, u_z): the displacement field is exactly axisymmetric and
+    the thin cells have no hoop modes of their own (rollers on both planes left each cell free to
+    shear across its width, a few 1e-5 mm near the axis: Newton inverted those cells). Of the two
+    copies of an axis node, the one with the larger global index follows the other (its x, y are
+    prescribed to zero, so only z is tied). Slave dofs that are prescribed are left out; their
+    partner's are then prescribed too (cores and axis are symmetric about the z axis)."""
     imap = V.dofmap.index_map
     bs = V.dofmap.index_map_bs
-    axis = dolfinx.fem.locate_dofs_geometrical(V, lambda x: x[0] ** 2 + x[1] ** 2 < tol ** 2).astype(np.int64)
-    axis = axis[(axis < imap.size_local) & ~np.isin(axis * bs + 2, prescribed)]
-    body = node_particles(V, cell_tags.values[: V.mesh.topology.index_map(3).size_local])[axis]
-    z = V.tabulate_dof_coordinates()[axis, 2]
-    gid = imap.local_to_global(axis.astype(np.int32)).astype(np.int64)
+    owned = np.arange(imap.size_local, dtype=np.int32)
+    X = V.tabulate_dof_coordinates()[: imap.size_local]
+    rho, z = np.hypot(X[:, 0], X[:, 1]), X[:, 2]
+    body = node_particles(V, cell_tags.values[: V.mesh.topology.index_map(3).size_local])
+    first = np.abs(X[:, 1]) < tol  # in the plane y = 0 (axis nodes: both copies)
+    gid = imap.local_to_global(owned).astype(np.int64)
     comm = V.mesh.comm
-    allb, allz, allg = (np.concatenate(comm.allgather(a)) for a in (body, z, gid))
-    order = np.lexsort((allg, allz, allb))
-    allb, allz, allg = allb[order], allz[order], allg[order]
-    same = (allb[1:] == allb[:-1]) & (np.abs(allz[1:] - allz[:-1]) < tol)
-    if allg.size and (2 * same.sum() != allg.size or np.any(same[1:] & same[:-1])):
-        raise RuntimeError("wedge axis nodes do not come in coincident pairs (one per plane)")
-    masters, slaves = allg[:-1][same], allg[1:][same]
+    allb, allz, allr, allg, allf = (np.concatenate(comm.allgather(a)) for a in (body, z, rho, gid, first))
+    # partners are adjacent in (body, z, rho) order; within a pair the node of the plane y = 0
+    # (or, on the axis, the smaller global index) comes first
+    order = np.lexsort((allg, ~allf, np.round(allr / tol), np.round(allz / tol), allb))
+    allb, allz, allr, allg, allf = allb[order], allz[order], allr[order], allg[order], allf[order]
+    masters, slaves = allg[0::2], allg[1::2]
+    if (allg.size % 2 or np.any(allb[0::2] != allb[1::2]) or np.any(np.abs(allz[0::2] - allz[1::2]) > tol)
+            or np.any(np.abs(allr[0::2] - allr[1::2]) > tol) or not np.all(allf[0::2])):
+        raise RuntimeError("wedge nodes do not come in pairs (one per plane) of the same body, radius and height")
     lo, hi = imap.local_range
     mine = (slaves >= lo) & (slaves < hi)
-    local = (slaves[mine] - lo) * bs + 2
-    ties = CouplingRows(local.astype(np.int32), np.arange(local.size + 1, dtype=np.int64), masters[mine] * bs + 2,
-                        np.ones(local.size))
-    return CouplingRows.concatenate(roller, ties)
+    slave_blocks, master_blocks = slaves[mine] - lo, masters[mine]
+    rows, cols, coefs = [], [], []
+    for c, (mc, coef) in enumerate(((0, np.cos(theta)), (0, np.sin(theta)), (2, 1.0))):
+        dof = slave_blocks * bs + c
+        free = ~np.isin(dof, prescribed)
+        rows.append(dof[free])
+        cols.append(master_blocks[free] * bs + mc)
+        coefs.append(np.full(free.sum(), coef))
+    rows, cols, coefs = np.concatenate(rows), np.concatenate(cols), np.concatenate(coefs)
+    order = np.argsort(rows)
+    return CouplingRows(rows[order].astype(np.int32), np.arange(rows.size + 1, dtype=np.int64), cols[order], coefs[order])
