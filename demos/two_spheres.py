@@ -41,6 +41,9 @@ def main(argv=None):
     parser.add_argument("--grading", type=float, default=d.grading,
                         help="refine the contact cap only: element size grows by this per unit distance from it")
     parser.add_argument("--refine-radius", type=float, default=d.refine_radius, help="refined zone / r")
+    parser.add_argument("--model", choices=("quarter", "wedge"), default=d.model,
+                        help="3-D quarter model, or one-cell wedge (axisymmetric by cyclic symmetry)")
+    parser.add_argument("--wedge-angle", type=float, default=d.wedge_angle, help="wedge angle, degrees")
     parser.add_argument("--load-steps", type=int, default=d.load_steps)
     parser.add_argument("--unload-steps", type=int, default=d.unload_steps)
     parser.add_argument("--out", default="results/two_spheres")
@@ -53,7 +56,8 @@ def main(argv=None):
     curves = {}
     for ratio in args.ratios:
         case = replace(d, ratio=ratio, gamma=args.gamma, size_min=args.size_min, grading=args.grading,
-                       refine_radius=args.refine_radius, load_steps=args.load_steps,
+                       refine_radius=args.refine_radius, model=args.model, wedge_angle=args.wedge_angle,
+                       load_steps=args.load_steps,
                        unload_steps=args.unload_steps)
         say(f"sigma_c / sigma_y = {ratio:g}: sigma_c = {case.sigma_c:g} MPa, delta_max = {case.delta_max:.3g} mm")
         res = run_two_spheres(case, out, comm, log=say)

@@ -73,7 +73,7 @@ def test_plastic_adhesive_pair_unloads_through_peeling_to_separation(tmp_path):
     assert res.error_rms < 0.08, (res.error_rms, res.error, res.a_unload.size)
     # 15 increments: measured 17-19 converged (a few cut-backs); before, cut-backs to dt_min
     assert len(res.newton_iterations) <= 25
-    print(f"rms {res.error_rms:.4f} e {res.error:.4f} samples {res.a_unload.size} F_min {force.min():.4f} "
+    print(f"rms {res.error_rms:.4f} e {res.error:.4f} (grid {res.grid_points}) samples {res.a_unload.size} F_min {force.min():.4f} "
           f"increments {len(res.newton_iterations)} its {res.newton_iterations}")
 
 

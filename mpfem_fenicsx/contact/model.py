@@ -243,6 +243,10 @@ class ContactModel:
         #: adhesive loading line or into overlap, and the branch codes of the last evaluation
         self._returned = np.zeros(0, np.int64)
         self._last = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+        #: snap-in: keys of virgin points that an iterate of this increment moved out of overlap,
+        #: and the keys (sorted) / compressive tractions (MPa) of those armed on re-entering it
+        self._left = np.zeros(0, np.int64)
+        self._armed = (np.zeros(0, np.int64), np.zeros(0))
         self.frictional_work = 0.0  # committed, summed over ranks, mJ
         self.search_time = 0.0  # accumulated wall time of the search (s), for benchmarks
         self._V = V
@@ -293,6 +297,9 @@ class ContactModel:
             pos, known = _lookup(old.keys, keys)
             alpha_n[known], smax_n[known] = old.alpha[pos[known]], old.smax[pos[known]]
             tt_n[known], work_n[known] = old.tt[pos[known]], old.work[pos[known]]
+        if self._armed[0].size:  # snapped in by an earlier iterate of this increment
+            pos, known = _lookup(self._armed[0], keys)
+            smax_n[known] = np.maximum(smax_n[known], self._armed[1][pos[known]])
         if self._separated.size:  # memory erased by an earlier iterate of this increment
             gone = np.isin(keys, self._separated)
             alpha_n[gone], smax_n[gone] = 0.0, 0.0
@@ -321,7 +328,7 @@ class ContactModel:
             evaluate_law(pts.gap, jump, pts.normal, alpha_n, smax_n, tt_n, *params,
                          T1, Tt, alpha, smax, dissipation, branch)
         adhesive = n and self.law.gamma > 0
-        held = self._track_peeling(keys, branch, smax_n) if adhesive else np.zeros(n, np.bool_)
+        held = self._track_peeling(keys, branch, smax_n, T1) if adhesive else np.zeros(n, np.bool_)
         scale = PASS_WEIGHT * area
         self.points = pts
         self.nodes, self.weights = nodes, weights
@@ -347,10 +354,11 @@ class ContactModel:
             k = _coo_entries(nodes[:, :nn], s.blocks, K, rows, cols, vals) if n else 0
             self._coo = (rows[:k], cols[:k], vals[:k])
 
-    def _track_peeling(self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray) -> np.ndarray:
+    def _track_peeling(self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray, T1: np.ndarray) -> np.ndarray:
         """Snap bookkeeping of the adhesive points over the iterates of an increment; returns the
         mask of the points whose softening slope the tangent holds at zero."""
         held = np.zeros(keys.size, np.bool_)
+        self._track_snap_in(keys, branch, smax_n, T1)
         snapped = (branch % 4 == 3) & (smax_n > 0)
         if snapped.any():
             self._separated = np.union1d(self._separated, keys[snapped])
@@ -379,6 +387,39 @@ class ContactModel:
             if reentered.any() and self._returned.size:
                 held = reentered & np.isin(keys, self._returned)
         return held
+
+    def _track_snap_in(self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray, T1: np.ndarray) -> None:
+        """Snap-in of the adhesive law at the edge of a growing contact.
+
+        A virgin point (no memory) at the edge of a contact that grows on a soft (plastic)
+        substrate can sit at the kink gap = 0 of the unilateral law: in overlap, the penalty
+        pushes it out; out, it has no stiffness and the next iterate drives it back in (measured:
+        the wedge two-sphere loading cycled with period 3 at one ring until the increment was cut
+        to a few 1e-4 of the load). With adhesion the law has no kink there once the point has
+        touched: the adhesive loading line continues the penalty line through gap = 0. So a
+        virgin point that an iterate moves out of overlap and a later one moves back in is armed
+        for the rest of the increment with the compressive traction of that re-entry as its
+        memory sigma_max (alpha from it, or the forced alpha): it is adhered as it would be one
+        increment later, and the edge converges on a smooth law. Points whose memory an iterate
+        erased (:attr:`_separated`) are not re-armed."""
+        last_keys, last_branch = self._last
+        if not last_keys.size:
+            return
+        pos, known = _lookup(last_keys, keys)
+        was_closed = known & (last_branch[pos] % 4 == 0)
+        closed = branch % 4 == 0
+        virgin = smax_n == 0.0
+        if self._separated.size:
+            virgin &= ~np.isin(keys, self._separated)
+        left = keys[was_closed & ~closed & virgin]
+        if left.size:
+            self._left = np.union1d(self._left, left)
+        back = known & ~was_closed & closed & virgin & np.isin(keys, self._left)
+        if back.any():
+            armed_keys = np.concatenate([self._armed[0], keys[back]])
+            armed_smax = np.concatenate([self._armed[1], T1[back]])
+            order = np.argsort(armed_keys)
+            self._armed = (armed_keys[order], armed_smax[order])
 
     def penetration_step_limit(self, direction: dolfinx.fem.Function) -> float:
         """Largest fraction (0, 1] of a displacement update ``direction`` that keeps every open
@@ -452,6 +493,8 @@ class ContactModel:
         self._separated = np.zeros(0, np.int64)
         self._returned = np.zeros(0, np.int64)
         self._last = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+        self._left = np.zeros(0, np.int64)
+        self._armed = (np.zeros(0, np.int64), np.zeros(0))
 
     def commit(self, u: dolfinx.fem.Function) -> None:
         self.state = self.trial

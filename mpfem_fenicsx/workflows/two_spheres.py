@@ -65,7 +65,7 @@ from ..material import STEEL_LINEAR, ElastoPlastic
 from ..meshes import node_particles
 from ..meshes.sphere_pair import quarter_sphere_pair, wedge_sphere_pair
 from ..problem import SolidProblem
-from ..solvers import ImplicitSolver, StepControl
+from ..solvers import ImplicitSolver, NonConvergence, StepControl
 
 
 @dataclass(frozen=True)
@@ -133,8 +133,11 @@ class TwoSphereResult:
     history: History
     a0: float
     F0: float
-    error: float  # thesis eq. 3.21 over the unloading samples
-    error_rms: float  # the same per sample: sqrt(mean(((F - F_MJ) / F0)^2)), independent of their number
+    error: float  # thesis eq. 3.21 on a / a0 = 0.1 ... 0.9 (``eq_3_21``)
+    error_rms: float  # per unloading sample: sqrt(mean(((F - F_MJ) / F0)^2))
+    grid_points: int  # points of the eq. 3.21 grid the branch covers (9 unless it ended early)
+    error_samples: float  # eq. 3.21 summed over all unloading samples instead (grows with their number)
+    pull_off: float | None  # approach (mm) where the static path ended in a pull-off, or None
     num_dofs: int
     wall_time: float
     a_unload: np.ndarray  # contact radius (mm) on the unloading branch, 0 < a < a0
@@ -206,7 +209,20 @@ def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path =
     start = time.perf_counter()
     solver = ImplicitSolver(problem, bcs, contact=contact, petsc_options=petsc_options)
     dt = 1.0 / case.load_steps
-    solver.run(StepControl(t_end=t_end, dt=dt, dt_max=dt, dt_min=dt / 1024, breakpoints=(t_load,) if t_end > t_load else ()), on_step=record, log=log)
+    control = StepControl(t_end=t_end, dt=dt, dt_max=dt, dt_min=dt / 1024, breakpoints=(t_load,) if t_end > t_load else ())
+    pull_off = None
+    try:
+        solver.run(control, on_step=record, log=log)
+    except NonConvergence:
+        # Under prescribed approach the adhesive unloading path ends where the last contact disc
+        # pulls off at once (the fixed-grip JKR / Mesarovic-Johnson instability): no static
+        # state continues it. Anything else is a failure.
+        last = history.rows[-1] if history.rows else None
+        if last is None or last[0] <= t_load or last[2] >= 0.0 or case.gamma <= 0.0:
+            raise
+        pull_off = float(last[1])
+        log(f"  pull-off: the static unloading path ends at approach {pull_off:.5g} mm, F = {last[2]:.4g} N, "
+            f"a = {last[3]:.4g} mm (the remaining contact snaps; a dynamic solver would follow the jump)")
     history.write()
     data = history.array()
     t, F, a = data[:, 0], data[:, 2], data[:, 3]
@@ -214,12 +230,35 @@ def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path =
     a0, F0 = a[i0], F[i0]
     unloading = (t > t_load + 1e-9) & (a < a0) & (a > 0)
     F_mj = case.mesarovic_johnson(a[unloading], a0, F0)
+    error, grid = eq_3_21(case, a[unloading], F[unloading], a0, F0)
     deviation = (F[unloading] - F_mj) / F0
-    error = float(np.sqrt(np.sum(deviation ** 2)))
     error_rms = float(np.sqrt(np.mean(deviation ** 2))) if deviation.size else float("nan")
-    return TwoSphereResult(history, a0, F0, error, error_rms, V.dofmap.index_map.size_global * 3, time.perf_counter() - start,
+    return TwoSphereResult(history, a0, F0, error, error_rms, int(grid.sum()), float(np.sqrt(np.sum(deviation ** 2))),
+                           pull_off, V.dofmap.index_map.size_global * 3, time.perf_counter() - start,
                            a[unloading], F[unloading], F_mj, newton_iterations, residual_norms)
 
+
+#: a / a0 where eq. 3.21 compares the unloading branch with Mesarovic-Johnson
+ERROR_GRID = np.round(np.linspace(0.1, 0.9, 9), 12)
+
+
+def eq_3_21(case: TwoSphereCase, a: np.ndarray, F: np.ndarray, a0: float, F0: float) -> tuple[float, np.ndarray]:
+    """Thesis eq. 3.21, e = sqrt(sum_a ((F(a) - F_MJ(a)) / (pi a0^2 p0))^2) with pi a0^2 p0 = F0,
+    summed over a / a0 = 0.1, 0.2, ..., 0.9 (``ERROR_GRID``).
+
+    The thesis leaves the sampling of a implicit, and a sum over all unloading increments grows
+    with their number (x sqrt(N)): a fixed grid in a / a0 makes e a property of the curve. F(a)
+    between samples: linear in a (samples at the same radius averaged). Grid points outside the
+    radii the branch reached (e.g. below a pull-off radius) are left out; returns (e, mask of the
+    grid points used)."""
+    if a.size < 2:
+        return float("nan"), np.zeros(ERROR_GRID.size, bool)
+    radii, inverse = np.unique(a / a0, return_inverse=True)
+    force = np.bincount(inverse, weights=F) / np.bincount(inverse)
+    used = (ERROR_GRID >= radii[0]) & (ERROR_GRID <= radii[-1])
+    s = ERROR_GRID[used]
+    deviation = (np.interp(s, radii, force) - case.mesarovic_johnson(s * a0, a0, F0)) / F0
+    return float(np.sqrt(np.sum(deviation ** 2))), used
 
 def _wedge_couplings(V, cell_tags, prescribed: np.ndarray, theta: float, tol: float) -> CouplingRows:
     """Cyclic-symmetry rows of the one-cell wedge: every node of the plane at angle theta follows
