@@ -72,27 +72,28 @@ def main(argv=None):
             if not path.exists():
                 say(f"sigma_c / sigma_y = {ratio:g}: no {path}, skipped")
                 continue
-            res = unloading_branch(case, np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2))
+            branch = unloading_branch(case, np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2))
             pull_off, wall = float("nan"), float("nan")
         else:
             say(f"sigma_c / sigma_y = {ratio:g}: sigma_c = {case.sigma_c:g} MPa, delta_max = {case.delta_max:.3g} mm")
             res = run_two_spheres(case, out, comm, log=say)
+            branch = res.branch
             pull_off = float("nan") if res.pull_off is None else res.pull_off
             wall = res.wall_time
             say(f"  {res.num_dofs} dofs, {wall:.0f} s")
-        a_unl, F_unl = (res.a, res.F) if args.replot else (res.a_unload, res.F_unload)
         curve = History(out / f"sigma_c_{ratio:g}.csv", ["a_over_a0", "force_N", "force_mj_N"], comm)
-        for a, f, f_mj in zip(a_unl, F_unl, res.F_mj):
-            curve.append(a_over_a0=a / res.a0, force_N=f, force_mj_N=f_mj)
+        for a, f, f_mj in zip(branch.a, branch.F, branch.F_mj):
+            curve.append(a_over_a0=a / branch.a0, force_N=f, force_mj_N=f_mj)
         curve.write()
-        curves[ratio] = (a_unl / res.a0, F_unl / res.F0, res.a0, res.F0, case)
-        summary.append(sigma_c_over_sigma_y=ratio, error_e=res.error, grid_points=res.grid_points, error_rms=res.error_rms,
-                       error_samples=res.error_samples, a0_mm=res.a0, F0_N=res.F0, samples=a_unl.size,
+        curves[ratio] = (branch.a / branch.a0, branch.F / branch.F0, branch.a0, branch.F0, case)
+        summary.append(sigma_c_over_sigma_y=ratio, error_e=branch.error, grid_points=branch.grid_points,
+                       error_rms=branch.error_rms, error_samples=branch.error_samples, a0_mm=branch.a0, F0_N=branch.F0,
+                       samples=branch.a.size,
                        pull_off_mm=pull_off, wall_s=wall)
         summary.write()
-        say(f"  sigma_c / sigma_y = {ratio:g}: a0 = {res.a0:.4f} mm, F0 = {res.F0:.3f} N, e = {100 * res.error:.2f} % "
-            f"(eq. 3.21 on {res.grid_points} radii a / a0 = 0.1..0.9); {a_unl.size} unloading samples: "
-            f"{100 * res.error_rms:.2f} % rms")
+        say(f"  sigma_c / sigma_y = {ratio:g}: a0 = {branch.a0:.4f} mm, F0 = {branch.F0:.3f} N, e = "
+            f"{100 * branch.error:.2f} % (eq. 3.21 on {branch.grid_points} radii a / a0 = 0.1..0.9); "
+            f"{branch.a.size} unloading samples: {100 * branch.error_rms:.2f} % rms")
     if not curves:
         say(f"no results in {out}")
         return

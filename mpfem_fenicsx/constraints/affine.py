@@ -39,17 +39,6 @@ class CouplingRows:
     def empty() -> "CouplingRows":
         return CouplingRows(np.zeros(0, np.int32), np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0))
 
-    @staticmethod
-    def concatenate(*rows: "CouplingRows") -> "CouplingRows":
-        """All rows of several sets (their slaves must differ)."""
-        if not rows:
-            return CouplingRows.empty()
-        offsets = np.cumsum([0] + [r.indptr[-1] for r in rows[:-1]])
-        indptr = np.concatenate([[0]] + [np.asarray(r.indptr[1:], np.int64) + o for r, o in zip(rows, offsets)])
-        return CouplingRows(np.concatenate([np.asarray(r.slaves, np.int32) for r in rows]), indptr,
-                            np.concatenate([np.asarray(r.masters, np.int64) for r in rows]),
-                            np.concatenate([np.asarray(r.coefficients, float) for r in rows]))
-
 
 class AffineConstraint:
     """u = P u_red + g on the (blocked, unrolled) dofs of a vector space ``V``.

@@ -328,7 +328,10 @@ class ContactModel:
             evaluate_law(pts.gap, jump, pts.normal, alpha_n, smax_n, tt_n, *params,
                          T1, Tt, alpha, smax, dissipation, branch)
         adhesive = n and self.law.gamma > 0
-        held = self._track_peeling(keys, branch, smax_n, T1) if adhesive else np.zeros(n, np.bool_)
+        held = np.zeros(n, np.bool_)
+        if adhesive:
+            self._track_snap_in(keys, branch, smax_n, T1)
+            held = self._track_peeling(keys, branch, smax_n)
         scale = PASS_WEIGHT * area
         self.points = pts
         self.nodes, self.weights = nodes, weights
@@ -354,11 +357,10 @@ class ContactModel:
             k = _coo_entries(nodes[:, :nn], s.blocks, K, rows, cols, vals) if n else 0
             self._coo = (rows[:k], cols[:k], vals[:k])
 
-    def _track_peeling(self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray, T1: np.ndarray) -> np.ndarray:
+    def _track_peeling(self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray) -> np.ndarray:
         """Snap bookkeeping of the adhesive points over the iterates of an increment; returns the
         mask of the points whose softening slope the tangent holds at zero."""
         held = np.zeros(keys.size, np.bool_)
-        self._track_snap_in(keys, branch, smax_n, T1)
         snapped = (branch % 4 == 3) & (smax_n > 0)
         if snapped.any():
             self._separated = np.union1d(self._separated, keys[snapped])

@@ -41,7 +41,7 @@ class PrescribedDisplacements:
         self.V = V
         self._groups: list[tuple[np.ndarray, Callable | float]] = []
         self.constraint: AffineConstraint | None = None
-        #: fixed multipoint rows (e.g. an inclined roller), built with the prescribed dofs
+        #: fixed multipoint rows (e.g. cyclic symmetry), built with the prescribed dofs
         self.couplings: CouplingRows | None = None
 
     def add(self, dofs: np.ndarray, value: Callable | float = 0.0) -> "PrescribedDisplacements":
@@ -71,4 +71,3 @@ class PrescribedDisplacements:
 
     def apply(self, t: float) -> None:
         self.constraint.set_prescribed(self.values(t))
-

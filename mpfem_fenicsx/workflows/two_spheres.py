@@ -143,21 +143,23 @@ class TwoSphereCase:
 @dataclass
 class TwoSphereResult:
     history: History
-    a0: float
-    F0: float
-    error: float  # thesis eq. 3.21 on a / a0 = 0.1 ... 0.9 (``eq_3_21``)
-    error_rms: float  # per unloading sample: sqrt(mean(((F - F_MJ) / F0)^2))
-    grid_points: int  # points of the eq. 3.21 grid the branch covers (9 unless it ended early)
-    error_samples: float  # eq. 3.21 summed over all unloading samples instead (grows with their number)
+    branch: "UnloadingBranch"  # unloading branch and its deviations from Mesarovic-Johnson
     pull_off: float | None  # approach (mm) where the static path ended in a pull-off, or None
     num_dofs: int
     wall_time: float
-    a_unload: np.ndarray  # contact radius (mm) on the unloading branch, 0 < a < a0
-    F_unload: np.ndarray  # force (N, compression > 0) there
-    F_mj: np.ndarray  # Mesarovic-Johnson force (N) at the same radii
     newton_iterations: list  # per converged increment
     residual_norms: list  # per converged increment: Newton residual norms (N), initial first
 
+    # the branch's figures, by their names in the result
+    a0 = property(lambda self: self.branch.a0)
+    F0 = property(lambda self: self.branch.F0)
+    error = property(lambda self: self.branch.error)
+    error_rms = property(lambda self: self.branch.error_rms)
+    grid_points = property(lambda self: self.branch.grid_points)
+    error_samples = property(lambda self: self.branch.error_samples)
+    a_unload = property(lambda self: self.branch.a)
+    F_unload = property(lambda self: self.branch.F)
+    F_mj = property(lambda self: self.branch.F_mj)
 
 def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path = "results/two_spheres",
                     comm: MPI.Comm = MPI.COMM_WORLD, petsc_options: dict | None = None,
@@ -236,10 +238,8 @@ def run_two_spheres(case: TwoSphereCase = TwoSphereCase(), out_dir: str | Path =
         log(f"  pull-off: the static unloading path ends at approach {pull_off:.5g} mm, F = {last[2]:.4g} N, "
             f"a = {last[3]:.4g} mm (the remaining contact snaps; a dynamic solver would follow the jump)")
     history.write()
-    branch = unloading_branch(case, history.array(), t_load)
-    return TwoSphereResult(history, branch.a0, branch.F0, branch.error, branch.error_rms, branch.grid_points,
-                           branch.error_samples, pull_off, V.dofmap.index_map.size_global * 3,
-                           time.perf_counter() - start, branch.a, branch.F, branch.F_mj, newton_iterations,
+    return TwoSphereResult(history, unloading_branch(case, history.array(), t_load), pull_off,
+                           V.dofmap.index_map.size_global * 3, time.perf_counter() - start, newton_iterations,
                            residual_norms)
 
 
