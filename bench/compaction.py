@@ -29,16 +29,8 @@ from mpi4py import MPI
 
 import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
 from mpfem_fenicsx.constraints.granular import KINDS
-from mpfem_fenicsx.meshes.cubesphere import unit_ball_hex
+from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS, unit_ball_hex
 from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
-
-
-def divisions_for(nodes: int) -> tuple[int, int]:
-    """Cube-sphere inner-cube divisions (4 shell layers, as the compaction meshes) whose node
-    count is closest to ``nodes``."""
-    counts = {d: unit_ball_hex(d, 4).num_nodes for d in range(2, 13)}
-    best = min(counts, key=lambda d: abs(counts[d] - nodes))
-    return best, counts[best]
 
 
 def main(argv=None) -> dict:
@@ -52,24 +44,25 @@ def main(argv=None) -> dict:
                    help="untimed increments before (default: 55 %% of --increments, contacts established)")
     p.add_argument("--increments", type=int, default=4000, help="increments of the whole run (sets dt)")
     p.add_argument("--full", action="store_true", help="time the whole run to --target-density")
-    p.add_argument("--nodes-per-particle", type=int, default=517,
-                   help="cube-sphere resolution (closest count: 517 = default, thesis ~560)")
+    p.add_argument("--mesh", choices=tuple(RESOLUTIONS), default=CompactionCase.mesh,
+                   help="named cube-sphere resolution (chapter2: 561 nodes per particle, the default; "
+                        "chapter4: 1 933; coarse: 517, the default before 2026-11-24)")
     p.add_argument("--target-density", type=float, default=0.95)
     p.add_argument("--seed", type=int, default=1)
     args = p.parse_args(argv)
     for name, value, low in (("--particles", args.particles, 1), ("--steps", args.steps, 1),
-                             ("--increments", args.increments, 2), ("--nodes-per-particle", args.nodes_per_particle, 1)):
+                             ("--increments", args.increments, 2)):
         if value < low:
             p.error(f"{name} = {value} must be >= {low}")
     if args.warmup is not None and not 0 <= args.warmup < args.increments:
         p.error(f"--warmup = {args.warmup} must be in [0, --increments = {args.increments})")
     comm = MPI.COMM_WORLD
 
-    divisions, nodes = divisions_for(args.nodes_per_particle)
+    nodes = unit_ball_hex(*RESOLUTIONS[args.mesh]).num_nodes
     out = tempfile.mkdtemp(prefix="mpfem-bench-") if comm.rank == 0 else None
     out = comm.bcast(out)
     base = dict(particles=args.particles, bc=args.bc, solver=args.solver, seed=args.seed,
-                target_density=args.target_density, increments=args.increments, divisions=divisions,
+                target_density=args.target_density, increments=args.increments, mesh=args.mesh,
                 visual=False, checkpoint_every=0, out_dir=out)
     quiet = lambda *a, **k: None  # noqa: E731
     warmup = 0 if args.full else (int(0.55 * args.increments) if args.warmup is None else args.warmup)
@@ -109,6 +102,7 @@ def main(argv=None) -> dict:
         "mode": "full" if args.full else "short",
         "ranks": comm.size,
         "particles_in_model": res.num_particles_model,
+        "mesh": args.mesh,
         "nodes_per_particle": nodes,
         "dofs": res.num_dofs,
         "free_dofs": res.extra["model"].bcs.constraint.num_reduced_global,

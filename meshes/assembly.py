@@ -114,14 +114,18 @@ def box_bodies_mesh(boxes, comm: MPI.Comm = MPI.COMM_WORLD) -> BodyAssembly:
 
 
 def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type: str = "hexahedron",
-                  divisions: int = 4, layers: int = 4, refinement: int = 1,
+                  divisions: int | None = None, layers: int | None = None, refinement: int = 1,
+                  exact_volume: bool = True,
                   tet_order: int = 1, tet_size: float = 0.25, tet_refine: list | None = None,
                   rotations: np.ndarray | None = None, grading: np.ndarray | None = None) -> ParticleAssembly:
     """Mesh the spheres ``(centres[i], radii[i])`` (mm) as one DOLFINx mesh on ``comm``.
 
     Args:
         cell_type: ``"hexahedron"`` (cube-sphere O-grid, Q1) or ``"tetrahedron"`` (gmsh, P1/P2).
-        divisions, layers, refinement: cube-sphere resolution (see :func:`unit_ball_hex`).
+        divisions, layers, refinement: cube-sphere resolution (see :func:`unit_ball_hex`; None:
+            the default ``"chapter2"`` resolution, 561 nodes per particle).
+        exact_volume: hexahedral particles hold the volume of their sphere (nodes scaled, see
+            :func:`unit_ball_hex`); False: inscribed in it.
         tet_order: geometric/field order of the gmsh tetrahedra (1 or 2).
         tet_size: gmsh target element size relative to the radius.
         tet_refine: local gmsh refinement, see :func:`meshes.tetra.gmsh_spheres`.
@@ -133,13 +137,15 @@ def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type:
     """
     centres, radii = _check_particles(centres, radii)
     if cell_type == "hexahedron":
-        ball = unit_ball_hex(divisions, layers, refinement)
+        ball = unit_ball_hex(divisions, layers, refinement, exact_volume=exact_volume)
         n_nodes, n_cells = ball.num_nodes, ball.num_cells
         if comm.rank == 0:
             unit = np.broadcast_to(ball.points, (radii.size,) + ball.points.shape)
             if grading is not None:
                 grading = np.asarray(grading, dtype=float).reshape(radii.size, 3)
-                unit = np.stack([mobius_ball(ball.points, -g) if np.any(g) else ball.points for g in grading])
+                # the conformal map keeps the unit sphere: apply it to the inscribed ball, then scale
+                s = ball.radius_scale
+                unit = np.stack([s * mobius_ball(ball.points / s, -g) if np.any(g) else ball.points for g in grading])
             if rotations is not None:
                 rotations = np.asarray(rotations, dtype=float)
                 if rotations.shape != (radii.size, 3, 3):

@@ -5,27 +5,47 @@ import pytest
 from mpi4py import MPI
 
 from mpfem_fenicsx.meshes import particle_mesh, particle_volumes, unit_ball_hex
-from mpfem_fenicsx.meshes.cubesphere import _orient_positive
+from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS, _orient_positive
 
 
-def test_default_cube_sphere_resolution():
+def test_default_cube_sphere_is_the_thesis_particle():
     ball = unit_ball_hex()
-    # 4^3 core + 6 * 4^2 * 4 shell hexahedra; (4+1)^3 + 4 (6*4^2 + 2) nodes (~560 of the thesis)
-    assert ball.num_cells == 64 + 6 * 16 * 4 == 448
-    assert ball.num_nodes == 125 + 4 * 98 == 517
-    assert ball.surface_nodes.size == 98
-    assert np.allclose(np.linalg.norm(ball.points[ball.surface_nodes], axis=1), 1.0)
+    # thesis appendix A: 6^3 core + one shell layer of 6x6 quadrilaterals per face = 432 C3D8R,
+    # 561 nodes, 218 surface nodes
+    assert ball.num_cells == 216 + 6 * 36 == 432
+    assert ball.num_nodes == 343 + 218 == 561
+    assert ball.surface_nodes.size == 218
     # orientation: re-orienting changes nothing, i.e. every Jacobian is already positive
     assert np.array_equal(_orient_positive(ball.points, ball.cells), ball.cells)
+    # named resolutions: the chapter-4 O-grid (1 934 nodes with the reference node) and the old default
+    assert unit_ball_hex(*RESOLUTIONS["chapter4"]).num_nodes == 1933
+    assert unit_ball_hex(*RESOLUTIONS["coarse"]).num_nodes == 517
 
 
-def test_refinement_converges_to_sphere_volume():
+@pytest.mark.parametrize("name", ["chapter2", "chapter4", "coarse"])
+def test_particle_mesh_holds_its_sphere_volume(name):
+    """DOLFINx's volume integral (an independent measure of the nodes' scaling) equals 4/3 pi r^3;
+    the surface nodes lie outside r by the scale, the facet centres inside."""
+    divisions, layers = RESOLUTIONS[name]
+    radii = np.array([1.0, 0.5])
+    a = particle_mesh([[0, 0, 0], [3.0, 0, 0]], radii, MPI.COMM_SELF, divisions=divisions, layers=layers)
+    exact = 4.0 / 3.0 * np.pi * radii ** 3
+    assert np.allclose(particle_volumes(a), exact, rtol=1e-10)
+    ball = unit_ball_hex(divisions, layers)
+    assert 1.0 < ball.radius_scale < 1.03
+    assert np.allclose(np.linalg.norm(ball.points[ball.surface_nodes], axis=1), ball.radius_scale)
+    inscribed = particle_mesh([[0, 0, 0]], [1.0], MPI.COMM_SELF, divisions=divisions, layers=layers,
+                              exact_volume=False)
+    assert particle_volumes(inscribed)[0] < 0.995 * exact[0]  # 1.07 % (10x10) to 6.5 % (4x4) short
+
+
+def test_inscribed_refinement_converges_to_sphere_volume():
     exact = 4.0 / 3.0 * np.pi
     errors = []
     for k in (1, 2, 3):
-        a = particle_mesh([[0, 0, 0]], [1.0], MPI.COMM_SELF, refinement=k)
+        a = particle_mesh([[0, 0, 0]], [1.0], MPI.COMM_SELF, refinement=k, exact_volume=False)
         errors.append(abs(particle_volumes(a)[0] - exact) / exact)
-    assert errors[0] < 0.07
+    assert errors[0] < 0.03
     # polyhedral approximation of a curved surface: error ~ h^2
     assert errors[1] < errors[0] / 3.0 and errors[2] < errors[1] / 1.8
 
@@ -34,22 +54,22 @@ def test_many_particles_one_mesh_with_tags():
     centres = np.array([[0, 0, 0], [3.0, 0, 0], [0, 2.5, 0.5]])
     radii = np.array([1.0, 0.6, 0.8])
     a = particle_mesh(centres, radii, MPI.COMM_SELF)
-    assert a.mesh.topology.index_map(3).size_global == 3 * 448
+    assert a.mesh.topology.index_map(3).size_global == 3 * 432
     counts = np.bincount(a.cell_tags.values, minlength=3)
-    assert counts.tolist() == [448, 448, 448]
+    assert counts.tolist() == [432, 432, 432]
     facet_counts = np.bincount(a.facet_tags.values, minlength=3)
-    assert facet_counts.tolist() == [96, 96, 96]
+    assert facet_counts.tolist() == [216, 216, 216]
     vols = particle_volumes(a)
     ratio = vols / (4.0 / 3.0 * np.pi * radii ** 3)
     assert np.allclose(ratio, ratio[0], rtol=1e-10)  # same shape, scaled
-    # facets of particle i lie on its sphere
+    # facets of particle i lie on its (volume-exact: slightly scaled) sphere
     x = a.mesh.geometry.x
     a.mesh.topology.create_connectivity(2, 0)
     f2v = a.mesh.topology.connectivity(2, 0)
     for facet, pid in zip(a.facet_tags.indices, a.facet_tags.values):
         vertices = f2v.links(facet)
         d = np.linalg.norm(x[vertices] - centres[pid], axis=1)
-        assert np.allclose(d, radii[pid], rtol=1e-9)
+        assert np.allclose(d, radii[pid] * unit_ball_hex().radius_scale, rtol=1e-9)
 
 
 @pytest.mark.parametrize("bad", [-1.0, 0.0, np.nan])

@@ -32,6 +32,7 @@ from typing import Any
 
 from ..constraints.granular import KINDS
 from ..material import ElastoPlastic
+from ..meshes.cubesphere import RESOLUTIONS
 from ..workflows.compaction import CompactionCase
 
 
@@ -121,8 +122,12 @@ SCHEMA: tuple[Key, ...] = (
     Key("packing", "file", str, None, "packing file instead of the generator: 'dx dy dz' then one "
         "'x y z r' line per sphere (mm; path relative to the case file)", optional=True, target="packing_file"),
     # meshing (SPEC §2)
-    Key("mesh", "refinement", int, _D.refinement, "cube-sphere refinement: 1 = 517 nodes per particle, "
-        "2 = ~3400", 1, 4, target="refinement"),
+    Key("mesh", "resolution", str, _D.mesh, "cube-sphere particle: chapter2 = the thesis' appendix-A particle "
+        "(6x6 quadrilaterals per cube face, 561 nodes), chapter4 = its 10x10 O-grid (1 933 nodes), coarse = "
+        "4x4 with 4 shell layers (517 nodes); every one holds its sphere's volume", choices=tuple(RESOLUTIONS),
+        target="mesh"),
+    Key("mesh", "refinement", int, _D.refinement, "cube-sphere refinement: multiplies the resolution's "
+        "subdivisions (chapter2: 1 = 561 nodes per particle, 2 = 3 929)", 1, 4, target="refinement"),
     Key("mesh", "radius_factor", float, _D.radius_factor, "radii shrunk by this factor before meshing (-)", 0.5, 1,
         target="radius_factor"),
     # contact law (thesis §3.3)

@@ -50,6 +50,7 @@ from ..io.progress import Progress
 from ..io.render import render_deformed
 from ..loading import GradientPath, compaction_gradient
 from ..material import LEAD, ElastoPlastic
+from ..meshes.cubesphere import RESOLUTIONS
 from ..meshes import ParticleCentroids, node_particles, particle_mesh, particle_volumes
 from ..meshes.packing import Duplicates, Packing, assembly_particles, duplicate_particles, generate_packing, read_packing, \
     write_packing
@@ -83,10 +84,15 @@ class CompactionCase:
     #: ordered simple cubic cell, thesis §2.6)
     corners: bool = True
     radius_factor: float = 0.99  # radii shrunk before meshing: no initial interpenetration
+    #: named cube-sphere resolution (meshes.cubesphere.RESOLUTIONS): "chapter2" (the thesis'
+    #: appendix-A particle, 6x6 quadrilaterals per cube face, 561 nodes), "chapter4" (10x10, 1 933
+    #: nodes), "coarse" (4x4 and 4 shell layers, 517 nodes: the earlier default)
+    mesh: str = "chapter2"
     refinement: int = 1
-    #: cube-sphere hexahedra per inner-cube edge (meshes.cubesphere; odd: the contact points of
-    #: axis-aligned neighbours fall on facet centres instead of nodes)
-    divisions: int = 4
+    #: override the resolution's hexahedra per inner-cube edge (odd: the contact points of
+    #: axis-aligned neighbours fall on facet centres instead of nodes) and shell layers
+    divisions: int | None = None
+    layers: int | None = None
     #: (3, 3) rotation of every particle mesh about its centre (None: cube-sphere axes along x, y,
     #: z). One generic rotation for all keeps identical particles exact translates of each other
     #: while their contact points fall inside facets, not on nodes (ordered packings)
@@ -140,8 +146,12 @@ class CompactionCase:
             raise ValueError(f"target_density must be in (0, 1), got {self.target_density}")
         if not 0.5 <= self.radius_factor <= 1.0:
             raise ValueError(f"radius_factor must be in [0.5, 1], got {self.radius_factor}")
-        if not 1 <= self.divisions <= 16:
+        if self.mesh not in RESOLUTIONS:
+            raise ValueError(f"mesh must be one of {', '.join(RESOLUTIONS)}, got {self.mesh!r}")
+        if self.divisions is not None and not 1 <= self.divisions <= 16:
             raise ValueError(f"divisions must be in [1, 16], got {self.divisions}")
+        if self.layers is not None and not 1 <= self.layers <= 16:
+            raise ValueError(f"layers must be in [1, 16], got {self.layers}")
         if self.mesh_rotation is not None:
             Q = np.asarray(self.mesh_rotation, dtype=float)
             if Q.shape != (3, 3) or not np.allclose(Q @ Q.T, np.eye(3), atol=1e-12) or np.linalg.det(Q) < 0:
@@ -159,6 +169,13 @@ class CompactionCase:
                              f"segments_after, got {self.segment_steps}")
         if self.checkpoint_every < 0:
             raise ValueError(f"checkpoint_every must be >= 0 outputs (0: no checkpoints), got {self.checkpoint_every}")
+
+
+    @property
+    def mesh_divisions(self) -> tuple[int, int]:
+        """(divisions, layers) of the particle meshes: the named resolution with the overrides."""
+        divisions, layers = RESOLUTIONS[self.mesh]
+        return (self.divisions or divisions, self.layers or layers)
 
 
 class RunFailure(RuntimeError):
@@ -247,7 +264,8 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
                          f"({rho0:.4f}, 1), above the packing's initial relative density V_p / V0 = {rho0:.4f}")
 
     rotations = None if case.mesh_rotation is None else np.broadcast_to(case.mesh_rotation, (radii.size, 3, 3))
-    assembly = particle_mesh(centres, radii, comm, divisions=case.divisions, refinement=case.refinement,
+    divisions, layers = case.mesh_divisions
+    assembly = particle_mesh(centres, radii, comm, divisions=divisions, layers=layers, refinement=case.refinement,
                              rotations=rotations)
     mesh = assembly.mesh
     owned_cells = mesh.topology.index_map(3).size_local
@@ -259,7 +277,8 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     rho0_fe = float(particle_volumes(assembly, problem.u)[:n].sum()) / float(np.prod(packing.cell))
     path = loading_path(case, rho0)
 
-    h_contact = float(radii.min()) * np.pi / (8 * case.refinement)
+    # surface element edge at a cube-face centre of the smallest particle (equi-angular grid)
+    h_contact = float(radii.min()) * np.pi / (2 * divisions * case.refinement)
     law = ContactLaw(penalty=default_penalty(case.material.E, h_contact, case.penalty_factor),
                      friction=case.friction, gamma=case.gamma, delta_max=case.delta_max,
                      asperity_yield=case.asperity_yield)
