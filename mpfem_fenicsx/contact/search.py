@@ -59,6 +59,15 @@ def body_boxes(x: np.ndarray, node_body: np.ndarray, num_bodies: int) -> np.ndar
     return boxes
 
 
+def body_spheres(x: np.ndarray, node_body: np.ndarray, num_bodies: int, boxes: np.ndarray) -> np.ndarray:
+    """(num_bodies, 4): centre (the box centre) and radius of a sphere holding every surface node
+    of each body (a tighter filter than the box for round particles)."""
+    centre = 0.5 * (boxes[:, 0] + boxes[:, 1])
+    radius = np.zeros(num_bodies)
+    np.maximum.at(radius, node_body, np.linalg.norm(x - centre[node_body], axis=1))
+    return np.concatenate([centre, radius[:, None]], axis=1)
+
+
 def candidate_pairs(boxes: np.ndarray, distance: float, shifts: np.ndarray | None = None,
                     allowed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Ordered (slave, master) body pairs with overlapping inflated boxes, and the shift index.
@@ -218,7 +227,8 @@ def _project(p, x, f, nv, cn, res):
 
 
 @numba.njit(parallel=True, cache=True)
-def _narrow_phase(x, facets, nv, corner, facet_box, facet_normal, node_normal, body_box, body_facet_ptr, body_facets, slave_ptr,
+def _narrow_phase(x, facets, nv, corner, facet_box, facet_normal, node_normal, body_box, body_sphere, body_facet_ptr,
+                  body_facets, slave_ptr,
                   slave_nodes, pairs, pair_shift, distance, offsets, out_slave, out_master, out_facet,
                   out_xi, out_gap, out_normal, out_shift, out_valid):
     npairs = pairs.shape[0]
@@ -239,6 +249,12 @@ def _narrow_phase(x, facets, nv, corner, facet_box, facet_normal, node_normal, b
             for d in range(3):
                 if p[d] < body_box[mb, 0, d] - distance or p[d] > body_box[mb, 1, d] + distance:
                     outside = True
+            if not outside:  # and inside the master's bounding sphere (much tighter for a particle)
+                r2 = 0.0
+                for d in range(3):
+                    r2 += (p[d] - body_sphere[mb, d]) ** 2
+                reach = body_sphere[mb, 3] + distance
+                outside = r2 > reach * reach
             if not outside:
                 best_score = np.inf
                 found = False
@@ -403,7 +419,9 @@ class ContactSearch:
             facet_normal, node_normal = surface_normals(x, s.facets, s.vertices_per_facet)
             if corner is None:
                 corner = corner_normals(x, s)
-            _narrow_phase(x, s.facets, s.vertices_per_facet, corner, facet_box, facet_normal, node_normal, boxes, self.body_facet_ptr,
+            spheres = body_spheres(x, s.node_body, s.num_bodies, boxes)
+            _narrow_phase(x, s.facets, s.vertices_per_facet, corner, facet_box, facet_normal, node_normal, boxes, spheres,
+                          self.body_facet_ptr,
                           self.body_facets, self.slave_ptr, self.slave_nodes, pairs,
                           self.shifts[shift_index], self.distance, offsets, out_slave, out_master,
                           out_facet, out_xi, out_gap, out_normal, out_shift, valid)

@@ -68,6 +68,12 @@ class ExplicitSettings:
     #: moving offsets g(t), e.g. the homogeneous flow of a comoving granular cell): dynamic
     #: relaxation towards the quasi-static path; its dissipation is Energies.damping
     damping: float = 0.0
+    #: local non-viscous damping coefficient alpha in [0, 1) (Cundall's local damping of DEM codes,
+    #: FLAC's static solution scheme): on every free reduced dof a force -alpha |F| sign(w') against
+    #: the peculiar velocity w', F the dof's out-of-balance force. It removes a fraction of the
+    #: energy of every oscillation, rigid or deformation mode, and vanishes with the acceleration:
+    #: a steady flow (constant w', F = 0) is not resisted, so it adds no rate-dependent stress
+    local_damping: float = 0.0
 
     def __post_init__(self):
         if not self.t_end > 0:
@@ -80,6 +86,8 @@ class ExplicitSettings:
             raise ValueError(f"safety must be in (0, 1], got {self.safety}")
         if self.damping < 0:
             raise ValueError(f"damping must be >= 0 1/s, got {self.damping}")
+        if not 0.0 <= self.local_damping < 1.0:
+            raise ValueError(f"local_damping must be in [0, 1), got {self.local_damping}")
 
 
 @dataclass
@@ -188,6 +196,7 @@ class ExplicitSolver:
         self.f_visc = problem.create_vector()
         self.f_cont = problem.create_vector()  # minus the contact forces on the bodies
         self.f_damp = problem.create_vector()
+        self._f_local = problem.create_vector()  # local damping lifted to the full dofs
         if self.damped_bodies is not None:
             self._num_damped = self.comm.allreduce(int(self.damped_bodies.max(initial=-1)) + 1, op=MPI.MAX)
         self._force = problem.create_vector()  # their sum, reused every step
@@ -371,6 +380,54 @@ class ExplicitSolver:
             v = v_body[b]
         self.f_damp.array_w[:n] = (self.settings.damping * m[:, None] * v).ravel()
 
+    def _body_sums(self, values: np.ndarray) -> np.ndarray:
+        """(num_bodies, k) sums over ranks of per-node ``values`` (owned nodes, (n_nodes, k)) by damped body."""
+        nb = self._num_damped
+        sums = np.stack([np.bincount(self.damped_bodies, weights=values[:, j], minlength=nb)
+                         for j in range(values.shape[1])], axis=1)
+        return self.comm.allreduce(sums, op=MPI.SUM)
+
+    def _local_damping_force(self, force: PETSc.Vec) -> None:
+        """Local non-viscous damping (ExplicitSettings.local_damping = alpha), added to ``force``,
+        to ``f_damp`` (its work is E_damp) and to the reduced force r_red = P^T force.
+
+        With ``damped_bodies``: per body b and direction, the force -alpha |F_b| sign(W_b) against the
+        body's mean peculiar velocity W_b, F_b the body's out-of-balance force (sum of -force over its
+        nodes, tied copy nodes included), spread over the nodes in proportion to their mass; the
+        momentum-weighted mean is removed (no net force on the volume). The bodies' deformation is
+        not resisted. Without bodies: on every free reduced dof, d = alpha |r_red| sign(v_red),
+        lifted to the full dofs as M P (d / m_red)."""
+        alpha = self.settings.local_damping
+        n = self.constraint.num_owned
+        if self.damped_bodies is not None:
+            m = self.mass.x.array[:n].reshape(-1, 3)[:, 0]
+            sums = self._body_sums(np.column_stack([m, -force.array_r[:n].reshape(-1, 3),
+                                                    m[:, None] * self._v_half_prev.reshape(-1, 3)]))
+            mass, push, momentum = sums[:, 0], sums[:, 1:4], sums[:, 4:7]
+            d_body = -alpha * np.abs(push) * np.sign(momentum)  # driving-force convention
+            d_body -= mass[:, None] * (d_body.sum(axis=0) / mass.sum())
+            per_mass = d_body / np.where(mass > 0, mass, 1.0)[:, None]
+            lifted = -(m[:, None] * per_mass[self.damped_bodies]).ravel()  # force convention
+            with self.timings("constraints"):
+                self._f_local.array_w[:n] = lifted
+                d = self.a_red  # scratch: overwritten by the acceleration right after
+                self.constraint.restrict(self._f_local, d)
+        else:
+            d = self.a_red
+            d.array_w[:] = alpha * np.abs(self.r_red.array_r) * np.sign(self.v_red.array_r)
+            scaled = d.duplicate()
+            scaled.pointwiseDivide(d, self.mass_red)
+            with self.timings("constraints"):
+                self.constraint.P.mult(scaled, self._f_local)
+            scaled.destroy()
+            lifted = self._f_local.array_r[:n] * self.mass.x.array[:n]
+        self.r_red.axpy(1.0, d)
+        if self.settings.damping > 0:
+            self.f_damp.array_w[:n] += lifted
+        else:
+            self.f_damp.array_w[:n] = lifted
+        force.array_w[:n] += lifted
+
     def _dot(self, a: np.ndarray, b: np.ndarray) -> float:
         return self.comm.allreduce(float(a @ b), op=MPI.SUM)
 
@@ -399,6 +456,25 @@ class ExplicitSolver:
         n = self.constraint.num_owned
         return self.f_int.array_r[:n] + self.f_visc.array_r[:n] + self.f_cont.array_r[:n]
 
+    def unbalanced_ratio(self) -> float:
+        """Out-of-balance ratio at the current step (-): ||P^T (f_int + f_bv - f_c)|| / ||P^T f_int||,
+        2-norms over the free (reduced) dofs of the forces the medium exerts, without the integrator's
+        own inertia and relaxation damping, over the internal forces (which carry the contact loads
+        through the particles). 0 in static equilibrium; the explicit relaxation's quasi-static
+        measure (Abaqus' and DEM codes' residual-force ratios are of this kind). NaN before any
+        internal force."""
+        work = self._force
+        self.f_int.copy(work)
+        work.axpy(1.0, self.f_visc)
+        work.axpy(1.0, self.f_cont)
+        residual = self.r_red.duplicate()
+        self.constraint.restrict(work, residual)
+        self.constraint.restrict(self.f_int, self.r_red)
+        scale = self.r_red.norm()
+        ratio = residual.norm() / scale if scale > 0.0 else float("nan")
+        residual.destroy()
+        return ratio
+
     # -- stepping ----------------------------------------------------------------------------
     def advance(self) -> None:
         """One central-difference step t_n -> t_{n+1}."""
@@ -422,6 +498,8 @@ class ExplicitSolver:
             force.axpy(1.0, self.f_damp)
         with self.timings("constraints"):
             self.constraint.restrict(force, self.r_red)
+        if self.settings.local_damping > 0:
+            self._local_damping_force(force)
         self.a_red.pointwiseDivide(self.r_red, self.mass_red)
         self.a_red.scale(-1.0)
         self.v_red.axpy(0.5 * dt if self.step == 0 else dt, self.a_red)
@@ -457,7 +535,7 @@ class ExplicitSolver:
         e.viscous += self._dot(self.f_visc.array_r[:n], du)
         e.contact += self._dot(self.f_cont.array_r[:n], du)
         carrier = inertia
-        if self.settings.damping > 0:
+        if self.settings.damping > 0 or self.settings.local_damping > 0:
             e.damping += self._dot(self.f_damp.array_r[:n], du - dg)
             carrier = carrier + self.f_damp.array_r[:n]
         e.carrier += self._dot(carrier, dg)

@@ -22,7 +22,12 @@ History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C)
 - energies (mJ): E_p plastic (eq. 4.11), E_f frictional (eq. 4.12), E_d = E_p + E_f (eq. 4.10),
   E_c kinetic (of the motion relative to the imposed flow), E_int internal work, E_el stored
   elastic, E_contact work absorbed by contact, E_visc bulk viscosity, E_damp relaxation damping,
-  W_ext external work; then wall_time (s).
+  W_ext external work;
+- unbalanced: out-of-balance ratio ||P^T (f_int + f_bv - f_c)|| / ||P^T f_int|| over the free dofs
+  (ExplicitSolver.unbalanced_ratio: 0 in static equilibrium; NaN for implicit rows, whose Newton
+  tolerance bounds it); E_c_over_E_int = E_c / E_int (kinetic over internal energy, -): the two
+  quasi-static measures of an explicit row;
+- wall_time (s).
 """
 
 from __future__ import annotations
@@ -112,6 +117,8 @@ class CompactionCase:
     #: relaxation damping of each particle's rigid motion relative to the imposed homogeneous
     #: flow, in units of 1 / duration (ExplicitSettings.damping); dissipation = history's E_damp
     damping: float = 100.0
+    #: local non-viscous damping alpha of every free dof (ExplicitSettings.local_damping), in [0, 1)
+    local_damping: float = 0.0
     steps: int = 100  # implicit: load steps (adaptive, cut back when Newton fails)
     #: implicit: steps of each of ``segments_after`` (missing ones: the compaction's increment
     #: duration / steps); each segment is stepped on its own, from its start to its end
@@ -334,7 +341,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     num_dofs = V.dofmap.index_map.size_global * 3
     if case.solver == "explicit":
         settings = ExplicitSettings(t_end=path.duration, target_dt=case.duration / case.increments,
-                                    damping=case.damping / case.duration)
+                                    damping=case.damping / case.duration, local_damping=case.local_damping)
 
         # every particle is carried by the imposed flow (comoving constraints): the damping relaxes
         # each particle's rigid motion relative to it; a copy's nodes belong to their original
@@ -369,7 +376,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
                "sigma_tilde_d"] + [f"F{c}" for c in comps] + [f"sigma{c}" for c in comps] + \
         [f"sigma_schmidt_{c}" for c in comps] + \
         ["n_contacts", "Gamma", "E_p", "E_f", "E_d", "E_c", "E_int", "E_el", "E_contact", "E_visc", "E_damp",
-         "W_ext", "wall_time"]
+         "W_ext", "unbalanced", "E_c_over_E_int", "wall_time"]
     periodic = case.bc in ("CLP", "CLPS")  # Schmidt stress defined
     history = History(out / "history.csv", columns, comm, flush_every_row=True)
     checkpoint_root = out / "checkpoints"
@@ -444,10 +451,12 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
             energies = dict(E_int=e.internal, E_el=e.elastic, E_p=e.plastic, E_contact=e.contact,
                             E_c=e.kinetic, E_visc=e.viscous, E_damp=e.damping, W_ext=e.external)
             fraction, step = s.step / total_steps, s.step
+            unbalanced = s.unbalanced_ratio()
         else:  # quasi-static: no kinetic / viscous energy; E_damp = the regularization's work
             energies = dict(E_int=np.nan, E_el=problem.stored_energy(), E_p=s.plastic_work,
                             E_contact=np.nan, E_c=0.0, E_visc=0.0, E_damp=s.regularization_work, W_ext=np.nan)
             fraction, step = s.t / path.duration, len(history.rows) + 1
+            unbalanced = np.nan  # Newton's converged residual (its tolerance) stands for it
         if not (np.isfinite(rho) and np.isfinite(sigma_lw).all() and np.isfinite(energies["E_p"])):
             raise FloatingPointError(f"non-finite state at step {step} (t={s.t:.4g} s): rho={rho}, "
                                      f"sigma_m={sigma_m}")
@@ -460,11 +469,14 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
                        **{f"F{c}": v for c, v in zip(comps, F.ravel())},
                        **{f"sigma{c}": v for c, v in zip(comps, -sigma_lw.ravel())},
                        **{f"sigma_schmidt_{c}": v for c, v in zip(comps, -sigma_s.ravel())},
-                       n_contacts=len(pairs), Gamma=gamma, wall_time=wall, **energies)
+                       n_contacts=len(pairs), Gamma=gamma, unbalanced=unbalanced,
+                       E_c_over_E_int=energies["E_c"] / energies["E_int"] if energies["E_int"] > 0 else np.nan,
+                       wall_time=wall, **energies)
         if writer is not None:
             writer.write(s.t)
         progress.update(fraction, step, total_steps, rho=rho, sigma_m=sigma_m,
-                        extra=f"contacts {len(pairs)}  E_p {energies['E_p']:.3g} mJ  E_c {energies['E_c']:.2g} mJ")
+                        extra=f"unbalanced {unbalanced:.2g}  contacts {len(pairs)}  E_p {energies['E_p']:.3g} mJ  "
+                              f"E_c {energies['E_c']:.2g} mJ")
         if case.checkpoint_every and len(history.rows) % case.checkpoint_every == 0:
             write_checkpoint(s)
 

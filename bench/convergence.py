@@ -1,0 +1,118 @@
+"""Convergence study of the explicit compaction curves (issue 21): loading rate and particle mesh.
+
+    python bench/convergence.py                                  # flagship: N, 2N, 4N; chapter2 vs chapter4
+    python bench/convergence.py --particles 50 --increments 4000 8000 --meshes chapter2
+    python bench/convergence.py --table-only                     # tabulate the runs already made
+
+Every run is the flagship case (``CompactionCase`` defaults: isotropic, CLP, rho -> 0.92, explicit)
+with ``--particles``, a number of increments and a named particle mesh; its history goes to
+``OUT/p<particles>_<mesh>_n<increments>/history.csv`` (a finished run is not repeated). The table
+(printed, and written to ``OUT/convergence.csv``) gives per run: sigma_m (MPa, Love-Weber,
+compression > 0) at rho = 0.80, 0.85, 0.90 of the loading branch, its deviation from the run with
+the most increments of the same mesh, sigma_m at the last row over its maximum (1: no end-of-load
+hook), rho - rho_fe at the last row (the mesh's volume), the last row's unbalanced ratio and
+E_c / E_int, and the wall time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+import time
+from pathlib import Path
+
+from mpi4py import MPI
+
+import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
+import numpy as np
+from mpfem_fenicsx.io.history import read_csv
+from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS
+from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
+
+DENSITIES = (0.80, 0.85, 0.90)
+
+
+def sigma_at(history: dict, rho: float) -> float:
+    """sigma_m (MPa) where the loading branch first reaches ``rho`` (linear interpolation; NaN if never)."""
+    r, s = history["rho"], history["sigma_m"]
+    above = np.flatnonzero(r >= rho)
+    if above.size == 0 or above[0] == 0:
+        return float("nan")
+    k = above[0]
+    return float(s[k - 1] + (s[k] - s[k - 1]) * (rho - r[k - 1]) / (r[k] - r[k - 1]))
+
+
+def summarize(history: dict) -> dict:
+    s = history["sigma_m"]
+    return {**{f"sigma_m_{rho:.2f}": sigma_at(history, rho) for rho in DENSITIES},
+            "rho_end": float(history["rho"][-1]), "sigma_m_end": float(s[-1]),
+            "end_over_max": float(s[-1] / np.nanmax(s)),
+            "rho_minus_rho_fe_rel": float(abs(history["rho"] - history["rho_fe"]).max() / history["rho"][-1]),
+            "unbalanced_end": float(history["unbalanced"][-1]) if "unbalanced" in history else float("nan"),
+            "E_c_over_E_int_end": float(history["E_c_over_E_int"][-1]) if "E_c_over_E_int" in history else float("nan"),
+            "wall_s": float(history["wall_time"][-1])}
+
+
+def main(argv=None) -> list[dict]:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    d = CompactionCase()
+    p.add_argument("--particles", type=int, default=d.particles)
+    p.add_argument("--increments", type=int, nargs="+", default=[d.increments, 2 * d.increments, 4 * d.increments])
+    p.add_argument("--meshes", nargs="+", choices=tuple(RESOLUTIONS), default=["chapter2", "chapter4"])
+    p.add_argument("--target-density", type=float, default=d.target_density)
+    p.add_argument("--out", default="results/convergence")
+    p.add_argument("--table-only", action="store_true", help="tabulate the finished runs in --out, run nothing")
+    args = p.parse_args(argv)
+    if args.particles < 2 or min(args.increments) < 10:
+        p.error("--particles must be >= 2 and --increments >= 10")
+    comm = MPI.COMM_WORLD
+    say = print if comm.rank == 0 else (lambda *a, **k: None)
+    out = Path(args.out)
+    rows = []
+    for mesh in args.meshes:
+        for n in sorted(args.increments):
+            run_dir = out / f"p{args.particles}_{mesh}_n{n}"
+            done = (run_dir / "done").exists()
+            if not done and not args.table_only:
+                say(f"--- {args.particles} particles, mesh {mesh}, {n} increments -> {run_dir}")
+                start = time.perf_counter()
+                case = CompactionCase(particles=args.particles, mesh=mesh, increments=n,
+                                      target_density=args.target_density, visual=False, checkpoint_every=0,
+                                      out_dir=str(run_dir))
+                run_compaction(case, comm, log=lambda *a, **k: None)
+                if comm.rank == 0:
+                    (run_dir / "done").write_text(f"{time.perf_counter() - start:.1f}\n")
+                done = True
+            if done and comm.rank == 0:
+                rows.append({"particles": args.particles, "mesh": mesh, "increments": n,
+                             **summarize(read_csv(run_dir / "history.csv"))})
+    if comm.rank == 0 and rows:
+        for mesh in args.meshes:  # deviation from the finest loading rate of the same mesh
+            same = [r for r in rows if r["mesh"] == mesh]
+            if not same:
+                continue
+            ref = max(same, key=lambda r: r["increments"])
+            for r in same:
+                r["max_dev_from_finest"] = max(abs(r[f"sigma_m_{rho:.2f}"] / ref[f"sigma_m_{rho:.2f}"] - 1.0)
+                                               for rho in DENSITIES)
+        out.mkdir(parents=True, exist_ok=True)
+        with open(out / "convergence.csv", "w", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+        header = ("| particles | mesh | N | sigma_m 0.80 / 0.85 / 0.90 (MPa) | max dev. from finest N | "
+                  "end / max | max abs(rho - rho_fe) / rho | unbalanced (end) | E_c/E_int (end) | wall (s) |")
+        say(header)
+        say("|---" * 10 + "|")
+        for r in rows:
+            say(f"| {r['particles']} | {r['mesh']} | {r['increments']} | "
+                f"{r['sigma_m_0.80']:.3f} / {r['sigma_m_0.85']:.3f} / {r['sigma_m_0.90']:.3f} | "
+                f"{100 * r['max_dev_from_finest']:.2f} % | {r['end_over_max']:.4f} | {r['rho_minus_rho_fe_rel']:.2e} | "
+                f"{r['unbalanced_end']:.2e} | {r['E_c_over_E_int_end']:.2e} | {r['wall_s']:.0f} |")
+        sys.stdout.flush()
+    return rows
+
+
+if __name__ == "__main__":
+    main()
