@@ -24,7 +24,7 @@ def quiet(*args):
 
 def small_case(tmp_path, **kw) -> CompactionCase:
     options = dict(packing=simple_cubic(), target_density=0.56, increments=100, outputs=3, visual=False,
-                   duration=1e-4, out_dir=str(tmp_path), d_bc=0.8)
+                   duration=1e-4, out_dir=str(tmp_path), d_bc=0.8, images=False, exact_volume=False)
     options.update(kw)
     return CompactionCase(**options)
 

@@ -142,8 +142,8 @@ SCHEMA: tuple[Key, ...] = (
     # boundary conditions (thesis table 2.2)
     Key("boundary", "condition", str, _D.bc, "GDH, GDF (driven particles), CLPS (simplified periodic) or CLP "
         "(periodic)", choices=tuple(KINDS), target="bc"),
-    Key("boundary", "images", bool, _D.images, "CLP by contact with periodic images instead of tied copies",
-        target="images"),
+    Key("boundary", "images", bool, None, "CLP realized by contact with periodic images (default for CLP) or, "
+        "false, by tied copies", optional=True, target="images"),
     Key("boundary", "d_bc", float, None, "duplication distance / r_max (default: thesis table 2.3: 1.8 CLP, "
         "2.5 others) (-)", 0, 10, open_low=True, optional=True, target="d_bc"),
     # loading path (thesis §2.2.3)

@@ -20,7 +20,11 @@ def parser(loading: str, doc: str) -> argparse.ArgumentParser:
     p.add_argument("--particles", type=int, default=d.particles, help="particles of the generated packing")
     p.add_argument("--target-density", type=float, default=d.target_density, help="relative density to reach")
     p.add_argument("--bc", choices=KINDS, default=d.bc, help="boundary conditions (thesis table 2.2)")
-    p.add_argument("--images", action="store_true", help="CLP by contact with periodic images (no copies)")
+    realization = p.add_mutually_exclusive_group()
+    realization.add_argument("--images", dest="images", action="store_const", const=True, default=None,
+                             help="CLP by contact with periodic images (the default for CLP)")
+    realization.add_argument("--copies", dest="images", action="store_const", const=False,
+                             help="CLP by copies tied to their originals (thesis eq. 2.14)")
     p.add_argument("--solver", choices=("implicit", "explicit"), default=d.solver)
     p.add_argument("--packing", default=None, help="packing file (header dx dy dz, then x y z r lines)")
     p.add_argument("--packing-fraction", type=float, default=None,

@@ -312,6 +312,15 @@ class GranularBoundaryConditions:
         if self.images is not None:
             self.images.set_periodic_images(periodic_lattice(), ((H + np.eye(3)) * self.cell).T)
 
+    def image_force(self) -> np.ndarray | None:
+        """(3, 3) generalized force (N mm) of the periodic images at the current contact state,
+        conjugate to H = F0 - I (the images' part of :meth:`macroscopic_force`): their work rate
+        enters the external work, which the nodal reactions of a model without copies do not carry.
+        None without images."""
+        if self.images is None:
+            return None
+        return self.images.image_moment() @ np.linalg.inv(self._H + np.eye(3)).T
+
     # -- results --------------------------------------------------------------------------------
     def macroscopic_force(self, reaction: np.ndarray) -> np.ndarray:
         """R = G^T r (N mm, (3, 3), conjugate to H = F0 - I) from the full reaction vector's owned
@@ -319,5 +328,5 @@ class GranularBoundaryConditions:
         local = self.G.T @ reaction[self.offset_dofs] if self.G.size else np.zeros(9)
         R = self.V.mesh.comm.allreduce(local, op=MPI.SUM).reshape(3, 3)
         if self.images is not None:  # image shifts S = F0 (L o s): dW = pf . dH (L o s)
-            R += self.images.image_moment() @ np.linalg.inv(self._H + np.eye(3)).T
+            R += self.image_force()
         return R

@@ -213,6 +213,10 @@ class ExplicitSolver:
         self._v_half_prev = np.zeros(n)  # peculiar half-step velocity P v_red
         self._g_prev = np.zeros(n)
         self._forces_prev = None  # (f_int, f_visc, R) at step n, waiting for u_{n+1}
+        # periodic images (bcs.image_force): their work through the moving shifts joins W_ext
+        self._images = getattr(bcs, "image_force", None)
+        self._H_prev = np.zeros((3, 3))  # H = F0 - I at the previous step
+        self._image_force = None  # bcs.image_force() at the current step (saved with the state)
 
     def _build_mass(self) -> None:
         """Lumped mass (with the contact springs' mass) and its reduction."""
@@ -352,6 +356,8 @@ class ExplicitSolver:
             start = time.perf_counter()
             self.contact.evaluate(self.problem.u, tangent=False)
             self.contact.add_residual(self.f_cont)
+            if self._images is not None:
+                self._image_force = self._images()
             self.contact.commit(self.problem.u)
             search = self.contact.search_time - searched
             self.timings["contact_search"] = self.timings.get("contact_search", 0.0) + search
@@ -507,6 +513,9 @@ class ExplicitSolver:
 
         u_n = u.x.array[:n].copy()
         g_n = self.constraint.g.x.array[:n].copy()
+        image_force = self._image_force
+        if image_force is not None:
+            H_n = self.bcs.displacement_gradient(self.t)
         t_new = self.t + dt
         with self.timings("constraints"):
             self.bcs.apply(t_new)
@@ -531,6 +540,15 @@ class ExplicitSolver:
         dg = 0.5 * (g_new - (self._g_prev if self.step > 0 else g_n))
         e = self.energies
         e.external += self._dot(reaction, du)
+        if image_force is not None:
+            # the images' shifts S = F0 (L o s) move: their work sum f_slave . dS (centred increment of
+            # H around step n, as du) is done by the loading (W_ext) and absorbed by the contacts
+            # (relative motion du_s - du_m - dS), which -f_c . du alone misses
+            H_new = self.bcs.displacement_gradient(t_new)
+            image_work = float(np.sum(image_force * 0.5 * (H_new - (self._H_prev if self.step > 0 else H_n))))
+            e.external += image_work
+            e.contact += image_work
+            self._H_prev = H_n
         e.internal += self._dot(self.f_int.array_r[:n], du)
         e.viscous += self._dot(self.f_visc.array_r[:n], du)
         e.contact += self._dot(self.f_cont.array_r[:n], du)
@@ -577,7 +595,8 @@ class ExplicitSolver:
             "v_half_prev": self._v_half_prev.copy(), "g_prev": self._g_prev.copy(),
             "reaction": np.asarray(getattr(self, "_reaction_last", np.zeros(0))).copy(),
             "mass_scale": scale.copy(), "cell_length": cell_length.x.array.copy(), "mass": self.mass.x.array.copy(),
-            "mass_red": self.mass_red.array_r.copy(),
+            "mass_red": self.mass_red.array_r.copy(), "H_prev": self._H_prev.copy(),
+            "image_force": np.zeros(0) if self._image_force is None else self._image_force.copy(),
             "contact_mass": np.zeros(0) if self._contact_mass is None else self._contact_mass.copy(),
             "energies": np.array([getattr(self.energies, f) for f in _ENERGY_FIELDS]),
         })
@@ -613,6 +632,9 @@ class ExplicitSolver:
         self._contact_mass = data["contact_mass"].copy() if data["contact_mass"].size else None
         self.mass.x.array[:] = data["mass"]
         self.mass_red.array_w[:] = data["mass_red"]
+        self._H_prev = np.array(data["H_prev"]) if "H_prev" in data else np.zeros((3, 3))
+        force = data.get("image_force", np.zeros(0))
+        self._image_force = np.array(force).reshape(3, 3) if force.size else None
         for name, value in zip(_ENERGY_FIELDS, data["energies"]):
             setattr(self.energies, name, float(value))
         for name, vec in (("f_int", self.f_int), ("f_visc", self.f_visc), ("f_cont", self.f_cont),
