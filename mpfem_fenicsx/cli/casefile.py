@@ -159,8 +159,14 @@ SCHEMA: tuple[Key, ...] = (
     Key("solver", "increments", int, _D.increments, "explicit increments over the loading", 10, None,
         target="increments"),
     Key("solver", "steps", int, _D.steps, "implicit load steps (adaptive)", 1, None, target="steps"),
-    Key("solver", "damping", float, _D.damping, "explicit relaxation damping of the particles' motion relative "
-        "to the imposed flow (1/duration)", 0, None, target="damping"),
+    Key("solver", "damping", float, _D.damping, "explicit viscous damping of the particles' rigid motion relative "
+        "to the imposed flow (1/duration); it drags the particles towards the affine flow and adds a "
+        "rate-dependent stress", 0, None, target="damping"),
+    Key("solver", "local_damping", float, _D.local_damping, "explicit local non-viscous damping alpha of the "
+        "particles' rigid motion (Cundall): removes oscillations, resists no steady motion (-)", 0, 1,
+        open_high=True, target="local_damping"),
+    Key("solver", "hold", float, _D.hold, "explicit relaxation hold at the final gradient after the loading, in "
+        "units of the loading duration (rows with time > duration)", 0, 10, target="hold"),
     # outputs (SPEC §10)
     Key("output", "directory", str, None, "results folder (default: results/<case file name>; --out "
         "overrides)", optional=True, target="out_dir"),
