@@ -44,6 +44,8 @@ def main(argv=None) -> dict:
                    help="untimed increments before (default: 55 %% of --increments, contacts established)")
     p.add_argument("--increments", type=int, default=4000, help="increments of the whole run (sets dt)")
     p.add_argument("--full", action="store_true", help="time the whole run to --target-density")
+    p.add_argument("--copies", action="store_true",
+                   help="CLP by copies tied to their originals (the default, since 2026-11-24: periodic images)")
     p.add_argument("--mesh", choices=tuple(RESOLUTIONS), default=CompactionCase.mesh,
                    help="named cube-sphere resolution (chapter2: 561 nodes per particle, the default; "
                         "chapter4: 1 933; coarse: 517, the default before 2026-11-24)")
@@ -63,6 +65,7 @@ def main(argv=None) -> dict:
     out = comm.bcast(out)
     base = dict(particles=args.particles, bc=args.bc, solver=args.solver, seed=args.seed,
                 target_density=args.target_density, increments=args.increments, mesh=args.mesh,
+                images=False if args.copies else None,
                 visual=False, checkpoint_every=0, out_dir=out)
     quiet = lambda *a, **k: None  # noqa: E731
     warmup = 0 if args.full else (int(0.55 * args.increments) if args.warmup is None else args.warmup)
@@ -98,7 +101,7 @@ def main(argv=None) -> dict:
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # MB (Linux: KB)
     rho = float(res.history.column("rho")[-1]) if res.history.rows else float("nan")
     result = {
-        "case": f"{args.particles} particles, {args.bc}, isotropic, {args.solver}",
+        "case": f"{args.particles} particles, {args.bc}{' (copies)' if args.copies else ''}, isotropic, {args.solver}",
         "mode": "full" if args.full else "short",
         "ranks": comm.size,
         "particles_in_model": res.num_particles_model,

@@ -5,9 +5,10 @@
     mpirun -n 2 python demos/isotropic.py --bc GDF
 
 Pipeline: seeded frictionless packing (or --packing FILE) -> duplicated particles (d_bc rule,
-thesis §2.2.1) -> one DOLFINx mesh of hexahedral cube-sphere particles -> Hencky/von Mises
-bulk + penalty/Coulomb/adhesive contact -> GDH/GDF/CLPS/CLP as PETSc multipoint constraints
--> explicit central differences with mass scaling -> history and pictures.
+thesis §2.2.1; none for CLP by periodic images, the default) -> one DOLFINx mesh of hexahedral
+cube-sphere particles (the thesis' appendix-A particle, volume-exact) -> Hencky/von Mises bulk +
+penalty/Coulomb/adhesive contact -> GDH/GDF/CLPS/CLP as PETSc multipoint constraints ->
+explicit central differences with mass scaling and local damping -> history and pictures.
 
 Outputs in --out (default results/isotropic/): history.csv (one row per output: time; rho =
 V_p / (V0 det F) with the spheres' volumes (thesis eq. 2.4-2.5), rho_imposed, rho_fe (mesh
@@ -15,7 +16,7 @@ volumes); h_v, h_d, h_tilde_d (Hencky strain of the least-squares gradient F of 
 sigma_m, sigma_d, sigma_tilde_d (Love-Weber, compression > 0); F11..F33; sigma11..33 (Love-Weber);
 sigma_schmidt_11..33 (auxiliary-node reactions, CLP/CLPS, empty otherwise); n_contacts; Gamma
 (specific contact surface, 1/mm); energies E_p, E_f, E_d = E_p + E_f, E_c (kinetic), E_int, E_el,
-E_contact, E_visc, E_damp, W_ext (mJ); wall_time), packing.txt (the packing used),
+E_contact, E_visc, E_damp, W_ext (mJ); unbalanced, E_c_over_E_int (quasi-static measures); wall_time), packing.txt (the packing used),
 particles.xdmf (ParaView: displacement, von Mises, eps_p, particle id) and particles.png
 (deformed particles coloured by von Mises stress). Columns are defined in
 mpfem_fenicsx/workflows/compaction.py.

@@ -14,7 +14,7 @@ def _run(*args):
 
 
 def test_compaction_benchmark_prints_consistent_phases():
-    out = _run("--particles", "24", "--bc", "CLP", "--increments", "20", "--warmup", "4", "--steps", "3")
+    out = _run("--particles", "24", "--bc", "CLP", "--copies", "--increments", "20", "--warmup", "4", "--steps", "3")
     assert out.returncode == 0, out.stderr[-2000:]
     d = json.loads(out.stdout.strip().splitlines()[-1])
     assert d["ranks"] == 1 and d["steps"] == 3 and d["mode"] == "short"

@@ -13,6 +13,11 @@ linear bulk-viscosity fraction (Abaqus/Explicit estimate), L_e the smallest vert
 Mass scaling (element by element, Abaqus "fixed mass scaling to a target increment"):
 rho_e = rho * max(1, (dt_target / dt_e)^2).
 
+Damping (relaxation towards the quasi-static path): ``ExplicitSettings.damping``, a viscous force
+c M w' on the peculiar velocity (per body: its rigid motion), and ``local_damping``, the local
+non-viscous damping of DEM codes, -alpha |F| sign(w') (per body or per dof), which removes a share
+of every oscillation's energy but no steady motion. Both dissipate into E_damp.
+
 Energy balance (mJ = N mm), all with forces at integer steps n times the centred displacement
 increment du_n = (u_{n+1} - u_{n-1}) / 2 = dw_n + dg_n (peculiar part dw = P dx, offset part dg),
 which makes the discrete balance exact for central differences:
