@@ -36,6 +36,9 @@ BAD_CASES = [
     ("[boundary]\ncondition = 'GDF'\nimages = true\n", ["[boundary] images", "CLP"]),
     ("[material]\nnu = 0.5\n", ["[material] nu", "< 0.5"]),
     ("[solver]\nincrements = 5\n", ["[solver] increments", ">= 10"]),
+    ("[solver]\nlocal_damping = 1.0\n", ["[solver] local_damping", "< 1"]),
+    ("[solver]\nhold = -0.1\n", ["[solver] hold", ">= 0"]),
+    ("[mesh]\nresolution = 'fine'\n", ["[mesh] resolution", "'chapter2', 'chapter4', 'coarse'"]),
     ("[packing]\nfile = 'missing.txt'\n", ["[packing] file", "no such file"]),
     ("[loading\n", ["not valid TOML"]),
 ]
