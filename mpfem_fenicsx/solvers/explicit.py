@@ -377,18 +377,12 @@ class ExplicitSolver:
         m = self.mass.x.array[:n].reshape(-1, 3)[:, 0]
         v = self._v_half_prev.reshape(-1, 3)
         if self.damped_bodies is not None:
-            b = self.damped_bodies
-            nb = self._num_damped
-            sums = np.zeros((4, nb))
-            sums[0] = np.bincount(b, weights=m, minlength=nb)
-            for d in range(3):
-                sums[1 + d] = np.bincount(b, weights=m * v[:, d], minlength=nb)
-            sums = self.comm.allreduce(sums, op=MPI.SUM)
-            mass = sums[0]
-            v_body = (sums[1:4] / np.where(mass > 0, mass, 1.0)).T
+            sums = self._body_sums(np.column_stack([m, m[:, None] * v]))
+            mass = sums[:, 0]
+            v_body = sums[:, 1:4] / np.where(mass > 0, mass, 1.0)[:, None]
             # remove the mean: the damping conserves momentum and ignores rigid translations
             v_body -= (mass @ v_body) / mass.sum()
-            v = v_body[b]
+            v = v_body[self.damped_bodies]
         self.f_damp.array_w[:n] = (self.settings.damping * m[:, None] * v).ravel()
 
     def _body_sums(self, values: np.ndarray) -> np.ndarray:

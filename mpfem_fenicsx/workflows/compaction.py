@@ -79,7 +79,7 @@ class CompactionCase:
     #: CLP realization: True = contact with periodic images shifted by F0 (L o s), False = tied
     #: copies (thesis eq. 2.14); None = images for CLP. Images are the default: the copies exist
     #: only near half of the faces, and particles drifting out of their reach lose contacts
-    #: (measured on the flagship: sigma_m 29 % lower at rho_imposed 0.913, issue 22)
+    #: (bench/README.md, issue 22)
     images: bool | None = None
     solver: str = "explicit"
     seed: int = 1
@@ -126,12 +126,11 @@ class CompactionCase:
     segments_after: tuple = ()
     #: viscous damping of each particle's rigid motion relative to the imposed homogeneous flow, in
     #: units of 1 / duration (ExplicitSettings.damping; dissipation in E_damp). Off by default: it
-    #: drags the particles towards the affine flow, a rate-dependent stress (flagship, 4000
-    #: increments: sigma_m 4.8 % above the 8000-increment curve at rho 0.85-0.90, hook of 3.7 %)
+    #: drags the particles towards the affine flow, a rate-dependent stress (bench/README.md)
     damping: float = 0.0
     #: local non-viscous damping alpha of each particle's rigid motion (ExplicitSettings.local_damping,
-    #: per body): -alpha |F_b| sign(W_b), against oscillations only, no steady drag (flagship: 4000 vs
-    #: 8000 increments within 1.2 % at rho 0.85-0.90, no hook, unbalanced 0.0085 at the end)
+    #: per body): -alpha |F_b| sign(W_b), against oscillations only, no steady drag (loading-rate
+    #: study in bench/README.md)
     local_damping: float = 0.7
     steps: int = 100  # implicit: load steps (adaptive, cut back when Newton fails)
     #: implicit: steps of each of ``segments_after`` (missing ones: the compaction's increment
