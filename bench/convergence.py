@@ -2,11 +2,12 @@
 
     python bench/convergence.py                                  # flagship: N, 2N, 4N; chapter2 vs chapter4
     python bench/convergence.py --particles 50 --increments 4000 8000 --meshes chapter2
+    python bench/convergence.py --profile smooth-step smooth-ramps --increments 4000 8000 --meshes chapter2
     python bench/convergence.py --table-only                     # tabulate the runs already made
 
 Every run is the flagship case (``CompactionCase`` defaults: isotropic, CLP, rho -> 0.92, explicit)
 with ``--particles``, a number of increments and a named particle mesh; its history goes to
-``OUT/p<particles>_<mesh>_n<increments>/history.csv`` (a finished run is not repeated). The table
+``OUT/p<particles>_<mesh>_<profile>_n<increments>/history.csv`` (a finished run is not repeated). The table
 (printed, and written to ``OUT/convergence.csv``) gives per run: sigma_m (MPa, Love-Weber,
 compression > 0) at rho = 0.80, 0.85, 0.90 of the loading branch, its deviation from the run with
 the most increments of the same mesh, sigma_m at the last row over its maximum (1: no end-of-load
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import itertools
 import sys
 import time
 from pathlib import Path
@@ -27,6 +29,7 @@ from mpi4py import MPI
 import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
 import numpy as np
 from mpfem_fenicsx.io.history import read_csv
+from mpfem_fenicsx.loading import PROFILES
 from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS
 from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 
@@ -60,7 +63,10 @@ def main(argv=None) -> list[dict]:
     p.add_argument("--particles", type=int, default=d.particles)
     p.add_argument("--increments", type=int, nargs="+", default=[d.increments, 2 * d.increments, 4 * d.increments])
     p.add_argument("--meshes", nargs="+", choices=tuple(RESOLUTIONS), default=["chapter2", "chapter4"])
+    p.add_argument("--profile", nargs="+", choices=tuple(PROFILES), default=[d.profile],
+                   help="amplitude of the compaction in time (CompactionCase.profile)")
     p.add_argument("--target-density", type=float, default=d.target_density)
+    p.add_argument("--outputs", type=int, default=100, help="history rows over the path")
     p.add_argument("--out", default="results/convergence")
     p.add_argument("--table-only", action="store_true", help="tabulate the finished runs in --out, run nothing")
     args = p.parse_args(argv)
@@ -70,26 +76,26 @@ def main(argv=None) -> list[dict]:
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     out = Path(args.out)
     rows = []
-    for mesh in args.meshes:
+    for mesh, profile in itertools.product(args.meshes, args.profile):
         for n in sorted(args.increments):
-            run_dir = out / f"p{args.particles}_{mesh}_n{n}"
+            run_dir = out / f"p{args.particles}_{mesh}_{profile}_n{n}"
             done = (run_dir / "done").exists()
             if not done and not args.table_only:
-                say(f"--- {args.particles} particles, mesh {mesh}, {n} increments -> {run_dir}")
+                say(f"--- {args.particles} particles, mesh {mesh}, {profile}, {n} increments -> {run_dir}")
                 start = time.perf_counter()
-                case = CompactionCase(particles=args.particles, mesh=mesh, increments=n,
-                                      target_density=args.target_density, visual=False, checkpoint_every=0,
-                                      out_dir=str(run_dir))
+                case = CompactionCase(particles=args.particles, mesh=mesh, profile=profile, increments=n,
+                                      target_density=args.target_density, outputs=args.outputs, visual=False,
+                                      checkpoint_every=0, out_dir=str(run_dir))
                 run_compaction(case, comm, log=lambda *a, **k: None)
                 if comm.rank == 0:
                     (run_dir / "done").write_text(f"{time.perf_counter() - start:.1f}\n")
                 done = True
             if done and comm.rank == 0:
-                rows.append({"particles": args.particles, "mesh": mesh, "increments": n,
+                rows.append({"particles": args.particles, "mesh": mesh, "profile": profile, "increments": n,
                              **summarize(read_csv(run_dir / "history.csv"))})
     if comm.rank == 0 and rows:
-        for mesh in args.meshes:  # deviation from the finest loading rate of the same mesh
-            same = [r for r in rows if r["mesh"] == mesh]
+        for mesh, profile in itertools.product(args.meshes, args.profile):  # vs the finest rate, same mesh and profile
+            same = [r for r in rows if r["mesh"] == mesh and r["profile"] == profile]
             if not same:
                 continue
             ref = max(same, key=lambda r: r["increments"])
@@ -101,12 +107,12 @@ def main(argv=None) -> list[dict]:
             writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
             writer.writeheader()
             writer.writerows(rows)
-        header = ("| particles | mesh | N | sigma_m 0.80 / 0.85 / 0.90 (MPa) | max dev. from finest N | "
+        header = ("| particles | mesh | profile | N | sigma_m 0.80 / 0.85 / 0.90 (MPa) | max dev. from finest N | "
                   "end / max | max abs(rho - rho_fe) / rho | unbalanced (end) | E_c/E_int (end) | wall (s) |")
         say(header)
-        say("|---" * 10 + "|")
+        say("|---" * 11 + "|")
         for r in rows:
-            say(f"| {r['particles']} | {r['mesh']} | {r['increments']} | "
+            say(f"| {r['particles']} | {r['mesh']} | {r['profile']} | {r['increments']} | "
                 f"{r['sigma_m_0.80']:.3f} / {r['sigma_m_0.85']:.3f} / {r['sigma_m_0.90']:.3f} | "
                 f"{100 * r['max_dev_from_finest']:.2f} % | {r['end_over_max']:.4f} | {r['rho_minus_rho_fe_rel']:.2e} | "
                 f"{r['unbalanced_end']:.2e} | {r['E_c_over_E_int_end']:.2e} | {r['wall_s']:.0f} |")

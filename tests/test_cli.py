@@ -38,6 +38,7 @@ BAD_CASES = [
     ("[solver]\nincrements = 5\n", ["[solver] increments", ">= 10"]),
     ("[solver]\nlocal_damping = 1.0\n", ["[solver] local_damping", "< 1"]),
     ("[solver]\nhold = -0.1\n", ["[solver] hold", ">= 0"]),
+    ("[loading]\nprofile = 'linear'\n", ["[loading] profile", "'smooth-step', 'smooth-ramps'"]),
     ("[mesh]\nresolution = 'fine'\n", ["[mesh] resolution", "'chapter2', 'chapter4', 'coarse'"]),
     ("[packing]\nfile = 'missing.txt'\n", ["[packing] file", "no such file"]),
     ("[loading\n", ["not valid TOML"]),

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from ..constraints.granular import KINDS
+from ..loading import PROFILES
 from ..material import ElastoPlastic
 from ..meshes.cubesphere import RESOLUTIONS
 from ..workflows.compaction import CompactionCase
@@ -153,6 +154,8 @@ SCHEMA: tuple[Key, ...] = (
         "packing's initial one (-)", 0, 1, True, True, target="target_density"),
     Key("loading", "duration", float, _D.duration, "loading time, mass-scaled (s)", 0, None, open_low=True,
         target="duration"),
+    Key("loading", "profile", str, _D.profile, "amplitude of the compaction in time: constant strain rate between "
+        "smooth ramps, or the Abaqus smooth step (peak rate mid-path)", choices=tuple(PROFILES), target="profile"),
     # solver (SPEC §6)
     Key("solver", "kind", str, _D.solver, "explicit (central differences, mass scaling) or implicit "
         "(Newton; experimental for granular volumes)", choices=("explicit", "implicit"), target="solver"),

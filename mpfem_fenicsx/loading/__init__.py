@@ -1,8 +1,8 @@
 """Loading: amplitudes, prescribed motions and macroscopic gradient paths."""
 
-from .amplitude import Ramp, SmoothStep
+from .amplitude import PROFILES, Ramp, SmoothRamps, SmoothStep
 from .macroscopic import GradientPath, compaction_gradient, reload_gradient, unload_gradient
 from .prescribed import PrescribedDisplacements, body_dofs, component_dofs
 
-__all__ = ["GradientPath", "PrescribedDisplacements", "Ramp", "SmoothStep", "body_dofs", "compaction_gradient",
+__all__ = ["PROFILES", "GradientPath", "PrescribedDisplacements", "Ramp", "SmoothRamps", "SmoothStep", "body_dofs", "compaction_gradient",
            "component_dofs", "reload_gradient", "unload_gradient"]

@@ -5,8 +5,9 @@ target relative density rho_f reached from rho_0 needs det F0 = rho_0 / rho_f:
 - isotropic:  F0 = (rho_0 / rho_f)^(1/3) I,
 - die ("matrice", uniaxial strain along e3): F0 = diag(1, 1, rho_0 / rho_f).
 A path is a sequence of segments F = F_n ... F_2 F_1 (e.g. F_r F_d F_c: compaction, unloading,
-reload), each applied with a smooth-step amplitude on its logarithm, F_k(t) = exp(a_k(t) log G_k),
-so that the Hencky strain rate is proportional to the smooth-step rate (zero at the knots).
+reload), each applied with an amplitude a_k(t) on its logarithm, F_k(t) = exp(a_k(t) log G_k), so
+that the Hencky strain rate is proportional to the amplitude's rate (zero at the knots): the smooth
+step, or a constant rate between smooth ramps (loading.amplitude.PROFILES).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import expm, logm
 
-from .amplitude import SmoothStep
+from .amplitude import PROFILES
 
 PATHS = ("isotropic", "die")
 
@@ -62,16 +63,23 @@ def reload_gradient(phi: float, amplitude: float, axis: int = 2) -> np.ndarray:
 
 @dataclass
 class GradientPath:
-    """Piecewise smooth-step path of the macroscopic gradient, F0(0) = I (or ``start``).
+    """Piecewise smooth path of the macroscopic gradient, F0(0) = I (or ``start``).
 
     ``segments``: list of (duration s, increment gradient G_k (3, 3)); the gradient at the end
-    of segment k is G_k ... G_1 start.
+    of segment k is G_k ... G_1 start. ``profiles``: amplitude shape of each segment by name
+    (loading.amplitude.PROFILES); segments beyond it use "smooth-step".
     """
 
     segments: list[tuple[float, np.ndarray]]
     start: np.ndarray = field(default_factory=lambda: np.eye(3))
+    profiles: tuple[str, ...] = ()
 
     def __post_init__(self):
+        for name in self.profiles:
+            if name not in PROFILES:
+                raise ValueError(f"profile must be one of {', '.join(PROFILES)}, got {name!r}")
+        if len(self.profiles) > len(self.segments):
+            raise ValueError(f"{len(self.profiles)} profiles for {len(self.segments)} segments")
         self._knots = [0.0]
         self._logs = []
         self._ends = [np.asarray(self.start, dtype=float)]
@@ -99,5 +107,6 @@ class GradientPath:
         if k >= len(self.segments):
             return self._ends[-1].copy()
         k = max(k, 0)
-        a = SmoothStep(self._knots[k + 1], self._knots[k])(t)
+        shape = PROFILES[self.profiles[k] if k < len(self.profiles) else "smooth-step"]
+        a = shape(self._knots[k + 1], self._knots[k])(t)
         return expm(a * self._logs[k]) @ self._ends[k]

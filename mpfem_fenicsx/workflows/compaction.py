@@ -53,7 +53,7 @@ from ..io.fields import CellFields, ParaViewWriter
 from ..io.plots import plot_loading_path
 from ..io.progress import Progress
 from ..io.render import render_deformed
-from ..loading import GradientPath, compaction_gradient
+from ..loading import PROFILES, GradientPath, compaction_gradient
 from ..material import LEAD, ElastoPlastic
 from ..meshes.cubesphere import RESOLUTIONS
 from ..meshes import ParticleCentroids, node_particles, particle_mesh, particle_volumes
@@ -119,6 +119,11 @@ class CompactionCase:
     #: relaxation hold at the final gradient after the compaction, in units of ``duration`` (its
     #: rows have time > duration); explicit: at the compaction's increment
     hold: float = 0.0
+    #: amplitude of the compaction segment in time (loading.amplitude.PROFILES): "smooth-ramps",
+    #: a constant Hencky strain rate between smooth ramps over the first 10 % and the last 30 % of
+    #: the duration (peak rate 1.25 x the mean), or "smooth-step" (Abaqus SMOOTH STEP, peak 1.875 x
+    #: the mean at mid-path, i.e. in the rearrangement range rho ~0.75-0.82)
+    profile: str = "smooth-ramps"
     increments: int = 4000
     #: further segments of the macroscopic path after the compaction, ((duration s, increment
     #: gradient G (3, 3)), ...): e.g. the unload F^d and a reload F^r of thesis eq. 4.7-4.9. Explicit
@@ -176,6 +181,8 @@ class CompactionCase:
             Q = np.asarray(self.mesh_rotation, dtype=float)
             if Q.shape != (3, 3) or not np.allclose(Q @ Q.T, np.eye(3), atol=1e-12) or np.linalg.det(Q) < 0:
                 raise ValueError("mesh_rotation must be a (3, 3) proper rotation matrix")
+        if self.profile not in PROFILES:
+            raise ValueError(f"profile must be one of {', '.join(PROFILES)}, got {self.profile!r}")
         if not 0.0 <= self.hold <= 10.0:
             raise ValueError(f"hold must be in [0, 10] (units of the loading duration), got {self.hold}")
         if self.increments < 10:
@@ -266,7 +273,7 @@ def loading_path(case: CompactionCase, rho0: float) -> GradientPath:
     """F0(t): the compaction from ``rho0`` to the target density, then ``case.segments_after``."""
     hold = [(case.hold * case.duration, np.eye(3))] if case.hold > 0 else []
     return GradientPath([(case.duration, compaction_gradient(case.loading, rho0, case.target_density)),
-                         *hold, *case.segments_after])
+                         *hold, *case.segments_after], profiles=(case.profile,))
 
 
 def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> CompactionModel:
