@@ -29,6 +29,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 __all__ = ["AssemblyParticles", "Duplicates", "Packing", "assembly_particles", "duplicate_particles",
+           "periodic_pair_realizations",
            "generate_packing", "read_packing", "write_packing"]
 
 
@@ -489,3 +490,42 @@ def assembly_particles(packing: Packing, duplicates: Duplicates) -> AssemblyPart
         np.concatenate([np.arange(n), duplicates.original]),
         np.concatenate([np.zeros((n, 3), dtype=np.int64), duplicates.shift]),
     )
+
+
+def periodic_pair_realizations(original: np.ndarray, shift: np.ndarray) -> np.ndarray:
+    """Which pairs of assembly bodies may touch so that every periodic pair is realized once (CLP).
+
+    Body p is particle ``original[p]`` of the periodic volume translated by the lattice vector
+    ``shift[p]`` (zero for the volume's own particles). The pair of bodies (p, q) stands for the
+    periodic pair (original[p], original[q], shift[q] - shift[p]); with CLP's tied copies (thesis
+    eq. 2.14) every body pair that stands for the same periodic pair is the same contact, so
+    exactly one of them must be searched. Preferred: a pair with a body of the volume (its force
+    acts on the volume directly); else the first copy-copy pair. A copy-copy pair is the only
+    realization of a periodic pair whose lattice shift has mixed signs, e.g. (-1, 0, +1), since
+    copies sit on the + faces only (``duplicate_particles(faces="half")``).
+
+    Returns the (n, n) symmetric boolean matrix (False on the diagonal) for ``ContactModel(allowed=)``.
+    """
+    original = np.asarray(original, dtype=np.int64)
+    shift = np.asarray(shift, dtype=np.int64)
+    n = original.size
+    if shift.shape != (n, 3):
+        raise ValueError(f"shift must have shape ({n}, 3), got {shift.shape}")
+    p, q = np.triu_indices(n, k=1)
+    a, b, rel = original[p], original[q], shift[q] - shift[p]
+    # canonical orientation of the unordered periodic pair: (i, j, s) == (j, i, -s)
+    first_nonzero = np.where(rel != 0, rel, 0)[np.arange(rel.shape[0]), np.argmax(rel != 0, axis=1)]
+    flip = (a > b) | ((a == b) & (first_nonzero < 0))
+    i, j = np.where(flip, b, a), np.where(flip, a, b)
+    s = np.where(flip[:, None], -rel, rel)
+    key = np.column_stack([i, j, s])
+    is_copy = np.any(shift != 0, axis=1)
+    copy_copy = is_copy[p] & is_copy[q]
+    order = np.lexsort((np.arange(p.size), copy_copy, *key.T[::-1]))  # by key, then preference
+    sorted_key = key[order]
+    new_key = np.ones(order.size, dtype=bool)
+    new_key[1:] = np.any(sorted_key[1:] != sorted_key[:-1], axis=1)
+    chosen = order[new_key]
+    allowed = np.zeros((n, n), dtype=bool)
+    allowed[p[chosen], q[chosen]] = True
+    return allowed | allowed.T

@@ -100,19 +100,33 @@ def test_rigid_translation_gives_zero_stress(tmp_path, bc):
     assert np.abs(bcs.macroscopic_force(r.array)).max() < 1e-12
 
 
-def test_clp_by_copies_equals_clp_by_images(tmp_path):
+def face_centred_cubic(r: float = 0.1) -> Packing:
+    """4 touching spheres of an FCC lattice, offset by (1/4, 0, 1/4) L: the pair at (3/4, 1/2, 1/4) L
+    and (1/4, 1/2, 3/4) L also touches across the lattice shift (1, 0, -1), whose mixed signs the
+    half-face copies of CLP realize only as a copy-copy pair."""
+    cell = 2.0 * np.sqrt(2.0) * r
+    centres = cell * np.array([[0.25, 0.0, 0.25], [0.75, 0.5, 0.25], [0.75, 0.0, 0.75], [0.25, 0.5, 0.75]])
+    return Packing(cell=np.full(3, cell), centres=centres, radii=np.full(4, r))
+
+
+@pytest.mark.parametrize("lattice", ["simple cubic", "face-centred cubic"])
+def test_clp_by_copies_equals_clp_by_images(tmp_path, lattice):
     """CLP through tied shell copies and CLP through contact with periodic images shifted by
     F0 (L o s) are the same boundary value problem: for the same motion of the volume (affine
     compression + a non-affine perturbation, contacts overlapping across the cell faces) both
     give the same reduced forces on every node of the volume and the same Schmidt stress.
-    (Compared on forces at one state: whole runs differ by their contact sets' round-off.)"""
+    (Compared on forces at one state: whole runs differ by their contact sets' round-off.) The
+    FCC cell has 24 contacts, 2 across a mixed lattice shift (1, 0, -1)."""
     from scipy.spatial import cKDTree
 
     F0 = np.diag([0.975, 0.98, 0.97])
     F0[0, 1] = 0.004
+    packing = simple_cubic() if lattice == "simple cubic" else face_centred_cubic()
     results = []
     for images in (False, True):
-        model = build_compaction(small_case(tmp_path, bc="CLP", images=images), MPI.COMM_SELF, log=quiet)
+        model = build_compaction(small_case(tmp_path, bc="CLP", images=images, packing=packing,
+                                            target_density=0.8 if lattice != "simple cubic" else 0.56),
+                                 MPI.COMM_SELF, log=quiet)
         problem, bcs, contact = model.problem, model.bcs, model.contact
         bcs.gradient = lambda t: F0
         bcs.apply(0.0)

@@ -57,8 +57,8 @@ from ..loading import PROFILES, GradientPath, compaction_gradient
 from ..material import LEAD, ElastoPlastic
 from ..meshes.cubesphere import RESOLUTIONS
 from ..meshes import ParticleCentroids, node_particles, particle_mesh, particle_volumes
-from ..meshes.packing import Duplicates, Packing, assembly_particles, duplicate_particles, generate_packing, read_packing, \
-    write_packing
+from ..meshes.packing import (Duplicates, Packing, assembly_particles, duplicate_particles, generate_packing,
+                              periodic_pair_realizations, read_packing, write_packing)
 from ..problem import SolidProblem
 from ..solvers import ImplicitSolver, StepControl
 from ..solvers.implicit import NonConvergence
@@ -317,9 +317,10 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     law = ContactLaw(penalty=default_penalty(case.material.E, h_contact, case.penalty_factor),
                      friction=case.friction, gamma=case.gamma, delta_max=case.delta_max,
                      asperity_yield=case.asperity_yield)
-    allowed = np.ones((radii.size, radii.size), dtype=bool)
-    if case.bc == "CLP":  # copy-copy contacts repeat VEP contacts (their periodic originals)
-        allowed[np.ix_(is_copy, is_copy)] = False
+    # CLP's tied copies: one body pair per periodic pair (copy-copy only for mixed lattice shifts);
+    # solid copies (GDH, GDF, CLPS) touch each other as separate bodies
+    allowed = (periodic_pair_realizations(original, shift) if case.bc == "CLP"
+               else np.ones((radii.size, radii.size), dtype=bool))
     contact = ContactModel(V, assembly.facet_tags, radii.size, law,
                            search_distance=max(0.05 * float(radii.min()), 2 * case.delta_max), allowed=allowed,
                            shifts=periodic_lattice() * packing.cell if case.uses_images else None)
