@@ -1,7 +1,7 @@
 """Convergence study of the explicit compaction curves (issue 21): loading rate and particle mesh.
 
     python bench/convergence.py                                  # flagship: N, 2N, 4N; chapter2 vs chapter4
-    python bench/convergence.py --particles 50 --increments 4000 8000 --meshes chapter2
+    python bench/convergence.py --particles 50 --increments 6000 12000 --meshes chapter2
     python bench/convergence.py --profile smooth-step smooth-ramps --increments 4000 8000 --meshes chapter2
     python bench/convergence.py --table-only                     # tabulate the runs already made
 

@@ -3,7 +3,7 @@ every row, and the default explicit settings end a compaction in equilibrium wit
 end-of-load hook, on a CI-sized random volume.
 
 Case: 12 equal spheres (r = 0.1 mm, a seeded jammed periodic packing), CLP by periodic images,
-the default mesh, damping and 4000 increments, compacted from rho 0.616 to 0.70 (~2 min). The
+the default mesh, damping and profile, 4000 increments, compacted from rho 0.616 to 0.70 (~2 min). The
 loading-rate study of the flagship is bench/convergence.py (figures in bench/README.md); the same
 comparison on this volume (N = 2000 vs 4000) is a heavy test."""
 
@@ -13,7 +13,7 @@ from mpi4py import MPI
 
 from mpfem_fenicsx.workflows.compaction import CompactionCase, build_compaction, run_compaction
 
-CASE = dict(particles=12, r_min=0.1, r_max=0.1, target_density=0.70, outputs=20, visual=False, checkpoint_every=0)
+CASE = dict(particles=12, increments=4000, r_min=0.1, r_max=0.1, target_density=0.70, outputs=20, visual=False, checkpoint_every=0)
 
 
 def quiet(*args, **kwargs):

@@ -20,7 +20,7 @@ Example (every key optional; defaults = the flagship demo)::
 
     [solver]
     kind = "explicit"
-    increments = 4000
+    increments = 6000
 """
 
 from __future__ import annotations

@@ -55,6 +55,15 @@ class ContactLaw:
         for name, value, ok, allowed in checks:
             if not ok:
                 raise ValueError(f"contact.{name} = {value!r} is out of range: must be {allowed}")
+        # the adhesive peak alpha sigma_c is reached at the opening delta_1 = alpha sigma_c / k: it must
+        # lie before delta_max, or the softening branch T1 = -peak (delta_max - delta) / (delta_max -
+        # delta_1) degenerates (alpha <= 1, or alpha_forced)
+        alpha = 1.0 if self.alpha_forced is None else self.alpha_forced
+        if alpha * self.sigma_c / self.penalty >= self.delta_max:
+            raise ValueError(f"contact.gamma = {self.gamma!r} with contact.delta_max = {self.delta_max!r} and penalty "
+                             f"{self.penalty:.4g} N/mm^3: the adhesive peak opening alpha sigma_c / k = "
+                             f"{alpha * self.sigma_c / self.penalty:.3g} mm must be < delta_max (gamma < "
+                             f"k delta_max^2 / 2 = {self.penalty * self.delta_max ** 2 / 2:.3g} mJ/mm^2)")
 
     @property
     def p0(self) -> float:

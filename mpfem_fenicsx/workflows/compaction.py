@@ -124,7 +124,9 @@ class CompactionCase:
     #: the duration (peak rate 1.25 x the mean), or "smooth-step" (Abaqus SMOOTH STEP, peak 1.875 x
     #: the mean at mid-path, i.e. in the rearrangement range rho ~0.75-0.82)
     profile: str = "smooth-ramps"
-    increments: int = 4000
+    #: explicit increments over the compaction (the mass-scaled increment is duration / increments);
+    #: 6000 with smooth-ramps: sigma_m within 0.7 % of 12 000 on the flagship (bench/README.md)
+    increments: int = 6000
     #: further segments of the macroscopic path after the compaction, ((duration s, increment
     #: gradient G (3, 3)), ...): e.g. the unload F^d and a reload F^r of thesis eq. 4.7-4.9. Explicit
     #: runs keep the compaction's increment duration / increments (make durations multiples of it)
