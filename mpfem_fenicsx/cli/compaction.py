@@ -10,6 +10,7 @@ from mpi4py import MPI
 
 from ..constraints.granular import KINDS
 from ..io.progress import Progress
+from ..loading import PROFILES
 from ..meshes.cubesphere import RESOLUTIONS
 from ..workflows.compaction import CompactionCase, RunFailure, run_compaction
 
@@ -34,6 +35,8 @@ def parser(loading: str, doc: str) -> argparse.ArgumentParser:
     p.add_argument("--gamma", type=float, default=d.gamma, help="adhesion energy (mJ/mm^2)")
     p.add_argument("--friction", type=float, default=d.friction)
     p.add_argument("--increments", type=int, default=d.increments, help="explicit increments (mass scaling)")
+    p.add_argument("--profile", choices=tuple(PROFILES), default=d.profile,
+                   help="loading in time: constant strain rate between smooth ramps, or the smooth step")
     p.add_argument("--steps", type=int, default=d.steps, help="implicit load steps (adaptive)")
     p.add_argument("--mesh", choices=tuple(RESOLUTIONS), default=d.mesh,
                    help="particle mesh: chapter2 (thesis appendix A, 561 nodes), chapter4 (10x10 per face, 1 933), "
@@ -56,6 +59,7 @@ def case_from_args(args: argparse.Namespace, loading: str) -> CompactionCase:
                               bc=args.bc, images=args.images, solver=args.solver, seed=args.seed,
                               packing_file=args.packing, packing_fraction=args.packing_fraction, d_bc=args.d_bc,
                               gamma=args.gamma, friction=args.friction, increments=args.increments, steps=args.steps,
+                              profile=args.profile,
                               mesh=args.mesh, refinement=args.refinement, outputs=args.outputs, visual=not args.no_visual,
                               checkpoint_every=args.checkpoint_every, out_dir=args.out)
     except ValueError as err:
