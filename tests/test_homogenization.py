@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from mpfem_fenicsx.homogenization import (
+    coordination,
     branch_vectors,
     contact_weights,
     copy_centroids,
@@ -317,6 +318,19 @@ def test_counting_rules_clp_shells():
     lv = x[j] - x[i]
     sigma = love_weber_stress(-f * share[:, None] * lv / a, lv, (n * a) ** 3, weights=w)
     assert np.allclose(sigma, -f / a ** 2 * np.eye(3))
+
+
+def test_coordination_counts_weighted_contacts_per_volume_particle():
+    """3 particles; bodies 3, 4 are copies of 0 and 2. Contacts: 0-1, 1-2, 1-3 (periodic 1-0),
+    2-4 (2 with its own image) and a half-weighted pair of realizations 0-2 / 3-4."""
+    original = np.array([0, 1, 2, 0, 2])
+    i, j = np.array([0, 1, 1, 2, 0, 3]), np.array([1, 2, 3, 4, 2, 4])
+    w = np.array([1, 1, 1, 1, 0.5, 0.5])
+    contacts, z, rattlers = coordination(i, j, original, w, 3)
+    # per particle: 0: 1 + 1 + 0.5 + 0.5 = 3, 1: 3, 2: 1 + 2 + 0.5 + 0.5 = 4
+    assert contacts == 5.0 and z == pytest.approx(10 / 3) and rattlers == 2
+    assert coordination(i, j, original, w, 3, rattler_below=3)[2] == 0
+    assert coordination([], [], original, [], 3) == (0.0, 0.0, 3)
 
 
 def test_contact_weights_input_checks():

@@ -55,3 +55,7 @@ def test_simple_cubic_homogenization(simple_cubic, loading, tmp_path):
     # energies: dissipation = plasticity (+ friction), contacts grow, specific surface > 0
     assert h.column("E_d")[-1] == pytest.approx(h.column("E_p")[-1] + h.column("E_f")[-1], rel=1e-12)
     assert h.column("E_p")[-1] > 0 and h.column("Gamma")[-1] > 0
+    # force-carrying contacts: none at the start (the 0.99-shrunk spheres are 2 um apart, inside the
+    # search distance), the 24 of the lattice at the end (Z = 6 for every particle)
+    assert h.column("n_contacts")[0] == 0 and h.column("rattlers")[0] == 8
+    assert h.column("n_contacts")[-1] == 24 and h.column("Z")[-1] == 6 and h.column("rattlers")[-1] == 0

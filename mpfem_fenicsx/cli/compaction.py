@@ -83,7 +83,8 @@ def main(loading: str, doc: str, argv=None) -> None:
     h = res.history
     say(f"done: rho = {h.column('rho')[-1]:.4f} (imposed {h.column('rho_imposed')[-1]:.4f}), "
         f"sigma_m = {h.column('sigma_m')[-1]:.3f} MPa, sigma_d = {h.column('sigma_d')[-1]:.3f} MPa, "
-        f"{int(h.column('n_contacts')[-1])} contacts; {res.num_particles_model} particles in the model, "
+        f"{round(h.column('n_contacts')[-1])} contacts (Z {h.column('Z')[-1]:.2f}); "
+        f"{res.num_particles_model} particles in the model, "
         f"{res.num_dofs} dofs, {res.increments} {'increments' if args.solver == 'explicit' else 'steps'}, wall {time.perf_counter() - start:.0f} s")
     say(f"outputs in {res.out_dir}/: history.csv, packing.txt"
         + ("" if not args.checkpoint_every else ", checkpoints/")

@@ -112,7 +112,7 @@ def _run(args, comm) -> None:
         raise _Exit(BAD_INPUT, f"{args.case}: {err}")
     h = res.history
     say(f"done: rho = {h.column('rho')[-1]:.4f} (imposed {h.column('rho_imposed')[-1]:.4f}), sigma_m = "
-        f"{h.column('sigma_m')[-1]:.3f} MPa, {int(h.column('n_contacts')[-1])} contacts; "
+        f"{h.column('sigma_m')[-1]:.3f} MPa, {round(h.column('n_contacts')[-1])} contacts (Z {h.column('Z')[-1]:.2f}); "
         f"{res.num_particles_model} particles in the model, {res.num_dofs} dofs, wall {time.perf_counter() - start:.0f} s")
     say(f"outputs in {res.out_dir}/: history.csv, packing.txt, checkpoints/"
         + (", particles.xdmf (ParaView), particles.png, loading_path.png" if case.visual else ""))

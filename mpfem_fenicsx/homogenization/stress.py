@@ -184,6 +184,28 @@ def contact_weights(pair_i, pair_j, original, shift, bc: str, pair_shift=None) -
 
 
 # -- Schmidt stress from the auxiliary nodes ---------------------------------------------------
+def coordination(pair_i, pair_j, original, weights, num_particles: int, rattler_below: int = 4):
+    """Force-carrying contacts of the periodic volume and its mean coordination number.
+
+    ``pair_i``, ``pair_j`` (M,) bodies of the contacts that carry force (compression or adhesive
+    tension), ``original`` (bodies,) the volume particle each body stands for, ``weights`` (M,) the
+    counting weights of :func:`contact_weights`. Each counted contact gives one contact to both of
+    its particles (a particle touching its own periodic image gets two).
+
+    Returns (contacts, Z, rattlers): the weighted number of contacts, the mean coordination number
+    Z = 2 contacts / N over the ``num_particles`` particles of the volume, and the number of
+    particles with fewer than ``rattler_below`` contacts (4 = d + 1 in 3-D: fewer cannot hold a
+    particle in force equilibrium without friction; they are counted in Z, not removed).
+    """
+    original = np.asarray(original, dtype=np.int64)
+    w = np.asarray(weights, dtype=float).ravel()
+    per_particle = (np.bincount(original[np.asarray(pair_i, dtype=np.int64)], weights=w, minlength=num_particles)
+                    + np.bincount(original[np.asarray(pair_j, dtype=np.int64)], weights=w, minlength=num_particles))
+    per_particle = per_particle[:num_particles]
+    contacts = float(w.sum())
+    return contacts, 2.0 * contacts / num_particles, int(np.count_nonzero(per_particle < rattler_below - 1e-9))
+
+
 def schmidt_piola(aux_reactions, cell) -> np.ndarray:
     """Mesoscopic first Piola stress from the auxiliary-node reactions (MPa, tension > 0).
 

@@ -17,7 +17,10 @@ History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C)
   conjugate to F0, P = R / V0, sigma = P F0^T / det F0, eq. 2.19, compression > 0; explicit: R
   = f_int + f_bv - f_c, the medium's forces without the relaxation damping and inertia; empty
   otherwise);
-- n_contacts (contacting particle pairs); Gamma = S / (V0 det F) (mm^-1, eq. 4.13, S the contact
+- n_contacts: force-carrying contacts of the periodic volume (pairs with a loaded point, in
+  compression or adhesive tension; appendix-C weights: one per physical contact), Z = 2 n_contacts
+  / N the mean coordination number, rattlers the particles of the volume with fewer than 4
+  (homogenization.coordination); Gamma = S / (V0 det F) (mm^-1, eq. 4.13, S the contact
   area, one per pair);
 - energies (mJ): E_p plastic (eq. 4.11), E_f frictional (eq. 4.12), E_d = E_p + E_f (eq. 4.10),
   E_c kinetic (of the motion relative to the imposed flow), E_int internal work, E_el stored
@@ -42,7 +45,7 @@ from mpi4py import MPI
 from ..constraints.granular import KINDS, GranularBoundaryConditions, periodic_lattice
 from ..contact import ContactLaw, ContactModel
 from ..contact.laws import default_penalty
-from ..homogenization import (branch_vectors, contact_weights, dissipated_energy, hencky_strain,
+from ..homogenization import (branch_vectors, contact_weights, coordination, dissipated_energy, hencky_strain,
                               least_squares_gradient, love_weber_stress, piola_to_cauchy, relative_density,
                               rendulic_strain, rendulic_stress, solid_volume, specific_contact_surface,
                               strain_invariants, stress_invariants)
@@ -406,7 +409,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     columns = ["time", "rho", "rho_imposed", "rho_fe", "h_v", "h_d", "h_tilde_d", "sigma_m", "sigma_d",
                "sigma_tilde_d"] + [f"F{c}" for c in comps] + [f"sigma{c}" for c in comps] + \
         [f"sigma_schmidt_{c}" for c in comps] + \
-        ["n_contacts", "Gamma", "E_p", "E_f", "E_d", "E_c", "E_int", "E_el", "E_contact", "E_visc", "E_damp",
+        ["n_contacts", "Z", "rattlers", "Gamma", "E_p", "E_f", "E_d", "E_c", "E_int", "E_el", "E_contact", "E_visc", "E_damp",
          "W_ext", "unbalanced", "E_c_over_E_int", "wall_time"]
     periodic = case.bc in ("CLP", "CLPS")  # Schmidt stress defined
     history = History(out / "history.csv", columns, comm, flush_every_row=True)
@@ -472,6 +475,9 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         sigma_m, sigma_d = stress_invariants(sigma_lw)
         sigma_tilde_d = rendulic_stress(sigma_lw)[1]
         gamma = specific_contact_surface(pf["area"], cell_volume0, F, weights)
+        carrying = pf["points"] > 0  # pairs within the search distance may carry no force
+        n_contacts, mean_z, rattlers = coordination(pairs[carrying, 0], pairs[carrying, 1], model.original,
+                                                    weights[carrying], n)
         sigma_s = np.full((3, 3), np.nan)
         if periodic:  # Schmidt: reactions conjugate to F0 (auxiliary nodes), eq. 2.14
             # explicit: the medium's forces only (damping and inertia of the pseudo-dynamics out)
@@ -500,7 +506,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
                        **{f"F{c}": v for c, v in zip(comps, F.ravel())},
                        **{f"sigma{c}": v for c, v in zip(comps, -sigma_lw.ravel())},
                        **{f"sigma_schmidt_{c}": v for c, v in zip(comps, -sigma_s.ravel())},
-                       n_contacts=len(pairs), Gamma=gamma, unbalanced=unbalanced,
+                       n_contacts=n_contacts, Z=mean_z, rattlers=rattlers, Gamma=gamma, unbalanced=unbalanced,
                        E_c_over_E_int=energies["E_c"] / energies["E_int"] if energies["E_int"] > 0 else np.nan,
                        wall_time=wall, **energies)
         if writer is not None:
