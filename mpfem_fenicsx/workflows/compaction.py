@@ -409,8 +409,8 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     columns = ["time", "rho", "rho_imposed", "rho_fe", "h_v", "h_d", "h_tilde_d", "sigma_m", "sigma_d",
                "sigma_tilde_d"] + [f"F{c}" for c in comps] + [f"sigma{c}" for c in comps] + \
         [f"sigma_schmidt_{c}" for c in comps] + \
-        ["n_contacts", "Z", "rattlers", "Gamma", "E_p", "E_f", "E_d", "E_c", "E_int", "E_el", "E_contact", "E_visc", "E_damp",
-         "W_ext", "unbalanced", "E_c_over_E_int", "wall_time"]
+        ["n_contacts", "Z", "rattlers", "Gamma", "E_p", "E_f", "E_d", "E_c", "E_int", "E_el", "E_contact", "E_visc",
+         "E_damp", "W_ext", "unbalanced", "E_c_over_E_int", "wall_time"]
     periodic = case.bc in ("CLP", "CLPS")  # Schmidt stress defined
     history = History(out / "history.csv", columns, comm, flush_every_row=True)
     checkpoint_root = out / "checkpoints"
@@ -512,7 +512,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         if writer is not None:
             writer.write(s.t)
         progress.update(fraction, step, total_steps, rho=rho, sigma_m=sigma_m,
-                        extra=f"unbalanced {unbalanced:.2g}  contacts {len(pairs)}  E_p {energies['E_p']:.3g} mJ  "
+                        extra=f"unbalanced {unbalanced:.2g}  contacts {n_contacts:.0f} (Z {mean_z:.2f})  E_p {energies['E_p']:.3g} mJ  "
                               f"E_c {energies['E_c']:.2g} mJ")
         if case.checkpoint_every and len(history.rows) % case.checkpoint_every == 0:
             write_checkpoint(s)
