@@ -55,10 +55,10 @@ def test_coulomb_stick_slip_and_dissipation():
 
 def test_adhesive_peak_must_open_before_delta_max():
     """alpha sigma_c / k >= delta_max leaves no softening branch: rejected, naming the fields."""
-    ContactLaw(penalty=1e9, gamma=1e-2, delta_max=2e-4)  # peak at 1e-7 mm: fine
+    ContactLaw(penalty=1e9, gamma=1e-2, delta_max=2e-4).require_softening_branch()  # peak at 1e-7 mm: fine
     with pytest.raises(ValueError, match=r"contact.gamma = 0.01 with contact.delta_max = 0.0005 .* must be < "
                                          r"delta_max \(gamma < k delta_max\^2 / 2 = 0.000125 mJ/mm\^2\)"):
-        ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4)  # sigma_c / k = 0.04 mm
+        ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4).require_softening_branch()  # sigma_c / k = 0.04 mm
     with pytest.raises(ValueError, match="alpha sigma_c / k = 0.02 mm"):
-        ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.5)
-    ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.0)  # no adhesion at all
+        ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.5).require_softening_branch()
+    ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.0).require_softening_branch()  # no adhesion

@@ -55,9 +55,13 @@ class ContactLaw:
         for name, value, ok, allowed in checks:
             if not ok:
                 raise ValueError(f"contact.{name} = {value!r} is out of range: must be {allowed}")
-        # the adhesive peak alpha sigma_c is reached at the opening delta_1 = alpha sigma_c / k: it must
-        # lie before delta_max, or the softening branch T1 = -peak (delta_max - delta) / (delta_max -
-        # delta_1) degenerates (alpha <= 1, or alpha_forced)
+
+    def require_softening_branch(self) -> None:
+        """Raise ValueError unless the adhesive peak alpha sigma_c is reached at an opening
+        delta_1 = alpha sigma_c / k below delta_max (alpha <= 1, or alpha_forced): otherwise the
+        softening branch T1 = -peak (delta_max - delta) / (delta_max - delta_1) degenerates and the
+        law holds k delta_max^2 / 2 instead of gamma. Granular cases call it on their input; the
+        single-contact elastic checks use such a law on purpose (adhesion off: sigma_0 = 1e6)."""
         alpha = 1.0 if self.alpha_forced is None else self.alpha_forced
         if alpha * self.sigma_c / self.penalty >= self.delta_max:
             raise ValueError(f"contact.gamma = {self.gamma!r} with contact.delta_max = {self.delta_max!r} and penalty "

@@ -303,8 +303,14 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
         raise ValueError(f"loading.target_density = {case.target_density} is out of range: must be in "
                          f"({rho0:.4f}, 1), above the packing's initial relative density V_p / V0 = {rho0:.4f}")
 
-    rotations = None if case.mesh_rotation is None else np.broadcast_to(case.mesh_rotation, (radii.size, 3, 3))
     divisions, layers = case.mesh_divisions
+    # surface element edge at a cube-face centre of the smallest particle (equi-angular grid)
+    h_contact = float(radii.min()) * np.pi / (2 * divisions * case.refinement)
+    law = ContactLaw(penalty=default_penalty(case.material.E, h_contact, case.penalty_factor),
+                     friction=case.friction, gamma=case.gamma, delta_max=case.delta_max,
+                     asperity_yield=case.asperity_yield)
+    law.require_softening_branch()  # before meshing: the penalty follows the mesh resolution
+    rotations = None if case.mesh_rotation is None else np.broadcast_to(case.mesh_rotation, (radii.size, 3, 3))
     assembly = particle_mesh(centres, radii, comm, divisions=divisions, layers=layers, refinement=case.refinement,
                              exact_volume=case.exact_volume, rotations=rotations)
     mesh = assembly.mesh
@@ -317,11 +323,6 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     rho0_fe = float(particle_volumes(assembly, problem.u)[:n].sum()) / float(np.prod(packing.cell))
     path = loading_path(case, rho0)
 
-    # surface element edge at a cube-face centre of the smallest particle (equi-angular grid)
-    h_contact = float(radii.min()) * np.pi / (2 * divisions * case.refinement)
-    law = ContactLaw(penalty=default_penalty(case.material.E, h_contact, case.penalty_factor),
-                     friction=case.friction, gamma=case.gamma, delta_max=case.delta_max,
-                     asperity_yield=case.asperity_yield)
     # CLP's tied copies: one body pair per periodic pair (copy-copy only for mixed lattice shifts);
     # solid copies (GDH, GDF, CLPS) touch each other as separate bodies
     allowed = (periodic_pair_realizations(original, shift) if case.bc == "CLP"
