@@ -29,8 +29,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 __all__ = ["AssemblyParticles", "Duplicates", "Packing", "assembly_particles", "duplicate_particles",
-           "periodic_pair_realizations",
-           "generate_packing", "read_packing", "write_packing"]
+           "generate_packing", "periodic_pair_realizations", "read_packing", "write_packing"]
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:

@@ -183,7 +183,6 @@ def contact_weights(pair_i, pair_j, original, shift, bc: str, pair_shift=None) -
     return w
 
 
-# -- Schmidt stress from the auxiliary nodes ---------------------------------------------------
 def coordination(pair_i, pair_j, original, weights, num_particles: int, rattler_below: int = 4):
     """Force-carrying contacts of the periodic volume and its mean coordination number.
 
@@ -206,6 +205,7 @@ def coordination(pair_i, pair_j, original, weights, num_particles: int, rattler_
     return contacts, 2.0 * contacts / num_particles, int(np.count_nonzero(per_particle < rattler_below - 1e-9))
 
 
+# -- Schmidt stress from the auxiliary nodes ---------------------------------------------------
 def schmidt_piola(aux_reactions, cell) -> np.ndarray:
     """Mesoscopic first Piola stress from the auxiliary-node reactions (MPa, tension > 0).
 

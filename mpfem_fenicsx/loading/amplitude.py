@@ -5,6 +5,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 
+def _quintic_ramp(u: float) -> float:
+    """Smooth step 10 u^3 - 15 u^4 + 6 u^5 on [0, 1]: zero slope and curvature at both ends."""
+    return u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u)
+
+
 @dataclass(frozen=True)
 class SmoothStep:
     """Abaqus SMOOTH STEP between (t0, 0) and (t1, 1): a = 10 s^3 - 15 s^4 + 6 s^5, s = (t-t0)/(t1-t0).
@@ -21,7 +26,7 @@ class SmoothStep:
 
     def __call__(self, t: float) -> float:
         s = min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
-        return s ** 3 * (10.0 - 15.0 * s + 6.0 * s * s)
+        return _quintic_ramp(s)
 
     def rate(self, t: float) -> float:
         s = min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
@@ -29,7 +34,7 @@ class SmoothStep:
 
 
 def _quintic_ramp_integral(u: float) -> float:
-    """Integral from 0 to u of the quintic velocity ramp 10 x^3 - 15 x^4 + 6 x^5 (1/2 at u = 1)."""
+    """Integral from 0 to u of :func:`_quintic_ramp` (1/2 at u = 1)."""
     return u ** 4 * (2.5 - 3.0 * u + u * u)
 
 
@@ -74,7 +79,7 @@ class SmoothRamps:
     def rate(self, t: float) -> float:
         s = min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
         u = min(s / self.rise, (1.0 - s) / self.fall, 1.0)
-        return self.plateau * u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u) / (self.t1 - self.t0)
+        return self.plateau * _quintic_ramp(u) / (self.t1 - self.t0)
 
 
 #: amplitude shapes of a macroscopic path segment, by name (GradientPath.profiles)

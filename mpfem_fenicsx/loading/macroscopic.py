@@ -81,6 +81,7 @@ class GradientPath:
         if len(self.profiles) > len(self.segments):
             raise ValueError(f"{len(self.profiles)} profiles for {len(self.segments)} segments")
         self._knots = [0.0]
+        self._amplitudes = []
         self._logs = []
         self._ends = [np.asarray(self.start, dtype=float)]
         for k, (duration, G) in enumerate(self.segments):
@@ -90,6 +91,8 @@ class GradientPath:
             if G.shape != (3, 3) or not np.linalg.det(G) > 0:
                 raise ValueError(f"segment {k}: increment gradient must be a 3x3 matrix with det > 0")
             self._knots.append(self._knots[-1] + duration)
+            shape = PROFILES[self.profiles[k] if k < len(self.profiles) else "smooth-step"]
+            self._amplitudes.append(shape(self._knots[-1], self._knots[-2]))
             self._logs.append(np.real(logm(G)))
             self._ends.append(G @ self._ends[-1])
 
@@ -107,6 +110,5 @@ class GradientPath:
         if k >= len(self.segments):
             return self._ends[-1].copy()
         k = max(k, 0)
-        shape = PROFILES[self.profiles[k] if k < len(self.profiles) else "smooth-step"]
-        a = shape(self._knots[k + 1], self._knots[k])(t)
+        a = self._amplitudes[k](t)
         return expm(a * self._logs[k]) @ self._ends[k]

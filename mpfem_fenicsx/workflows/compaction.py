@@ -513,8 +513,8 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         if writer is not None:
             writer.write(s.t)
         progress.update(fraction, step, total_steps, rho=rho, sigma_m=sigma_m,
-                        extra=f"unbalanced {unbalanced:.2g}  contacts {n_contacts:.0f} (Z {mean_z:.2f})  E_p {energies['E_p']:.3g} mJ  "
-                              f"E_c {energies['E_c']:.2g} mJ")
+                        extra=f"unbalanced {unbalanced:.2g}  contacts {n_contacts:.0f} (Z {mean_z:.2f})  "
+                              f"E_p {energies['E_p']:.3g} mJ  E_c {energies['E_c']:.2g} mJ")
         if case.checkpoint_every and len(history.rows) % case.checkpoint_every == 0:
             write_checkpoint(s)
 
