@@ -72,6 +72,17 @@ def internal_work_tangent(u, du, v, A_dev, bulk, dx_dev, dx_vol):
     return ufl.inner(dP_dev, ufl.grad(v)) * dx_dev, ufl.derivative(volumetric, u, du)
 
 
+def kirchhoff_stress_integrals(u, w, P_dev, bulk, dx_dev, dx_vol):
+    """int tau : w dX as two forms (deviatoric, volumetric; same rules as :func:`internal_work`),
+    tau = P F^T = dev(tau) + K ln(J) I the Kirchhoff stress (MPa). With w a test function of
+    piecewise-constant tensors, the assembled vector holds each cell's int tau dX = int sigma dx
+    (N mm), the cell's share of the volume-averaged stress (thesis eq. C.7)."""
+    F = deformation_gradient(u)
+    deviatoric = ufl.inner(ufl.dot(P_dev, F.T), w) * dx_dev
+    volumetric = bulk * ufl.ln(ufl.det(F)) * ufl.tr(w) * dx_vol
+    return deviatoric, volumetric
+
+
 def lumped_mass_action(density, v, dx):
     """Row-sum lumped mass: assembling this linear form gives M_i = rho int N_i dX (t)."""
     return density * ufl.dot(ufl.as_vector([1.0, 1.0, 1.0]), v) * dx

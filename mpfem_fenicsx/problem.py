@@ -34,10 +34,14 @@ class SolidProblem:
         material: particle material (MPa, t/mm^3).
         degree: displacement degree (default: the geometry degree).
         tangent: also compute the consistent tangent and compile the Jacobian (implicit solver).
+        active_cells: cells carrying material (default all; CLP copies are stiffless shells).
+        full_integration: integrate the volumetric part with the deviatoric rule (no SRI): the
+            locking element, kept to show what the reduced rule avoids.
     """
 
     def __init__(self, mesh: dolfinx.mesh.Mesh, material: ElastoPlastic, *, degree: int | None = None,
-                 tangent: bool = True, active_cells: np.ndarray | None = None):
+                 tangent: bool = True, active_cells: np.ndarray | None = None,
+                 full_integration: bool = False):
         self.mesh = mesh
         self.params = material
         self.comm = mesh.comm
@@ -46,6 +50,8 @@ class SolidProblem:
         self.V = dolfinx.fem.functionspace(mesh, ("Lagrange", degree, (3,)))
         self.u = dolfinx.fem.Function(self.V, name="displacement")
         self.rules = forms.QuadratureRules.for_cell(cell_name, degree)
+        if full_integration:  # the volumetric part on the deviatoric rule too (locks: for comparisons)
+            self.rules = forms.QuadratureRules(self.rules.deviatoric, self.rules.deviatoric)
         if cell_name == "tetrahedron" and degree == 1:
             warnings.warn("P1 tetrahedra lock under isochoric plastic flow (one constraint per "
                           "cell, no reduced rule): use hexahedra (SRI) or tet_order=2", stacklevel=2)
@@ -124,6 +130,11 @@ class SolidProblem:
         # coefficients instead of letting every assembly gather it again (a copy of 72 (P_dev) or
         # 648 (A_dev) values per cell, ~10 % of an explicit step).
         self._residual_key = self._packed_key(self.residual_forms[0], 9)
+        # per-cell integrals of the Kirchhoff stress, on the residual's own quadrature rules
+        self._cell_tensors = dolfinx.fem.functionspace(mesh, ("DG", 0, (3, 3)))
+        w = ufl.TestFunction(self._cell_tensors)
+        self._stress_integral_forms = [dolfinx.fem.form(f) for f in forms.kirchhoff_stress_integrals(
+            self.u, w, self.P_dev, bulk, self.dx_dev, self.dx_vol)]
         self._jacobian_key = self._packed_key(self.jacobian_forms[0], 81) if tangent else None
 
     def _packed_key(self, form, width: int):
@@ -191,6 +202,29 @@ class SolidProblem:
     def integrate_points(self, values: np.ndarray) -> float:
         """sum_q values_q dV_q over all points of all ranks (reference volume weights)."""
         return self.comm.allreduce(float(self.point_volumes @ values), op=MPI.SUM)
+
+    def cell_stress_integrals(self) -> np.ndarray:
+        """int_cell sigma dv (N mm, (num owned cells, 3, 3), mechanics sign, tension > 0) of every
+        owned cell at the current trial state; zero on inactive cells.
+
+        The Cauchy stress integrated over the deformed cell equals the Kirchhoff stress
+        tau = P F^T integrated over the reference cell (dv = J dV), here with the quadrature rules
+        of the internal force (deviatoric part at the 8 points, K ln J I at the SRI point), so that
+        the sum over a particle is sum_nodes f_int (x) x, the stress its internal forces carry."""
+        values = np.zeros(self._cell_tensors.dofmap.index_map.size_local * 9)
+        for form in self._stress_integral_forms:
+            vec = dolfinx.fem.assemble_vector(form)
+            values += vec.array[: values.size]
+        cells = self._cell_tensors.dofmap.list[: self.num_cells, 0]
+        return values.reshape(-1, 3, 3)[cells]
+
+    def plastic_work(self, cells: np.ndarray | None = None) -> float:
+        """Committed plastic work (mJ) of the given owned cells (boolean mask over the owned cells,
+        default all), summed over ranks: the material points' tallies of :meth:`commit`."""
+        work = self.material.plastic_work.reshape(self.material_cells.size, -1)
+        if cells is not None:
+            work = work * np.asarray(cells, dtype=bool)[self.material_cells, None]
+        return self.integrate_points(work.ravel())
 
     def plastic_dissipation_increment(self) -> float:
         """Plastic work of the current (trial) increment, mJ = N mm."""

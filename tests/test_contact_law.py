@@ -62,3 +62,21 @@ def test_adhesive_peak_must_open_before_delta_max():
     with pytest.raises(ValueError, match="alpha sigma_c / k = 0.02 mm"):
         ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.5).require_softening_branch()
     ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.0).require_softening_branch()  # no adhesion
+
+
+@pytest.mark.parametrize("theta", [0.05, 0.3])
+def test_stored_tangential_traction_rotates_with_the_contact_frame(theta):
+    """Issue 22 item 8: a sticking point whose normal turns by theta (the contact rolls) keeps its
+    tangential traction's magnitude: the stored traction is rotated into the new tangent plane, not
+    projected on it (which shrank it by cos theta and released stored shear without any slip)."""
+    law = ContactLaw(penalty=1e9, friction=0.1)  # T1 = 100 MPa: stick below 10 MPa
+    stored = np.array([-5.0, 0.0, 0.0])  # MPa, in the old tangent plane (normal e3)
+    normal = (np.sin(theta), 0.0, np.cos(theta))  # turned towards the stored traction
+    _, Tt, _, _, w = _law(law, [-1e-7], tt=stored, normal=normal)
+    assert np.linalg.norm(Tt[0]) == pytest.approx(5.0, rel=1e-12)
+    assert Tt[0] @ normal == pytest.approx(0.0, abs=1e-12)  # in the new tangent plane
+    assert Tt[0] == pytest.approx(-5.0 * np.array([np.cos(theta), 0.0, -np.sin(theta)]))  # the rotated vector
+    assert w[0] == 0.0
+    # a traction along the rotation axis is unchanged
+    _, Tt, _, _, _ = _law(law, [-1e-7], tt=(0.0, 3.0, 0.0), normal=normal)
+    assert Tt[0] == pytest.approx([0.0, 3.0, 0.0])

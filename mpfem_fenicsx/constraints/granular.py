@@ -7,8 +7,8 @@ g = G vec(H) (vec(H)[3 i + j] = H_ij), so that
     u_full = P u_red + G vec(H(t))    (``AffineConstraint`` + the basis G of this module)
 
 and the generalized force conjugate to H (the "auxiliary nodes" reactions of the thesis) is
-R = G^T r_full (N mm): W_ext = R : dH, hence the Schmidt first Piola stress P = R / V0 with V0
-the reference cell volume (eq. 2.14 and the virtual-work argument of §2.3).
+R = G^T r_full (N mm) over the constraint rows: W_ext = R : dH, hence the Schmidt first Piola
+stress P = R / V0 with V0 the reference cell volume (eq. 2.14 and the virtual-work argument of §2.3).
 
 Kinds (``kind``):
 - ``GDH`` (eq. 2.12-2.13): the reference point (centre X_c) of every particle, originals and
@@ -35,9 +35,8 @@ the masters' carriers). The particle's shape is not imposed: it deforms through 
 For a static solver this is only a change of variables (and a better predictor); for explicit
 dynamics the offsets carry no inertia (``ExplicitSolver``), so the imposed flow is not resisted
 by the scaled masses, only the particles' motion relative to it (periodic "SLLOD" dynamics).
-R = G^T r then sums the reactions of all nodes; the carriers of a particle's own nodes cancel
-(its resultant is zero in equilibrium), so R is again the force through the copies (ties,
-couplings) times the lattice vectors.
+The auxiliary-node reactions (``macroscopic_force``) take the constraint rows without their
+carriers: the forces through the copies (ties, couplings) times the lattice vectors.
 """
 
 from __future__ import annotations
@@ -133,6 +132,7 @@ class GranularBoundaryConditions:
         self.num_particles = radii.size
         self.comoving = comoving
         self.anchor_block = None  # global dof block of the anchored node (CLP/CLPS with anchor)
+        self.anchor_carrier = np.zeros(3)  # its prescribed displacement is H anchor_carrier (mm)
         self._nodes = nodes
         self._centres = centres
         self._rows: list[tuple] = []  # (slave blocks, component, masters (k, m) blocks, coeffs, G (k, 9))
@@ -223,9 +223,15 @@ class GranularBoundaryConditions:
         p = candidates[0]
         members = self._members[p]
         k = members[np.argmax(np.linalg.norm(nodes.X[members] - centres[p], axis=1))]
-        # held at u = 0: any fixed translation is equivalent by periodicity, and a node that
-        # followed the affine field would drag its particle before any contact carries it
-        self._prescribed.append((np.array([nodes.block[k]]), np.zeros((1, 3, 9))))
+        # any translation of the whole is equivalent by periodicity; the node moves with its
+        # particle's carrier H (X_c - L/2) (comoving), which the rest of the particle follows
+        # too: held at u = 0, it would pull its particle back against the carrier and load the
+        # implicit pseudo-time drag on that one node at every step
+        self.anchor_carrier = (centres[p] - 0.5 * self.cell) if self.comoving else np.zeros(3)
+        G = np.zeros((1, 3, 9))
+        for i in range(3):
+            G[0, i, 3 * i: 3 * i + 3] = self.anchor_carrier
+        self._prescribed.append((np.array([nodes.block[k]]), G))
         self.anchor_block = int(nodes.block[k])
 
     def _build(self) -> None:
@@ -261,6 +267,9 @@ class GranularBoundaryConditions:
         G_slaves = np.concatenate(g_rows) if g_rows else np.zeros((0, 9))
         blocks_G = [G_slaves] + ([np.concatenate(pres_G)[order]] if pres_G else [])
         G = np.concatenate(blocks_G)
+        #: the auxiliary nodes' part of G (eq. 2.14 / 2.15, no carrier) on the constrained dofs
+        self._G_auxiliary = G.copy()
+        self._constrained = constrained
         #: owned dofs with an offset G vec(H) (constrained ones, and the free ones when comoving)
         self.offset_dofs = constrained
         if self.comoving:
@@ -323,9 +332,18 @@ class GranularBoundaryConditions:
 
     # -- results --------------------------------------------------------------------------------
     def macroscopic_force(self, reaction: np.ndarray) -> np.ndarray:
-        """R = G^T r (N mm, (3, 3), conjugate to H = F0 - I) from the full reaction vector's owned
-        values (N): the generalized force of the thesis' auxiliary nodes, summed over ranks."""
-        local = self.G.T @ reaction[self.offset_dofs] if self.G.size else np.zeros(9)
+        """Reactions of the thesis' auxiliary nodes (N mm, (3, 3), conjugate to H = F0 - I), from
+        the full reaction vector's owned values (N), summed over ranks: the forces that cross the
+        cell boundary, R = sum over the tie / coupling slaves of r (x) (L o s) (eq. 2.14, CLPS
+        eq. 2.15), plus the periodic images' contacts. The Schmidt stress P = R / V0 (eq. 2.19).
+
+        Only the constraint rows count, not the comoving carriers of the free nodes: summed over
+        every row, R would be sum_k f_k (x) (X_j - X_i) over all contacts whatever the state -- an
+        algebraic copy of Love-Weber with reference branch vectors. The boundary reactions equal
+        the volume's stress only when every particle is in equilibrium, which is what a
+        comparison with Love-Weber then verifies."""
+        G = self._G_auxiliary
+        local = G.T @ reaction[self._constrained] if G.size else np.zeros(9)
         R = self.V.mesh.comm.allreduce(local, op=MPI.SUM).reshape(3, 3)
         if self.images is not None:  # image shifts S = F0 (L o s): dW = pf . dH (L o s)
             R += self.image_force()

@@ -155,11 +155,20 @@ def law_point(d, sx, sy, sz, nx, ny, nz, alpha_n, smax_n, tpx, tpy, tpz, k, kt, 
     out[5] = sm
     out[6] = dt1
     out[7] = 0.0
-    # previous tangential traction rotated into the current tangent plane; tangential slip
+    # previous tangential traction rotated into the current tangent plane: projected, then
+    # rescaled to its stored magnitude (a projection alone shrinks it by cos theta when the
+    # normal turns by theta and releases stored shear without slip; the direction is that of the
+    # exact rotation up to O(theta^2) per increment); then the tangential slip
+    before = np.sqrt(tpx * tpx + tpy * tpy + tpz * tpz)
     dot = tpx * nx + tpy * ny + tpz * nz
     tpx -= dot * nx
     tpy -= dot * ny
     tpz -= dot * nz
+    after = np.sqrt(tpx * tpx + tpy * tpy + tpz * tpz)
+    if after > 1e-12 * before:
+        tpx *= before / after
+        tpy *= before / after
+        tpz *= before / after
     dot = sx * nx + sy * ny + sz * nz
     sx -= dot * nx
     sy -= dot * ny

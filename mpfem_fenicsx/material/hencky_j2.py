@@ -360,6 +360,8 @@ class HenckyJ2:
         self.tau = np.zeros((num_points, 6))
         self.dissipation = np.zeros(num_points)
         self.psi = np.zeros(num_points)
+        #: committed plastic work per unit reference volume (mJ/mm^3), the sum of the increments
+        self.plastic_work = np.zeros(num_points)
 
     def update(self, F: np.ndarray, tangent: bool | None = None) -> None:
         """Evaluate stress (and tangent) at deformation gradients ``F`` (nq, 3, 3)."""
@@ -371,18 +373,22 @@ class HenckyJ2:
                        self.dissipation, self.psi)
 
     def commit(self) -> None:
+        """Accept the trial state (and its plastic work increment)."""
         self.cp_inv[:] = self.cp_inv_trial
         self.eps_p[:] = self.eps_p_trial
+        self.plastic_work += self.dissipation
 
     def state_dict(self) -> dict[str, np.ndarray]:
-        """Committed plastic state (C_p^-1, eps_p) of this rank's points (for checkpoints)."""
-        return {"cp_inv": self.cp_inv.copy(), "eps_p": self.eps_p.copy()}
+        """Committed plastic state (C_p^-1, eps_p, plastic work) of this rank's points (for checkpoints)."""
+        return {"cp_inv": self.cp_inv.copy(), "eps_p": self.eps_p.copy(), "plastic_work": self.plastic_work.copy()}
 
     def load_state(self, data: dict[str, np.ndarray]) -> None:
         if data["eps_p"].shape != self.eps_p.shape:
             raise ValueError(f"material state has {data['eps_p'].size} points, expected {self.num_points}")
         self.cp_inv[:] = data["cp_inv"]
         self.eps_p[:] = data["eps_p"]
+        # checkpoints written before the per-point tally: the work so far is not known per point
+        self.plastic_work[:] = data.get("plastic_work", 0.0)
         self.cp_inv_trial[:] = self.cp_inv
         self.eps_p_trial[:] = self.eps_p
 

@@ -10,19 +10,27 @@ History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C)
   rho_imposed (same with F0, the auxiliary-node gradient); rho_fe (finite-element particle
   volumes / V0 det F: the faceted mesh holds less solid than the spheres, 6.5 % at 517 nodes);
 - h_v, h_d, h_tilde_d: Hencky strain invariants of F (eq. 2.3, 2.8-2.9, 4.3-4.4; natural sign,
-  h_v < 0 in compaction; Rendulic axis I = z, the die axis);
+  h_v < 0 in compaction; Rendulic axis I = z, the die axis); nonaffine: rms distance of the
+  volume's centroids from the fitted affine motion F X + c, over the mean radius (-);
 - sigma_m, sigma_d, sigma_tilde_d: Love-Weber invariants (eq. 2.6, 2.10-2.11, 4.1-4.2; compression
   > 0); F11..F33 (least squares), sigma11..sigma33 (Love-Weber tensor, compression > 0, counted
-  by the appendix-C rules), sigma_schmidt_11..33 (CLP/CLPS: from the constraint reactions
-  conjugate to F0, P = R / V0, sigma = P F0^T / det F0, eq. 2.19, compression > 0; explicit: R
-  = f_int + f_bv - f_c, the medium's forces without the relaxation damping and inertia; empty
-  otherwise);
+  by the appendix-C rules), sigma_schmidt_11..33 (CLP/CLPS: from the auxiliary nodes' reactions,
+  the forces through the ties / couplings and the periodic images times the lattice vectors,
+  P = R / V0, sigma = P F0^T / det F0, eq. 2.14, 2.19, compression > 0; explicit: the medium's
+  forces f_int + f_bv - f_c on the copies, without the relaxation damping and inertia; empty
+  otherwise); sigma_vol_11..33, sigma_vol_m: the volume average (1/V) sum int sigma dv of the
+  Cauchy stress of the volume's particles (eq. C.7, ``SolidProblem.cell_stress_integrals``;
+  compression > 0). In static equilibrium the three stresses agree; they are independent
+  measures (contact forces and centroids; boundary reactions; the particles' stress field);
 - n_contacts: force-carrying contacts of the periodic volume (pairs with a loaded point, in
   compression or adhesive tension; appendix-C weights: one per physical contact), Z = 2 n_contacts
   / N the mean coordination number, rattlers the particles of the volume with fewer than 4
   (homogenization.coordination); Gamma = S / (V0 det F) (mm^-1, eq. 4.13, S the contact
   area, one per pair);
-- energies (mJ): E_p plastic (eq. 4.11), E_f frictional (eq. 4.12), E_d = E_p + E_f (eq. 4.10),
+- energies (mJ): E_p plastic work of the volume's particles (eq. 4.11; GDH / GDF / CLPS copies
+  deform too, outside the volume), E_f frictional (eq. 4.12; every modelled contact), E_d = E_p +
+  E_f (eq. 4.10, the chapter-4 iso-dissipation criterion), E_p_model and E_d_model the same over
+  the whole model (copies included; = E_p, E_d for CLP, whose copies are stiffless shells),
   E_c kinetic (of the motion relative to the imposed flow), E_int internal work, E_el stored
   elastic, E_contact work absorbed by contact, E_visc bulk viscosity, E_damp relaxation damping,
   W_ext external work;
@@ -142,6 +150,10 @@ class CompactionCase:
     #: per body): -alpha |F_b| sign(W_b), against oscillations only, no steady drag (loading-rate
     #: study in bench/README.md)
     local_damping: float = 0.7
+    #: carry every particle with the homogeneous flow at its centre (GranularBoundaryConditions
+    #: comoving; the unknowns are the motions relative to it). False: only the constrained nodes
+    #: follow F0, free particles move only when pushed (the carrier experiment of bench/README.md)
+    comoving: bool = True
     steps: int = 100  # implicit: load steps (adaptive, cut back when Newton fails)
     #: implicit: steps of each of ``segments_after`` (missing ones: the compaction's increment
     #: duration / steps); each segment is stepped on its own, from its start to its end
@@ -331,7 +343,8 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
                            search_distance=max(0.05 * float(radii.min()), 2 * case.delta_max), allowed=allowed,
                            shifts=periodic_lattice() * packing.cell if case.uses_images else None)
     bcs = GranularBoundaryConditions(V, cell_particle, centres, radii, original, shift, packing.cell, case.bc, path,
-                                     images=contact if case.uses_images else None, anchor=case.solver == "implicit")
+                                     images=contact if case.uses_images else None, anchor=case.solver == "implicit",
+                                     comoving=case.comoving)
     return CompactionModel(case, packing, centres, radii, original, shift, assembly, problem, bcs, contact, path,
                            solid0, rho0, rho0_fe, h_contact)
 
@@ -407,12 +420,15 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     centroids = ParticleCentroids(assembly, problem.u)
     X0 = np.ascontiguousarray(centroids()[:n])  # one memory layout: a restart reproduces the BLAS round-off
     comps = [f"{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
-    columns = ["time", "rho", "rho_imposed", "rho_fe", "h_v", "h_d", "h_tilde_d", "sigma_m", "sigma_d",
+    columns = ["time", "rho", "rho_imposed", "rho_fe", "h_v", "h_d", "h_tilde_d", "nonaffine", "sigma_m", "sigma_d",
                "sigma_tilde_d"] + [f"F{c}" for c in comps] + [f"sigma{c}" for c in comps] + \
-        [f"sigma_schmidt_{c}" for c in comps] + \
-        ["n_contacts", "Z", "rattlers", "Gamma", "E_p", "E_f", "E_d", "E_c", "E_int", "E_el", "E_contact", "E_visc",
+        [f"sigma_schmidt_{c}" for c in comps] + [f"sigma_vol_{c}" for c in comps] + ["sigma_vol_m"] + \
+        ["n_contacts", "Z", "rattlers", "Gamma", "E_p", "E_f", "E_d", "E_p_model", "E_d_model", "E_c", "E_int", "E_el", "E_contact", "E_visc",
          "E_damp", "W_ext", "unbalanced", "E_c_over_E_int", "wall_time"]
     periodic = case.bc in ("CLP", "CLPS")  # Schmidt stress defined
+    mean_radius = float(np.mean(radii[:n]))
+    # the particles of the volume (originals; CLP copies are stiffless, GDH/GDF/CLPS copies lie outside)
+    volume_cells = assembly.cell_tags.values[: problem.num_cells] < n
     history = History(out / "history.csv", columns, comm, flush_every_row=True)
     checkpoint_root = out / "checkpoints"
     last_checkpoint = [None]
@@ -430,8 +446,8 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         history.rows = [list(map(float, row)) for row in meta["history"]]
         state = {k[7:]: v for k, v in arrays.items() if k.startswith("solver/")}
         if adopt:
-            solver.adopt_state(state, translation=_anchor_displacement(bcs, V, state["u"]))
-            solver.plastic_work = history.rows[-1][columns.index("E_p")]  # the tally goes on
+            solver.adopt_state(state, translation=_anchor_displacement(bcs, V, state["u"], float(state["t"])))
+            solver.plastic_work = history.rows[-1][columns.index("E_p_model")]  # the tally goes on
         else:
             solver.load_state(state)
         wall_offset = float(meta["wall_time"])
@@ -459,7 +475,9 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
 
     def record(s) -> None:
         x = centroids()
-        F, _ = least_squares_gradient(X0, x[:n])
+        F, c = least_squares_gradient(X0, x[:n])
+        # rms distance of the centroids from the best affine motion, over the mean radius
+        nonaffine = float(np.sqrt(np.mean(np.sum((x[:n] - X0 @ F.T - c) ** 2, axis=1)))) / mean_radius
         h = hencky_strain(F)
         h_v, h_d = strain_invariants(h)
         h_tilde_d = rendulic_strain(h)[1]
@@ -479,6 +497,8 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         carrying = pf["points"] > 0  # pairs within the search distance may carry no force
         n_contacts, mean_z, rattlers = coordination(pairs[carrying, 0], pairs[carrying, 1], model.original,
                                                     weights[carrying], n)
+        # third measure, from the particles' stress field: (1/V) sum int sigma dv (eq. C.7)
+        sigma_vol = comm.allreduce(problem.cell_stress_integrals()[volume_cells].sum(axis=0), op=MPI.SUM) / volume
         sigma_s = np.full((3, 3), np.nan)
         if periodic:  # Schmidt: reactions conjugate to F0 (auxiliary nodes), eq. 2.14
             # explicit: the medium's forces only (damping and inertia of the pseudo-dynamics out)
@@ -498,15 +518,22 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         if not (np.isfinite(rho) and np.isfinite(sigma_lw).all() and np.isfinite(energies["E_p"])):
             raise FloatingPointError(f"non-finite state at step {step} (t={s.t:.4g} s): rho={rho}, "
                                      f"sigma_m={sigma_m}")
+        # the solvers tally the whole model; the volume's particles carry E_p (copies outside)
+        energies["E_p_model"] = energies["E_p"]
+        energies["E_p"] = problem.plastic_work(volume_cells)
         energies["E_f"] = contact.frictional_work
         energies["E_d"] = float(dissipated_energy(energies["E_p"], energies["E_f"]))
+        energies["E_d_model"] = float(dissipated_energy(energies["E_p_model"], energies["E_f"]))
         wall = wall_offset + time.perf_counter() - start
         history.append(time=s.t, rho=rho, rho_imposed=relative_density(solid0, cell_volume0, F0),
                        rho_fe=float(centroids.volumes[:n].sum()) / volume, h_v=h_v, h_d=h_d, h_tilde_d=h_tilde_d,
+                       nonaffine=nonaffine,
                        sigma_m=sigma_m, sigma_d=sigma_d, sigma_tilde_d=sigma_tilde_d,
                        **{f"F{c}": v for c, v in zip(comps, F.ravel())},
                        **{f"sigma{c}": v for c, v in zip(comps, -sigma_lw.ravel())},
                        **{f"sigma_schmidt_{c}": v for c, v in zip(comps, -sigma_s.ravel())},
+                       **{f"sigma_vol_{c}": v for c, v in zip(comps, -sigma_vol.ravel())},
+                       sigma_vol_m=stress_invariants(sigma_vol)[0],
                        n_contacts=n_contacts, Z=mean_z, rattlers=rattlers, Gamma=gamma, unbalanced=unbalanced,
                        E_c_over_E_int=energies["E_c"] / energies["E_int"] if energies["E_int"] > 0 else np.nan,
                        wall_time=wall, **energies)
@@ -581,15 +608,16 @@ def implicit_step_controls(case: CompactionCase, path: GradientPath) -> list[Ste
     return controls
 
 
-def _anchor_displacement(bcs: GranularBoundaryConditions, V, u: np.ndarray) -> np.ndarray:
-    """Displacement (mm) of the node an implicit periodic model anchors, in a state ``u`` (local
-    array, blocks of 3) of a model without anchor (zero when there is none)."""
+def _anchor_displacement(bcs: GranularBoundaryConditions, V, u: np.ndarray, t: float) -> np.ndarray:
+    """Translation (mm) that brings the node an implicit periodic model anchors to its prescribed
+    displacement at time t, from a state ``u`` (local array, blocks of 3) of a model without anchor
+    (zero when there is none)."""
     c = np.zeros(3)
     if bcs.anchor_block is not None:
         lo, hi = V.dofmap.index_map.local_range
         if lo <= bcs.anchor_block < hi:
             i = 3 * (bcs.anchor_block - lo)
-            c = np.asarray(u[i:i + 3], dtype=float)
+            c = np.asarray(u[i:i + 3], dtype=float) - bcs.displacement_gradient(t) @ bcs.anchor_carrier
     return V.mesh.comm.allreduce(c)
 
 

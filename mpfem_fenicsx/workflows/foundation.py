@@ -129,14 +129,15 @@ def run_sphere_squeeze(solver: str = "implicit", material: ElastoPlastic = LEAD,
                        out_dir: str | Path = "results/sphere_squeeze", comm: MPI.Comm = MPI.COMM_WORLD,
                        explicit_time: float = 2e-3, explicit_steps: int = 6000, rows: int = 40,
                        visual: bool = False, cell_type: str = "hexahedron", tet_order: int = 2,
-                       tet_size: float = 0.3, log=print) -> SqueezeResult:
+                       tet_size: float = 0.3, full_integration: bool = False, log=print) -> SqueezeResult:
     """Squeeze one cube-sphere particle between two prescribed caps to a height reduction.
 
     The caps are the nodes with |z| >= cap * radius: their u_z is prescribed (-/+ reduction *
     radius at the end, i.e. the height 2r shrinks by ``reduction``), u_x and u_y stay free; one
     node row is held in x and y to remove the rigid motions. History columns: time,
     height_reduction, force_N (compressive cap force > 0), volume_mm3, volume_change.
-    With ``visual``: ParaView series ``<solver>.xdmf`` (displacement, von Mises, eps_p) and a
+    ``full_integration``: hexahedra without the reduced volumetric rule (they lock). With
+    ``visual``: ParaView series ``<solver>.xdmf`` (displacement, von Mises, eps_p) and a
     PNG of the final deformed particle coloured by von Mises stress.
     """
     _check_solver(solver)
@@ -147,7 +148,7 @@ def run_sphere_squeeze(solver: str = "implicit", material: ElastoPlastic = LEAD,
     out_dir = Path(out_dir)
     assembly = particle_mesh([[0.0, 0.0, 0.0]], [radius], comm, refinement=refinement,
                              cell_type=cell_type, tet_order=tet_order, tet_size=tet_size)
-    problem = SolidProblem(assembly.mesh, material, tangent=(solver == "implicit"))
+    problem = SolidProblem(assembly.mesh, material, tangent=(solver == "implicit"), full_integration=full_integration)
     V = problem.V
     amplitude = Ramp(1.0) if solver == "implicit" else SmoothStep(explicit_time)
     travel = reduction * radius  # each cap moves by half of the total height change 2 r reduction
