@@ -61,6 +61,8 @@ def main(argv=None) -> list[dict]:
     p.add_argument("--particles", type=int, default=50)
     p.add_argument("--bcs", nargs="+", choices=("CLP", "GDF", "GDH", "CLPS"), default=["CLP", "GDF"])
     p.add_argument("--increments", type=int, default=4000)
+    p.add_argument("--carrier", nargs="+", choices=("on", "off"), default=["on", "off"],
+                   help="runs to make (e.g. two processes, one each); the table takes every finished run")
     p.add_argument("--outputs", type=int, default=100, help="history rows over the path")
     p.add_argument("--out", default="results/carrier")
     p.add_argument("--table-only", action="store_true", help="tabulate the finished runs in --out, run nothing")
@@ -74,7 +76,7 @@ def main(argv=None) -> list[dict]:
     for bc, comoving in itertools.product(args.bcs, (True, False)):
         run_dir = out / f"p{args.particles}_{bc}_{'carrier' if comoving else 'free'}_n{args.increments}"
         done = (run_dir / "done").exists()
-        if not done and not args.table_only:
+        if not done and not args.table_only and ("on" if comoving else "off") in args.carrier:
             say(f"--- {args.particles} particles, {bc}, carrier {'on' if comoving else 'off'} -> {run_dir}")
             start = time.perf_counter()
             case = CompactionCase(particles=args.particles, bc=bc, comoving=comoving, increments=args.increments,

@@ -41,6 +41,22 @@ def coupling_means(model):
     return np.array(means)
 
 
+def residual_at(model, field):
+    """Full residual (internal + contact forces, N) with the free dofs at the displacement ``field``
+    (nodes, 3) (mm; the constrained ones follow the constraints at the current F0)."""
+    problem, bcs, contact = model.problem, model.bcs, model.contact
+    x = bcs.constraint.create_reduced_vector()
+    free = bcs.constraint.free  # unknowns: motion relative to the comoving offsets g
+    x.array[:] = field.ravel()[free] - bcs.constraint.g.x.array[free]
+    bcs.constraint.expand(x, problem.u)
+    problem.update_material()
+    r = problem.create_vector()
+    problem.assemble_residual(r)
+    contact.evaluate(problem.u)
+    contact.add_residual(r)
+    return r
+
+
 @pytest.mark.parametrize("bc", ["GDH", "GDF", "CLPS", "CLP"])
 def test_constraints_hold_after_compaction(tmp_path, bc):
     res = run_compaction(small_case(tmp_path, bc=bc), MPI.COMM_SELF, log=quiet)
@@ -143,15 +159,7 @@ def test_clp_by_copies_equals_clp_by_images(tmp_path, lattice):
         wobble = 0.002 * np.sin(40 * X[:, [1, 2, 0]])  # mm, non-affine part
         centre = model.centres[node_particles(problem.V, model.assembly.cell_tags.values)]
         field = (centre - c) @ (F0 - np.eye(3)).T + wobble  # particles pushed into each other
-        x = bcs.constraint.create_reduced_vector()
-        free = bcs.constraint.free  # unknowns: motion relative to the comoving offsets g
-        x.array[:] = field.ravel()[free] - bcs.constraint.g.x.array[free]
-        bcs.constraint.expand(x, problem.u)
-        problem.update_material()
-        r = problem.create_vector()
-        problem.assemble_residual(r)
-        contact.evaluate(problem.u)
-        contact.add_residual(r)
+        r = residual_at(model, field)
         r_red = bcs.constraint.create_reduced_vector()
         bcs.constraint.restrict(r, r_red)
         free_nodes = bcs.constraint.free[::3] // 3
@@ -185,14 +193,7 @@ def test_schmidt_stress_sees_only_the_boundary_forces(tmp_path, images):
     assert np.allclose(model.centres[4] - model.centres[0], [0.2, 0.0, 0.0])  # internal x-neighbours
     field = np.zeros_like(X)
     field[moved, 0] = 0.004  # mm into particle 4 (its copies too: the ties hold)
-    x = bcs.constraint.create_reduced_vector()
-    x.array[:] = field.ravel()[bcs.constraint.free]
-    bcs.constraint.expand(x, problem.u)
-    problem.update_material()
-    r = problem.create_vector()
-    problem.assemble_residual(r)
-    contact.evaluate(problem.u)
-    contact.add_residual(r)
+    r = residual_at(model, field)
     pf = contact.pair_forces()
     loaded = np.linalg.norm(pf["force"], axis=1) > 1e-6
     assert [sorted(p) for p in pf["pairs"][loaded]] == [[0, 4]]  # one internal contact
@@ -204,3 +205,31 @@ def test_schmidt_stress_sees_only_the_boundary_forces(tmp_path, images):
     # nor does the volume average of the stress field: both particles move rigidly, unstrained
     integrals = problem.cell_stress_integrals()
     assert np.abs(integrals.sum(axis=0)).max() < 1e-9 * abs(sigma_lw[0, 0]) * volume
+
+
+@pytest.mark.parametrize("bc", ["CLP", "CLPS"])
+def test_static_anchor_moves_with_its_particle(tmp_path, bc):
+    """Issue 22 item 5: the node a static solver anchors against the free translation follows its
+    particle's carrier H (X_c - L/2) like the particle's free nodes. In the carried state (every
+    relative motion w = 0) each particle translates rigidly: no internal force anywhere. (Held at
+    u = 0, the anchor stretched its particle by H (X_c - L/2) at every step and the implicit
+    pseudo-time drag reacted on it.)"""
+    model = build_compaction(small_case(tmp_path, bc=bc, solver="implicit"), MPI.COMM_SELF, log=quiet)
+    problem, bcs = model.problem, model.bcs
+    assert bcs.anchor_block is not None
+    F0 = np.diag([0.97, 0.98, 0.96])
+    bcs.gradient = lambda t: F0
+    bcs.apply(0.0)
+    x = bcs.constraint.create_reduced_vector()
+    x.array[:] = 0.0  # w = 0: every node at its carrier (or constraint) offset
+    bcs.constraint.expand(x, problem.u)
+    U = problem.u.x.array.reshape(-1, 3)
+    particle = node_particles(problem.V, model.assembly.cell_tags.values)
+    p = particle[bcs.anchor_block]
+    carrier = (model.centres[p] - 0.5 * model.packing.cell) @ (F0 - np.eye(3)).T
+    assert np.abs(carrier).max() > 1e-3  # mm: the anchored particle is carried, not at rest
+    assert np.abs(U[particle == p] - carrier).max() < 1e-12
+    problem.update_material()
+    r = problem.create_vector()
+    problem.assemble_residual(r)
+    assert np.abs(r.array).max() < 1e-9
