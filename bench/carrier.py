@@ -62,7 +62,8 @@ def main(argv=None) -> list[dict]:
     p.add_argument("--bcs", nargs="+", choices=("CLP", "GDF", "GDH", "CLPS"), default=["CLP", "GDF"])
     p.add_argument("--increments", type=int, default=4000)
     p.add_argument("--carrier", nargs="+", choices=("on", "off"), default=["on", "off"],
-                   help="runs to make (e.g. two processes, one each); the table takes every finished run")
+                   help="runs to make (e.g. two processes, one each, never overlapping: they would share "
+                        "a run directory); the table takes every finished run")
     p.add_argument("--outputs", type=int, default=100, help="history rows over the path")
     p.add_argument("--out", default="results/carrier")
     p.add_argument("--table-only", action="store_true", help="tabulate the finished runs in --out, run nothing")

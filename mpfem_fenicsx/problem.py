@@ -130,12 +130,12 @@ class SolidProblem:
         # coefficients instead of letting every assembly gather it again (a copy of 72 (P_dev) or
         # 648 (A_dev) values per cell, ~10 % of an explicit step).
         self._residual_key = self._packed_key(self.residual_forms[0], 9)
+        self._jacobian_key = self._packed_key(self.jacobian_forms[0], 81) if tangent else None
         # per-cell integrals of the Kirchhoff stress, on the residual's own quadrature rules
         self._cell_tensors = dolfinx.fem.functionspace(mesh, ("DG", 0, (3, 3)))
         w = ufl.TestFunction(self._cell_tensors)
         self._stress_integral_forms = [dolfinx.fem.form(f) for f in forms.kirchhoff_stress_integrals(
             self.u, w, self.P_dev, bulk, self.dx_dev, self.dx_vol)]
-        self._jacobian_key = self._packed_key(self.jacobian_forms[0], 81) if tangent else None
 
     def _packed_key(self, form, width: int):
         """Key of the form's packed coefficients if they are exactly the material array with
