@@ -265,3 +265,64 @@ def test_random_volume_copies_images_and_three_stresses(tmp_path):
         schmidt = np.mean([h.column(f"sigma_schmidt_{k}{k}")[-1] for k in (1, 2, 3)])
         assert schmidt == pytest.approx(lw, rel=0.05)
         assert h.column("sigma_vol_m")[-1] == pytest.approx(lw, rel=0.02)
+
+
+def coupling_rotations(model) -> np.ndarray:
+    """Rotation (polar decomposition, (n, 3, 3)) of the best affine fit to the motion of every
+    particle's coupling nodes (within 0.5 r, cubic weights) about their weighted centroid: a
+    finite-rotation measure, independent of the linear rows the constraint imposes."""
+    from scipy.linalg import polar
+
+    X = model.problem.V.tabulate_dof_coordinates()
+    x = X + model.problem.u.x.array.reshape(-1, 3)
+    rotations = []
+    for c, r in zip(model.centres, model.radii):
+        d = np.linalg.norm(X - c, axis=1)
+        inside = d <= 0.5 * r
+        w = cubic_weights(d[inside], 0.5 * r)
+        dX = X[inside] - w @ X[inside]
+        dx = x[inside] - w @ x[inside]
+        F = (w[:, None] * dx).T @ dX @ np.linalg.inv((w[:, None] * dX).T @ dX)
+        rotations.append(polar(F)[0])
+    return np.array(rotations)
+
+
+@pytest.mark.parametrize("equal_rotations", [True, False])
+def test_clps_copies_turn_with_their_originals(tmp_path, equal_rotations):
+    """Issue 22 item 7, thesis eq. 2.16: the reference point of a CLPS copy turns with its
+    original's. Any motion the constraints allow (random relative motions w, sheared cell) is
+    checked with the polar rotation of each coupling's best affine fit: copy and original agree to
+    second order in the strain (the rows equate the linearized rotations; halving the motion
+    divides the gap by 4), while the copies of eq. 2.15 alone turn freely. A finite rigid rotation
+    of the whole cell (F0 = R, 29 degrees) satisfies the constraints exactly and strains nothing."""
+    model = build_compaction(small_case(tmp_path, bc="CLPS", equal_rotations=equal_rotations), MPI.COMM_SELF,
+                             log=quiet)
+    bcs, problem = model.bcs, model.problem
+    copies = np.flatnonzero(model.is_copy)
+    F0 = np.diag([0.97, 0.98, 0.96])
+    F0[0, 1] = 0.01
+    bcs.gradient = lambda t: F0
+    bcs.apply(0.0)
+    gaps, turns = [], []
+    for amplitude in (0.003, 0.0015):  # mm, on r = 0.1 mm
+        x = bcs.constraint.create_reduced_vector()
+        x.array[:] = amplitude * np.random.default_rng(0).standard_normal(x.array.size)
+        bcs.constraint.expand(x, problem.u)
+        R = coupling_rotations(model)
+        turns.append(max(np.linalg.norm(R[p] - np.eye(3)) for p in range(len(R))))
+        gaps.append(max(np.linalg.norm(R[p] @ R[model.original[p]].T - np.eye(3)) for p in copies))
+    assert turns[1] > 0.02  # the particles do turn (radians, Frobenius)
+    if not equal_rotations:
+        assert gaps[0] > 0.5 * turns[0]
+        return
+    assert gaps[0] < 0.2 * turns[0] and gaps[1] < gaps[0] / 3.5
+    # finite rigid rotation of the cell: every node at R X (about the cell centre), no force
+    a = 0.5
+    rotation = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    bcs.gradient = lambda t: rotation
+    bcs.apply(0.0)
+    X = problem.V.tabulate_dof_coordinates()
+    field = (X - 0.5 * model.packing.cell) @ (rotation - np.eye(3)).T
+    r = residual_at(model, field)
+    assert np.abs(problem.u.x.array.reshape(-1, 3) - field).max() < 1e-12
+    assert np.abs(r.array).max() < 1e-8  # N

@@ -18,9 +18,14 @@ Kinds (``kind``):
   weight: u_s = (u_ref - sum_{k != s} w_k u_k) / w_s.
 - ``GDF``: the same coupling on the duplicated particles only; the particles of the volume
   (VEP) are free to rearrange.
-- ``CLPS`` (Loidolt, eq. 2.15): the reference point of each copy follows the one of its original
-  shifted by the deformed cell vector: sum w u(copy) - sum w u(orig) = H (L o s). (The equal
-  rotations of eq. 2.16 are not imposed: see the module notes in the closing report.)
+- ``CLPS`` (Loidolt, eq. 2.15-2.16): the reference point of each copy follows the one of its
+  original shifted by the deformed cell vector, sum w u(copy) - sum w u(orig) = H (L o s), and
+  turns with it (eq. 2.16, ``equal_rotations``): the coupling's rotation, the weighted first moment
+  theta = A^-1 sum w r x u about the coupling's weighted centroid (A = sum w (|r|^2 I - r r^T),
+  the distributing coupling's rotation), is the same for copy and original. Copies are meshed as
+  translates of their originals, so an exactly periodic motion satisfies both at any
+  deformation. The 3 (or 6) rows of a copy are eliminated jointly through the copy's coupling dofs
+  picked by a pivoted QR of its rows.
 - ``CLP`` (Schmidt, eq. 2.14): every node of a copy is tied to its original,
   u(n, copy) = u(n, orig) + H (L o s); copies are stiffless and massless
   (``SolidProblem(active_cells=...)``), placed on half of the faces.
@@ -110,10 +115,13 @@ class GranularBoundaryConditions:
             static solver; an explicit run conserves momentum and needs none).
         comoving: carry every particle with the homogeneous flow at its centre, H (X_c - L/2)
             (see the module notes).
+        equal_rotations: CLPS only: impose eq. 2.16 (copy and original reference points turn
+            alike) next to eq. 2.15; False leaves the copies' rotation free.
     """
 
     def __init__(self, V, cell_particle, centres, radii, original, shift, cell, kind: str, gradient, *,
-                 coupling_radius: float = 0.5, images=None, anchor: bool = True, comoving: bool = True):
+                 coupling_radius: float = 0.5, images=None, anchor: bool = True, comoving: bool = True,
+                 equal_rotations: bool = True):
         if kind not in KINDS:
             raise ValueError(f"bc must be one of {', '.join(KINDS)}, got {kind!r}")
         if not 0.0 < coupling_radius < 1.0:
@@ -135,7 +143,8 @@ class GranularBoundaryConditions:
         self.anchor_carrier = np.zeros(3)  # its prescribed displacement is H anchor_carrier (mm)
         self._nodes = nodes
         self._centres = centres
-        self._rows: list[tuple] = []  # (slave blocks, component, masters (k, m) blocks, coeffs, G (k, 9))
+        self._rows: list[tuple] = []  # (slave blocks, masters (k, m) blocks, coeffs, G (k, 3, 9)): per component
+        self._dof_rows: list[tuple] = []  # (slave dofs (k,), master dofs (k, m), coeffs, G (k, 9)): unrolled
         self._prescribed: list[tuple] = []  # (blocks, G (k, 9)) for all 3 components
 
         by_particle = np.argsort(nodes.particle, kind="stable")
@@ -148,8 +157,8 @@ class GranularBoundaryConditions:
                 self._add_coupling(nodes, p, centres[p], radii[p], coupling_radius, centres[p] - 0.5 * self.cell)
         elif kind == "CLPS":
             for p in np.flatnonzero(is_copy):
-                self._add_coupling(nodes, p, centres[p], radii[p], coupling_radius, shift[p] * self.cell,
-                                   partner=(original[p], centres[original[p]]))
+                self._add_periodic_coupling(nodes, p, original[p], centres, radii[p], coupling_radius,
+                                            shift[p] * self.cell, equal_rotations)
         else:
             self._add_ties(nodes, is_copy, original, shift)
         if kind in ("CLP", "CLPS") and anchor:
@@ -167,23 +176,57 @@ class GranularBoundaryConditions:
         sel = members[inside]
         return sel, cubic_weights(d[inside], fraction * radius)
 
-    def _add_coupling(self, nodes, p, centre, radius, fraction, offset, partner=None):
-        """Distributing coupling of particle p: sum w u(p) [- sum w u(partner)] = H offset."""
+    def _add_coupling(self, nodes, p, centre, radius, fraction, offset):
+        """Distributing coupling of particle p (GDH / GDF): sum w u(p) = H offset, eliminated
+        through the node of largest weight."""
         sel, w = self._coupling_nodes(nodes, p, centre, radius, fraction)
         s = int(np.argmax(w))
         others = np.delete(np.arange(sel.size), s)
-        masters = [nodes.block[sel[others]]]
-        coeffs = [-w[others] / w[s]]
-        if partner is not None:
-            q, q_centre = partner
-            sel_q, w_q = self._coupling_nodes(nodes, q, q_centre, radius, fraction)
-            masters.append(nodes.block[sel_q])
-            coeffs.append(w_q / w[s])
         G = np.zeros((3, 9))
         for i in range(3):
             G[i, 3 * i: 3 * i + 3] = offset / w[s]
-        self._rows.append((np.array([nodes.block[sel[s]]]), np.concatenate(masters)[None, :],
-                           np.concatenate(coeffs)[None, :], G[None]))
+        self._rows.append((np.array([nodes.block[sel[s]]]), nodes.block[sel[others]][None, :],
+                           (-w[others] / w[s])[None, :], G[None]))
+
+    def _coupling_operator(self, nodes, p, centre, radius, fraction, rotations):
+        """Rows C (3 or 6, 3 n) of particle p's coupling, on its n coupling nodes' unrolled dofs
+        (returned, global): the weighted mean displacement sum w u (mm) and, with ``rotations``,
+        r_p theta = r_p A^-1 sum w r x u (mm; r the offset from the weighted centroid)."""
+        sel, w = self._coupling_nodes(nodes, p, centre, radius, fraction)
+        dofs = (3 * nodes.block[sel][:, None] + np.arange(3)).ravel()
+        C = np.zeros((6 if rotations else 3, sel.size, 3))
+        for i in range(3):
+            C[i, :, i] = w
+        if rotations:
+            r = nodes.X[sel] - w @ nodes.X[sel]
+            A = (w * np.einsum("ki,ki->k", r, r)).sum() * np.eye(3) - np.einsum("k,ki,kj->ij", w, r, r)
+            # (r x u)_i = eps_ijk r_j u_k: the moment rows per node
+            eps = np.zeros((3, 3, 3))
+            eps[0, 1, 2] = eps[1, 2, 0] = eps[2, 0, 1] = 1.0
+            eps[0, 2, 1] = eps[2, 1, 0] = eps[1, 0, 2] = -1.0
+            moment = np.einsum("ijk,nj,n->ink", eps, r, w)
+            C[3:] = radius * np.einsum("ij,jnk->ink", np.linalg.inv(A), moment)
+        return C.reshape(C.shape[0], -1), dofs
+
+    def _add_periodic_coupling(self, nodes, p, q, centres, radius, fraction, offset, rotations):
+        """CLPS copy p of original q (eq. 2.15, and 2.16 with ``rotations``):
+        C_p u_p - C_q u_q = [H offset; 0]. The copy's rows are solved for the dofs of the pivots
+        of a column-pivoted QR of C_p (a well-conditioned square block), in terms of its other
+        coupling dofs and the original's."""
+        from scipy.linalg import qr
+
+        C_p, dofs_p = self._coupling_operator(nodes, p, centres[p], radius, fraction, rotations)
+        C_q, dofs_q = self._coupling_operator(nodes, q, centres[q], radius, fraction, rotations)
+        m = C_p.shape[0]
+        pivots = qr(C_p, mode="r", pivoting=True)[1][:m]
+        rest = np.setdiff1d(np.arange(C_p.shape[1]), pivots)
+        D = np.linalg.inv(C_p[:, pivots])
+        coeffs = np.hstack([-D @ C_p[:, rest], D @ C_q])
+        masters = np.concatenate([dofs_p[rest], dofs_q])
+        E = np.zeros((m, 9))
+        for i in range(3):
+            E[i, 3 * i: 3 * i + 3] = offset
+        self._dof_rows.append((dofs_p[pivots], np.broadcast_to(masters, (m, masters.size)), coeffs, D @ E))
 
     def _add_ties(self, nodes, is_copy, original, shift):
         """CLP: every node of every copy tied to the coincident node of its original."""
@@ -239,16 +282,17 @@ class GranularBoundaryConditions:
         V = self.V
         imap = V.dofmap.index_map
         lo, hi = imap.local_range
+        rows = list(self._dof_rows)
+        for blocks, mblocks, c, G in self._rows:  # per component, unrolled
+            rows += [(3 * blocks + i, 3 * mblocks + i, c, G[:, i]) for i in range(3)]
         slave_dofs, indptr, masters, coeffs, g_rows = [], [0], [], [], []
-        for blocks, mblocks, c, G in self._rows:
-            owned = (blocks >= lo) & (blocks < hi)
-            for i in range(3):
-                slave_dofs.append((blocks[owned] - lo) * 3 + i)
-                m = mblocks[owned] * 3 + i
-                masters.append(m.ravel())
-                coeffs.append(c[owned].ravel())
-                indptr.append(np.full(owned.sum(), m.shape[1], np.int64))
-                g_rows.append(G[owned, i])
+        for dofs, mdofs, c, G in rows:
+            owned = (dofs >= 3 * lo) & (dofs < 3 * hi)
+            slave_dofs.append(dofs[owned] - 3 * lo)
+            masters.append(mdofs[owned].ravel())
+            coeffs.append(c[owned].ravel())
+            indptr.append(np.full(owned.sum(), mdofs.shape[1], np.int64))
+            g_rows.append(G[owned])
         pres_dofs, pres_G = [], []
         for blocks, G in self._prescribed:
             owned = (blocks >= lo) & (blocks < hi)
@@ -292,17 +336,16 @@ class GranularBoundaryConditions:
         return X
 
     def _slave_carriers(self, slaves, couplings, X_of_block) -> np.ndarray:
-        """Carrier part of the slave offsets: u_s = sum_k c_k (w_k + H (X_k - L/2)) + g_s, i.e.
-        sum_k c_k H (X_k - L/2) in the G vec(H) form, (num slaves, 9), X_k - L/2 the carrier
-        position of master k (``_carrier_positions``)."""
+        """Carrier part of the slave offsets: u_s = sum_k c_k (w_k + [H (X_k - L/2)]_(i_k)) + g_s
+        for master dof k of component i_k, i.e. sum_k c_k X_kj at H_(i_k j) in the G vec(H) form,
+        (num slaves, 9), X_k - L/2 the carrier position of master k (``_carrier_positions``)."""
         counts = np.diff(couplings.indptr)
         row = np.repeat(np.arange(slaves.size), counts)
-        acc = np.zeros((slaves.size, 3))
-        np.add.at(acc, row, couplings.coefficients[:, None] * X_of_block[couplings.masters // 3])
+        component = couplings.masters % 3
+        X = X_of_block[couplings.masters // 3]
         G = np.zeros((slaves.size, 9))
-        component = slaves % 3
         for j in range(3):
-            G[np.arange(slaves.size), 3 * component + j] = acc[:, j]
+            np.add.at(G, (row, 3 * component + j), couplings.coefficients * X[:, j])
         return G
 
     # -- PrescribedDisplacements interface (used by the solvers) -------------------------------

@@ -154,6 +154,9 @@ class CompactionCase:
     #: comoving; the unknowns are the motions relative to it). False: only the constrained nodes
     #: follow F0, free particles move only when pushed (the carrier experiment of bench/README.md)
     comoving: bool = True
+    #: CLPS: the copies' reference points turn with their originals' (thesis eq. 2.16); False:
+    #: translation coupling only (eq. 2.15; the measurement of bench/README.md, issue 22 item 7)
+    equal_rotations: bool = True
     steps: int = 100  # implicit: load steps (adaptive, cut back when Newton fails)
     #: implicit: steps of each of ``segments_after`` (missing ones: the compaction's increment
     #: duration / steps); each segment is stepped on its own, from its start to its end
@@ -344,7 +347,7 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
                            shifts=periodic_lattice() * packing.cell if case.uses_images else None)
     bcs = GranularBoundaryConditions(V, cell_particle, centres, radii, original, shift, packing.cell, case.bc, path,
                                      images=contact if case.uses_images else None, anchor=case.solver == "implicit",
-                                     comoving=case.comoving)
+                                     comoving=case.comoving, equal_rotations=case.equal_rotations)
     return CompactionModel(case, packing, centres, radii, original, shift, assembly, problem, bcs, contact, path,
                            solid0, rho0, rho0_fe, h_contact)
 
