@@ -1,7 +1,7 @@
 # Every target bootstraps .venv/ first (Python >= 3.12, DOLFINx 0.11 from PyPI); idempotent.
 PY := .venv/bin/python
 
-.PHONY: bootstrap demo test test-all bench bench-compaction clean
+.PHONY: bootstrap demo test test-all bench bench-compaction validate clean
 
 bootstrap:
 	@bash scripts/bootstrap.sh
@@ -14,6 +14,9 @@ test: bootstrap  ## the CI suite (serial + mpirun -n 2), heavy cases excluded
 
 test-all: bootstrap  ## also the heavy cases
 	$(PY) -m pytest -m ""
+
+validate: bootstrap  ## issue-23 validation: every stage's runs (hours), then validation/README.md tables
+	$(PY) validation/run.py $(STAGES)
 
 bench: bootstrap
 	$(PY) bench/material_assembly.py

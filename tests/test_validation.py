@@ -1,0 +1,62 @@
+"""The issue-23 validation report machinery (validation/report.py) on synthetic histories: the
+comparison rows, the interpolation at a density, the generated README blocks."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "validation"))
+
+import report  # noqa: E402
+from cases import STAGES, THESIS_DIE_SIGMA_M  # noqa: E402
+
+
+def test_at_density_interpolates_the_loading_branch():
+    h = {"rho_imposed": np.array([0.6, 0.9, 0.96, 0.95]), "sigma_m": np.array([0.0, 6.0, 12.0, 11.0])}
+    assert report.at_density(h, "sigma_m", 0.93, "rho_imposed") == pytest.approx(9.0)
+    assert np.isnan(report.at_density(h, "sigma_m", 0.97, "rho_imposed"))  # never reached
+
+
+def test_rows_compare_with_the_tolerance():
+    assert report.row("c", "q", 10.0, 11.4)["status"] == "met"
+    assert report.row("c", "q", 10.0, 8.4)["status"] == "not met"
+    assert report.row("c", "q", 10.0, float("nan"))["status"] == "not met"
+
+
+def test_report_writes_summary_and_tables(tmp_path):
+    """A finished die stage (synthetic histories, CLP above CLPS above GDF) gives one summary row
+    per thesis number plus the ordering; missing stages stay 'not run yet'."""
+    here = tmp_path / "validation"
+    here.mkdir()
+    readme = (Path(report.__file__).parent / "README.md").read_text()
+    (here / "README.md").write_text(readme)
+    runs = tmp_path / "runs"
+    rho = np.linspace(0.6, 0.95, 8)
+    columns = ["time", "rho", "rho_imposed", "sigma_m", "sigma_schmidt_11", "sigma_schmidt_22", "sigma_schmidt_33",
+               "sigma_vol_m"]
+    for bc, scale in (("CLP", 12.6), ("CLPS", 11.0), ("GDF", 7.0)):
+        (runs / f"die_{bc}").mkdir(parents=True)
+        sigma = scale * ((rho - 0.6) / 0.35) ** 2
+        rows = np.column_stack([rho, rho, rho, sigma, sigma, sigma, sigma, 1.03 * sigma])
+        np.savetxt(runs / f"die_{bc}" / "history.csv", rows, delimiter=",", header=",".join(columns), comments="")
+        (runs / f"die_{bc}" / "done").write_text("60\n")
+    rows = report.write_report(runs, here)
+    by_case = {(r["case"], r["quantity"]): r for r in rows}
+    assert by_case[("die_CLP", "sigma_m at rho 0.95 (MPa)")]["status"] == "met"
+    assert by_case[("die_GDF", "sigma_m at rho 0.95 (MPa)")]["status"] == "not met"  # 7.0 vs 9.7
+    assert by_case[("die", "ordering CLP > CLPS > GDF")]["status"] == "met"
+    assert by_case[("die_CLP", "sigma_m Schmidt / Love-Weber, end")]["status"] == "met"
+    assert by_case[("die_CLP", "sigma_m volume average / Love-Weber, end")]["status"] == "not met"  # 3 % > 2 %
+    summary = (here / "summary.csv").read_text().splitlines()
+    assert summary[0] == "case,quantity,thesis,ours,deviation,status" and len(summary) == 1 + len(rows)
+    text = (here / "README.md").read_text()
+    assert "| CLP | 12.6 | 12.60 |" in text and "| GDH | (none) | not run yet" not in text
+    assert "not run yet" in text  # the gamma stage
+    assert (here / "figures" / "die_sigma_m.png").stat().st_size > 1000
+
+
+def test_stages_name_every_thesis_condition():
+    names = {c.name for cases in STAGES.values() for c in cases}
+    assert {f"die_{bc}" for bc in THESIS_DIE_SIGMA_M} <= names

@@ -1,0 +1,53 @@
+"""The validation cases of issue 23 and the thesis numbers they are compared with.
+
+Every case is a ``CompactionCase`` of the thesis' chapter-2 set-up: lead (thesis table 2.1, the
+library's ``LEAD``), 50 particles (seed 1), friction 0.1, explicit, d_bc per thesis table 2.3
+(``DEFAULT_D_BC``: CLP 1.8 r_max, the others 2.5 r_max). Each stage names its cases; a case runs
+into ``validation/runs/<name>/`` (``done`` written at the end: a finished case is not repeated).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+#: thesis §2.7 (text after fig. 2.24): sigma_m (MPa) at rho = 0.95, die compaction, 50 particles
+THESIS_DIE_SIGMA_M = {"GDF": 9.7, "CLPS": 11.3, "CLP": 12.6}
+#: thesis table 4.2 (gamma = 1e-2 mJ/mm^2): limit specific contact surface Gamma_l (mm^-1) per rho_f
+THESIS_GAMMA_L = {
+    "isotropic": {0.60: 2.07, 0.70: 8.75, 0.79: 16.95, 0.87: 27.4, 0.91: 33.6, 0.95: 46.8},
+    "die": {0.59: 2.09, 0.67: 7.96, 0.75: 15.58, 0.82: 24.9, 0.85: 30.0, 0.89: 39.8},
+}
+#: the issue's goal for every compared number
+TOLERANCE = 0.15
+
+
+@dataclass(frozen=True)
+class Case:
+    """One compaction run: ``name`` (its run directory) and the ``CompactionCase`` options."""
+
+    name: str
+    options: dict = field(default_factory=dict)
+
+    def compaction_case(self, out_dir: str):
+        from mpfem_fenicsx.workflows.compaction import CompactionCase
+
+        base = dict(particles=50, seed=1, increments=6000, outputs=80, visual=False, checkpoint_every=10)
+        return CompactionCase(**{**base, **self.options}, out_dir=out_dir)
+
+
+def die_case(bc: str) -> Case:
+    """Die compaction ("matrice", uniaxial strain along z) to rho_f = 0.95 (thesis §2.7)."""
+    return Case(f"die_{bc}", dict(loading="die", bc=bc, target_density=0.95))
+
+
+def adhesive_case(loading: str) -> Case:
+    """CLP compaction with adhesion gamma = 1e-2 mJ/mm^2 to the largest rho_f of table 4.2."""
+    return Case(f"{loading}_CLP_gamma1e-2", dict(loading=loading, bc="CLP", gamma=1e-2,
+                                                 target_density=max(THESIS_GAMMA_L[loading])))
+
+
+#: stage -> cases; `python validation/run.py STAGE` runs them, each stage on its own
+STAGES = {
+    "die": [die_case(bc) for bc in ("CLP", "CLPS", "GDF", "GDH")],
+    "gamma": [adhesive_case("isotropic"), adhesive_case("die")],
+}

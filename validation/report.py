@@ -1,0 +1,189 @@
+"""Issue 23 report: compare the finished validation runs with the thesis, write
+``summary.csv`` (case, quantity, thesis, ours, deviation, status), the figures and the generated
+tables of ``README.md`` (between ``<!-- BEGIN name -->`` and ``<!-- END name -->``).
+
+Stresses in MPa, compression > 0 (Love-Weber sigma_m unless said); densities relative; Gamma in
+mm^-1 (eq. 4.13). A case that has not run yet is listed as such and gives no summary row.
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+from pathlib import Path
+
+import numpy as np
+
+from cases import STAGES, THESIS_DIE_SIGMA_M, THESIS_GAMMA_L, TOLERANCE
+from mpfem_fenicsx.io.history import read_csv
+
+
+def at_density(history: dict, column: str, rho: float, density: str = "rho") -> float:
+    """``column`` where the loading branch first reaches ``rho`` of the ``density`` column
+    (linear interpolation; NaN if never reached)."""
+    r, v = history[density], history[column]
+    above = np.flatnonzero(r >= rho)
+    if above.size == 0 or above[0] == 0:
+        return float("nan")
+    k = above[0]
+    return float(v[k - 1] + (v[k] - v[k - 1]) * (rho - r[k - 1]) / (r[k] - r[k - 1]))
+
+
+def load_runs(runs: Path) -> dict[str, dict]:
+    """Finished runs: case name -> {"history": columns, "wall_s": seconds}."""
+    done = {}
+    for cases in STAGES.values():
+        for case in cases:
+            run_dir = runs / case.name
+            if (run_dir / "done").exists():
+                done[case.name] = {"history": read_csv(run_dir / "history.csv"),
+                                   "wall_s": float((run_dir / "done").read_text().split()[0])}
+    return done
+
+
+def row(case, quantity, thesis, ours, *, tolerance=TOLERANCE) -> dict:
+    deviation = ours / thesis - 1.0
+    status = "met" if np.isfinite(deviation) and abs(deviation) <= tolerance else "not met"
+    return dict(case=case, quantity=quantity, thesis=thesis, ours=ours, deviation=deviation, status=status)
+
+
+def die_rows(done: dict) -> tuple[list[dict], list[str]]:
+    """Thesis §2.7: die compaction to rho_f = 0.95, sigma_m at rho = 0.95 per condition, and the
+    ordering CLP > CLPS > GDF."""
+    rows, lines = [], ["| condition | thesis sigma_m at rho 0.95 (§2.7) | ours at rho_imposed 0.95 (end) | "
+                       "rho (centroids, end) | deviation | status | wall |", "|---|---|---|---|---|---|---|"]
+    ours = {}
+    for bc in ("CLP", "CLPS", "GDF", "GDH"):
+        run = done.get(f"die_{bc}")
+        thesis = THESIS_DIE_SIGMA_M.get(bc, float("nan"))
+        if run is None:
+            lines.append(f"| {bc} | {thesis} | not run yet | | | | |")
+            continue
+        h = run["history"]
+        ours[bc] = at_density(h, "sigma_m", 0.95, "rho_imposed")
+        if bc in THESIS_DIE_SIGMA_M:
+            r = row(f"die_{bc}", "sigma_m at rho 0.95 (MPa)", thesis, ours[bc])
+            rows.append(r)
+            lines.append(f"| {bc} | {thesis} | {ours[bc]:.2f} | {h['rho'][-1]:.4f} | {100 * r['deviation']:+.1f} % | "
+                         f"{r['status']} | {run['wall_s'] / 60:.0f} min |")
+        else:
+            lines.append(f"| {bc} | (none) | {ours[bc]:.2f} | {h['rho'][-1]:.4f} | | | {run['wall_s'] / 60:.0f} min |")
+    if all(bc in ours for bc in ("CLP", "CLPS", "GDF")):
+        ordered = ours["CLP"] > ours["CLPS"] > ours["GDF"]
+        rows.append(dict(case="die", quantity="ordering CLP > CLPS > GDF", thesis=1.0, ours=float(ordered),
+                         deviation=0.0 if ordered else float("nan"), status="met" if ordered else "not met"))
+    return rows, lines
+
+
+def stress_rows(done: dict) -> tuple[list[dict], list[str]]:
+    """Thesis fig. 2.21: Love-Weber, Schmidt and the volume average "quasiment identiques" on the
+    CLP volume: compared at the end and over the loaded rows (sigma_m > 1 MPa)."""
+    rows, lines = [], ["| case | end: Love-Weber / Schmidt / volume average | max gap Schmidt vs LW (loaded rows) | "
+                       "max gap volume vs LW | status (within 2 %) |", "|---|---|---|---|---|"]
+    for name in ("die_CLP", "isotropic_CLP_gamma1e-2"):
+        run = done.get(name)
+        if run is None:
+            lines.append(f"| {name} | not run yet | | | |")
+            continue
+        h = run["history"]
+        schmidt = (h["sigma_schmidt_11"] + h["sigma_schmidt_22"] + h["sigma_schmidt_33"]) / 3
+        lw, vol = h["sigma_m"], h["sigma_vol_m"]
+        loaded = lw > 1.0
+        gap_s = float(np.abs(schmidt[loaded] / lw[loaded] - 1).max())
+        gap_v = float(np.abs(vol[loaded] / lw[loaded] - 1).max())
+        for quantity, ours in (("sigma_m Schmidt / Love-Weber, end", schmidt[-1] / lw[-1]),
+                               ("sigma_m volume average / Love-Weber, end", vol[-1] / lw[-1])):
+            rows.append(row(name, quantity, 1.0, float(ours), tolerance=0.02))
+        status = "met" if max(abs(schmidt[-1] / lw[-1] - 1), abs(vol[-1] / lw[-1] - 1)) <= 0.02 else "not met"
+        lines.append(f"| {name} | {lw[-1]:.3f} / {schmidt[-1]:.3f} / {vol[-1]:.3f} | {100 * gap_s:.1f} % | "
+                     f"{100 * gap_v:.1f} % | {status} (end) |")
+    return rows, lines
+
+
+def gamma_rows(done: dict) -> tuple[list[dict], list[str]]:
+    """Thesis table 4.2: the specific contact surface Gamma (eq. 4.13) reached by the CLP
+    compaction with gamma = 1e-2 at each rho_f, against the limit threshold Gamma_l."""
+    rows, lines = [], ["| loading | rho_f | thesis Gamma_l (table 4.2) | ours: Gamma at rho_imposed = rho_f | "
+                       "deviation | status |", "|---|---|---|---|---|---|"]
+    for loading, table in THESIS_GAMMA_L.items():
+        run = done.get(f"{loading}_CLP_gamma1e-2")
+        for rho_f, thesis in table.items():
+            if run is None:
+                lines.append(f"| {loading} | {rho_f} | {thesis} | not run yet | | |")
+                continue
+            ours = at_density(run["history"], "Gamma", rho_f, "rho_imposed")
+            r = row(f"{loading}_CLP_gamma1e-2", f"Gamma at rho_f {rho_f} (mm^-1)", thesis, ours)
+            rows.append(r)
+            lines.append(f"| {loading} | {rho_f} | {thesis} | {ours:.2f} | {100 * r['deviation']:+.1f} % | "
+                         f"{r['status']} |")
+    return rows, lines
+
+
+def figures(done: dict, out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.mkdir(exist_ok=True)
+    fig, ax = plt.subplots(figsize=(6, 4.2))
+    for bc, colour in zip(("CLP", "CLPS", "GDF", "GDH"), ("C0", "C1", "C2", "C3")):
+        run = done.get(f"die_{bc}")
+        if run is not None:
+            h = run["history"]
+            ax.plot(h["rho_imposed"], h["sigma_m"], color=colour, label=f"{bc} (ours)")
+        if bc in THESIS_DIE_SIGMA_M:
+            ax.plot([0.95], [THESIS_DIE_SIGMA_M[bc]], "x", color=colour, ms=9, mew=2, label=f"{bc} thesis §2.7")
+    ax.set_xlabel("relative density (imposed by the cell)")
+    ax.set_ylabel("sigma_m (MPa, Love-Weber)")
+    ax.set_title("Die compaction, 50 lead particles")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "die_sigma_m.png", dpi=120)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 4.2))
+    for (loading, table), colour in zip(THESIS_GAMMA_L.items(), ("C0", "C1")):
+        run = done.get(f"{loading}_CLP_gamma1e-2")
+        if run is not None:
+            h = run["history"]
+            ax.plot(h["rho_imposed"], h["Gamma"], color=colour, label=f"{loading}, CLP, gamma 1e-2 (ours)")
+        ax.plot(list(table), list(table.values()), "x", color=colour, ms=9, mew=2,
+                label=f"{loading}: Gamma_l, thesis table 4.2")
+    ax.set_xlabel("relative density (imposed by the cell)")
+    ax.set_ylabel("specific contact surface Gamma (1/mm)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "gamma.png", dpi=120)
+    plt.close(fig)
+
+
+def replace_block(text: str, name: str, lines: list[str]) -> str:
+    pattern = re.compile(rf"(<!-- BEGIN {name} -->\n).*?(<!-- END {name} -->)", re.S)
+    if not pattern.search(text):
+        raise ValueError(f"validation/README.md has no generated block {name!r}")
+    return pattern.sub(lambda m: m.group(1) + "\n".join(lines) + "\n" + m.group(2), text)
+
+
+def write_report(runs: Path, here: Path) -> list[dict]:
+    done = load_runs(runs)
+    rows = []
+    readme = here / "README.md"
+    text = readme.read_text()
+    for name, build in (("die", die_rows), ("stresses", stress_rows), ("gamma", gamma_rows)):
+        r, lines = build(done)
+        rows += r
+        text = replace_block(text, name, lines)
+    readme.write_text(text)
+    with open(here / "summary.csv", "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=["case", "quantity", "thesis", "ours", "deviation", "status"])
+        writer.writeheader()
+        for r in rows:
+            writer.writerow({**r, "thesis": f"{r['thesis']:.6g}", "ours": f"{r['ours']:.6g}",
+                             "deviation": f"{r['deviation']:.4f}"})
+    figures(done, here / "figures")
+    print(f"validation: {len(done)} finished runs, {len(rows)} compared numbers "
+          f"({sum(r['status'] == 'met' for r in rows)} met) -> {here / 'summary.csv'}")
+    return rows
