@@ -55,7 +55,7 @@ def die_rows(done: dict) -> tuple[list[dict], list[str]]:
     ours = {}
     for bc in ("CLP", "CLPS", "GDF", "GDH"):
         run = done.get(f"die_{bc}")
-        thesis = THESIS_DIE_SIGMA_M.get(bc, float("nan"))
+        thesis = THESIS_DIE_SIGMA_M.get(bc, "(none)")
         if run is None:
             lines.append(f"| {bc} | {thesis} | not run yet | | | | |")
             continue
