@@ -72,3 +72,10 @@ def test_divergence_is_the_last_crossing():
     other = {"h_v": h_v[::2], "sigma_m": 17 * np.abs(h_v[::2])}  # crosses at |h_v| = 0.17
     assert report.divergence_hv(periodic, other) == pytest.approx(-0.17, abs=1e-3)
     assert np.isnan(report.divergence_hv(other, periodic))  # ends below: never rises above
+
+
+def test_stable_dbc_is_where_the_tail_settles():
+    assert report.stable_dbc([1.5, 2.0, 2.5], [8.0, 9.6, 9.7]) == 2.0
+    assert report.stable_dbc([1.0, 1.5, 2.0, 2.5], [11.2, 11.25, 11.1, 11.3]) == 1.0
+    assert report.stable_dbc([1.2, 1.5, 1.8, 2.1], [10.0, 11.0, 12.0, 12.6]) == 2.1  # still moving
+    assert np.isnan(report.stable_dbc([2.5], [9.7]))

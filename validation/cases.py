@@ -25,6 +25,12 @@ THESIS_NONPERIODIC_GAP = 0.20
 #: conditions, "environ 6 à 9 %"; the issue's expectation for CLP: about 0
 THESIS_GDF_DRIFT = (0.06, 0.09)
 CLP_DRIFT_LIMIT = 0.03
+#: thesis table 2.3 / §2.5 (die loading, 50 particles): d_bc / r_max from which the results are
+#: stable; CLP is studied with tied copies (periodic images do not depend on d_bc)
+THESIS_STABLE_DBC = {"GDF": 2.0, "CLP": 1.8, "CLPS": 1.5}
+DBC_GRID = {"GDF": (1.5, 2.0), "CLP": (1.2, 1.5, 1.8, 2.1), "CLPS": (1.0, 1.5, 2.0)}  # + 2.5: die stage
+#: "stable": the end sigma_m within this of the largest d_bc's
+DBC_STABLE_WITHIN = 0.02
 #: the issue's goal for every compared number
 TOLERANCE = 0.15
 
@@ -53,6 +59,21 @@ def isotropic_case(bc: str) -> Case:
     return Case(f"isotropic_{bc}", dict(loading="isotropic", bc=bc, target_density=0.95))
 
 
+def dbc_case(bc: str, d_bc: float) -> Case:
+    """Die compaction to 0.95 at duplication distance d_bc r_max (thesis §2.5, table 2.3); CLP
+    through tied copies."""
+    options = dict(loading="die", bc=bc, target_density=0.95, d_bc=d_bc)
+    if bc == "CLP":
+        options["images"] = False
+    return Case(f"dbc_{bc}_{d_bc:g}", options)
+
+
+def size_case(particles: int) -> Case:
+    """GDF isotropic compaction of ``particles`` (thesis §2.8, fig. 2.26: 50 to 1 000)."""
+    return Case(f"size_GDF_{particles}", dict(loading="isotropic", bc="GDF", target_density=0.95,
+                                              particles=particles))
+
+
 def adhesive_case(loading: str) -> Case:
     """CLP compaction with adhesion gamma = 1e-2 mJ/mm^2 to the largest rho_f of table 4.2."""
     return Case(f"{loading}_CLP_gamma1e-2", dict(loading=loading, bc="CLP", gamma=1e-2,
@@ -63,5 +84,7 @@ def adhesive_case(loading: str) -> Case:
 STAGES = {
     "die": [die_case(bc) for bc in ("CLP", "CLPS", "GDF", "GDH")],
     "isotropic": [isotropic_case(bc) for bc in ("CLP", "CLPS", "GDF", "GDH")],
+    "dbc": [dbc_case(bc, d) for bc, grid in DBC_GRID.items() for d in grid],
+    "size": [size_case(150)],  # with isotropic_GDF (50) and isotropic_CLP (the reference)
     "gamma": [adhesive_case("isotropic"), adhesive_case("die")],
 }
