@@ -8,7 +8,7 @@ into ``validation/runs/<name>/`` (``done`` written at the end: a finished case i
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 #: thesis §2.7 (text after fig. 2.24): sigma_m (MPa) at rho = 0.95, die compaction, 50 particles
 THESIS_DIE_SIGMA_M = {"GDF": 9.7, "CLPS": 11.3, "CLP": 12.6}
@@ -74,10 +74,22 @@ def size_case(particles: int) -> Case:
                                               particles=particles))
 
 
-def adhesive_case(loading: str) -> Case:
-    """CLP compaction with adhesion gamma = 1e-2 mJ/mm^2 to the largest rho_f of table 4.2."""
-    return Case(f"{loading}_CLP_gamma1e-2", dict(loading=loading, bc="CLP", gamma=1e-2,
-                                                 target_density=max(THESIS_GAMMA_L[loading])))
+def adhesive_case(loading: str, delta_max: float | None = None) -> Case:
+    """CLP compaction with adhesion gamma = 1e-2 mJ/mm^2 to the largest rho_f of table 4.2
+    (delta_max: the library's 0.5 um of the thesis text, or e.g. appendix A's 0.2 um)."""
+    options = dict(loading=loading, bc="CLP", gamma=1e-2, target_density=max(THESIS_GAMMA_L[loading]))
+    if delta_max is None:
+        return Case(f"{loading}_CLP_gamma1e-2", options)
+    return Case(f"{loading}_CLP_gamma1e-2_dmax{1e3 * delta_max:g}um", {**options, "delta_max": delta_max})
+
+
+def hardening_case(n: float) -> Case:
+    """Die CLP compaction with the hardening exponent of the thesis' input file (0.36; table 2.1
+    and the library: 0.35)."""
+    from mpfem_fenicsx.material import LEAD
+
+    return Case(f"die_CLP_n{n:g}", dict(loading="die", bc="CLP", target_density=0.95,
+                                         material=replace(LEAD, n=n)))
 
 
 #: stage -> cases; `python validation/run.py STAGE` runs them, each stage on its own
@@ -87,4 +99,7 @@ STAGES = {
     "dbc": [dbc_case(bc, d) for bc, grid in DBC_GRID.items() for d in grid],
     "size": [size_case(150)],  # with isotropic_GDF (50) and isotropic_CLP (the reference)
     "gamma": [adhesive_case("isotropic"), adhesive_case("die")],
+    #: the thesis' contradictions: n 0.35 (table 2.1) / 0.36 (input file), delta_max 0.5 um
+    #: (text) / 0.2 um (appendix A); we use 0.35 and 0.5 um
+    "sensitivity": [hardening_case(0.36), adhesive_case("die", delta_max=2e-4)],
 }

@@ -197,6 +197,27 @@ def size_rows(done: dict) -> tuple[list[dict], list[str]]:
     return rows, lines
 
 
+def sensitivity_lines(done: dict) -> tuple[list[dict], list[str]]:
+    """The thesis' contradictions: the values used against the other one (no thesis number:
+    shown in the README, not compared in summary.csv)."""
+    lines = ["| parameter | used (run) | other value (run) | end sigma_m used / other (MPa) | end Gamma used / other "
+             "(1/mm) |", "|---|---|---|---|---|"]
+    for parameter, used, other in (("hardening exponent n: 0.35 (table 2.1) / 0.36 (input file)", "die_CLP",
+                                    "die_CLP_n0.36"),
+                                   ("delta_max: 0.5 um (text) / 0.2 um (appendix A)", "die_CLP_gamma1e-2",
+                                    "die_CLP_gamma1e-2_dmax0.2um")):
+        a, b = done.get(used), done.get(other)
+        if a is None or b is None:
+            lines.append(f"| {parameter} | {used}{'' if a else ' (not run yet)'} | {other}"
+                         f"{'' if b else ' (not run yet)'} | | |")
+            continue
+        ha, hb = a["history"], b["history"]
+        lines.append(f"| {parameter} | {used} | {other} | {ha['sigma_m'][-1]:.3f} / {hb['sigma_m'][-1]:.3f} "
+                     f"({100 * (hb['sigma_m'][-1] / ha['sigma_m'][-1] - 1):+.1f} %) | "
+                     f"{ha['Gamma'][-1]:.2f} / {hb['Gamma'][-1]:.2f} |")
+    return [], lines
+
+
 def stress_rows(done: dict) -> tuple[list[dict], list[str]]:
     """Thesis fig. 2.21: Love-Weber, Schmidt and the volume average "quasiment identiques" on the
     CLP volume: compared at the end and over the loaded rows (sigma_m > 1 MPa)."""
@@ -295,7 +316,7 @@ def write_report(runs: Path, here: Path) -> list[dict]:
     readme = here / "README.md"
     text = readme.read_text()
     for name, build in (("die", die_rows), ("periodic", periodic_rows), ("dbc", dbc_rows), ("size", size_rows),
-                        ("stresses", stress_rows), ("gamma", gamma_rows)):
+                        ("stresses", stress_rows), ("gamma", gamma_rows), ("sensitivity", sensitivity_lines)):
         r, lines = build(done)
         rows += r
         text = replace_block(text, name, lines)
