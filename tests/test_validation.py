@@ -79,3 +79,4 @@ def test_stable_dbc_is_where_the_tail_settles():
     assert report.stable_dbc([1.0, 1.5, 2.0, 2.5], [11.2, 11.25, 11.1, 11.3]) == 1.0
     assert report.stable_dbc([1.2, 1.5, 1.8, 2.1], [10.0, 11.0, 12.0, 12.6]) == 2.1  # still moving
     assert np.isnan(report.stable_dbc([2.5], [9.7]))
+
