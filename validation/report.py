@@ -275,7 +275,19 @@ def gamma_rows(done: dict) -> tuple[list[dict], list[str]]:
     return rows, lines
 
 
+def _save(fig, ax, ylabel: str, title: str, path: Path) -> None:
+    ax.set_xlabel("relative density (imposed by the cell)")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
 def figures(done: dict, out: Path) -> None:
+    """die_sigma_m.png (the die stage, the thesis' values marked) and gamma.png (Gamma along the
+    adhesive compactions, table 4.2 marked)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -286,33 +298,25 @@ def figures(done: dict, out: Path) -> None:
     for bc, colour in zip(("CLP", "CLPS", "GDF", "GDH"), ("C0", "C1", "C2", "C3")):
         run = done.get(f"die_{bc}")
         if run is not None:
-            h = run["history"]
-            ax.plot(h["rho_imposed"], h["sigma_m"], color=colour, label=f"{bc} (ours)")
+            ax.plot(run["history"]["rho_imposed"], run["history"]["sigma_m"], color=colour, label=f"{bc} (ours)")
         if bc in THESIS_DIE_SIGMA_M:
             ax.plot([0.95], [THESIS_DIE_SIGMA_M[bc]], "x", color=colour, ms=9, mew=2, label=f"{bc} thesis §2.7")
-    ax.set_xlabel("relative density (imposed by the cell)")
-    ax.set_ylabel("sigma_m (MPa, Love-Weber)")
-    ax.set_title("Die compaction, 50 lead particles")
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "die_sigma_m.png", dpi=120)
+    if "die_CLP_faceted" in done:
+        h = done["die_CLP_faceted"]["history"]
+        ax.plot(h["rho_imposed"], h["sigma_m"], "--", color="C0", label="CLP, faceted mesh (the thesis' rho)")
+    _save(fig, ax, "sigma_m (MPa, Love-Weber)", "Die compaction, 50 lead particles", out / "die_sigma_m.png")
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(6, 4.2))
     for (loading, table), colour in zip(THESIS_GAMMA_L.items(), ("C0", "C1")):
         run = done.get(f"{loading}_CLP_gamma1e-2")
         if run is not None:
-            h = run["history"]
-            ax.plot(h["rho_imposed"], h["Gamma"], color=colour, label=f"{loading}, CLP, gamma 1e-2 (ours)")
+            ax.plot(run["history"]["rho_imposed"], run["history"]["Gamma"], color=colour,
+                    label=f"{loading}, CLP, gamma 1e-2 (ours)")
         ax.plot(list(table), list(table.values()), "x", color=colour, ms=9, mew=2,
                 label=f"{loading}: Gamma_l, thesis table 4.2")
-    ax.set_xlabel("relative density (imposed by the cell)")
-    ax.set_ylabel("specific contact surface Gamma (1/mm)")
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "gamma.png", dpi=120)
+    _save(fig, ax, "specific contact surface Gamma (1/mm)", "Adhesive CLP compaction, 50 particles",
+          out / "gamma.png")
     plt.close(fig)
 
 
