@@ -3,6 +3,7 @@
     python validation/run.py die            # the die stage's runs (hours on 2 cores), then the report
     python validation/run.py die gamma      # several stages
     python validation/run.py --report-only  # tables, figures and summary.csv from the finished runs
+    python validation/run.py --case die_CLP_faceted   # one case (several: repeat the option)
     python validation/run.py --list         # the stages, their cases and which are done
 
 ``make validate`` runs every stage then the report. Runs go to ``validation/runs/<case>/`` (not
@@ -54,11 +55,16 @@ def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("stages", nargs="*", help=f"stages to run: {', '.join(STAGES)} (default: all)")
     p.add_argument("--report-only", action="store_true", help="run nothing, regenerate the report")
+    p.add_argument("--case", action="append", default=[], help="run only this case (repeatable)")
     p.add_argument("--list", action="store_true", help="list the stages and their cases")
     args = p.parse_args(argv)
     unknown = [s for s in args.stages if s not in STAGES]
     if unknown:
         p.error(f"stage must be one of {', '.join(STAGES)}, got {', '.join(unknown)}")
+    by_name = {c.name: c for cases in STAGES.values() for c in cases}
+    unknown = [c for c in args.case if c not in by_name]
+    if unknown:
+        p.error(f"case must be one of {', '.join(by_name)}, got {', '.join(unknown)}")
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     if args.list:
@@ -66,7 +72,10 @@ def main(argv=None) -> None:
             say(f"{stage}: " + ", ".join(f"{c.name} ({'done' if (RUNS / c.name / 'done').exists() else 'to run'})"
                                          for c in cases))
         return
-    if not args.report_only:
+    if args.case and not args.report_only:
+        for name in args.case:
+            run_case(by_name[name], comm, say)
+    elif not args.report_only:
         for stage in args.stages or list(STAGES):
             for case in STAGES[stage]:
                 run_case(case, comm, say)
