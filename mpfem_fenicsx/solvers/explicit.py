@@ -647,11 +647,12 @@ class ExplicitSolver:
             self.contact.evaluate(self.problem.u, tangent=False)
 
     def run(self, on_output: Callable[["ExplicitSolver"], None] | None = None, outputs: int = 100,
-            max_steps: int | None = None, every: int | None = None) -> int:
+            max_steps: int | None = None, every: int | None = None,
+            on_step: Callable[["ExplicitSolver"], None] | None = None) -> int:
         """Integrate to settings.t_end; ``on_output`` about ``outputs`` times (or every ``every``
-        increments, counted from t = 0), and at the end. ``max_steps``: stop after so many
-        increments of this call (benchmarks: the cost of a part of a run with the increment of
-        the whole)."""
+        increments, counted from t = 0), and at the end; ``on_step`` after every increment (e.g. a
+        stress servo). ``max_steps``: stop after so many increments of this call (benchmarks: the
+        cost of a part of a run with the increment of the whole)."""
         total = int(np.ceil(self.settings.t_end / self.dt - 1e-9))
         every = every or max(1, total // max(outputs, 1))
         target = self.settings.target_dt
@@ -662,6 +663,8 @@ class ExplicitSolver:
         stop = total if max_steps is None else min(total, self.step + max_steps)
         while self.step < stop:
             self.advance()
+            if on_step is not None:
+                on_step(self)
             if on_output and (self.step % every == 0 or self.step == total):
                 with self.timings("output"):
                     on_output(self)

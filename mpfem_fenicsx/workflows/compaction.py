@@ -157,6 +157,10 @@ class CompactionCase:
     #: CLPS: the copies' reference points turn with their originals' (thesis eq. 2.16); False:
     #: translation coupling only (eq. 2.15; the measurement of bench/README.md, issue 22 item 7)
     equal_rotations: bool = True
+    #: mixed strain / stress control (loading.mixed.StressControl) replacing the compaction path:
+    #: a servo on the auxiliary nodes' reactions after every explicit increment (CLP / CLPS,
+    #: explicit; the control keeps its state: one run per control)
+    control: object | None = None
     steps: int = 100  # implicit: load steps (adaptive, cut back when Newton fails)
     #: implicit: steps of each of ``segments_after`` (missing ones: the compaction's increment
     #: duration / steps); each segment is stepped on its own, from its start to its end
@@ -218,6 +222,9 @@ class CompactionCase:
                              f"segments_after, got {self.segment_steps}")
         if self.checkpoint_every < 0:
             raise ValueError(f"checkpoint_every must be >= 0 outputs (0: no checkpoints), got {self.checkpoint_every}")
+        if self.control is not None and (self.bc not in ("CLP", "CLPS") or self.solver != "explicit"):
+            raise ValueError(f"control (stress-driven components) needs bc CLP or CLPS and the explicit solver, got "
+                             f"bc={self.bc!r}, solver={self.solver!r}")
 
 
     @property
@@ -290,7 +297,10 @@ class CompactionModel:
 
 
 def loading_path(case: CompactionCase, rho0: float) -> GradientPath:
-    """F0(t): the compaction from ``rho0`` to the target density, then ``case.segments_after``."""
+    """F0(t): the compaction from ``rho0`` to the target density, then ``case.segments_after``;
+    or the case's mixed control."""
+    if case.control is not None:
+        return case.control
     hold = [(case.hold * case.duration, np.eye(3))] if case.hold > 0 else []
     return GradientPath([(case.duration, compaction_gradient(case.loading, rho0, case.target_density)),
                          *hold, *case.segments_after], profiles=(case.profile,))
@@ -551,10 +561,19 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     if comm.rank == 0:
         out.mkdir(parents=True, exist_ok=True)
         write_packing(packing, out / "packing.txt")
+    def servo(s) -> None:
+        """Mixed control: the measured Cauchy stress (Schmidt, eq. 2.19, compression > 0) to the servo."""
+        F0 = path(s.t)
+        path.update(s.t, -piola_to_cauchy(bcs.macroscopic_force(s.static_reaction) / cell_volume0, F0))
+
+    if case.control is not None and restart is not None:
+        raise CheckpointError("restart: a stress-controlled run cannot restart yet (the servo's state is not "
+                              "checkpointed)")
     try:
         if case.solver == "explicit":
             total = solver.run(record, outputs=case.outputs, every=case.output_every or None,
-                               max_steps=case.stop_after or None)
+                               max_steps=case.stop_after or None,
+                               on_step=servo if case.control is not None else None)
         else:
             total = 0
             for control in controls:  # each segment stepped on its own (a restart enters one)

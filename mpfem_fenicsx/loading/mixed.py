@@ -1,0 +1,100 @@
+"""Mixed strain / stress control of a periodic volume through its auxiliary nodes (beyond the
+thesis: its perspectives 4-5; issue 24).
+
+Each component of the macroscopic state is either strain-driven (a prescribed velocity gradient
+L_ij, 1/s) or stress-driven (a prescribed Cauchy stress sigma_ij(t), MPa, compression > 0 as in
+the histories). The stress-driven components of L are set by a servo on the measured stress (the
+auxiliary nodes' reactions, Schmidt, eq. 2.19), like the periodic-cell controllers of DEM codes:
+
+    L_ij = -rate * clip((target_ij - sigma_ij) / band, -1, 1)     (compression > 0)
+
+i.e. the cell is compressed along ij at up to ``rate`` while the compression there is below its
+target, at a rate proportional to the error within ``band``. The medium's stress responds to the
+cell's strain (an integrating plant), so at a constant target the error decays to zero with the
+time constant band / (K rate), K the tangent modulus; a ramped target is followed with a lag
+error of (target rate) band / (K rate). The gradient is integrated from the servo's velocity
+gradient, F0(t + dt) = exp(L dt) F0(t); off-diagonal stress-driven components use the symmetric
+part (no spin).
+
+The control is a gradient path t -> F0(t) (``GranularBoundaryConditions.gradient``); the
+workflow calls :meth:`StressControl.update` with the measured stress after every explicit
+increment. Its time must only advance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from scipy.linalg import expm
+
+
+@dataclass
+class StressControl:
+    """Mixed control of F0 over ``duration`` (s).
+
+    Args:
+        duration: length of the path (s).
+        stress_driven: (3, 3) bool, symmetric: True where the Cauchy stress is prescribed.
+        target: t -> (3, 3) prescribed Cauchy stress (MPa, compression > 0); read on the
+            stress-driven components only.
+        velocity_gradient: t -> (3, 3) velocity gradient (1/s) of the strain-driven components
+            (natural sign: negative compresses); None: zero (held).
+        rate: the servo's largest strain rate (1/s, > 0).
+        band: stress error (MPa, > 0) at which the servo reaches ``rate``.
+        start: F0 at t = 0 (e.g. the end of a strain-driven compaction).
+    """
+
+    duration: float
+    stress_driven: np.ndarray
+    target: Callable[[float], np.ndarray]
+    rate: float
+    band: float
+    velocity_gradient: Callable[[float], np.ndarray] | None = None
+    start: np.ndarray = field(default_factory=lambda: np.eye(3))
+
+    def __post_init__(self):
+        mask = np.asarray(self.stress_driven, dtype=bool)
+        if mask.shape != (3, 3) or not np.array_equal(mask, mask.T):
+            raise ValueError("stress_driven must be a symmetric 3x3 boolean mask")
+        if not self.duration > 0:
+            raise ValueError(f"duration must be > 0 s, got {self.duration}")
+        if not self.rate > 0:
+            raise ValueError(f"rate must be > 0 (1/s), got {self.rate}")
+        if not self.band > 0:
+            raise ValueError(f"band must be > 0 MPa, got {self.band}")
+        self.stress_driven = mask
+        self._t = 0.0
+        self._F = np.asarray(self.start, dtype=float).copy()
+        self._L_servo = np.zeros((3, 3))
+        self._previous = (0.0, self._F.copy())  # the step before: the solver asks for F0(t_n) again
+
+    @property
+    def knots(self) -> list[float]:
+        return [0.0, self.duration]
+
+    def _velocity_gradient(self, t: float) -> np.ndarray:
+        L = np.zeros((3, 3)) if self.velocity_gradient is None else np.asarray(self.velocity_gradient(t), float)
+        return np.where(self.stress_driven, self._L_servo, L)
+
+    def __call__(self, t: float) -> np.ndarray:
+        """F0(t) (3, 3): integrated forward from the last time asked (midpoint rule in L); the
+        time before it is remembered too."""
+        if t == self._previous[0] and t < self._t:
+            return self._previous[1].copy()
+        if t < self._t:
+            raise ValueError(f"StressControl: time must advance (asked t = {t:.6g} s after {self._t:.6g} s)")
+        if t > self._t:
+            dt = t - self._t
+            self._previous = (self._t, self._F.copy())
+            self._F = expm(self._velocity_gradient(self._t + 0.5 * dt) * dt) @ self._F
+            self._t = t
+        return self._F.copy()
+
+    def update(self, t: float, sigma: np.ndarray) -> None:
+        """Servo: set the stress-driven velocity gradient from the measured Cauchy stress
+        ``sigma`` (3, 3) (MPa, compression > 0) at time t."""
+        error = np.asarray(self.target(t), dtype=float) - np.asarray(sigma, dtype=float)
+        L = -self.rate * np.clip(error / self.band, -1.0, 1.0)
+        self._L_servo = np.where(self.stress_driven, 0.5 * (L + L.T), 0.0)
