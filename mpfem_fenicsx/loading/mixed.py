@@ -36,7 +36,9 @@ class StressControl:
 
     Args:
         duration: length of the path (s).
-        stress_driven: (3, 3) bool, symmetric: True where the Cauchy stress is prescribed.
+        stress_driven: (3, 3) bool, symmetric: True where the Cauchy stress is prescribed; or
+            t -> such a mask (e.g. isotropic consolidation, then axial strain at constant
+            lateral stress).
         target: t -> (3, 3) prescribed Cauchy stress (MPa, compression > 0); read on the
             stress-driven components only.
         velocity_gradient: t -> (3, 3) velocity gradient (1/s) of the strain-driven components
@@ -47,7 +49,7 @@ class StressControl:
     """
 
     duration: float
-    stress_driven: np.ndarray
+    stress_driven: np.ndarray | Callable[[float], np.ndarray]
     target: Callable[[float], np.ndarray]
     rate: float
     band: float
@@ -55,20 +57,27 @@ class StressControl:
     start: np.ndarray = field(default_factory=lambda: np.eye(3))
 
     def __post_init__(self):
-        mask = np.asarray(self.stress_driven, dtype=bool)
-        if mask.shape != (3, 3) or not np.array_equal(mask, mask.T):
-            raise ValueError("stress_driven must be a symmetric 3x3 boolean mask")
+        if not callable(self.stress_driven):
+            mask = np.asarray(self.stress_driven, dtype=bool)
+            self.stress_driven = lambda t, mask=mask: mask
+        self._check_mask(self.stress_driven(0.0))
         if not self.duration > 0:
             raise ValueError(f"duration must be > 0 s, got {self.duration}")
         if not self.rate > 0:
             raise ValueError(f"rate must be > 0 (1/s), got {self.rate}")
         if not self.band > 0:
             raise ValueError(f"band must be > 0 MPa, got {self.band}")
-        self.stress_driven = mask
         self._t = 0.0
         self._F = np.asarray(self.start, dtype=float).copy()
         self._L_servo = np.zeros((3, 3))
         self._previous = (0.0, self._F.copy())  # the step before: the solver asks for F0(t_n) again
+
+    @staticmethod
+    def _check_mask(mask) -> np.ndarray:
+        mask = np.asarray(mask, dtype=bool)
+        if mask.shape != (3, 3) or not np.array_equal(mask, mask.T):
+            raise ValueError("stress_driven must be a symmetric 3x3 boolean mask")
+        return mask
 
     @property
     def knots(self) -> list[float]:
@@ -76,7 +85,7 @@ class StressControl:
 
     def _velocity_gradient(self, t: float) -> np.ndarray:
         L = np.zeros((3, 3)) if self.velocity_gradient is None else np.asarray(self.velocity_gradient(t), float)
-        return np.where(self.stress_driven, self._L_servo, L)
+        return np.where(self._check_mask(self.stress_driven(t)), self._L_servo, L)
 
     def __call__(self, t: float) -> np.ndarray:
         """F0(t) (3, 3): integrated forward from the last time asked (midpoint rule in L); the
@@ -97,4 +106,4 @@ class StressControl:
         ``sigma`` (3, 3) (MPa, compression > 0) at time t."""
         error = np.asarray(self.target(t), dtype=float) - np.asarray(sigma, dtype=float)
         L = -self.rate * np.clip(error / self.band, -1.0, 1.0)
-        self._L_servo = np.where(self.stress_driven, 0.5 * (L + L.T), 0.0)
+        self._L_servo = np.where(self._check_mask(self.stress_driven(t)), 0.5 * (L + L.T), 0.0)
