@@ -107,3 +107,32 @@ class StressControl:
         error = np.asarray(self.target(t), dtype=float) - np.asarray(sigma, dtype=float)
         L = -self.rate * np.clip(error / self.band, -1.0, 1.0)
         self._L_servo = np.where(self._check_mask(self.stress_driven(t)), 0.5 * (L + L.T), 0.0)
+
+
+def triaxial_control(confining: float, consolidation: float, hold: float, axial_strain: float, axial_time: float,
+                     rate: float, band: float, axis: int = 2) -> StressControl:
+    """Triaxial compression: isotropic consolidation (the three normal stresses ramped to
+    ``confining`` MPa over ``consolidation`` s, then held ``hold`` s), then axial compression
+    along ``axis`` at a constant Hencky strain rate to ``axial_strain`` (> 0: shortening) over
+    ``axial_time`` s, the lateral normal stresses held at ``confining``. Shear strains stay zero.
+    ``rate`` (1/s) and ``band`` (MPa): the servo's (see :class:`StressControl`)."""
+    for name, value in (("confining", confining), ("consolidation", consolidation), ("axial_strain", axial_strain),
+                        ("axial_time", axial_time)):
+        if not value > 0:
+            raise ValueError(f"{name} must be > 0, got {value}")
+    if hold < 0:
+        raise ValueError(f"hold must be >= 0 s, got {hold}")
+    if axis not in (0, 1, 2):
+        raise ValueError(f"axis must be 0, 1 or 2, got {axis}")
+    start_axial = consolidation + hold
+    lateral = np.eye(3, dtype=bool)
+    lateral[axis, axis] = False
+    shortening = np.zeros((3, 3))
+    shortening[axis, axis] = -axial_strain / axial_time
+
+    return StressControl(
+        duration=start_axial + axial_time,
+        stress_driven=lambda t: np.eye(3, dtype=bool) if t < start_axial else lateral,
+        target=lambda t: confining * min(t / consolidation, 1.0) * np.eye(3),
+        velocity_gradient=lambda t: shortening if t >= start_axial else np.zeros((3, 3)),
+        rate=rate, band=band)
