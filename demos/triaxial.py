@@ -31,8 +31,10 @@ def main(argv=None) -> int:
     p.add_argument("--confining", type=float, default=2.0, help="confining pressure (MPa, compression > 0)")
     p.add_argument("--axial-strain", type=float, default=0.10, help="axial Hencky shortening (-)")
     p.add_argument("--increments", type=int, default=6000, help="explicit increments per 1e-3 s of loading")
-    p.add_argument("--rate", type=float, default=150.0, help="servo's largest strain rate (1/s of loading time)")
-    p.add_argument("--band", type=float, default=0.2, help="stress error giving the servo's largest rate (MPa)")
+    p.add_argument("--rate", type=float, default=100.0, help="servo's largest strain rate (1/s of loading time)")
+    p.add_argument("--band", type=float, default=None, help="stress error giving the servo's largest rate (MPa; "
+                   "default: the confining pressure. A narrow band makes the servo outrun the volume's "
+                   "pseudo-dynamic response and oscillate)")
     p.add_argument("--outputs", type=int, default=60)
     p.add_argument("--out", default="results/triaxial")
     args = p.parse_args(argv)
@@ -40,6 +42,7 @@ def main(argv=None) -> int:
         p.error(f"--confining must be in (0, 100] MPa, got {args.confining}")
     if not 0 < args.axial_strain <= 0.5:
         p.error(f"--axial-strain must be in (0, 0.5], got {args.axial_strain}")
+    args.band = args.confining if args.band is None else args.band
     if not 0 < args.band <= args.confining:
         p.error(f"--band must be in (0, confining] MPa, got {args.band}")
     if not 0 < args.rate <= 1000:
