@@ -5,13 +5,15 @@ beyond the thesis, whose loading is strain-driven only).
     python demos/triaxial.py --confining 5 --axial-strain 0.15 --particles 50
 
 Pipeline: the flagship volume (24 particles, seed 1, CLP by periodic images, explicit) -> the
-three normal stresses servo-controlled through the auxiliary nodes (Schmidt stress, eq. 2.19) up
-to the confining pressure, held -> axial compression along z at a constant strain rate with the
-lateral stresses held at the confining pressure (loading.mixed.triaxial_control).
+three normal stresses servo-controlled through the cell's gradient (the auxiliary nodes) on the
+Schmidt stress (eq. 2.19; --measure volume: the particles' volume average, eq. C.7) up to the
+confining pressure, held -> axial
+compression along z at a constant strain rate with the lateral stresses held at the confining
+pressure (loading.mixed.triaxial_control).
 
 Outputs in --out (default results/triaxial/): history.csv with the columns of
-demos/isotropic.py (sigma_schmidt_11..33: the controlled stress; sigma11..33: Love-Weber;
-sigma_vol_*: volume average), packing.txt, loading_path.png.
+demos/isotropic.py (sigma_schmidt_11..33: the auxiliary nodes' reactions; sigma11..33: Love-Weber;
+sigma_vol_*: the volume average), packing.txt, loading_path.png.
 """
 
 import argparse
@@ -35,6 +37,7 @@ def main(argv=None) -> int:
     p.add_argument("--band", type=float, default=None, help="stress error giving the servo's largest rate (MPa; "
                    "default: the confining pressure. A narrow band makes the servo outrun the volume's "
                    "pseudo-dynamic response and oscillate)")
+    p.add_argument("--measure", choices=("schmidt", "volume"), default="schmidt", help="the servo's stress")
     p.add_argument("--outputs", type=int, default=60)
     p.add_argument("--out", default="results/triaxial")
     args = p.parse_args(argv)
@@ -49,7 +52,7 @@ def main(argv=None) -> int:
         p.error(f"--rate must be in (0, 1000] 1/s, got {args.rate}")
     # loading time in units of the flagship's compaction (1e-3 s of mass-scaled time)
     control = triaxial_control(args.confining, consolidation=1e-3, hold=0.3e-3, axial_strain=args.axial_strain,
-                               axial_time=1e-3, rate=args.rate, band=args.band)
+                               axial_time=1e-3, rate=args.rate, band=args.band, measure=args.measure)
     try:
         case = CompactionCase(particles=args.particles, seed=args.seed, bc="CLP", control=control,
                               increments=args.increments, outputs=args.outputs, visual=False, out_dir=args.out)
@@ -64,8 +67,9 @@ def main(argv=None) -> int:
     if MPI.COMM_WORLD.rank == 0:
         plot_loading_path(h.path, result.out_dir / "loading_path.png",
                           title=f"{args.particles} particles, triaxial, confining {args.confining} MPa, CLP")
-        print(f"end: sigma_11 / 22 / 33 = {h.column('sigma_schmidt_11')[-1]:.3f} / {h.column('sigma_schmidt_22')[-1]:.3f}"
-              f" / {h.column('sigma_schmidt_33')[-1]:.3f} MPa (Schmidt), rho {h.column('rho')[-1]:.4f}")
+        for name, key in (("Schmidt", "sigma_schmidt_"), ("volume average", "sigma_vol_")):
+            print(f"end: sigma_11 / 22 / 33 = {h.column(key + '11')[-1]:.3f} / {h.column(key + '22')[-1]:.3f}"
+                  f" / {h.column(key + '33')[-1]:.3f} MPa ({name}), rho {h.column('rho')[-1]:.4f}")
     return 0
 
 

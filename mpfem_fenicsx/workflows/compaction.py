@@ -562,9 +562,18 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         out.mkdir(parents=True, exist_ok=True)
         write_packing(packing, out / "packing.txt")
     def servo(s) -> None:
-        """Mixed control: the measured Cauchy stress (Schmidt, eq. 2.19, compression > 0) to the servo."""
+        """Mixed control, every ``control.every`` increments: the measured Cauchy stress
+        (compression > 0) to the servo: the auxiliary nodes' reactions (Schmidt, eq. 2.19) or the
+        volume average of the particles' stress over the cell (eq. C.7), ``control.measure``."""
+        if s.step % path.every:
+            return
         F0 = path(s.t)
-        path.update(s.t, -piola_to_cauchy(bcs.macroscopic_force(s.static_reaction) / cell_volume0, F0))
+        if path.measure == "schmidt":
+            sigma = piola_to_cauchy(bcs.macroscopic_force(s.static_reaction) / cell_volume0, F0)
+        else:
+            integrals = comm.allreduce(problem.cell_stress_integrals()[volume_cells].sum(axis=0), op=MPI.SUM)
+            sigma = integrals / (np.linalg.det(F0) * cell_volume0)
+        path.update(s.t, -sigma)
 
     if case.control is not None and restart is not None:
         raise CheckpointError("restart: a stress-controlled run cannot restart yet (the servo's state is not "
