@@ -411,7 +411,8 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         solver = ExplicitSolver(problem, bcs, settings, contact=contact,
                                 damped_bodies=model.original[node_particle])
         log(f"model: {radii.size} particles, {num_dofs} dofs ({bcs.constraint.num_reduced_global} free), "
-            f"rho0 = {rho0:.4f} (finite elements {model.rho0_fe:.4f}) -> {case.target_density}, dt = {solver.dt:.3g} s "
+            f"rho0 = {rho0:.4f} (finite elements {model.rho0_fe:.4f}) -> "
+            f"{'stress-controlled' if case.control is not None else case.target_density}, dt = {solver.dt:.3g} s "
             f"(unscaled {solver.dt_stable_unscaled:.3g} s), {case.increments} increments")
         total_steps = int(np.ceil(path.duration / settings.target_dt - 1e-9))
     else:
