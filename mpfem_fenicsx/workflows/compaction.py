@@ -158,8 +158,8 @@ class CompactionCase:
     #: translation coupling only (eq. 2.15; the measurement of bench/README.md, issue 22 item 7)
     equal_rotations: bool = True
     #: mixed strain / stress control (loading.mixed.StressControl) replacing the compaction path:
-    #: a servo on the auxiliary nodes' reactions after every explicit increment (CLP / CLPS,
-    #: explicit; the control keeps its state: one run per control)
+    #: a servo on the measured stress (its ``measure``, every ``every`` explicit increments; CLP /
+    #: CLPS, explicit; the control keeps its state: one run per control)
     control: object | None = None
     steps: int = 100  # implicit: load steps (adaptive, cut back when Newton fails)
     #: implicit: steps of each of ``segments_after`` (missing ones: the compaction's increment
@@ -487,6 +487,14 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
             prune_checkpoints(checkpoint_root, case.checkpoint_keep)
         last_checkpoint[0] = directory
 
+    def volume_stress_integral() -> np.ndarray:
+        """sum over the volume's particles of int sigma dv (N mm, (3, 3), tension > 0; eq. C.7)."""
+        return comm.allreduce(problem.cell_stress_integrals()[volume_cells].sum(axis=0), op=MPI.SUM)
+
+    def schmidt_stress(reaction, F0) -> np.ndarray:
+        """Cauchy stress (MPa, tension > 0) of the auxiliary nodes' reactions (eq. 2.14, 2.19)."""
+        return piola_to_cauchy(bcs.macroscopic_force(reaction) / cell_volume0, F0)
+
     def record(s) -> None:
         x = centroids()
         F, c = least_squares_gradient(X0, x[:n])
@@ -512,12 +520,12 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         n_contacts, mean_z, rattlers = coordination(pairs[carrying, 0], pairs[carrying, 1], model.original,
                                                     weights[carrying], n)
         # third measure, from the particles' stress field: (1/V) sum int sigma dv (eq. C.7)
-        sigma_vol = comm.allreduce(problem.cell_stress_integrals()[volume_cells].sum(axis=0), op=MPI.SUM) / volume
+        sigma_vol = volume_stress_integral() / volume
         sigma_s = np.full((3, 3), np.nan)
         if periodic:  # Schmidt: reactions conjugate to F0 (auxiliary nodes), eq. 2.14
             # explicit: the medium's forces only (damping and inertia of the pseudo-dynamics out)
             reaction = s.static_reaction if case.solver == "explicit" else s.reaction
-            sigma_s = piola_to_cauchy(bcs.macroscopic_force(reaction) / cell_volume0, F0)
+            sigma_s = schmidt_stress(reaction, F0)
         if case.solver == "explicit":
             e = s.energies
             energies = dict(E_int=e.internal, E_el=e.elastic, E_p=e.plastic, E_contact=e.contact,
@@ -570,10 +578,9 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
             return
         F0 = path(s.t)
         if path.measure == "schmidt":
-            sigma = piola_to_cauchy(bcs.macroscopic_force(s.static_reaction) / cell_volume0, F0)
+            sigma = schmidt_stress(s.static_reaction, F0)
         else:
-            integrals = comm.allreduce(problem.cell_stress_integrals()[volume_cells].sum(axis=0), op=MPI.SUM)
-            sigma = integrals / (np.linalg.det(F0) * cell_volume0)
+            sigma = volume_stress_integral() / (np.linalg.det(F0) * cell_volume0)
         path.update(s.t, -sigma)
 
     if case.control is not None and restart is not None:
