@@ -36,6 +36,40 @@ def test_control_integrates_the_velocity_gradient():
         CompactionCase(bc="GDF", control=control)
 
 
+def servo_on_a_linear_plant(K, drift, integral_time, filter_time=0.0, noise=0.0, T=0.02, dt=1e-5):
+    """Error history (MPa) of a servo holding sigma_11 at 1 MPa on a model medium whose stress is
+    sigma_11 = K (-ln F11) + drift t (+ white noise of amplitude ``noise`` in the measure)."""
+    rng = np.random.default_rng(0)
+    control = StressControl(duration=T, stress_driven=np.diag([True, False, False]), target=lambda t: np.eye(3),
+                            rate=50.0, band=0.5, integral_time=integral_time, filter_time=filter_time)
+    errors = []
+    for t in np.arange(0.0, T, dt):
+        sigma = K * -np.log(control(t)[0, 0]) + drift * t
+        control.update(t, np.diag([sigma + noise * rng.standard_normal(), 0.0, 0.0]))
+        errors.append(1.0 - sigma)
+    return np.array(errors)
+
+
+def test_pi_servo_follows_a_drifting_stress():
+    """An independent model of the plant: with a stress drifting at D = 200 MPa/s (what the axial
+    compression does to the lateral stress of a triaxial test), the proportional servo lags by
+    the analytic D band / (K rate) = 0.05 MPa; the PI servo (integral time 4 band / (K rate))
+    brings the error below 1e-3 MPa; through a filtered noisy measure (0.1 MPa) it follows the
+    noise but does not lag."""
+    K, D = 40.0, 200.0  # MPa, MPa/s
+    lag = D * 0.5 / (K * 50.0)
+    p_only = servo_on_a_linear_plant(K, D, integral_time=None)
+    assert p_only[-1] == pytest.approx(-lag, rel=1e-2)
+    tau = 0.5 / (K * 50.0)
+    pi = servo_on_a_linear_plant(K, D, integral_time=4 * tau)
+    assert abs(pi[-1]) < 1e-3 and np.abs(pi[len(pi) // 2:]).max() < 1e-3
+    noisy = servo_on_a_linear_plant(K, D, integral_time=4 * tau, filter_time=0.5 * tau, noise=0.1)
+    assert np.abs(noisy[len(noisy) // 2:]).mean() < 0.5 * lag  # noise followed, no lag
+    with pytest.raises(ValueError, match="integral_time must be > 0"):
+        StressControl(duration=1.0, stress_driven=np.eye(3, dtype=bool), target=lambda t: 0, rate=1, band=1,
+                      integral_time=0.0)
+
+
 def test_consolidation_then_triaxial_on_the_simple_cubic_cell(tmp_path):
     """Acceptance 1 of issue 24 and a CI-sized triaxial path: the 8 touching spheres of the simple
     cubic cell (elastic: sigma_0 = 10 GPa). Isotropic consolidation, the three normal stresses

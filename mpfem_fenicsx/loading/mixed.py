@@ -7,15 +7,21 @@ the histories). The stress-driven components of L are set by a servo on the meas
 auxiliary nodes' reactions, Schmidt's eq. 2.19, or the volume average of the particles' stress,
 eq. C.7: ``measure``), like the periodic-cell controllers of DEM codes:
 
-    L_ij = -rate * clip((target_ij - sigma_ij) / band, -1, 1)     (compression > 0)
+    e_ij = target_ij - sigma_ij                                            (compression > 0)
+    L_ij = -rate * clip((e_ij + (1 / integral_time) int e_ij dt) / band, -1, 1)
 
 i.e. the cell is compressed along ij at up to ``rate`` while the compression there is below its
 target, at a rate proportional to the error within ``band``. The medium's stress responds to the
 cell's strain (an integrating plant), so at a constant target the error decays to zero with the
-time constant band / (K rate), K the tangent modulus; a ramped target is followed with a lag
-error of (target rate) band / (K rate). The gradient is integrated from the servo's velocity
-gradient, F0(t + dt) = exp(L dt) F0(t); off-diagonal stress-driven components use the symmetric
-part (no spin).
+time constant band / (K rate), K the tangent modulus. With the proportional term alone, a stress
+drifting at D MPa/s (a ramped target, or the lateral stress of a triaxial test pushed up by the
+axial compression) is followed with a lag error of D band / (K rate); the integral term
+(``integral_time``, a PI servo) takes that drift up and brings the error back to zero. The
+integral stops growing while the rate is saturated (anti-windup). ``filter_time`` low-passes the
+measured stress first (exponential moving average): the explicit pseudo-dynamics make it ring
+about the quasi-static value. The gradient is integrated from the servo's velocity gradient,
+F0(t + dt) = exp(L dt) F0(t); off-diagonal stress-driven components use the symmetric part (no
+spin).
 
 The control is a gradient path t -> F0(t) (``GranularBoundaryConditions.gradient``); the
 workflow calls :meth:`StressControl.update` with the measured stress every ``every`` explicit
@@ -53,6 +59,10 @@ class StressControl:
         measure: "schmidt" (default; smooth on the elastic simple cubic cell, but on a plastic
             granular volume loaded fast it follows every contact impact across the faces) or
             "volume" (rings with the particles' elastic waves on the simple cubic cell).
+        integral_time: the PI servo's integral time (s, > 0); None: proportional only. For a
+            well-damped loop take it >= 2 band / (K rate), K the medium's tangent modulus.
+        filter_time: time constant (s, >= 0) of the low-pass filter on the measured stress
+            (0: none). Keep it well below the servo's time constant band / (K rate).
     """
 
     duration: float
@@ -64,6 +74,8 @@ class StressControl:
     start: np.ndarray = field(default_factory=lambda: np.eye(3))
     every: int = 1
     measure: str = "schmidt"
+    integral_time: float | None = None
+    filter_time: float = 0.0
 
     def __post_init__(self):
         if not callable(self.stress_driven):
@@ -80,9 +92,16 @@ class StressControl:
             raise ValueError(f"measure must be schmidt or volume, got {self.measure!r}")
         if not (isinstance(self.every, int) and self.every >= 1):
             raise ValueError(f"every must be an integer >= 1 (increments), got {self.every}")
+        if self.integral_time is not None and not self.integral_time > 0:
+            raise ValueError(f"integral_time must be > 0 s (or None: no integral term), got {self.integral_time}")
+        if not self.filter_time >= 0:
+            raise ValueError(f"filter_time must be >= 0 s, got {self.filter_time}")
         self._t = 0.0
         self._F = np.asarray(self.start, dtype=float).copy()
         self._L_servo = np.zeros((3, 3))
+        self._filtered = None  # low-passed measured stress (MPa)
+        self._integral = np.zeros((3, 3))  # int e dt (MPa s)
+        self._t_update = None  # time of the last update
         self._previous = (0.0, self._F.copy())  # the step before: the solver asks for F0(t_n) again
 
     @staticmethod
@@ -117,18 +136,34 @@ class StressControl:
     def update(self, t: float, sigma: np.ndarray) -> None:
         """Servo: set the stress-driven velocity gradient from the measured Cauchy stress
         ``sigma`` (3, 3) (MPa, compression > 0) at time t."""
-        error = np.asarray(self.target(t), dtype=float) - np.asarray(sigma, dtype=float)
-        L = -self.rate * np.clip(error / self.band, -1.0, 1.0)
-        self._L_servo = np.where(self._check_mask(self.stress_driven(t)), 0.5 * (L + L.T), 0.0)
+        sigma = np.asarray(sigma, dtype=float)
+        dt = 0.0 if self._t_update is None else t - self._t_update
+        self._t_update = t
+        if self._filtered is None or self.filter_time == 0.0:
+            self._filtered = sigma.copy()
+        else:
+            self._filtered += -np.expm1(-dt / self.filter_time) * (sigma - self._filtered)
+        mask = self._check_mask(self.stress_driven(t))
+        error = np.where(mask, np.asarray(self.target(t), dtype=float) - self._filtered, 0.0)
+        command = error
+        if self.integral_time is not None:
+            # anti-windup: the integral grows only where the rate is not saturated
+            free = np.abs(error + self._integral / self.integral_time) < self.band
+            self._integral = np.where(mask & free, self._integral + error * dt, np.where(mask, self._integral, 0.0))
+            command = error + self._integral / self.integral_time
+        L = -self.rate * np.clip(command / self.band, -1.0, 1.0)
+        self._L_servo = np.where(mask, 0.5 * (L + L.T), 0.0)
 
 
 def triaxial_control(confining: float, consolidation: float, hold: float, axial_strain: float, axial_time: float,
-                     rate: float, band: float, axis: int = 2, measure: str = "schmidt") -> StressControl:
+                     rate: float, band: float, axis: int = 2, measure: str = "schmidt",
+                     integral_time: float | None = None, filter_time: float = 0.0) -> StressControl:
     """Triaxial compression: isotropic consolidation (the three normal stresses ramped to
     ``confining`` MPa over ``consolidation`` s, then held ``hold`` s), then axial compression
     along ``axis`` at a constant Hencky strain rate to ``axial_strain`` (> 0: shortening) over
     ``axial_time`` s, the lateral normal stresses held at ``confining``. Shear strains stay zero.
-    ``rate`` (1/s), ``band`` (MPa) and ``measure``: the servo's (see :class:`StressControl`)."""
+    ``rate`` (1/s), ``band`` (MPa), ``measure``, ``integral_time`` and ``filter_time`` (s): the
+    servo's (see :class:`StressControl`)."""
     for name, value in (("confining", confining), ("consolidation", consolidation), ("axial_strain", axial_strain),
                         ("axial_time", axial_time)):
         if not value > 0:
@@ -148,4 +183,4 @@ def triaxial_control(confining: float, consolidation: float, hold: float, axial_
         stress_driven=lambda t: np.eye(3, dtype=bool) if t < start_axial else lateral,
         target=lambda t: confining * min(t / consolidation, 1.0) * np.eye(3),
         velocity_gradient=lambda t: shortening if t >= start_axial else np.zeros((3, 3)),
-        rate=rate, band=band, measure=measure)
+        rate=rate, band=band, measure=measure, integral_time=integral_time, filter_time=filter_time)
