@@ -45,7 +45,7 @@ class Case:
     def compaction_case(self, out_dir: str):
         from mpfem_fenicsx.workflows.compaction import CompactionCase
 
-        base = dict(particles=50, seed=1, increments=6000, outputs=40, visual=False, checkpoint_every=10)
+        base = dict(particles=50, seed=1, increments=6000, outputs=40, visual=False, checkpoint_every=2)
         return CompactionCase(**{**base, **self.options}, out_dir=out_dir)
 
 
