@@ -42,6 +42,15 @@ BAD_CASES = [
     ("[mesh]\nresolution = 'fine'\n", ["[mesh] resolution", "'chapter2', 'chapter4', 'coarse'"]),
     ("[packing]\nfile = 'missing.txt'\n", ["[packing] file", "no such file"]),
     ("[loading\n", ["not valid TOML"]),
+    ("[control]\npath = 'shear'\n", ["[control] path", "'none', 'pressure', 'triaxial'"]),
+    ("[control]\npath = 'triaxial'\n", ["[control] pressure", "required"]),
+    ("[control]\npressure = 2.0\n", ["[control] pressure", "needs a [control] path"]),
+    ("[control]\npath = 'triaxial'\npressure = -2.0\n", ["[control] pressure", "> 0"]),
+    ("[control]\npath = 'triaxial'\npressure = 2.0\naxial_strain = 0.8\n", ["[control] axial_strain", "<= 0.5"]),
+    ("[control]\npath = 'pressure'\npressure = 2.0\naxial_strain = 0.1\n", ["[control] axial_strain", "triaxial"]),
+    ("[control]\npath = 'triaxial'\npressure = 2.0\nmeasure = 'lw'\n", ["[control] measure", "'schmidt', 'volume'"]),
+    ("[control]\npath = 'triaxial'\npressure = 2.0\nintegral_time = 0.0\n", ["[control] integral_time", "> 0"]),
+    ("[control]\npath = 'pressure'\npressure = 2.0\n[boundary]\ncondition = 'GDF'\n", ["control", "CLP or CLPS"]),
 ]
 
 
@@ -92,6 +101,24 @@ def test_example_case_is_valid_and_documents_every_key(tmp_path):
     case = load_case(_case(tmp_path, text))
     assert case.bc == "CLP" and case.target_density == 0.92 and case.out_dir == "results/case"
     assert main(["init", str(tmp_path / "case.toml")]) == 2  # refuses to overwrite
+
+
+def test_control_keys_build_the_stress_control(tmp_path):
+    """[control]: times and the servo's rate in units of the loading duration; the triaxial path's
+    phases (all three normal stresses driven, then the lateral ones) and its targets."""
+    case = load_case(_case(tmp_path, "[loading]\nduration = 2e-3\n[control]\npath = 'triaxial'\npressure = 3.0\n"
+                                     "ramp = 0.5\nhold = 0.25\naxial_strain = 0.2\nrate = 0.2\nintegral_time = 0.05\n"))
+    control = case.control
+    assert control.duration == pytest.approx(2e-3 * (0.5 + 0.25 + 1.0))
+    assert control.rate == pytest.approx(100.0) and control.band == 3.0 and control.integral_time == pytest.approx(1e-4)
+    assert np.array_equal(control.stress_driven(1e-3), np.eye(3, dtype=bool))
+    assert np.array_equal(control.stress_driven(1.6e-3), np.diag([True, True, False]))
+    assert np.allclose(control.target(0.5e-3), 1.5 * np.eye(3)) and np.allclose(control.target(3e-3), 3 * np.eye(3))
+    F = [control(t) for t in (0.0, 1.5e-3, control.duration)]  # the servo phase, then the axial one
+    assert F[-1][2, 2] == pytest.approx(np.exp(-0.2))  # servo idle: only the axial strain moves
+    pressure = load_case(_case(tmp_path, "[control]\npath = 'pressure'\npressure = 1.0\n", "p.toml")).control
+    assert pressure.duration == pytest.approx(1.3e-3)
+    assert np.array_equal(pressure.stress_driven(1.2e-3), np.eye(3, dtype=bool))
 
 
 def test_pack_generates_a_valid_file(tmp_path):

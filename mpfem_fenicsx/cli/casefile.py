@@ -170,6 +170,31 @@ SCHEMA: tuple[Key, ...] = (
         open_high=True, target="local_damping"),
     Key("solver", "hold", float, _D.hold, "explicit relaxation hold at the final gradient after the loading, in "
         "units of the loading duration (rows with time > duration)", 0, 10, target="hold"),
+    # stress-controlled paths (loading.mixed; beyond the thesis, issue 24): times in units of the
+    # [loading] duration, the servo's rate in strain per duration
+    Key("control", "path", str, "none", "stress-controlled path replacing the compaction (CLP or CLPS, explicit): "
+        "pressure = isotropic pressure ramp to `pressure`, then held; triaxial = the same consolidation, then axial "
+        "compression along z at constant lateral stress", choices=("none", "pressure", "triaxial")),
+    Key("control", "pressure", float, None, "target (pressure) or confining (triaxial) pressure (MPa, compression "
+        "> 0); required with a path", 0, 1000, open_low=True, optional=True),
+    Key("control", "ramp", float, None, "time of the pressure ramp (x duration; default 1)", 0, 100, open_low=True,
+        optional=True),
+    Key("control", "hold", float, None, "hold at the pressure after the ramp (x duration; default 0.3)", 0, 100,
+        optional=True),
+    Key("control", "axial_strain", float, None, "triaxial: axial Hencky shortening (-; default 0.1)", 0, 0.5,
+        open_low=True, optional=True),
+    Key("control", "axial_time", float, None, "triaxial: time of the axial compression (x duration; default 1)", 0,
+        100, open_low=True, optional=True),
+    Key("control", "rate", float, None, "the servo's largest strain rate (strain per duration; default 0.1)", 0, 10,
+        open_low=True, optional=True),
+    Key("control", "band", float, None, "stress error at which the servo reaches its rate (MPa; default: the "
+        "pressure)", 0, None, open_low=True, optional=True),
+    Key("control", "integral_time", float, None, "integral time of the PI servo (x duration; default: none, "
+        "proportional only)", 0, None, open_low=True, optional=True),
+    Key("control", "filter_time", float, None, "low-pass filter of the measured stress (x duration; default 0)", 0,
+        None, optional=True),
+    Key("control", "measure", str, None, "the servo's stress: schmidt (auxiliary nodes' reactions, eq. 2.19; "
+        "default) or volume (the particles' volume average, eq. C.7)", choices=("schmidt", "volume"), optional=True),
     # outputs (SPEC §10)
     Key("output", "directory", str, None, "results folder (default: results/<case file name>; --out "
         "overrides)", optional=True, target="out_dir"),
@@ -217,6 +242,13 @@ def parse_case(data: dict, where: str = "case", base: Path | None = None) -> dic
         if not path.is_file():
             raise CaseError(f"{where}: [packing] file = {values[('packing', 'file')]!r}: no such file ({path})")
         values[("packing", "file")] = str(path)
+    control = [k for (section, k) in values if section == "control" and k != "path"]
+    if get("control", "path") == "none" and control:
+        raise CaseError(f"{where}: [control] {control[0]} needs a [control] path (pressure or triaxial)")
+    if get("control", "path") != "none" and ("control", "pressure") not in values:
+        raise CaseError(f"{where}: [control] pressure is required with path = {get('control', 'path')!r} (MPa, > 0)")
+    if get("control", "path") == "pressure" and any(k in control for k in ("axial_strain", "axial_time")):
+        raise CaseError(f"{where}: [control] axial_strain / axial_time belong to path = 'triaxial'")
     if get("boundary", "images") and get("boundary", "condition") != "CLP":
         raise CaseError(f"{where}: [boundary] images = true realizes CLP only, got condition = "
                         f"{get('boundary', 'condition')!r}")
@@ -242,7 +274,7 @@ def to_case(values: dict[tuple[str, str], Any], out_dir: str, where: str = "case
     material = {}
     kwargs: dict[str, Any] = {"out_dir": out_dir}
     for key in SCHEMA:
-        if (key.section, key.name) not in values or key.target == "out_dir":
+        if (key.section, key.name) not in values or key.target in ("out_dir", None):
             continue
         value = values[(key.section, key.name)]
         if key.target.startswith("material."):
@@ -252,9 +284,27 @@ def to_case(values: dict[tuple[str, str], Any], out_dir: str, where: str = "case
     try:
         if material:
             kwargs["material"] = ElastoPlastic(**material)
+        control = {k: v for (section, k), v in values.items() if section == "control"}
+        if control.get("path", "none") != "none":
+            kwargs["control"] = stress_control(control, kwargs.get("duration", _D.duration))
         return CompactionCase(**kwargs)
     except ValueError as err:  # a rule of the case classes not expressed in the schema
         raise CaseError(f"{where}: {err}") from None
+
+
+def stress_control(keys: dict[str, Any], duration: float):
+    """The StressControl of the [control] keys (times x ``duration`` s, rate / duration)."""
+    from ..loading.mixed import pressure_control, triaxial_control
+
+    pressure = keys["pressure"]
+    servo = dict(rate=keys.get("rate", 0.1) / duration, band=keys.get("band", pressure),
+                 measure=keys.get("measure", "schmidt"), filter_time=keys.get("filter_time", 0.0) * duration,
+                 integral_time=keys["integral_time"] * duration if "integral_time" in keys else None)
+    ramp, hold = keys.get("ramp", 1.0) * duration, keys.get("hold", 0.3) * duration
+    if keys["path"] == "pressure":
+        return pressure_control(pressure, ramp, hold, **servo)
+    return triaxial_control(pressure, consolidation=ramp, hold=hold, axial_strain=keys.get("axial_strain", 0.1),
+                            axial_time=keys.get("axial_time", 1.0) * duration, **servo)
 
 
 def documentation() -> str:

@@ -155,6 +155,22 @@ class StressControl:
         self._L_servo = np.where(mask, 0.5 * (L + L.T), 0.0)
 
 
+def pressure_control(pressure: float, ramp: float, hold: float, rate: float, band: float, measure: str = "schmidt",
+                     integral_time: float | None = None, filter_time: float = 0.0) -> StressControl:
+    """Isotropic pressure path: the three normal stresses ramped to ``pressure`` MPa (compression
+    > 0) over ``ramp`` s, then held ``hold`` s; shear strains stay zero. ``rate`` (1/s), ``band``
+    (MPa), ``measure``, ``integral_time`` and ``filter_time`` (s): the servo's (see
+    :class:`StressControl`)."""
+    for name, value in (("pressure", pressure), ("ramp", ramp)):
+        if not value > 0:
+            raise ValueError(f"{name} must be > 0, got {value}")
+    if hold < 0:
+        raise ValueError(f"hold must be >= 0 s, got {hold}")
+    return StressControl(duration=ramp + hold, stress_driven=np.eye(3, dtype=bool),
+                         target=lambda t: pressure * min(t / ramp, 1.0) * np.eye(3), rate=rate, band=band,
+                         measure=measure, integral_time=integral_time, filter_time=filter_time)
+
+
 def triaxial_control(confining: float, consolidation: float, hold: float, axial_strain: float, axial_time: float,
                      rate: float, band: float, axis: int = 2, measure: str = "schmidt",
                      integral_time: float | None = None, filter_time: float = 0.0) -> StressControl:
