@@ -38,6 +38,9 @@ def main(argv=None) -> int:
                    "default: the confining pressure. A narrow band makes the servo outrun the volume's "
                    "pseudo-dynamic response and oscillate)")
     p.add_argument("--measure", choices=("schmidt", "volume"), default="schmidt", help="the servo's stress")
+    p.add_argument("--integral-time", type=float, default=None, help="PI servo's integral time (s of loading time; "
+                   "default: proportional only)")
+    p.add_argument("--filter-time", type=float, default=0.0, help="low-pass filter of the measured stress (s)")
     p.add_argument("--outputs", type=int, default=60)
     p.add_argument("--out", default="results/triaxial")
     args = p.parse_args(argv)
@@ -50,9 +53,14 @@ def main(argv=None) -> int:
         p.error(f"--band must be in (0, confining] MPa, got {args.band}")
     if not 0 < args.rate <= 1000:
         p.error(f"--rate must be in (0, 1000] 1/s, got {args.rate}")
+    if args.integral_time is not None and not 0 < args.integral_time <= 1:
+        p.error(f"--integral-time must be in (0, 1] s, got {args.integral_time}")
+    if not 0 <= args.filter_time <= 1e-3:
+        p.error(f"--filter-time must be in [0, 1e-3] s, got {args.filter_time}")
     # loading time in units of the flagship's compaction (1e-3 s of mass-scaled time)
     control = triaxial_control(args.confining, consolidation=1e-3, hold=0.3e-3, axial_strain=args.axial_strain,
-                               axial_time=1e-3, rate=args.rate, band=args.band, measure=args.measure)
+                               axial_time=1e-3, rate=args.rate, band=args.band, measure=args.measure,
+                               integral_time=args.integral_time, filter_time=args.filter_time)
     try:
         case = CompactionCase(particles=args.particles, seed=args.seed, bc="CLP", control=control,
                               increments=args.increments, outputs=args.outputs, visual=False, out_dir=args.out)

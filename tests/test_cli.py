@@ -121,6 +121,19 @@ def test_control_keys_build_the_stress_control(tmp_path):
     assert np.array_equal(pressure.stress_driven(1.2e-3), np.eye(3, dtype=bool))
 
 
+def test_restart_reads_history_rows_by_column_name():
+    """Checkpoints list their history columns; older ones (without the list) predate the columns
+    of _COLUMNS_ADDED, which restart as NaN."""
+    from mpfem_fenicsx.workflows.compaction import CheckpointError, _history_rows
+
+    columns = ["time", "Gamma", "Gamma_model", "E_p"]
+    assert _history_rows({"history": [[1.0, 2.0, 4.0]]}, columns)[0][:2] == [1.0, 2.0]
+    assert np.isnan(_history_rows({"history": [[1.0, 2.0, 4.0]]}, columns)[0][2])
+    assert _history_rows({"history": [[4.0, 1.0]], "columns": ["E_p", "time"]}, columns)[0][::3] == [1.0, 4.0]
+    with pytest.raises(CheckpointError, match="do not match"):
+        _history_rows({"history": [[1.0, 2.0]]}, columns)
+
+
 def test_pack_generates_a_valid_file(tmp_path):
     out = tmp_path / "p.txt"
     assert main(["pack", "--particles", "30", "--seed", "4", "--fraction", "0.5", "--out", str(out)]) == 0

@@ -104,6 +104,15 @@ def test_constraints_hold_after_compaction(tmp_path, bc):
     else:
         assert copies_work > 0.05 * h.column("E_p")[-1]
     assert h.column("E_d_model")[-1] - h.column("E_d")[-1] == pytest.approx(copies_work, rel=1e-9)
+    # Gamma_model counts the copies' contacts too (thesis footnote 4 of §4.4.1): more than the
+    # volume's Gamma for GDH / GDF / CLPS; CLP copies touch only the volume's particles
+    loaded = h.column("Gamma") > 0
+    assert loaded.any()
+    ratio = h.column("Gamma_model")[loaded] / h.column("Gamma")[loaded]
+    if bc == "CLP":
+        assert np.all(ratio >= 1.0 - 1e-12) and np.all(ratio <= 2.0 + 1e-12)
+    else:
+        assert ratio.max() > 1.5
 
 
 @pytest.mark.parametrize("bc", ["CLP", "CLPS"])

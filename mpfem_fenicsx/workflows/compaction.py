@@ -26,7 +26,9 @@ History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C)
   compression or adhesive tension; appendix-C weights: one per physical contact), Z = 2 n_contacts
   / N the mean coordination number, rattlers the particles of the volume with fewer than 4
   (homogenization.coordination); Gamma = S / (V0 det F) (mm^-1, eq. 4.13, S the contact
-  area, one per pair);
+  area of the volume, one per pair, appendix-C weights); Gamma_model: the same with S summed over
+  every contact of the model (GDH / GDF / CLPS: the copies' contacts too), still over the volume's
+  V, the reading of the thesis' footnote 4 of §4.4.1 ("each contact of the MPFEM model");
 - energies (mJ): E_p plastic work of the volume's particles (eq. 4.11; GDH / GDF / CLPS copies
   deform too, outside the volume), E_f frictional (eq. 4.12; every modelled contact), E_d = E_p +
   E_f (eq. 4.10, the chapter-4 iso-dissipation criterion), E_p_model and E_d_model the same over
@@ -437,7 +439,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     columns = ["time", "rho", "rho_imposed", "rho_fe", "h_v", "h_d", "h_tilde_d", "nonaffine", "sigma_m", "sigma_d",
                "sigma_tilde_d"] + [f"F{c}" for c in comps] + [f"sigma{c}" for c in comps] + \
         [f"sigma_schmidt_{c}" for c in comps] + [f"sigma_vol_{c}" for c in comps] + ["sigma_vol_m"] + \
-        ["n_contacts", "Z", "rattlers", "Gamma", "E_p", "E_f", "E_d", "E_p_model", "E_d_model", "E_c", "E_int", "E_el", "E_contact", "E_visc",
+        ["n_contacts", "Z", "rattlers", "Gamma", "Gamma_model", "E_p", "E_f", "E_d", "E_p_model", "E_d_model", "E_c", "E_int", "E_el", "E_contact", "E_visc",
          "E_damp", "W_ext", "unbalanced", "E_c_over_E_int", "wall_time"]
     periodic = case.bc in ("CLP", "CLPS")  # Schmidt stress defined
     mean_radius = float(np.mean(radii[:n]))
@@ -457,7 +459,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
                 not np.array_equal(arrays["dof_coordinates"], _dof_coordinates(V)):
             raise CheckpointError(f"restart: {restart} was written with another mesh partition")
         X0 = np.ascontiguousarray(meta["centroids0"], dtype=float)
-        history.rows = [list(map(float, row)) for row in meta["history"]]
+        history.rows = _history_rows(meta, columns)
         state = {k[7:]: v for k, v in arrays.items() if k.startswith("solver/")}
         if adopt:
             solver.adopt_state(state, translation=_anchor_displacement(bcs, V, state["u"], float(state["t"])))
@@ -479,7 +481,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         directory = checkpoint_path(checkpoint_root, step)
         save_checkpoint(directory, comm, arrays, {
             "step": step, "t": s.t, "solver": case.solver, "bc": case.bc, "num_dofs": num_dofs,
-            "centroids0": X0.tolist(), "history": history.rows,
+            "centroids0": X0.tolist(), "history": history.rows, "columns": columns,
             "wall_time": wall_offset + time.perf_counter() - start,
             "packing": {"cell": packing.cell.tolist(), "centres": packing.centres.tolist(),
                         "radii": packing.radii.tolist()}})
@@ -516,6 +518,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         sigma_m, sigma_d = stress_invariants(sigma_lw)
         sigma_tilde_d = rendulic_stress(sigma_lw)[1]
         gamma = specific_contact_surface(pf["area"], cell_volume0, F, weights)
+        gamma_model = specific_contact_surface(pf["area"], cell_volume0, F)
         carrying = pf["points"] > 0  # pairs within the search distance may carry no force
         n_contacts, mean_z, rattlers = coordination(pairs[carrying, 0], pairs[carrying, 1], model.original,
                                                     weights[carrying], n)
@@ -556,7 +559,8 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
                        **{f"sigma_schmidt_{c}": v for c, v in zip(comps, -sigma_s.ravel())},
                        **{f"sigma_vol_{c}": v for c, v in zip(comps, -sigma_vol.ravel())},
                        sigma_vol_m=stress_invariants(sigma_vol)[0],
-                       n_contacts=n_contacts, Z=mean_z, rattlers=rattlers, Gamma=gamma, unbalanced=unbalanced,
+                       n_contacts=n_contacts, Z=mean_z, rattlers=rattlers, Gamma=gamma, Gamma_model=gamma_model,
+                       unbalanced=unbalanced,
                        E_c_over_E_int=energies["E_c"] / energies["E_int"] if energies["E_int"] > 0 else np.nan,
                        wall_time=wall, **energies)
         if writer is not None:
@@ -625,6 +629,20 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
                               title=f"{n} particles, {case.loading} compaction, {case.bc}")
     return CompactionResult(history, packing, num_dofs, radii.size, time.perf_counter() - start, total, out,
                             extra={"model": model, "solver": solver})
+
+
+#: columns added since the first checkpoints (which do not list theirs): filled with NaN on restart
+_COLUMNS_ADDED = ("Gamma_model",)
+
+
+def _history_rows(meta: dict, columns: list[str]) -> list[list[float]]:
+    """A checkpoint's history rows in the order of ``columns``, matched by name; columns the
+    checkpoint did not have are NaN."""
+    saved = meta.get("columns") or [c for c in columns if c not in _COLUMNS_ADDED]
+    if any(len(row) != len(saved) for row in meta["history"]):
+        raise CheckpointError(f"restart: the checkpoint's history rows do not match its {len(saved)} columns")
+    where = {c: k for k, c in enumerate(saved)}
+    return [[float(row[where[c]]) if c in where else np.nan for c in columns] for row in meta["history"]]
 
 
 def implicit_step_controls(case: CompactionCase, path: GradientPath) -> list[StepControl]:
