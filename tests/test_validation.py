@@ -80,3 +80,20 @@ def test_stable_dbc_is_where_the_tail_settles():
     assert report.stable_dbc([1.2, 1.5, 1.8, 2.1], [10.0, 11.0, 12.0, 12.6]) == 2.1  # still moving
     assert np.isnan(report.stable_dbc([2.5], [9.7]))
 
+
+
+def test_gamma_rows_compare_every_definition():
+    """Table 4.2 rows: the CLP volume's Gamma and the GDF model's Gamma / Gamma_model at each rho_f;
+    the status line follows Gamma_model (the thesis' footnote-4 definition)."""
+    rho = np.linspace(0.6, 0.95, 36)
+    gdf = {"rho_imposed": rho, "Gamma": 10 * (rho - 0.6), "Gamma_model": 46.8 * (rho - 0.6) / 0.35}
+    clp = {"rho_imposed": rho, "Gamma": 9 * (rho - 0.6)}
+    rows, lines = report.gamma_rows({"isotropic_GDF_gamma1e-2": {"history": gdf},
+                                     "isotropic_CLP_gamma1e-2": {"history": clp}})
+    by = {(r["case"], r["quantity"]): r for r in rows}
+    model = by[("isotropic_GDF_gamma1e-2", "Gamma_model at rho_f 0.95 (mm^-1)")]
+    assert model["ours"] == pytest.approx(46.8) and model["status"] == "met"
+    assert by[("isotropic_CLP_gamma1e-2", "Gamma at rho_f 0.95 (mm^-1)")]["status"] == "not met"
+    line = next(x for x in lines if x.startswith("| isotropic | 0.95 |"))
+    assert line.endswith("| +0.0 % | met |") and "3.15 | 3.50 | 46.80" in line
+    assert any(x.startswith("| die | 0.89 | 39.8 | not run yet | not run yet | not run yet") for x in lines)

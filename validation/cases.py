@@ -81,13 +81,15 @@ def size_case(particles: int) -> Case:
                                               particles=particles))
 
 
-def adhesive_case(loading: str, delta_max: float | None = None) -> Case:
-    """CLP compaction with adhesion gamma = 1e-2 mJ/mm^2 to the largest rho_f of table 4.2
-    (delta_max: the library's 0.5 um of the thesis text, or e.g. appendix A's 0.2 um)."""
-    options = dict(loading=loading, bc="CLP", gamma=1e-2, target_density=max(THESIS_GAMMA_L[loading]))
+def adhesive_case(loading: str, delta_max: float | None = None, bc: str = "CLP") -> Case:
+    """Compaction with adhesion gamma = 1e-2 mJ/mm^2 to the largest rho_f of table 4.2 (delta_max:
+    the library's 0.5 um of the thesis text, or e.g. appendix A's 0.2 um). bc "GDF" is the
+    thesis' own chapter-4 model (346 particles: the 50 of the volume and their copies, §4.5
+    conclusion); "CLP" the periodic volume."""
+    options = dict(loading=loading, bc=bc, gamma=1e-2, target_density=max(THESIS_GAMMA_L[loading]))
     if delta_max is None:
-        return Case(f"{loading}_CLP_gamma1e-2", options)
-    return Case(f"{loading}_CLP_gamma1e-2_dmax{1e3 * delta_max:g}um", {**options, "delta_max": delta_max})
+        return Case(f"{loading}_{bc}_gamma1e-2", options)
+    return Case(f"{loading}_{bc}_gamma1e-2_dmax{1e3 * delta_max:g}um", {**options, "delta_max": delta_max})
 
 
 def hardening_case(n: float) -> Case:
@@ -105,7 +107,8 @@ STAGES = {
     "isotropic": [isotropic_case(bc) for bc in ("CLP", "CLPS", "GDF", "GDH")],
     "dbc": [dbc_case(bc, d) for bc, grid in DBC_GRID.items() for d in grid],
     "size": [size_case(150)],  # with isotropic_GDF (50) and isotropic_CLP (the reference)
-    "gamma": [adhesive_case("isotropic"), adhesive_case("die")],
+    "gamma": [adhesive_case("isotropic"), adhesive_case("isotropic", bc="GDF"), adhesive_case("die"),
+              adhesive_case("die", bc="GDF")],
     #: the thesis' contradictions: n 0.35 (table 2.1) / 0.36 (input file), delta_max 0.5 um
     #: (text) / 0.2 um (appendix A); we use 0.35 and 0.5 um
     "sensitivity": [hardening_case(0.36), adhesive_case("die", delta_max=2e-4)],

@@ -257,21 +257,31 @@ def stress_rows(done: dict) -> tuple[list[dict], list[str]]:
 
 
 def gamma_rows(done: dict) -> tuple[list[dict], list[str]]:
-    """Thesis table 4.2: the specific contact surface Gamma (eq. 4.13) reached by the CLP
-    compaction with gamma = 1e-2 at each rho_f, against the limit threshold Gamma_l."""
-    rows, lines = [], ["| loading | rho_f | thesis Gamma_l (table 4.2) | ours: Gamma at rho_imposed = rho_f | "
-                       "deviation | status |", "|---|---|---|---|---|---|"]
+    """Thesis table 4.2: the specific contact surface Gamma (eq. 4.13) reached by the compactions
+    with gamma = 1e-2 at each rho_f, against the limit threshold Gamma_l: the CLP volume's Gamma,
+    and the thesis' own GDF model with S summed over the volume only (Gamma) or over every contact
+    of the model (Gamma_model, its footnote 4 of §4.4.1). Status on the GDF model's Gamma_model."""
+    rows, lines = [], ["| loading | rho_f | thesis Gamma_l (table 4.2) | CLP: Gamma | GDF: Gamma (volume) | "
+                       "GDF: Gamma_model (every contact) | deviation (Gamma_model) | status |",
+                       "|---|---|---|---|---|---|---|---|"]
     for loading, table in THESIS_GAMMA_L.items():
-        run = done.get(f"{loading}_CLP_gamma1e-2")
+        clp, gdf = done.get(f"{loading}_CLP_gamma1e-2"), done.get(f"{loading}_GDF_gamma1e-2")
         for rho_f, thesis in table.items():
-            if run is None:
-                lines.append(f"| {loading} | {rho_f} | {thesis} | not run yet | | |")
-                continue
-            ours = at_density(run["history"], "Gamma", rho_f, "rho_imposed")
-            r = row(f"{loading}_CLP_gamma1e-2", f"Gamma at rho_f {rho_f} (mm^-1)", thesis, ours)
-            rows.append(r)
-            lines.append(f"| {loading} | {rho_f} | {thesis} | {ours:.2f} | {100 * r['deviation']:+.1f} % | "
-                         f"{r['status']} |")
+            cells = []
+            for name, run, column in ((f"{loading}_CLP_gamma1e-2", clp, "Gamma"),
+                                      (f"{loading}_GDF_gamma1e-2", gdf, "Gamma"),
+                                      (f"{loading}_GDF_gamma1e-2", gdf, "Gamma_model")):
+                if run is None:
+                    cells.append(None)
+                    continue
+                value = at_density(run["history"], column, rho_f, "rho_imposed") \
+                    if column in run["history"] else float("nan")
+                cells.append(value)
+                rows.append(row(name, f"{column} at rho_f {rho_f} (mm^-1)", thesis, value))
+            text = ["not run yet" if v is None else f"{v:.2f}" for v in cells]
+            last = rows[-1] if cells[2] is not None else None
+            lines.append(f"| {loading} | {rho_f} | {thesis} | {' | '.join(text)} | "
+                         + (f"{100 * last['deviation']:+.1f} % | {last['status']} |" if last else " | |"))
     return rows, lines
 
 
@@ -313,9 +323,13 @@ def figures(done: dict, out: Path) -> None:
         if run is not None:
             ax.plot(run["history"]["rho_imposed"], run["history"]["Gamma"], color=colour,
                     label=f"{loading}, CLP, gamma 1e-2 (ours)")
+        run = done.get(f"{loading}_GDF_gamma1e-2")
+        if run is not None and "Gamma_model" in run["history"]:
+            ax.plot(run["history"]["rho_imposed"], run["history"]["Gamma_model"], "--", color=colour,
+                    label=f"{loading}, GDF, every contact of the model (ours)")
         ax.plot(list(table), list(table.values()), "x", color=colour, ms=9, mew=2,
                 label=f"{loading}: Gamma_l, thesis table 4.2")
-    _save(fig, ax, "specific contact surface Gamma (1/mm)", "Adhesive CLP compaction, 50 particles",
+    _save(fig, ax, "specific contact surface Gamma (1/mm)", "Adhesive compaction, 50 particles",
           out / "gamma.png")
     plt.close(fig)
 
