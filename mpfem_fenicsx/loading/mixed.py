@@ -200,3 +200,33 @@ def triaxial_control(confining: float, consolidation: float, hold: float, axial_
         target=lambda t: confining * min(t / consolidation, 1.0) * np.eye(3),
         velocity_gradient=lambda t: shortening if t >= start_axial else np.zeros((3, 3)),
         rate=rate, band=band, measure=measure, integral_time=integral_time, filter_time=filter_time)
+
+
+def lode_direction(theta: float) -> np.ndarray:
+    """Unit deviatoric direction (3,) of principal stresses at Lode angle ``theta`` (rad):
+    sqrt(2/3) (cos theta, cos(theta - 2 pi/3), cos(theta + 2 pi/3)). Compression > 0: theta = 0 is
+    triaxial compression along x (sigma_1 > sigma_2 = sigma_3), theta = pi/3 triaxial extension
+    along z (sigma_1 = sigma_2 > sigma_3)."""
+    return np.sqrt(2.0 / 3.0) * np.cos(theta - np.array([0.0, 2.0, -2.0]) * np.pi / 3.0)
+
+
+def lode_shear_control(mean: float, q_max: float, theta: float, duration: float, rate: float, band: float,
+                       start: np.ndarray | None = None, t0: float = 0.0, measure: str = "schmidt",
+                       integral_time: float | None = None, filter_time: float = 0.0) -> StressControl:
+    """Shear at constant mean stress: the three normal stresses driven to
+    sigma = mean I + sqrt(2/3) q(t) diag(lode_direction(theta)), q (the von Mises equivalent
+    stress, MPa) ramped from 0 at t0 to ``q_max`` at t0 + duration; shear strains stay zero.
+    ``start``: F0 at t0 (a fan of probes from one consolidated state). MPa, compression > 0."""
+    if not duration > 0:
+        raise ValueError(f"duration must be > 0 s, got {duration}")
+    if not q_max > 0:
+        raise ValueError(f"q_max must be > 0 MPa, got {q_max}")
+    direction = np.diag(lode_direction(theta))
+
+    def target(t):
+        q = q_max * min(max((t - t0) / duration, 0.0), 1.0)
+        return mean * np.eye(3) + np.sqrt(2.0 / 3.0) * q * direction
+
+    return StressControl(duration=t0 + duration, stress_driven=np.eye(3, dtype=bool), target=target, rate=rate,
+                         band=band, start=np.eye(3) if start is None else start, measure=measure,
+                         integral_time=integral_time, filter_time=filter_time)
