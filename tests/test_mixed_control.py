@@ -36,6 +36,25 @@ def test_control_integrates_the_velocity_gradient():
         CompactionCase(bc="GDF", control=control)
 
 
+def test_lode_shear_keeps_the_mean_stress():
+    """The Lode-angle probe's targets: constant mean stress, von Mises equivalent q ramped, the
+    principal order of triaxial compression at 0 and of triaxial extension at 60 degrees."""
+    from mpfem_fenicsx.homogenization import stress_invariants
+    from mpfem_fenicsx.loading.mixed import lode_shear_control
+
+    for theta in np.radians([0.0, 20.0, 60.0, 137.0]):
+        control = lode_shear_control(mean=3.0, q_max=2.0, theta=theta, duration=1e-3, rate=10.0, band=1.0, t0=5e-4)
+        sigma = control.target(1e-3)  # half-way
+        m, q = stress_invariants(-sigma)  # the invariants' convention: tension > 0 in, compression > 0 out
+        assert m == pytest.approx(3.0) and q == pytest.approx(1.0)
+        assert stress_invariants(-control.target(2e-3))[1] == pytest.approx(2.0)  # held at q_max
+        assert stress_invariants(-control.target(4e-4))[1] == pytest.approx(0.0)  # before t0
+    s0 = np.diag(lode_shear_control(1.0, 1.0, 0.0, 1.0, 1.0, 1.0).target(1.0))
+    s60 = np.diag(lode_shear_control(1.0, 1.0, np.pi / 3, 1.0, 1.0, 1.0).target(1.0))
+    assert s0[0] > s0[1] and s0[1] == pytest.approx(s0[2])
+    assert s60[0] == pytest.approx(s60[1]) and s60[1] > s60[2]
+
+
 def servo_on_a_linear_plant(K, drift, integral_time, filter_time=0.0, noise=0.0, T=0.02, dt=1e-5):
     """Error history (MPa) of a servo holding sigma_11 at 1 MPa on a model medium whose stress is
     sigma_11 = K (-ln F11) + drift t (+ white noise of amplitude ``noise`` in the measure)."""
@@ -101,3 +120,66 @@ def test_consolidation_then_triaxial_on_the_simple_cubic_cell(tmp_path):
         assert np.abs(h.column(f"sigma_schmidt_{i}{i}")[axial] / p0 - 1).max() < 0.02
     assert h.column("sigma_schmidt_33")[-1] > 1.5 * p0
     assert abs(h.column("sigma_schmidt_12")[-1]) < 1e-3 * p0
+
+
+def test_strain_path_replayed_under_stress_control(tmp_path):
+    """Acceptance 3 of issue 24: a die compaction (strain-driven, elastic simple cubic cell, then
+    held at rest), then the same cell driven by the three normal Schmidt stresses that compaction
+    produced (PI servo). Along the path the replay passes through the strain-driven states (its
+    strains at the stress it reached are the strain-driven ones at that stress), and at rest at
+    the end its strains are the strain-driven ones, within 2 % of the axial strain."""
+    T = 1e-3
+    material = replace(LEAD, sigma_0=1e4)
+    strain = run_compaction(small_case(tmp_path / "strain", bc="CLP", loading="die", target_density=0.53,
+                                       material=material, duration=T, increments=1000, outputs=20, hold=0.5),
+                            MPI.COMM_SELF, log=quiet).history
+    t = np.concatenate([[0.0], strain.column("time")])
+    recorded = np.vstack([np.zeros(3), np.column_stack([strain.column(f"sigma_schmidt_{i}{i}") for i in (1, 2, 3)])])
+
+    def target(s):
+        return np.diag([np.interp(s, t, recorded[:, i]) for i in range(3)])
+
+    peak = recorded[:, 2].max()
+    control = StressControl(duration=t[-1], stress_driven=np.eye(3, dtype=bool), target=target, rate=100.0,
+                            band=0.1 * peak, integral_time=2e-4)
+    replay = run_compaction(small_case(tmp_path / "replay", bc="CLP", control=control, material=material, duration=T,
+                                       increments=1000, outputs=20), MPI.COMM_SELF, log=quiet).history
+    h_strain = [np.log(strain.column(f"F{i}{i}")) for i in (1, 2, 3)]
+    h_replay = [np.log(replay.column(f"F{i}{i}")) for i in (1, 2, 3)]
+    scale = abs(h_strain[2][-1])
+    assert scale > 0.02 and peak > 0
+    for i in range(3):  # at rest at the end
+        assert abs(h_replay[i][-1] - h_strain[i][-1]) < 0.02 * scale, i
+    # along the loading: the strain-driven states at the stress the replay measured
+    loading = strain.column("time") <= T
+    sigma = replay.column("sigma_schmidt_33")
+    on_path = (replay.column("time") <= T) & (sigma > 0.2 * peak) & (sigma < 0.95 * peak)
+    assert on_path.sum() >= 5
+    expected = np.interp(sigma[on_path], strain.column("sigma_schmidt_33")[loading], h_strain[2][loading])
+    assert np.abs(h_replay[2][on_path] - expected).max() < 0.02 * scale
+
+
+def test_stress_controlled_run_restarts_bit_for_bit(tmp_path):
+    """The servo's state (integrated F0, velocity gradient, filter, integral) is checkpointed: a
+    stress-controlled run restarted from its mid-run checkpoint gives the uninterrupted history."""
+    from mpfem_fenicsx.io.checkpoint import CheckpointError
+
+    def case(out):
+        control = StressControl(duration=4e-4, stress_driven=np.eye(3, dtype=bool), rate=50.0, band=0.5,
+                                target=lambda t: 2.0 * min(t / 2e-4, 1.0) * np.eye(3), integral_time=1e-4,
+                                filter_time=5e-6)
+        return small_case(out, bc="CLP", control=control, material=replace(LEAD, sigma_0=1e4), duration=4e-4,
+                          increments=400, outputs=4, checkpoint_every=2)
+
+    a = run_compaction(case(tmp_path / "a"), MPI.COMM_SELF, log=quiet).history
+    b = run_compaction(case(tmp_path / "b"), MPI.COMM_SELF, log=quiet,
+                       restart=tmp_path / "a" / "checkpoints" / "step0000200").history
+    assert a.column("sigma_schmidt_11")[-1] > 0.5  # the servo compressed the cell
+    for name in ("F11", "F33", "sigma_schmidt_11", "sigma_vol_22", "rho"):
+        np.testing.assert_array_equal(a.column(name), b.column(name), err_msg=name)
+    strain_driven = small_case(tmp_path / "c", bc="CLP", material=replace(LEAD, sigma_0=1e4), increments=100,
+                               outputs=2, checkpoint_every=1)
+    run_compaction(strain_driven, MPI.COMM_SELF, log=quiet)
+    with pytest.raises(CheckpointError, match="strain-driven run"):
+        run_compaction(case(tmp_path / "d"), MPI.COMM_SELF, log=quiet,
+                       restart=tmp_path / "c" / "checkpoints" / "step0000050")

@@ -133,6 +133,23 @@ class StressControl:
             self._t = t
         return self._F.copy()
 
+    def state_dict(self) -> dict:
+        """The servo's state (plain lists and floats, for a checkpoint's metadata): restoring it
+        with :meth:`load_state` into the same control continues the path bit for bit."""
+        return {"t": self._t, "F": self._F.tolist(), "previous_t": self._previous[0],
+                "previous_F": self._previous[1].tolist(), "L_servo": self._L_servo.tolist(),
+                "filtered": None if self._filtered is None else self._filtered.tolist(),
+                "integral": self._integral.tolist(), "t_update": self._t_update}
+
+    def load_state(self, state: dict) -> None:
+        """Restore :meth:`state_dict`."""
+        self._t, self._F = float(state["t"]), np.array(state["F"], dtype=float)
+        self._previous = (float(state["previous_t"]), np.array(state["previous_F"], dtype=float))
+        self._L_servo = np.array(state["L_servo"], dtype=float)
+        self._filtered = None if state["filtered"] is None else np.array(state["filtered"], dtype=float)
+        self._integral = np.array(state["integral"], dtype=float)
+        self._t_update = state["t_update"]
+
     def update(self, t: float, sigma: np.ndarray) -> None:
         """Servo: set the stress-driven velocity gradient from the measured Cauchy stress
         ``sigma`` (3, 3) (MPa, compression > 0) at time t."""

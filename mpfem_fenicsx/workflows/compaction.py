@@ -458,6 +458,11 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         if arrays["dof_coordinates"].shape != _dof_coordinates(V).shape or \
                 not np.array_equal(arrays["dof_coordinates"], _dof_coordinates(V)):
             raise CheckpointError(f"restart: {restart} was written with another mesh partition")
+        if case.control is not None:  # the servo as it was, before the solver asks it for F0
+            if meta.get("control") is None:
+                raise CheckpointError(f"restart: {restart} was written by a strain-driven run; a stress-controlled "
+                                      "run restarts only from its own checkpoints")
+            case.control.load_state(meta["control"])
         X0 = np.ascontiguousarray(meta["centroids0"], dtype=float)
         history.rows = _history_rows(meta, columns)
         state = {k[7:]: v for k, v in arrays.items() if k.startswith("solver/")}
@@ -482,6 +487,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         save_checkpoint(directory, comm, arrays, {
             "step": step, "t": s.t, "solver": case.solver, "bc": case.bc, "num_dofs": num_dofs,
             "centroids0": X0.tolist(), "history": history.rows, "columns": columns,
+            "control": None if case.control is None else case.control.state_dict(),
             "wall_time": wall_offset + time.perf_counter() - start,
             "packing": {"cell": packing.cell.tolist(), "centres": packing.centres.tolist(),
                         "radii": packing.radii.tolist()}})
@@ -587,9 +593,6 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
             sigma = volume_stress_integral() / (np.linalg.det(F0) * cell_volume0)
         path.update(s.t, -sigma)
 
-    if case.control is not None and restart is not None:
-        raise CheckpointError("restart: a stress-controlled run cannot restart yet (the servo's state is not "
-                              "checkpointed)")
     try:
         if case.solver == "explicit":
             total = solver.run(record, outputs=case.outputs, every=case.output_every or None,
