@@ -177,9 +177,24 @@ def test_stress_controlled_run_restarts_bit_for_bit(tmp_path):
     assert a.column("sigma_schmidt_11")[-1] > 0.5  # the servo compressed the cell
     for name in ("F11", "F33", "sigma_schmidt_11", "sigma_vol_22", "rho"):
         np.testing.assert_array_equal(a.column(name), b.column(name), err_msg=name)
-    strain_driven = small_case(tmp_path / "c", bc="CLP", material=replace(LEAD, sigma_0=1e4), increments=100,
-                               outputs=2, checkpoint_every=1)
-    run_compaction(strain_driven, MPI.COMM_SELF, log=quiet)
-    with pytest.raises(CheckpointError, match="strain-driven run"):
-        run_compaction(case(tmp_path / "d"), MPI.COMM_SELF, log=quiet,
-                       restart=tmp_path / "c" / "checkpoints" / "step0000050")
+    # a stress path continuing a strain-driven compaction from its checkpoint: it starts at the
+    # checkpoint's gradient, and the pressure it holds is met
+    strain_driven = small_case(tmp_path / "c", bc="CLP", material=replace(LEAD, sigma_0=1e4), target_density=0.52,
+                               duration=4e-4, increments=400, outputs=2, checkpoint_every=1)
+    c = run_compaction(strain_driven, MPI.COMM_SELF, log=quiet).history
+    held = StressControl(duration=8e-4, stress_driven=np.eye(3, dtype=bool), rate=50.0, band=0.5,
+                         target=lambda t: c.column("sigma_schmidt_11")[-1] * np.eye(3), integral_time=1e-4)
+    d = run_compaction(small_case(tmp_path / "d", bc="CLP", control=held, material=replace(LEAD, sigma_0=1e4),
+                                  duration=4e-4, increments=400, outputs=4), MPI.COMM_SELF, log=quiet,
+                       restart=tmp_path / "c" / "checkpoints" / "step0000400").history
+    new = d.column("time") > 4e-4 * (1 + 1e-9)  # the rows after the restart (the history goes on)
+    assert new.sum() == 2 and np.array_equal(d.column("F33")[~new], c.column("F33"))
+    strain = abs(c.column("F33")[-1] - 1)
+    assert strain > 1e-3 and np.abs(d.column("F33")[new] - c.column("F33")[-1]).max() < 0.1 * strain
+    with pytest.raises(CheckpointError, match="does not record its gradient"):
+        import json
+        meta = tmp_path / "c" / "checkpoints" / "step0000400" / "meta.json"
+        data = json.loads(meta.read_text())
+        data.pop("F0")
+        meta.write_text(json.dumps(data))
+        run_compaction(case(tmp_path / "e"), MPI.COMM_SELF, log=quiet, restart=meta.parent)

@@ -133,6 +133,14 @@ class StressControl:
             self._t = t
         return self._F.copy()
 
+    def begin(self, t: float, F: np.ndarray) -> None:
+        """Start the path at time ``t`` from the gradient ``F`` (3, 3), servo at rest: a stress
+        path continuing a strain-driven run from its checkpoint."""
+        self._t, self._F = float(t), np.asarray(F, dtype=float).copy()
+        self._previous = (self._t, self._F.copy())
+        self._L_servo = np.zeros((3, 3))
+        self._filtered, self._integral, self._t_update = None, np.zeros((3, 3)), None
+
     def state_dict(self) -> dict:
         """The servo's state (plain lists and floats, for a checkpoint's metadata): restoring it
         with :meth:`load_state` into the same control continues the path bit for bit."""

@@ -458,11 +458,14 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         if arrays["dof_coordinates"].shape != _dof_coordinates(V).shape or \
                 not np.array_equal(arrays["dof_coordinates"], _dof_coordinates(V)):
             raise CheckpointError(f"restart: {restart} was written with another mesh partition")
-        if case.control is not None:  # the servo as it was, before the solver asks it for F0
-            if meta.get("control") is None:
-                raise CheckpointError(f"restart: {restart} was written by a strain-driven run; a stress-controlled "
-                                      "run restarts only from its own checkpoints")
-            case.control.load_state(meta["control"])
+        if case.control is not None:  # the servo before the solver asks it for F0
+            if meta.get("control") is not None:  # as it was (a new stress path continues it)
+                case.control.load_state(meta["control"])
+            elif meta.get("F0") is not None:  # a stress path from a strain-driven state
+                case.control.begin(float(meta["t"]), np.array(meta["F0"], dtype=float))
+            else:
+                raise CheckpointError(f"restart: {restart} does not record its gradient F0 (written before "
+                                      "2026-11-25): a stress-controlled run cannot continue it")
         X0 = np.ascontiguousarray(meta["centroids0"], dtype=float)
         history.rows = _history_rows(meta, columns)
         state = {k[7:]: v for k, v in arrays.items() if k.startswith("solver/")}
@@ -488,6 +491,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
             "step": step, "t": s.t, "solver": case.solver, "bc": case.bc, "num_dofs": num_dofs,
             "centroids0": X0.tolist(), "history": history.rows, "columns": columns,
             "control": None if case.control is None else case.control.state_dict(),
+            "F0": path(s.t).tolist(),
             "wall_time": wall_offset + time.perf_counter() - start,
             "packing": {"cell": packing.cell.tolist(), "centres": packing.centres.tolist(),
                         "radii": packing.radii.tolist()}})
