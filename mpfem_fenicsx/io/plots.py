@@ -129,3 +129,46 @@ def _save(fig, png: str | Path, title: str = "") -> Path:
     fig.savefig(png, dpi=110)
     plt.close(fig)
     return png
+
+
+def plot_deviatoric_surface(points, png: str | Path, mean: float, title: str = "") -> Path:
+    """Yield points of a Lode-angle fan [(theta_deg, sigma_m, q, lode_deg), ...] (MPa, compression
+    > 0) in the deviatoric plane (radius q, angle the measured Lode angle; the points mirrored by
+    the symmetry of an isotropic state, theta -> -theta and + 120 deg, drawn hollow) and in
+    principal-stress space (the hydrostatic axis, the surface's section at sigma_m = ``mean``)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..loading.mixed import lode_direction
+
+    pts = np.array([(p[2], np.radians(p[3])) for p in points]).reshape(-1, 2)
+    fig = plt.figure(figsize=(10, 4.6))
+    ax = fig.add_subplot(1, 2, 1)
+    for k, (sign, turn) in enumerate([(s, t) for s in (1, -1) for t in (0, 1, 2)]):
+        angle = sign * pts[:, 1] + turn * 2 * np.pi / 3
+        ax.plot(pts[:, 0] * np.cos(angle), pts[:, 0] * np.sin(angle), "o" if k == 0 else "o",
+                mfc="tab:red" if k == 0 else "none", mec="tab:red", ms=6 if k == 0 else 4,
+                label="yield (measured)" if k == 0 else ("mirrored by symmetry" if k == 1 else None))
+    r = 1.15 * (pts[:, 0].max() if pts.size else 1.0)
+    for i, name in enumerate(("sigma_1 (x)", "sigma_2 (y)", "sigma_3 (z)")):
+        a = 2 * np.pi / 3 * i  # the direction of a stress along axis i (lode_angle)
+        ax.plot([0, r * np.cos(a)], [0, r * np.sin(a)], color="0.6", lw=0.8)
+        ax.annotate(name, (r * np.cos(a), r * np.sin(a)), fontsize=8, color="0.4")
+    ax.set_aspect("equal")
+    ax.set_xlabel("q cos(theta) (MPa)")
+    ax.set_ylabel("q sin(theta) (MPa)")
+    ax.legend(fontsize=8, loc="best")
+    ax.grid(alpha=0.3)
+    ax3 = fig.add_subplot(1, 2, 2, projection="3d")
+    for q, theta in pts:
+        s = mean + np.sqrt(2.0 / 3.0) * q * lode_direction(theta)
+        ax3.scatter(*s, color="tab:red")
+    top = mean + (pts[:, 0].max() if pts.size else 1.0)
+    ax3.plot([0, top], [0, top], [0, top], color="0.5", lw=0.8, label="hydrostatic axis")
+    ax3.set_xlabel("sigma_1 (MPa)")
+    ax3.set_ylabel("sigma_2 (MPa)")
+    ax3.set_zlabel("sigma_3 (MPa)")
+    ax3.legend(fontsize=8)
+    return _save(fig, png, title)

@@ -1,0 +1,63 @@
+"""Yield surface of a periodic volume of lead particles in the deviatoric plane, by stress-controlled
+probes at constant mean stress over Lode angles (issue 24; beyond the thesis, whose chapter-4
+fans are strain-driven reloads in the (sigma_m, sigma~_d) plane).
+
+    python demos/deviatoric_surface.py                         # flagship volume, 7 probes over 0-60 deg
+    python demos/deviatoric_surface.py --angles 0 15 30 45 60 --p-load 4 --p-probe 2
+
+Pipeline (workflows.deviatoric_surface): the flagship volume (24 particles, seed 1, CLP by
+periodic images, explicit) -> isotropic consolidation to --p-load by the servo on the Schmidt
+stress, held -> unloaded to --p-probe, held (checkpoint) -> one probe per Lode angle from that
+checkpoint: sigma_m held at --p-probe, the von Mises stress q ramped to --q-max along the angle
+-> yield where E_d first exceeds E_0 (1 + 0.3 %), E_0 at the end of the unload (thesis §4.2.2).
+
+Outputs in --out (default results/deviatoric_surface/): fan.csv, surface.csv,
+deviatoric_surface.png (the deviatoric plane, points mirrored by the symmetry of an isotropic
+state, and principal-stress space), consolidate/ and probe_<deg>/ with their histories.
+"""
+
+import argparse
+import sys
+
+from mpi4py import MPI
+
+from mpfem_fenicsx.workflows.compaction import CompactionCase, RunFailure
+from mpfem_fenicsx.workflows.deviatoric_surface import DeviatoricSurfaceCase, run_deviatoric_surface
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--particles", type=int, default=24)
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--p-load", type=float, default=2.0, help="consolidation pressure (MPa, compression > 0)")
+    p.add_argument("--p-probe", type=float, default=1.0, help="mean stress of the unloaded state and probes (MPa)")
+    p.add_argument("--q-max", type=float, default=3.0, help="von Mises stress at the end of a probe (MPa)")
+    p.add_argument("--angles", type=float, nargs="+", default=[0, 10, 20, 30, 40, 50, 60],
+                   help="Lode angles of the probes (deg; 0 triaxial compression along x, 60 extension along z)")
+    p.add_argument("--increments", type=int, default=6000, help="explicit increments per 1e-3 s of loading")
+    p.add_argument("--out", default="results/deviatoric_surface")
+    args = p.parse_args(argv)
+    try:
+        base = CompactionCase(particles=args.particles, seed=args.seed, bc="CLP", increments=args.increments,
+                              visual=False)
+        case = DeviatoricSurfaceCase(base=base, p_load=args.p_load, p_probe=args.p_probe, q_max=args.q_max,
+                                     angles_deg=tuple(args.angles), out_dir=args.out)
+    except ValueError as err:
+        p.error(str(err))
+    try:
+        result = run_deviatoric_surface(case, MPI.COMM_WORLD)
+    except RunFailure as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 3
+    if MPI.COMM_WORLD.rank == 0:
+        print(f"E_0 = {result['E_0']:.4g} mJ; yield points (theta deg: sigma_m, q MPa, measured Lode angle deg):")
+        for theta, sigma_m, q, lode in result["points"]:
+            print(f"  {theta:5.1f}: {sigma_m:.3f}, {q:.3f}, {lode:.1f}")
+        missing = len(args.angles) - len(result["points"])
+        if missing:
+            print(f"{missing} probe(s) did not yield below q = {args.q_max} MPa (raise --q-max)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

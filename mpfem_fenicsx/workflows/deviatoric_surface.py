@@ -1,0 +1,185 @@
+"""Yield surface in the deviatoric plane by stress-controlled probes (issue 24; beyond the
+thesis, whose chapter-4 fans are strain-driven reloads in the (sigma_m, sigma~_d) plane).
+
+Stages (data flow: consolidation -> unload -> checkpoint -> fan of Lode-angle probes -> surface):
+1. **consolidate and unload** (``out/consolidate``): the three normal stresses servo-controlled
+   (loading.mixed.StressControl) up to the pressure ``p_load`` (ramp, hold), then down to the
+   probes' mean stress ``p_probe`` < ``p_load`` (ramp, hold), ending with a checkpoint. The
+   volume is then inside its yield surface: E_0 = E_d at the end;
+2. **probes** (``out/probe_<deg>``): from that checkpoint, each probe keeps sigma_m = ``p_probe``
+   and ramps the von Mises stress q along the Lode angle theta (loading.mixed.lode_shear_control),
+   with the servo's state and the contact history carried over;
+3. **surface**: the yield point of a probe is where E_d first reaches E_0 (1 + ``dissipation_threshold``)
+   (the iso-dissipation criterion of thesis §4.2.2), interpolated between history rows in the
+   measured (Schmidt) stress. Angles 0-60 degrees cover the deviatoric plane of an isotropic
+   state by symmetry (compression and extension differ, so the sector is [0, 60] and not less).
+
+Outputs in ``out_dir``: ``fan.csv`` (theta_deg, time, sigma_m, q, lode_deg, E_d: the probes'
+rows), ``surface.csv`` (theta_deg, sigma_m, q, lode_deg of each yield point), ``deviatoric_surface.png``
+(the deviatoric plane, the points mirrored to the full circle, and the principal-stress view).
+MPa, compression > 0; theta = 0 is triaxial compression along x, 60 degrees triaxial extension
+along z (loading.mixed.lode_direction).
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from ..homogenization import first_crossing
+from ..loading.mixed import StressControl, lode_shear_control
+from .compaction import CompactionCase, run_compaction
+
+FAN_COLUMNS = ("theta_deg", "time", "sigma_m", "q", "lode_deg", "E_d")
+_FINAL_ONLY = 10 ** 9  # checkpoint_every that writes the final checkpoint only
+
+
+@dataclass
+class DeviatoricSurfaceCase:
+    """A Lode-angle fan. ``base``: the volume (packing, mesh, material, CLP / CLPS, explicit, its
+    ``duration`` and ``increments`` set the time unit and the increment); its path is replaced.
+    Times in units of ``base.duration``; the servo's ``rate`` in strain per duration."""
+
+    base: CompactionCase = field(default_factory=CompactionCase)
+    p_load: float = 2.0  # MPa, consolidation pressure
+    p_probe: float = 1.0  # MPa, mean stress of the unloaded state and of the probes
+    q_max: float = 3.0  # MPa, von Mises stress at the end of a probe
+    angles_deg: tuple = (0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0)
+    ramp: float = 1.0
+    hold: float = 0.3
+    unload: float = 0.3
+    probe: float = 1.0
+    dissipation_threshold: float = 3e-3  # thesis §4.2.2: 0.3 %
+    rate: float = 0.1
+    band: float | None = None  # MPa (None: p_load / 4)
+    integral_time: float | None = 0.1
+    filter_time: float = 0.01
+    rows_per_probe: int = 20
+    out_dir: str = "results/deviatoric_surface"
+
+    def __post_init__(self):
+        if self.base.bc not in ("CLP", "CLPS") or self.base.solver != "explicit":
+            raise ValueError(f"base: a stress-controlled fan needs bc CLP or CLPS and the explicit solver, got "
+                             f"{self.base.bc!r} / {self.base.solver!r}")
+        if not 0 < self.p_probe < self.p_load:
+            raise ValueError(f"p_probe must be in (0, p_load = {self.p_load}) MPa, got {self.p_probe}")
+        if not self.q_max > 0:
+            raise ValueError(f"q_max must be > 0 MPa, got {self.q_max}")
+        if len(self.angles_deg) < 1 or any(not -360 <= a <= 360 for a in self.angles_deg):
+            raise ValueError(f"angles_deg must hold angles in [-360, 360] degrees, got {self.angles_deg}")
+        for name in ("ramp", "unload", "probe"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0 (x duration), got {getattr(self, name)}")
+        if not self.hold >= 0:
+            raise ValueError(f"hold must be >= 0 (x duration), got {self.hold}")
+        if not 0 < self.dissipation_threshold < 1:
+            raise ValueError(f"dissipation_threshold must be in (0, 1), got {self.dissipation_threshold}")
+
+    def servo(self) -> dict:
+        T = self.base.duration
+        return dict(rate=self.rate / T, band=self.band if self.band is not None else self.p_load / 4,
+                    integral_time=None if self.integral_time is None else self.integral_time * T,
+                    filter_time=self.filter_time * T)
+
+    def consolidation(self) -> StressControl:
+        """Pressure up to p_load (ramp), held, down to p_probe (unload), held."""
+        T = self.base.duration
+        t1, t2, t3 = self.ramp * T, (self.ramp + self.hold) * T, (self.ramp + self.hold + self.unload) * T
+
+        def pressure(t):
+            if t <= t1:
+                return self.p_load * t / t1
+            if t <= t2:
+                return self.p_load
+            return self.p_load + (self.p_probe - self.p_load) * min((t - t2) / (t3 - t2), 1.0)
+
+        return StressControl(duration=t3 + self.hold * T, stress_driven=np.eye(3, dtype=bool),
+                             target=lambda t: pressure(t) * np.eye(3), **self.servo())
+
+
+def lode_angle(sigma: np.ndarray) -> float:
+    """Lode angle (degrees, in [0, 360)) of a normal stress state (3,) (compression > 0) in the
+    convention of loading.mixed.lode_direction: the angle of its deviator from the x direction."""
+    s = np.asarray(sigma, dtype=float) - np.mean(sigma)
+    # components on the deviatoric-plane axes e0 = direction(0), e90 = direction(90 deg)
+    e0 = np.sqrt(2.0 / 3.0) * np.array([1.0, -0.5, -0.5])
+    e90 = np.sqrt(2.0 / 3.0) * np.array([0.0, np.sqrt(3.0) / 2.0, -np.sqrt(3.0) / 2.0])
+    return float(np.degrees(np.arctan2(s @ e90, s @ e0)) % 360.0)
+
+
+def probe_rows(history, theta_deg: float, t_start: float) -> dict[str, np.ndarray]:
+    """fan.csv rows of one probe's history (rows after ``t_start``): Schmidt sigma_m, q, Lode angle."""
+    t = history.column("time")
+    keep = t > t_start * (1 + 1e-12)
+    sigma = np.column_stack([history.column(f"sigma_schmidt_{i}{i}")[keep] for i in (1, 2, 3)])
+    shear = np.column_stack([history.column(f"sigma_schmidt_{c}")[keep] for c in ("12", "23", "13")])
+    mean = sigma.mean(axis=1)
+    dev = sigma - mean[:, None]
+    q = np.sqrt(1.5 * (np.sum(dev ** 2, axis=1) + 2.0 * np.sum(shear ** 2, axis=1)))
+    return {"theta_deg": np.full(keep.sum(), theta_deg), "time": t[keep], "sigma_m": mean, "q": q,
+            "lode_deg": np.array([lode_angle(s) for s in sigma]), "E_d": history.column("E_d")[keep]}
+
+
+def yield_point(rows: dict[str, np.ndarray], E_0: float, threshold: float) -> tuple[float, float, float] | None:
+    """(sigma_m, q, lode_deg) where E_d first reaches E_0 (1 + threshold), or None."""
+    _, m, q = first_crossing(rows["E_d"], E_0 * (1.0 + threshold), rows["sigma_m"], rows["q"], rising=True)
+    if not np.isfinite(m):
+        return None
+    k = int(np.argmax(rows["E_d"] >= E_0 * (1.0 + threshold)))
+    return float(m), float(q), float(rows["lode_deg"][k])
+
+
+def run_deviatoric_surface(case: DeviatoricSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> dict:
+    """Stages 1-3 (module docstring); returns {"E_0", "points": [(theta_deg, sigma_m, q, lode_deg)],
+    "fan": fan rows}."""
+    out = Path(case.out_dir)
+    T = case.base.duration
+    consolidation = case.consolidation()
+    log(f"consolidation to {case.p_load} MPa, unload to {case.p_probe} MPa -> {out / 'consolidate'}")
+    first = run_compaction(replace(case.base, control=consolidation, out_dir=str(out / "consolidate"),
+                                   checkpoint_every=_FINAL_ONLY, outputs=max(8, case.rows_per_probe)), comm, log=log)
+    t_c = float(first.history.column("time")[-1])
+    E_0 = float(first.history.column("E_d")[-1])
+    checkpoint = sorted((out / "consolidate" / "checkpoints").glob("step*"))[-1]
+    model = first.extra["model"]
+    fan, points = [], []
+    for theta in case.angles_deg:
+        control = lode_shear_control(mean=case.p_probe, q_max=case.q_max, theta=np.radians(theta),
+                                     duration=case.probe * T, t0=t_c, **case.servo())
+        probe_dir = out / f"probe_{theta:g}"
+        probe = replace(case.base, control=control, out_dir=str(probe_dir), checkpoint_every=0,
+                        outputs=max(4, round(case.rows_per_probe * (t_c + case.probe * T) / (case.probe * T))))
+        log(f"probe theta = {theta:g} deg -> {probe_dir}")
+        h = run_compaction(probe, comm, log=log, restart=checkpoint, model=model).history
+        rows = probe_rows(h, theta, t_c)
+        fan.append(rows)
+        point = yield_point(rows, E_0, case.dissipation_threshold)
+        if point is not None:
+            points.append((theta, *point))
+    if comm.rank == 0:
+        write_outputs(out, fan, points, case)
+    return {"E_0": E_0, "points": points, "fan": fan}
+
+
+def write_outputs(out: Path, fan: list[dict], points: list[tuple], case: DeviatoricSurfaceCase) -> None:
+    """fan.csv, surface.csv and deviatoric_surface.png."""
+    with open(out / "fan.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(FAN_COLUMNS)
+        for rows in fan:
+            for k in range(rows["time"].size):
+                w.writerow([f"{rows[c][k]:.9g}" for c in FAN_COLUMNS])
+    with open(out / "surface.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(("theta_deg", "sigma_m", "q", "lode_deg"))
+        for p in points:
+            w.writerow([f"{v:.9g}" for v in p])
+    from ..io.plots import plot_deviatoric_surface
+
+    plot_deviatoric_surface(points, out / "deviatoric_surface.png", mean=case.p_probe,
+                            title=f"yield in the deviatoric plane at sigma_m = {case.p_probe} MPa "
+                                  f"(loaded to {case.p_load} MPa)")
