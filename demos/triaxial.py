@@ -7,9 +7,11 @@ beyond the thesis, whose loading is strain-driven only).
 Pipeline: the flagship volume (24 particles, seed 1, CLP by periodic images, explicit) -> the
 three normal stresses servo-controlled through the cell's gradient (the auxiliary nodes) on the
 Schmidt stress (eq. 2.19; --measure volume: the particles' volume average, eq. C.7) up to the
-confining pressure, held -> axial
-compression along z at a constant strain rate with the lateral stresses held at the confining
-pressure (loading.mixed.triaxial_control).
+confining pressure over 1e-3 s, held 0.3e-3 s -> axial compression along z (10 % over 1e-3 s)
+with the lateral stresses held at the confining pressure (loading.mixed.triaxial_control). The
+servo is a PI controller (rate 100 1/s, band a quarter of the confining pressure, integral time
+1e-4 s, the measure low-passed over 1e-5 s): without the integral term the lateral stresses lag
+behind what the axial compression adds to them.
 
 Outputs in --out (default results/triaxial/): history.csv with the columns of
 demos/isotropic.py (sigma_schmidt_11..33: the auxiliary nodes' reactions; sigma11..33: Love-Weber;
@@ -19,6 +21,7 @@ sigma_vol_*: the volume average), packing.txt, loading_path.png.
 import argparse
 import sys
 
+import numpy as np
 from mpi4py import MPI
 
 from mpfem_fenicsx.io.plots import plot_loading_path
@@ -35,12 +38,12 @@ def main(argv=None) -> int:
     p.add_argument("--increments", type=int, default=6000, help="explicit increments per 1e-3 s of loading")
     p.add_argument("--rate", type=float, default=100.0, help="servo's largest strain rate (1/s of loading time)")
     p.add_argument("--band", type=float, default=None, help="stress error giving the servo's largest rate (MPa; "
-                   "default: the confining pressure. A narrow band makes the servo outrun the volume's "
-                   "pseudo-dynamic response and oscillate)")
+                   "default: a quarter of the confining pressure. A narrow band makes the servo outrun the "
+                   "volume's pseudo-dynamic response and oscillate)")
     p.add_argument("--measure", choices=("schmidt", "volume"), default="schmidt", help="the servo's stress")
-    p.add_argument("--integral-time", type=float, default=None, help="PI servo's integral time (s of loading time; "
-                   "default: proportional only)")
-    p.add_argument("--filter-time", type=float, default=0.0, help="low-pass filter of the measured stress (s)")
+    p.add_argument("--integral-time", type=float, default=1e-4, help="PI servo's integral time (s of loading time; "
+                   "0: proportional only, which lags behind the lateral stress the axial compression adds)")
+    p.add_argument("--filter-time", type=float, default=1e-5, help="low-pass filter of the measured stress (s)")
     p.add_argument("--outputs", type=int, default=60)
     p.add_argument("--out", default="results/triaxial")
     args = p.parse_args(argv)
@@ -48,19 +51,19 @@ def main(argv=None) -> int:
         p.error(f"--confining must be in (0, 100] MPa, got {args.confining}")
     if not 0 < args.axial_strain <= 0.5:
         p.error(f"--axial-strain must be in (0, 0.5], got {args.axial_strain}")
-    args.band = args.confining if args.band is None else args.band
+    args.band = args.confining / 4 if args.band is None else args.band
     if not 0 < args.band <= args.confining:
         p.error(f"--band must be in (0, confining] MPa, got {args.band}")
     if not 0 < args.rate <= 1000:
         p.error(f"--rate must be in (0, 1000] 1/s, got {args.rate}")
-    if args.integral_time is not None and not 0 < args.integral_time <= 1:
-        p.error(f"--integral-time must be in (0, 1] s, got {args.integral_time}")
+    if not 0 <= args.integral_time <= 1:
+        p.error(f"--integral-time must be in [0, 1] s (0: none), got {args.integral_time}")
     if not 0 <= args.filter_time <= 1e-3:
         p.error(f"--filter-time must be in [0, 1e-3] s, got {args.filter_time}")
     # loading time in units of the flagship's compaction (1e-3 s of mass-scaled time)
     control = triaxial_control(args.confining, consolidation=1e-3, hold=0.3e-3, axial_strain=args.axial_strain,
                                axial_time=1e-3, rate=args.rate, band=args.band, measure=args.measure,
-                               integral_time=args.integral_time, filter_time=args.filter_time)
+                               integral_time=args.integral_time or None, filter_time=args.filter_time)
     try:
         case = CompactionCase(particles=args.particles, seed=args.seed, bc="CLP", control=control,
                               increments=args.increments, outputs=args.outputs, visual=False, out_dir=args.out)
@@ -75,9 +78,13 @@ def main(argv=None) -> int:
     if MPI.COMM_WORLD.rank == 0:
         plot_loading_path(h.path, result.out_dir / "loading_path.png",
                           title=f"{args.particles} particles, triaxial, confining {args.confining} MPa, CLP")
+        axial = h.column("time") > control.duration - 1e-3 * (1 - 1e-9)  # the axial phase's rows
         for name, key in (("Schmidt", "sigma_schmidt_"), ("volume average", "sigma_vol_")):
+            lateral = np.concatenate([h.column(key + "11")[axial], h.column(key + "22")[axial]])
             print(f"end: sigma_11 / 22 / 33 = {h.column(key + '11')[-1]:.3f} / {h.column(key + '22')[-1]:.3f}"
-                  f" / {h.column(key + '33')[-1]:.3f} MPa ({name}), rho {h.column('rho')[-1]:.4f}")
+                  f" / {h.column(key + '33')[-1]:.3f} MPa ({name}), rho {h.column('rho')[-1]:.4f}; axial phase: "
+                  f"lateral stresses within {100 * np.abs(lateral / args.confining - 1).max():.2f} % of the "
+                  f"confining pressure")
     return 0
 
 

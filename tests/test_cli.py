@@ -49,7 +49,7 @@ BAD_CASES = [
     ("[control]\npath = 'triaxial'\npressure = 2.0\naxial_strain = 0.8\n", ["[control] axial_strain", "<= 0.5"]),
     ("[control]\npath = 'pressure'\npressure = 2.0\naxial_strain = 0.1\n", ["[control] axial_strain", "triaxial"]),
     ("[control]\npath = 'triaxial'\npressure = 2.0\nmeasure = 'lw'\n", ["[control] measure", "'schmidt', 'volume'"]),
-    ("[control]\npath = 'triaxial'\npressure = 2.0\nintegral_time = 0.0\n", ["[control] integral_time", "> 0"]),
+    ("[control]\npath = 'triaxial'\npressure = 2.0\nintegral_time = -1.0\n", ["[control] integral_time", ">= 0"]),
     ("[control]\npath = 'pressure'\npressure = 2.0\n[boundary]\ncondition = 'GDF'\n", ["control", "CLP or CLPS"]),
 ]
 
@@ -110,14 +110,16 @@ def test_control_keys_build_the_stress_control(tmp_path):
                                      "ramp = 0.5\nhold = 0.25\naxial_strain = 0.2\nrate = 0.2\nintegral_time = 0.05\n"))
     control = case.control
     assert control.duration == pytest.approx(2e-3 * (0.5 + 0.25 + 1.0))
-    assert control.rate == pytest.approx(100.0) and control.band == 3.0 and control.integral_time == pytest.approx(1e-4)
+    assert control.rate == pytest.approx(100.0) and control.band == 0.75 and control.integral_time == pytest.approx(1e-4)
     assert np.array_equal(control.stress_driven(1e-3), np.eye(3, dtype=bool))
     assert np.array_equal(control.stress_driven(1.6e-3), np.diag([True, True, False]))
     assert np.allclose(control.target(0.5e-3), 1.5 * np.eye(3)) and np.allclose(control.target(3e-3), 3 * np.eye(3))
     F = [control(t) for t in (0.0, 1.5e-3, control.duration)]  # the servo phase, then the axial one
     assert F[-1][2, 2] == pytest.approx(np.exp(-0.2))  # servo idle: only the axial strain moves
     pressure = load_case(_case(tmp_path, "[control]\npath = 'pressure'\npressure = 1.0\n", "p.toml")).control
-    assert pressure.duration == pytest.approx(1.3e-3)
+    assert pressure.duration == pytest.approx(1.3e-3)  # the defaults: those of demos/triaxial.py
+    assert pressure.band == 0.25 and pressure.integral_time == pytest.approx(1e-4)
+    assert pressure.filter_time == pytest.approx(1e-5) and pressure.rate == pytest.approx(100.0)
     assert np.array_equal(pressure.stress_driven(1.2e-3), np.eye(3, dtype=bool))
 
 

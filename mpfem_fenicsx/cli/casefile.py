@@ -187,12 +187,12 @@ SCHEMA: tuple[Key, ...] = (
         100, open_low=True, optional=True),
     Key("control", "rate", float, None, "the servo's largest strain rate (strain per duration; default 0.1)", 0, 10,
         open_low=True, optional=True),
-    Key("control", "band", float, None, "stress error at which the servo reaches its rate (MPa; default: the "
-        "pressure)", 0, None, open_low=True, optional=True),
-    Key("control", "integral_time", float, None, "integral time of the PI servo (x duration; default: none, "
-        "proportional only)", 0, None, open_low=True, optional=True),
-    Key("control", "filter_time", float, None, "low-pass filter of the measured stress (x duration; default 0)", 0,
-        None, optional=True),
+    Key("control", "band", float, None, "stress error at which the servo reaches its rate (MPa; default: a "
+        "quarter of the pressure)", 0, None, open_low=True, optional=True),
+    Key("control", "integral_time", float, None, "integral time of the PI servo (x duration; default 0.1; 0: "
+        "proportional only, which lags behind a drifting stress)", 0, None, optional=True),
+    Key("control", "filter_time", float, None, "low-pass filter of the measured stress (x duration; default "
+        "0.01)", 0, None, optional=True),
     Key("control", "measure", str, None, "the servo's stress: schmidt (auxiliary nodes' reactions, eq. 2.19; "
         "default) or volume (the particles' volume average, eq. C.7)", choices=("schmidt", "volume"), optional=True),
     # outputs (SPEC §10)
@@ -297,9 +297,10 @@ def stress_control(keys: dict[str, Any], duration: float):
     from ..loading.mixed import pressure_control, triaxial_control
 
     pressure = keys["pressure"]
-    servo = dict(rate=keys.get("rate", 0.1) / duration, band=keys.get("band", pressure),
-                 measure=keys.get("measure", "schmidt"), filter_time=keys.get("filter_time", 0.0) * duration,
-                 integral_time=keys["integral_time"] * duration if "integral_time" in keys else None)
+    integral = keys.get("integral_time", 0.1)
+    servo = dict(rate=keys.get("rate", 0.1) / duration, band=keys.get("band", pressure / 4),
+                 measure=keys.get("measure", "schmidt"), filter_time=keys.get("filter_time", 0.01) * duration,
+                 integral_time=integral * duration if integral > 0 else None)
     ramp, hold = keys.get("ramp", 1.0) * duration, keys.get("hold", 0.3) * duration
     if keys["path"] == "pressure":
         return pressure_control(pressure, ramp, hold, **servo)
