@@ -148,7 +148,7 @@ def plot_deviatoric_surface(points, png: str | Path, mean: float, title: str = "
     ax = fig.add_subplot(1, 2, 1)
     for k, (sign, turn) in enumerate([(s, t) for s in (1, -1) for t in (0, 1, 2)]):
         angle = sign * pts[:, 1] + turn * 2 * np.pi / 3
-        ax.plot(pts[:, 0] * np.cos(angle), pts[:, 0] * np.sin(angle), "o" if k == 0 else "o",
+        ax.plot(pts[:, 0] * np.cos(angle), pts[:, 0] * np.sin(angle), "o",
                 mfc="tab:red" if k == 0 else "none", mec="tab:red", ms=6 if k == 0 else 4,
                 label="yield (measured)" if k == 0 else ("mirrored by symmetry" if k == 1 else None))
     r = 1.15 * (pts[:, 0].max() if pts.size else 1.0)

@@ -181,9 +181,11 @@ class StressControl:
 
 
 def pressure_control(pressure: float, ramp: float, hold: float, rate: float, band: float, measure: str = "schmidt",
-                     integral_time: float | None = None, filter_time: float = 0.0) -> StressControl:
+                     integral_time: float | None = None, filter_time: float = 0.0, unload_to: float | None = None,
+                     unload: float = 0.0) -> StressControl:
     """Isotropic pressure path: the three normal stresses ramped to ``pressure`` MPa (compression
-    > 0) over ``ramp`` s, then held ``hold`` s; shear strains stay zero. ``rate`` (1/s), ``band``
+    > 0) over ``ramp`` s, then held ``hold`` s; with ``unload_to``, then ramped down to it over
+    ``unload`` s and held ``hold`` s again. Shear strains stay zero. ``rate`` (1/s), ``band``
     (MPa), ``measure``, ``integral_time`` and ``filter_time`` (s): the servo's (see
     :class:`StressControl`)."""
     for name, value in (("pressure", pressure), ("ramp", ramp)):
@@ -191,9 +193,19 @@ def pressure_control(pressure: float, ramp: float, hold: float, rate: float, ban
             raise ValueError(f"{name} must be > 0, got {value}")
     if hold < 0:
         raise ValueError(f"hold must be >= 0 s, got {hold}")
-    return StressControl(duration=ramp + hold, stress_driven=np.eye(3, dtype=bool),
-                         target=lambda t: pressure * min(t / ramp, 1.0) * np.eye(3), rate=rate, band=band,
-                         measure=measure, integral_time=integral_time, filter_time=filter_time)
+    if unload_to is not None and not (0 < unload_to < pressure and unload > 0):
+        raise ValueError(f"unload_to must be in (0, pressure = {pressure}) MPa and unload > 0 s, got "
+                         f"{unload_to} / {unload}")
+    top = ramp + hold
+
+    def level(t):
+        if t <= top or unload_to is None:
+            return pressure * min(t / ramp, 1.0)
+        return pressure + (unload_to - pressure) * min((t - top) / unload, 1.0)
+
+    duration = top if unload_to is None else top + unload + hold
+    return StressControl(duration=duration, stress_driven=np.eye(3, dtype=bool), target=lambda t: level(t) * np.eye(3),
+                         rate=rate, band=band, measure=measure, integral_time=integral_time, filter_time=filter_time)
 
 
 def triaxial_control(confining: float, consolidation: float, hold: float, axial_strain: float, axial_time: float,

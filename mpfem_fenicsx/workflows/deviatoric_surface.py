@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from ..homogenization import first_crossing
-from ..loading.mixed import StressControl, lode_shear_control
+from ..homogenization import first_crossing, stress_invariants
+from ..loading.mixed import StressControl, lode_shear_control, pressure_control
 from .compaction import CompactionCase, run_compaction
 
 FAN_COLUMNS = ("theta_deg", "time", "sigma_m", "q", "lode_deg", "E_d")
@@ -88,17 +88,8 @@ class DeviatoricSurfaceCase:
     def consolidation(self) -> StressControl:
         """Pressure up to p_load (ramp), held, down to p_probe (unload), held."""
         T = self.base.duration
-        t1, t2, t3 = self.ramp * T, (self.ramp + self.hold) * T, (self.ramp + self.hold + self.unload) * T
-
-        def pressure(t):
-            if t <= t1:
-                return self.p_load * t / t1
-            if t <= t2:
-                return self.p_load
-            return self.p_load + (self.p_probe - self.p_load) * min((t - t2) / (t3 - t2), 1.0)
-
-        return StressControl(duration=t3 + self.hold * T, stress_driven=np.eye(3, dtype=bool),
-                             target=lambda t: pressure(t) * np.eye(3), **self.servo())
+        return pressure_control(self.p_load, self.ramp * T, self.hold * T, unload_to=self.p_probe,
+                                unload=self.unload * T, **self.servo())
 
 
 def lode_angle(sigma: np.ndarray) -> float:
@@ -115,11 +106,10 @@ def probe_rows(history, theta_deg: float, t_start: float) -> dict[str, np.ndarra
     """fan.csv rows of one probe's history (rows after ``t_start``): Schmidt sigma_m, q, Lode angle."""
     t = history.column("time")
     keep = t > t_start * (1 + 1e-12)
-    sigma = np.column_stack([history.column(f"sigma_schmidt_{i}{i}")[keep] for i in (1, 2, 3)])
-    shear = np.column_stack([history.column(f"sigma_schmidt_{c}")[keep] for c in ("12", "23", "13")])
-    mean = sigma.mean(axis=1)
-    dev = sigma - mean[:, None]
-    q = np.sqrt(1.5 * (np.sum(dev ** 2, axis=1) + 2.0 * np.sum(shear ** 2, axis=1)))
+    sigma = np.stack([history.column(f"sigma_schmidt_{c}")[keep] for c in ("11", "12", "13", "21", "22", "23", "31",
+                                                                          "32", "33")], axis=-1).reshape(-1, 3, 3)
+    mean, q = stress_invariants(-sigma)  # the invariants take tension > 0
+    sigma = np.diagonal(sigma, axis1=1, axis2=2)
     return {"theta_deg": np.full(keep.sum(), theta_deg), "time": t[keep], "sigma_m": mean, "q": q,
             "lode_deg": np.array([lode_angle(s) for s in sigma]), "E_d": history.column("E_d")[keep]}
 
