@@ -254,3 +254,101 @@ def test_deviatoric_fan_on_the_simple_cubic_cell(tmp_path):
     q = [point[2] for point in result["points"]]
     assert q[0] < q[1] < q[2], q
     assert (tmp_path / "fan" / "deviatoric_surface.png").exists()
+
+
+def test_stress_path_waypoints():
+    """Load / unload / reload under stress control: the normal stresses follow the waypoints
+    linearly and are held after the last; pressure_control is such a path; bad waypoints refused."""
+    from mpfem_fenicsx.loading.mixed import normal_stress_path, pressure_control
+
+    path = normal_stress_path([0.0, 1.0, 2.0, 3.0], [[0, 0, 0], [2, 2, 2], [0.5, 0.5, 0.5], [3, 3, 4]],
+                              rate=1.0, band=1.0)
+    assert np.allclose(np.diag(path.target(0.5)), 1.0) and np.allclose(np.diag(path.target(1.5)), 1.25)
+    assert np.allclose(np.diag(path.target(2.5)), [1.75, 1.75, 2.25]) and np.allclose(np.diag(path.target(9)), [3, 3, 4])
+    assert path.duration == 3.0 and np.count_nonzero(path.target(2.5) - np.diag(np.diag(path.target(2.5)))) == 0
+    ramp = pressure_control(2.0, 1.0, 0.5, rate=1.0, band=1.0, unload_to=1.0, unload=0.5)
+    assert ramp.duration == 2.5
+    assert [ramp.target(t)[0, 0] for t in (0.5, 1.2, 1.75, 2.4)] == pytest.approx([1.0, 2.0, 1.5, 1.0])
+    for times, stresses, match in (([0, 1, 1], [0, 1, 2], "increase strictly"), ([0, 1], [0, 1, 2], "one"),
+                                   ([0, np.nan], [0, 1], "finite"), ([-1, 1], [0, 1], "start >= 0")):
+        with pytest.raises(ValueError, match=match):
+            normal_stress_path(times, stresses, rate=1.0, band=1.0)
+
+
+def synthetic_rupture_history(n=40):
+    """A probe's history as a stress path meets its strength: the axial tension rises linearly to
+    3 MPa at row 25, then drops while the axial strain accelerates; E_c grows 100-fold from row 20."""
+    from types import SimpleNamespace
+
+    t = 1e-3 + 1e-5 * np.arange(n)
+    s33 = np.where(np.arange(n) <= 25, -0.12 * np.arange(n), -3.0 + 0.05 * (np.arange(n) - 25))
+    h33 = np.where(np.arange(n) <= 25, 1e-4 * np.arange(n), 2.5e-3 + 2e-3 * (np.arange(n) - 25))
+    E_c = 1e-6 * np.exp(np.clip(np.arange(n) - 20, 0, 6) * np.log(100) / 6)
+    cols = {"time": t, "E_c": E_c, "E_d": np.full(n, 1e-2)}
+    for i in (1, 2, 3):
+        for j in (1, 2, 3):
+            cols[f"sigma_schmidt_{i}{j}"] = s33 if (i, j) == (3, 3) else np.zeros(n)
+            cols[f"F{i}{j}"] = np.exp(h33) if (i, j) == (3, 3) else np.full(n, float(i == j))
+    cols["time"] = np.concatenate([[0.5e-3], t[1:]])  # the first row belongs to the consolidation
+    return SimpleNamespace(column=lambda name: cols[name])
+
+
+def test_force_rupture_analysis(tmp_path):
+    """Force-controlled rupture: E_c / E_d (eq. 4.14) reaches phi_c while the kinetic energy grows,
+    W2 (eq. 4.15) turns <= 0 at the stress peak, the path stress is the projection on the path;
+    outputs written; bad cases refused before any computation."""
+    from mpfem_fenicsx.workflows.force_rupture import (ForceRuptureCase, phi_quasi_static, rupture_points,
+                                                       rupture_rows, write_outputs)
+
+    history = synthetic_rupture_history()
+    start, final = np.zeros(3), np.array([0.0, 0.0, -6.0])
+    rows = rupture_rows(history, 0.5e-3, start, final, w2_window=0)
+    assert rows["time"].size == 39 and rows["path_stress"][24] == pytest.approx(3.0)  # row 25 of the history
+    assert rows["phi"][0] == pytest.approx(1e-4) and phi_quasi_static(rows) == pytest.approx(1e-4)
+    points = rupture_points(rows, phi_c=1e-3)
+    # E_c / E_d = 1e-4 100^((k - 20) / 6) reaches 1e-3 at k = 23 (+ 0.0 rows)
+    assert points["phi"]["time"] == pytest.approx(history.column("time")[23], rel=1e-9)
+    assert points["peak"]["sigma_33"] == pytest.approx(-3.0) and points["peak"]["sigma_m"] == pytest.approx(-1.0)
+    assert points["w2"]["path_stress"] > 2.9 and points["w2"]["time"] >= points["peak"]["time"]
+    assert points["phi"]["time"] < points["w2"]["time"]
+    assert "phi" not in rupture_points(rows, phi_c=0.5)
+    case = ForceRuptureCase(base=CompactionCase(bc="CLP", gamma=1e-2), out_dir=str(tmp_path))
+    write_outputs(tmp_path, rows, points, case)
+    assert (tmp_path / "force_rupture.png").stat().st_size > 1000
+    assert (tmp_path / "rupture_points.csv").read_text().count("\n") == 4
+    with pytest.raises(ValueError, match="without adhesion"):
+        ForceRuptureCase(base=CompactionCase(bc="CLP"))
+    with pytest.raises(ValueError, match="final_stress must hold 3"):
+        ForceRuptureCase(base=CompactionCase(bc="CLP", gamma=1e-2), final_stress=(1.0, 2.0))
+    with pytest.raises(ValueError, match="phi_c must be in"):
+        ForceRuptureCase(base=CompactionCase(bc="CLP", gamma=1e-2), phi_c=2.0)
+
+
+@pytest.mark.heavy
+def test_force_controlled_rupture_meets_the_strain_driven_strength(tmp_path):
+    """Two realizations of one tensile strength: the adhesive simple cubic cell (gamma = 1e-2
+    mJ/mm^2), consolidated to 2 MPa and unloaded to 0.2 MPa, then pulled along z with the lateral
+    stresses held at 0.2 MPa, (a) under force control (sigma_33 driven towards -6 MPa) and (b)
+    strain-driven (F33 at a constant rate, the lateral stresses servo-held). Under force control
+    E_c / E_d stays at its quasi-static level, then grows past phi_c before the peak, and W2 turns
+    <= 0 at the peak; the peak sigma_33 is the strain-driven one within 5 %."""
+    from mpfem_fenicsx.workflows.force_rupture import ForceRuptureCase, run_force_rupture
+    from mpfem_fenicsx.workflows.stress_probes import run_probe, consolidate
+
+    base = small_case(tmp_path, bc="CLP", duration=1e-3, increments=1000, outputs=10, gamma=1e-2)
+    case = ForceRuptureCase(base=base, p_load=2.0, p_probe=0.2, final_stress=(0.2, 0.2, -6.0), rows_per_probe=40,
+                            out_dir=str(tmp_path / "force"))
+    result = run_force_rupture(case, MPI.COMM_SELF, log=quiet)
+    points, rows = result["points"], result["rows"]
+    assert result["phi_quasi_static"] < 0.1 * case.phi_c and np.nanmax(rows["phi"]) > 3 * case.phi_c
+    assert points["phi"]["time"] < points["w2"]["time"]
+    assert points["w2"]["path_stress"] == pytest.approx(points["peak"]["path_stress"], rel=0.02)
+    # (b) strain-driven: the same consolidated state (a new consolidation: the same run)
+    lateral = np.diag([True, True, False])
+    state = consolidate(replace(case, out_dir=str(tmp_path / "strain")), MPI.COMM_SELF, log=quiet)
+    pull = StressControl(duration=state.time + 1e-3, stress_driven=lateral, target=lambda t: 0.2 * np.eye(3),
+                         velocity_gradient=lambda t: np.diag([0.0, 0.0, 20.0]), **case.servo())
+    h = run_probe(case, state, pull, "pull", MPI.COMM_SELF, log=quiet)
+    after = h.column("time") > state.time * (1 + 1e-12)
+    strength = h.column("sigma_schmidt_33")[after].min()
+    assert strength < -1.0 and points["peak"]["sigma_33"] == pytest.approx(strength, rel=0.05), strength

@@ -172,3 +172,40 @@ def plot_deviatoric_surface(points, png: str | Path, mean: float, title: str = "
     ax3.set_zlabel("sigma_3 (MPa)")
     ax3.legend(fontsize=8)
     return _save(fig, png, title)
+
+
+def plot_force_rupture(rows: dict, points: dict, phi_c: float, png: str | Path, title: str = "") -> Path:
+    """A force-controlled rupture probe (workflows.force_rupture): left, the stress along the
+    path against the strain along it (MPa, mm/mm); right, E_c / E_d (log) and W2 against time,
+    with the threshold phi_c and each criterion's rupture point marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = rows["time"]
+    strain = np.column_stack([rows[f"h_{i}{i}"] for i in (1, 2, 3)])
+    strain_along = np.linalg.norm(strain - strain[0], axis=1)
+    marks = {"phi": ("tab:red", "E_c / E_d = phi_c"), "w2": ("tab:blue", "W2 <= 0"), "peak": ("k", "peak stress")}
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 4.2))
+    ax.plot(strain_along, rows["path_stress"], ".-", color="0.3")
+    for key, (color, label) in marks.items():
+        if key in points:
+            ax.plot(np.interp(points[key]["time"], t, strain_along), points[key]["path_stress"], "o", mfc="none",
+                    mec=color, ms=9, label=label)
+    ax.set_xlabel("strain along the path |h - h_start|")
+    ax.set_ylabel("stress along the path (MPa, from the start)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    ax2.semilogy(t * 1e3, rows["phi"], ".-", color="tab:red", label="E_c / E_d")
+    ax2.axhline(phi_c, color="tab:red", ls=":", lw=0.8)
+    ax2.set_xlabel("time (ms)")
+    ax2.set_ylabel("E_c / E_d", color="tab:red")
+    ax3 = ax2.twinx()
+    ax3.plot(t * 1e3, rows["W2"], ".-", color="tab:blue", label="W2")
+    ax3.axhline(0.0, color="tab:blue", ls=":", lw=0.8)
+    ax3.set_ylabel("W2 = dsigma : dh (MPa)", color="tab:blue")
+    for key, (color, _) in marks.items():
+        if key in points:
+            ax2.axvline(points[key]["time"] * 1e3, color=color, lw=0.8, ls="--")
+    return _save(fig, png, title)

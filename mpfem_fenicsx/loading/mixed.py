@@ -180,13 +180,42 @@ class StressControl:
         self._L_servo = np.where(mask, 0.5 * (L + L.T), 0.0)
 
 
+def normal_stress_path(times, stresses, rate: float, band: float, start: np.ndarray | None = None,
+                       measure: str = "schmidt", integral_time: float | None = None,
+                       filter_time: float = 0.0) -> StressControl:
+    """The three normal stresses driven through the waypoints (``times`` (n,) s, increasing;
+    ``stresses`` (n, 3) MPa, compression > 0, or (n,) for an isotropic pressure), linearly in
+    between and held after the last: load / unload / reload paths, a tensile probe to rupture.
+    The path starts at ``times[0]`` from the gradient ``start`` (default I); shear strains stay
+    zero. ``rate`` (1/s), ``band`` (MPa), ``measure``, ``integral_time`` and ``filter_time`` (s):
+    the servo's (see :class:`StressControl`)."""
+    times = np.asarray(times, dtype=float)
+    stresses = np.asarray(stresses, dtype=float)
+    if stresses.ndim == 1:
+        stresses = np.repeat(stresses[:, None], 3, axis=1)
+    if times.ndim != 1 or times.size < 2 or stresses.shape != (times.size, 3):
+        raise ValueError(f"stresses must hold one (3,) or scalar stress per time (>= 2 waypoints), got times "
+                         f"{times.shape} and stresses {stresses.shape}")
+    if not (np.all(np.isfinite(times)) and np.all(np.isfinite(stresses))):
+        raise ValueError("times and stresses must be finite")
+    if times[0] < 0 or np.any(np.diff(times) <= 0):
+        raise ValueError(f"times must start >= 0 s and increase strictly, got {times.tolist()}")
+
+    def target(t):
+        return np.diag([np.interp(t, times, stresses[:, i]) for i in range(3)])
+
+    return StressControl(duration=float(times[-1]), stress_driven=np.eye(3, dtype=bool), target=target, rate=rate,
+                         band=band, start=np.eye(3) if start is None else start, measure=measure,
+                         integral_time=integral_time, filter_time=filter_time)
+
+
 def pressure_control(pressure: float, ramp: float, hold: float, rate: float, band: float, measure: str = "schmidt",
                      integral_time: float | None = None, filter_time: float = 0.0, unload_to: float | None = None,
                      unload: float = 0.0) -> StressControl:
     """Isotropic pressure path: the three normal stresses ramped to ``pressure`` MPa (compression
     > 0) over ``ramp`` s, then held ``hold`` s; with ``unload_to``, then ramped down to it over
-    ``unload`` s and held ``hold`` s again. Shear strains stay zero. ``rate`` (1/s), ``band``
-    (MPa), ``measure``, ``integral_time`` and ``filter_time`` (s): the servo's (see
+    ``unload`` s and held ``hold`` s again (a :func:`normal_stress_path`). ``rate`` (1/s),
+    ``band`` (MPa), ``measure``, ``integral_time`` and ``filter_time`` (s): the servo's (see
     :class:`StressControl`)."""
     for name, value in (("pressure", pressure), ("ramp", ramp)):
         if not value > 0:
@@ -196,16 +225,18 @@ def pressure_control(pressure: float, ramp: float, hold: float, rate: float, ban
     if unload_to is not None and not (0 < unload_to < pressure and unload > 0):
         raise ValueError(f"unload_to must be in (0, pressure = {pressure}) MPa and unload > 0 s, got "
                          f"{unload_to} / {unload}")
-    top = ramp + hold
-
-    def level(t):
-        if t <= top or unload_to is None:
-            return pressure * min(t / ramp, 1.0)
-        return pressure + (unload_to - pressure) * min((t - top) / unload, 1.0)
-
-    duration = top if unload_to is None else top + unload + hold
-    return StressControl(duration=duration, stress_driven=np.eye(3, dtype=bool), target=lambda t: level(t) * np.eye(3),
-                         rate=rate, band=band, measure=measure, integral_time=integral_time, filter_time=filter_time)
+    times, levels = [0.0, ramp], [0.0, pressure]
+    if unload_to is not None:
+        times += [ramp + hold, ramp + hold + unload]
+        levels += [pressure, unload_to]
+    times.append(times[-1] + hold)
+    levels.append(levels[-1])
+    if hold == 0:  # no repeated waypoint
+        times, levels = times[:-1], levels[:-1]
+        if unload_to is not None:
+            times, levels = times[:2] + times[3:], levels[:2] + levels[3:]
+    return normal_stress_path(times, levels, rate=rate, band=band, measure=measure, integral_time=integral_time,
+                              filter_time=filter_time)
 
 
 def triaxial_control(confining: float, consolidation: float, hold: float, axial_strain: float, axial_time: float,

@@ -2,10 +2,10 @@
 thesis, whose chapter-4 fans are strain-driven reloads in the (sigma_m, sigma~_d) plane).
 
 Stages (data flow: consolidation -> unload -> checkpoint -> fan of Lode-angle probes -> surface):
-1. **consolidate and unload** (``out/consolidate``): the three normal stresses servo-controlled
-   (loading.mixed.StressControl) up to the pressure ``p_load`` (ramp, hold), then down to the
-   probes' mean stress ``p_probe`` < ``p_load`` (ramp, hold), ending with a checkpoint. The
-   volume is then inside its yield surface: E_0 = E_d at the end;
+1. **consolidate and unload** (``out/consolidate``, workflows.stress_probes): the three normal
+   stresses servo-controlled up to the pressure ``p_load`` (ramp, hold), then down to the probes'
+   mean stress ``p_probe`` < ``p_load`` (ramp, hold), ending with a checkpoint. The volume is then
+   inside its yield surface: E_0 = E_d at the end;
 2. **probes** (``out/probe_<deg>``): from that checkpoint, each probe keeps sigma_m = ``p_probe``
    and ramps the von Mises stress q along the Lode angle theta (loading.mixed.lode_shear_control),
    with the servo's state and the contact history carried over;
@@ -24,72 +24,37 @@ along z (loading.mixed.lode_direction).
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
 from ..homogenization import first_crossing, stress_invariants
-from ..loading.mixed import StressControl, lode_shear_control, pressure_control
-from .compaction import CompactionCase, run_compaction
+from ..loading.mixed import lode_shear_control
+from .stress_probes import StressProbeCase, consolidate, run_probe
 
 FAN_COLUMNS = ("theta_deg", "time", "sigma_m", "q", "lode_deg", "E_d")
-_FINAL_ONLY = 10 ** 9  # checkpoint_every that writes the final checkpoint only
 
 
 @dataclass
-class DeviatoricSurfaceCase:
-    """A Lode-angle fan. ``base``: the volume (packing, mesh, material, CLP / CLPS, explicit, its
-    ``duration`` and ``increments`` set the time unit and the increment); its path is replaced.
-    Times in units of ``base.duration``; the servo's ``rate`` in strain per duration."""
+class DeviatoricSurfaceCase(StressProbeCase):
+    """A Lode-angle fan: the consolidated state of :class:`StressProbeCase` (base, p_load,
+    p_probe, ramp, hold, unload, probe, the servo's settings), then one probe per angle."""
 
-    base: CompactionCase = field(default_factory=CompactionCase)
-    p_load: float = 2.0  # MPa, consolidation pressure
-    p_probe: float = 1.0  # MPa, mean stress of the unloaded state and of the probes
     q_max: float = 3.0  # MPa, von Mises stress at the end of a probe
     angles_deg: tuple = (0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0)
-    ramp: float = 1.0
-    hold: float = 0.3
-    unload: float = 0.3
-    probe: float = 1.0
     dissipation_threshold: float = 3e-3  # thesis §4.2.2: 0.3 %
-    rate: float = 0.1
-    band: float | None = None  # MPa (None: p_load / 4)
-    integral_time: float | None = 0.1
-    filter_time: float = 0.01
-    rows_per_probe: int = 20
     out_dir: str = "results/deviatoric_surface"
 
     def __post_init__(self):
-        if self.base.bc not in ("CLP", "CLPS") or self.base.solver != "explicit":
-            raise ValueError(f"base: a stress-controlled fan needs bc CLP or CLPS and the explicit solver, got "
-                             f"{self.base.bc!r} / {self.base.solver!r}")
-        if not 0 < self.p_probe < self.p_load:
-            raise ValueError(f"p_probe must be in (0, p_load = {self.p_load}) MPa, got {self.p_probe}")
+        super().__post_init__()
         if not self.q_max > 0:
             raise ValueError(f"q_max must be > 0 MPa, got {self.q_max}")
         if len(self.angles_deg) < 1 or any(not -360 <= a <= 360 for a in self.angles_deg):
             raise ValueError(f"angles_deg must hold angles in [-360, 360] degrees, got {self.angles_deg}")
-        for name in ("ramp", "unload", "probe"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0 (x duration), got {getattr(self, name)}")
-        if not self.hold >= 0:
-            raise ValueError(f"hold must be >= 0 (x duration), got {self.hold}")
         if not 0 < self.dissipation_threshold < 1:
             raise ValueError(f"dissipation_threshold must be in (0, 1), got {self.dissipation_threshold}")
-
-    def servo(self) -> dict:
-        T = self.base.duration
-        return dict(rate=self.rate / T, band=self.band if self.band is not None else self.p_load / 4,
-                    integral_time=None if self.integral_time is None else self.integral_time * T,
-                    filter_time=self.filter_time * T)
-
-    def consolidation(self) -> StressControl:
-        """Pressure up to p_load (ramp), held, down to p_probe (unload), held."""
-        T = self.base.duration
-        return pressure_control(self.p_load, self.ramp * T, self.hold * T, unload_to=self.p_probe,
-                                unload=self.unload * T, **self.servo())
 
 
 def lode_angle(sigma: np.ndarray) -> float:
@@ -126,33 +91,20 @@ def yield_point(rows: dict[str, np.ndarray], E_0: float, threshold: float) -> tu
 def run_deviatoric_surface(case: DeviatoricSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> dict:
     """Stages 1-3 (module docstring); returns {"E_0", "points": [(theta_deg, sigma_m, q, lode_deg)],
     "fan": fan rows}."""
-    out = Path(case.out_dir)
-    T = case.base.duration
-    consolidation = case.consolidation()
-    log(f"consolidation to {case.p_load} MPa, unload to {case.p_probe} MPa -> {out / 'consolidate'}")
-    first = run_compaction(replace(case.base, control=consolidation, out_dir=str(out / "consolidate"),
-                                   checkpoint_every=_FINAL_ONLY, outputs=max(8, case.rows_per_probe)), comm, log=log)
-    t_c = float(first.history.column("time")[-1])
-    E_0 = float(first.history.column("E_d")[-1])
-    checkpoint = sorted((out / "consolidate" / "checkpoints").glob("step*"))[-1]
-    model = first.extra["model"]
+    state = consolidate(case, comm, log=log)
     fan, points = [], []
     for theta in case.angles_deg:
         control = lode_shear_control(mean=case.p_probe, q_max=case.q_max, theta=np.radians(theta),
-                                     duration=case.probe * T, t0=t_c, **case.servo())
-        probe_dir = out / f"probe_{theta:g}"
-        probe = replace(case.base, control=control, out_dir=str(probe_dir), checkpoint_every=0,
-                        outputs=max(4, round(case.rows_per_probe * (t_c + case.probe * T) / (case.probe * T))))
-        log(f"probe theta = {theta:g} deg -> {probe_dir}")
-        h = run_compaction(probe, comm, log=log, restart=checkpoint, model=model).history
-        rows = probe_rows(h, theta, t_c)
+                                     duration=case.probe * case.base.duration, t0=state.time, **case.servo())
+        history = run_probe(case, state, control, f"probe_{theta:g}", comm, log=log)
+        rows = probe_rows(history, theta, state.time)
         fan.append(rows)
-        point = yield_point(rows, E_0, case.dissipation_threshold)
+        point = yield_point(rows, state.E_0, case.dissipation_threshold)
         if point is not None:
             points.append((theta, *point))
     if comm.rank == 0:
-        write_outputs(out, fan, points, case)
-    return {"E_0": E_0, "points": points, "fan": fan}
+        write_outputs(Path(case.out_dir), fan, points, case)
+    return {"E_0": state.E_0, "points": points, "fan": fan}
 
 
 def write_outputs(out: Path, fan: list[dict], points: list[tuple], case: DeviatoricSurfaceCase) -> None:
