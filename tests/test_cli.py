@@ -42,7 +42,15 @@ BAD_CASES = [
     ("[mesh]\nresolution = 'fine'\n", ["[mesh] resolution", "'chapter2', 'chapter4', 'coarse'"]),
     ("[packing]\nfile = 'missing.txt'\n", ["[packing] file", "no such file"]),
     ("[loading\n", ["not valid TOML"]),
-    ("[control]\npath = 'shear'\n", ["[control] path", "'none', 'pressure', 'triaxial'"]),
+    ("[control]\npath = 'shear'\n", ["[control] path", "'none', 'pressure', 'triaxial', 'cycle', 'lode'"]),
+    ("[control]\npath = 'cycle'\npressure = 2.0\n", ["[control] unload_to", "required"]),
+    ("[control]\npath = 'cycle'\npressure = 2.0\nunload_to = 3.0\n", ["[control] unload_to", "below pressure"]),
+    ("[control]\npath = 'cycle'\npressure = 2.0\nunload_to = 1.0\nreload_to = 0.5\n", ["reload_to", "above"]),
+    ("[control]\npath = 'lode'\npressure = 2.0\n", ["[control] q_max", "required"]),
+    ("[control]\npath = 'lode'\npressure = 2.0\nq_max = 1.0\nlode_angle = 400\n", ["[control] lode_angle",
+                                                                                         "<= 360"]),
+    ("[control]\npath = 'pressure'\npressure = 2.0\nq_max = 1.0\n", ["[control] q_max", "lode"]),
+    ("[control]\npath = 'lode'\npressure = 2.0\nq_max = 1.0\nunload_to = 1.0\n", ["[control] unload_to", "cycle"]),
     ("[control]\npath = 'triaxial'\n", ["[control] pressure", "required"]),
     ("[control]\npressure = 2.0\n", ["[control] pressure", "needs a [control] path"]),
     ("[control]\npath = 'triaxial'\npressure = -2.0\n", ["[control] pressure", "> 0"]),
@@ -121,6 +129,20 @@ def test_control_keys_build_the_stress_control(tmp_path):
     assert pressure.band == 0.25 and pressure.integral_time == pytest.approx(1e-4)
     assert pressure.filter_time == pytest.approx(1e-5) and pressure.rate == pytest.approx(100.0)
     assert np.array_equal(pressure.stress_driven(1.2e-3), np.eye(3, dtype=bool))
+    cycle = load_case(_case(tmp_path, "[control]\npath = 'cycle'\npressure = 2.0\nunload_to = 0.5\nreload_to = 3.0\n"
+                                      "hold = 0.5\n", "c.toml")).control
+    assert cycle.duration == pytest.approx(4.5e-3)  # three ramps of 1e-3 s, three holds of 0.5e-3 s
+    levels = [cycle.target(t)[0, 0] for t in (0.5e-3, 1.2e-3, 2e-3, 2.7e-3, 3.5e-3, 4.4e-3)]
+    assert levels == pytest.approx([1.0, 2.0, 1.25, 0.5, 1.75, 3.0])
+    lode = load_case(_case(tmp_path, "[control]\npath = 'lode'\npressure = 2.0\nq_max = 1.5\nlode_angle = 60\n"
+                                     "hold = 0\nshear_time = 2\n", "l.toml")).control
+    from mpfem_fenicsx.homogenization import stress_invariants
+
+    assert lode.duration == pytest.approx(3e-3) and np.allclose(lode.target(1e-3), 2 * np.eye(3))
+    mean, q = stress_invariants(-lode.target(2e-3))
+    assert mean == pytest.approx(2.0) and q == pytest.approx(0.75)  # half way through the shear
+    end = np.diag(lode.target(3e-3))
+    assert end[0] == pytest.approx(end[1]) and end[2] < end[0]  # 60 deg: triaxial extension along z
 
 
 def test_restart_reads_history_rows_by_column_name():

@@ -30,6 +30,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..constraints.granular import KINDS
 from ..loading import PROFILES
 from ..material import ElastoPlastic
@@ -174,7 +176,10 @@ SCHEMA: tuple[Key, ...] = (
     # [loading] duration, the servo's rate in strain per duration
     Key("control", "path", str, "none", "stress-controlled path replacing the compaction (CLP or CLPS, explicit): "
         "pressure = isotropic pressure ramp to `pressure`, then held; triaxial = the same consolidation, then axial "
-        "compression along z at constant lateral stress", choices=("none", "pressure", "triaxial")),
+        "compression along z at constant lateral stress; cycle = the same consolidation, unload to `unload_to`, "
+        "reload to `reload_to` (each ramp `ramp`, each hold `hold`); lode = the same consolidation, then the von "
+        "Mises stress ramped to `q_max` along `lode_angle` at constant mean stress over `shear_time`",
+        choices=("none", "pressure", "triaxial", "cycle", "lode")),
     Key("control", "pressure", float, None, "target (pressure) or confining (triaxial) pressure (MPa, compression "
         "> 0); required with a path", 0, 1000, open_low=True, optional=True),
     Key("control", "ramp", float, None, "time of the pressure ramp (x duration; default 1)", 0, 100, open_low=True,
@@ -185,6 +190,16 @@ SCHEMA: tuple[Key, ...] = (
         open_low=True, optional=True),
     Key("control", "axial_time", float, None, "triaxial: time of the axial compression (x duration; default 1)", 0,
         100, open_low=True, optional=True),
+    Key("control", "unload_to", float, None, "cycle: pressure of the unload (MPa; required, below `pressure`)", 0,
+        1000, optional=True),
+    Key("control", "reload_to", float, None, "cycle: pressure of the reload (MPa; default `pressure`; above "
+        "`unload_to`)", 0, 1000, open_low=True, optional=True),
+    Key("control", "q_max", float, None, "lode: von Mises stress at the end of the shear (MPa; required)", 0, 1000,
+        open_low=True, optional=True),
+    Key("control", "lode_angle", float, None, "lode: Lode angle of the shear (degrees; 0 = triaxial compression "
+        "along x, 60 = triaxial extension along z; default 0)", -360, 360, optional=True),
+    Key("control", "shear_time", float, None, "lode: time of the shear ramp (x duration; default 1)", 0, 100,
+        open_low=True, optional=True),
     Key("control", "rate", float, None, "the servo's largest strain rate (strain per duration; default 0.1)", 0, 10,
         open_low=True, optional=True),
     Key("control", "band", float, None, "stress error at which the servo reaches its rate (MPa; default: a "
@@ -247,8 +262,21 @@ def parse_case(data: dict, where: str = "case", base: Path | None = None) -> dic
         raise CaseError(f"{where}: [control] {control[0]} needs a [control] path (pressure or triaxial)")
     if get("control", "path") != "none" and ("control", "pressure") not in values:
         raise CaseError(f"{where}: [control] pressure is required with path = {get('control', 'path')!r} (MPa, > 0)")
-    if get("control", "path") == "pressure" and any(k in control for k in ("axial_strain", "axial_time")):
-        raise CaseError(f"{where}: [control] axial_strain / axial_time belong to path = 'triaxial'")
+    path_keys = {"triaxial": ("axial_strain", "axial_time"), "cycle": ("unload_to", "reload_to"),
+                 "lode": ("q_max", "lode_angle", "shear_time")}
+    for owner, keys in path_keys.items():
+        stray = [k for k in keys if k in control and get("control", "path") != owner]
+        if stray:
+            raise CaseError(f"{where}: [control] {stray[0]} belongs to path = {owner!r}")
+    required = {"cycle": "unload_to", "lode": "q_max"}.get(get("control", "path"))
+    if required and ("control", required) not in values:
+        raise CaseError(f"{where}: [control] {required} is required with path = {get('control', 'path')!r}")
+    if get("control", "path") == "cycle":
+        pressure, unload_to = get("control", "pressure"), get("control", "unload_to")
+        reload_to = values.get(("control", "reload_to"), pressure)
+        if not unload_to < pressure or not reload_to > unload_to:
+            raise CaseError(f"{where}: [control] unload_to must be below pressure = {pressure} MPa and reload_to "
+                            f"above it, got unload_to = {unload_to}, reload_to = {reload_to}")
     if get("boundary", "images") and get("boundary", "condition") != "CLP":
         raise CaseError(f"{where}: [boundary] images = true realizes CLP only, got condition = "
                         f"{get('boundary', 'condition')!r}")
@@ -294,7 +322,7 @@ def to_case(values: dict[tuple[str, str], Any], out_dir: str, where: str = "case
 
 def stress_control(keys: dict[str, Any], duration: float):
     """The StressControl of the [control] keys (times x ``duration`` s, rate / duration)."""
-    from ..loading.mixed import pressure_control, triaxial_control
+    from ..loading.mixed import lode_direction, normal_stress_path, pressure_control, triaxial_control
 
     pressure = keys["pressure"]
     integral = keys.get("integral_time", 0.1)
@@ -304,6 +332,21 @@ def stress_control(keys: dict[str, Any], duration: float):
     ramp, hold = keys.get("ramp", 1.0) * duration, keys.get("hold", 0.3) * duration
     if keys["path"] == "pressure":
         return pressure_control(pressure, ramp, hold, **servo)
+    if keys["path"] in ("cycle", "lode"):
+        p = np.full(3, pressure)
+        if keys["path"] == "cycle":  # load, hold, unload, hold, reload, hold
+            low, high = np.full(3, keys["unload_to"]), np.full(3, keys.get("reload_to", pressure))
+            stages = [(ramp, p), (hold, p), (ramp, low), (hold, low), (ramp, high), (hold, high)]
+        else:  # load, hold, then q ramped at constant mean stress along the Lode angle
+            theta = np.radians(keys.get("lode_angle", 0.0))
+            sheared = p + np.sqrt(2.0 / 3.0) * keys["q_max"] * lode_direction(theta)
+            stages = [(ramp, p), (hold, p), (keys.get("shear_time", 1.0) * duration, sheared)]
+        times, stresses = [0.0], [np.zeros(3)]
+        for length, stress in stages:
+            if length > 0:
+                times.append(times[-1] + length)
+                stresses.append(stress)
+        return normal_stress_path(times, stresses, **servo)
     return triaxial_control(pressure, consolidation=ramp, hold=hold, axial_strain=keys.get("axial_strain", 0.1),
                             axial_time=keys.get("axial_time", 1.0) * duration, **servo)
 
