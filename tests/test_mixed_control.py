@@ -352,3 +352,16 @@ def test_force_controlled_rupture_meets_the_strain_driven_strength(tmp_path):
     after = h.column("time") > state.time * (1 + 1e-12)
     strength = h.column("sigma_schmidt_33")[after].min()
     assert strength < -1.0 and points["peak"]["sigma_33"] == pytest.approx(strength, rel=0.05), strength
+
+
+def test_force_rupture_demo_refuses_bad_input():
+    """demos/force_rupture.py exits 2 with one line naming the field, before any computation."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    demo = Path(__file__).parents[1] / "demos" / "force_rupture.py"
+    for args, words in ((["--gamma", "0"], "without adhesion"), (["--final", "1", "2"], "expected 3"),
+                        (["--p-probe", "5"], "p_probe must be in")):
+        run = subprocess.run([sys.executable, str(demo), *args], capture_output=True, text=True, timeout=300)
+        assert run.returncode == 2 and words in run.stderr, (args, run.stderr)
