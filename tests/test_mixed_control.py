@@ -331,7 +331,8 @@ def test_force_controlled_rupture_meets_the_strain_driven_strength(tmp_path):
     stresses held at 0.2 MPa, (a) under force control (sigma_33 driven towards -6 MPa) and (b)
     strain-driven (F33 at a constant rate, the lateral stresses servo-held). Under force control
     E_c / E_d stays at its quasi-static level, then grows past phi_c before the peak, and W2 turns
-    <= 0 at the peak; the peak sigma_33 is the strain-driven one within 5 %."""
+    <= 0 at the peak (within one row's stress increment); the peak sigma_33 is the strain-driven
+    one within 5 %."""
     from mpfem_fenicsx.workflows.force_rupture import ForceRuptureCase, run_force_rupture
     from mpfem_fenicsx.workflows.stress_probes import run_probe, consolidate
 
@@ -342,7 +343,8 @@ def test_force_controlled_rupture_meets_the_strain_driven_strength(tmp_path):
     points, rows = result["points"], result["rows"]
     assert result["phi_quasi_static"] < 0.1 * case.phi_c and np.nanmax(rows["phi"]) > 3 * case.phi_c
     assert points["phi"]["time"] < points["w2"]["time"]
-    assert points["w2"]["path_stress"] == pytest.approx(points["peak"]["path_stress"], rel=0.02)
+    row_step = np.linalg.norm(np.subtract(case.final_stress, case.p_probe)) / case.rows_per_probe  # MPa per row
+    assert abs(points["w2"]["path_stress"] - points["peak"]["path_stress"]) < row_step
     # (b) strain-driven: the same consolidated state (a new consolidation: the same run)
     lateral = np.diag([True, True, False])
     state = consolidate(replace(case, out_dir=str(tmp_path / "strain")), MPI.COMM_SELF, log=quiet)
