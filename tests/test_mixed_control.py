@@ -325,16 +325,19 @@ def test_force_rupture_analysis(tmp_path):
 
 
 @pytest.mark.heavy
-def test_force_controlled_rupture_meets_the_strain_driven_strength(tmp_path):
-    """Two realizations of one tensile strength: the adhesive simple cubic cell (gamma = 1e-2
-    mJ/mm^2), consolidated to 2 MPa and unloaded to 0.2 MPa, then pulled along z with the lateral
-    stresses held at 0.2 MPa, (a) under force control (sigma_33 driven towards -6 MPa) and (b)
-    strain-driven (F33 at a constant rate, the lateral stresses servo-held). Under force control
-    E_c / E_d stays at its quasi-static level, then grows past phi_c before the peak, and W2 turns
-    <= 0 at the peak (within one row's stress increment); the peak sigma_33 is the strain-driven
-    one within 5 %."""
+def test_force_controlled_rupture_where_the_strain_driven_tangent_falls_below_the_servo(tmp_path):
+    """Two realizations of one limit load: the adhesive simple cubic cell (gamma = 1e-2 mJ/mm^2),
+    consolidated to 2 MPa and unloaded to 0.2 MPa, pulled along z with the lateral stresses held at
+    0.2 MPa, (a) under force control (sigma_33 driven at 6.2 MPa/ms towards -6 MPa) and (b)
+    strain-driven, slowly (F33 at 5 1/s). The adhesive necks yield and harden: (b) has no peak but
+    a knee. Force control holds the path only while the servo's largest strain rate can deliver the
+    stress rate asked, i.e. while the tangent modulus K_t of (b) exceeds 6.2 MPa/ms / 100 1/s =
+    62 MPa: E_c / E_d must leave its quasi-static level where K_t crosses 62 MPa. Measured
+    (2026-11-25): the strain-driven K_t crosses 62 MPa near sigma_33 = -3.0 MPa, E_c / E_d reaches
+    1e-3 at -3.06 MPa (-3.14 MPa with a 4x slower ramp, where K_t = 15.5 MPa is crossed near
+    -3.12 MPa); W2 turns <= 0 at the peak, -3.46 MPa (the servo, saturated, strains at 100 1/s)."""
     from mpfem_fenicsx.workflows.force_rupture import ForceRuptureCase, run_force_rupture
-    from mpfem_fenicsx.workflows.stress_probes import run_probe, consolidate
+    from mpfem_fenicsx.workflows.stress_probes import consolidate, run_probe
 
     base = small_case(tmp_path, bc="CLP", duration=1e-3, increments=1000, outputs=10, gamma=1e-2)
     case = ForceRuptureCase(base=base, p_load=2.0, p_probe=0.2, final_stress=(0.2, 0.2, -6.0), rows_per_probe=40,
@@ -345,15 +348,22 @@ def test_force_controlled_rupture_meets_the_strain_driven_strength(tmp_path):
     assert points["phi"]["time"] < points["w2"]["time"]
     row_step = np.linalg.norm(np.subtract(case.final_stress, case.p_probe)) / case.rows_per_probe  # MPa per row
     assert abs(points["w2"]["path_stress"] - points["peak"]["path_stress"]) < row_step
-    # (b) strain-driven: the same consolidated state (a new consolidation: the same run)
-    lateral = np.diag([True, True, False])
+    # (b) strain-driven from the same consolidated state (a new consolidation: the same run)
     state = consolidate(replace(case, out_dir=str(tmp_path / "strain")), MPI.COMM_SELF, log=quiet)
-    pull = StressControl(duration=state.time + 1e-3, stress_driven=lateral, target=lambda t: 0.2 * np.eye(3),
-                         velocity_gradient=lambda t: np.diag([0.0, 0.0, 20.0]), **case.servo())
-    h = run_probe(case, state, pull, "pull", MPI.COMM_SELF, log=quiet)
+    rate, strain = 5.0, 0.012
+    pull = StressControl(duration=state.time + strain / rate, stress_driven=np.diag([True, True, False]),
+                         target=lambda t: 0.2 * np.eye(3), velocity_gradient=lambda t: np.diag([0.0, 0.0, rate]),
+                         **case.servo())
+    h = run_probe(replace(case, probe=strain / rate / 1e-3, rows_per_probe=20), state, pull, "pull", MPI.COMM_SELF,
+                  log=quiet)
     after = h.column("time") > state.time * (1 + 1e-12)
-    strength = h.column("sigma_schmidt_33")[after].min()
-    assert strength < -1.0 and points["peak"]["sigma_33"] == pytest.approx(strength, rel=0.05), strength
+    tension, h33 = -h.column("sigma_schmidt_33")[after], np.log(h.column("F33")[after])
+    K_t = np.diff(tension) / np.diff(h33)  # MPa, between rows
+    limit = 6.2 / 1e-3 / case.servo()["rate"]  # MPa: the stress rate asked over the servo's largest strain rate
+    k = int(np.argmax((K_t < limit) & (np.arange(K_t.size) > 0)))
+    assert k > 0 and K_t[k - 1] >= limit, K_t
+    knee = tension[k] + (tension[k + 1] - tension[k]) * 0.5  # the stress across the row where K_t crosses
+    assert -points["phi"]["sigma_33"] == pytest.approx(knee, rel=0.05), (points["phi"], knee, K_t)
 
 
 def test_force_rupture_demo_refuses_bad_input():
