@@ -55,17 +55,19 @@ def test_lode_shear_keeps_the_mean_stress():
     assert s60[0] == pytest.approx(s60[1]) and s60[1] > s60[2]
 
 
-def servo_on_a_linear_plant(K, drift, integral_time, filter_time=0.0, noise=0.0, T=0.02, dt=1e-5):
-    """Error history (MPa) of a servo holding sigma_11 at 1 MPa on a model medium whose stress is
-    sigma_11 = K (-ln F11) + drift t (+ white noise of amplitude ``noise`` in the measure)."""
+def servo_on_a_linear_plant(K, drift, integral_time, filter_time=0.0, noise=0.0, T=0.02, dt=1e-5, ramp=0.0):
+    """Error history (MPa) of a servo holding sigma_11 at 1 MPa (+ ``ramp`` t) on a model medium
+    whose stress is sigma_11 = K (-ln F11) + drift t (+ white noise of amplitude ``noise`` in the
+    measure)."""
     rng = np.random.default_rng(0)
-    control = StressControl(duration=T, stress_driven=np.diag([True, False, False]), target=lambda t: np.eye(3),
-                            rate=50.0, band=0.5, integral_time=integral_time, filter_time=filter_time)
+    control = StressControl(duration=T, stress_driven=np.diag([True, False, False]), rate=50.0, band=0.5,
+                            target=lambda t: (1.0 + ramp * t) * np.eye(3), integral_time=integral_time,
+                            filter_time=filter_time)
     errors = []
     for t in np.arange(0.0, T, dt):
         sigma = K * -np.log(control(t)[0, 0]) + drift * t
         control.update(t, np.diag([sigma + noise * rng.standard_normal(), 0.0, 0.0]))
-        errors.append(1.0 - sigma)
+        errors.append(1.0 + ramp * t - sigma)
     return np.array(errors)
 
 
@@ -74,7 +76,8 @@ def test_pi_servo_follows_a_drifting_stress():
     compression does to the lateral stress of a triaxial test), the proportional servo lags by
     the analytic D band / (K rate) = 0.05 MPa; the PI servo (integral time 4 band / (K rate))
     brings the error below 1e-3 MPa; through a filtered noisy measure (0.1 MPa) it follows the
-    noise but does not lag."""
+    noise but does not lag; a target ramped at R MPa/s is followed through a filter of time tau
+    without the lag R tau of the filtered measure."""
     K, D = 40.0, 200.0  # MPa, MPa/s
     lag = D * 0.5 / (K * 50.0)
     p_only = servo_on_a_linear_plant(K, D, integral_time=None)
@@ -84,6 +87,10 @@ def test_pi_servo_follows_a_drifting_stress():
     assert abs(pi[-1]) < 1e-3 and np.abs(pi[len(pi) // 2:]).max() < 1e-3
     noisy = servo_on_a_linear_plant(K, D, integral_time=4 * tau, filter_time=0.5 * tau, noise=0.1)
     assert np.abs(noisy[len(noisy) // 2:]).mean() < 0.5 * lag  # noise followed, no lag
+    # a ramped target (100 MPa/s): an average lags the stress it follows by ramp x filter_time,
+    # which the PI servo would hold as an overshoot; the filter's own rate makes that up
+    filtered = servo_on_a_linear_plant(K, D, integral_time=4 * tau, filter_time=tau, ramp=100.0)
+    assert np.abs(filtered[len(filtered) // 2:]).max() < 0.05 * 100.0 * tau
     with pytest.raises(ValueError, match="integral_time must be > 0"):
         StressControl(duration=1.0, stress_driven=np.eye(3, dtype=bool), target=lambda t: 0, rate=1, band=1,
                       integral_time=0.0)

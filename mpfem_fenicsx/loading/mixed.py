@@ -19,7 +19,10 @@ axial compression) is followed with a lag error of D band / (K rate); the integr
 (``integral_time``, a PI servo) takes that drift up and brings the error back to zero. The
 integral stops growing while the rate is saturated (anti-windup). ``filter_time`` low-passes the
 measured stress first (exponential moving average): the explicit pseudo-dynamics make it ring
-about the quasi-static value. The gradient is integrated from the servo's velocity gradient,
+about the quasi-static value. An average lags a stress ramped at R MPa/s by R filter_time, so a
+servo holding the average on a ramped target would hold the stress that far ahead of it; the
+filter also tracks the average's own rate, low-passed over the same time, and the servo reads
+average + filter_time x rate: no lag on a ramp. The gradient is integrated from the servo's velocity gradient,
 F0(t + dt) = exp(L dt) F0(t); off-diagonal stress-driven components use the symmetric part (no
 spin).
 
@@ -100,6 +103,7 @@ class StressControl:
         self._F = np.asarray(self.start, dtype=float).copy()
         self._L_servo = np.zeros((3, 3))
         self._filtered = None  # low-passed measured stress (MPa)
+        self._trend = np.zeros((3, 3))  # low-passed rate of the filtered stress (MPa/s)
         self._integral = np.zeros((3, 3))  # int e dt (MPa s)
         self._t_update = None  # time of the last update
         self._previous = (0.0, self._F.copy())  # the step before: the solver asks for F0(t_n) again
@@ -140,6 +144,7 @@ class StressControl:
         self._previous = (self._t, self._F.copy())
         self._L_servo = np.zeros((3, 3))
         self._filtered, self._integral, self._t_update = None, np.zeros((3, 3)), None
+        self._trend = np.zeros((3, 3))
 
     def state_dict(self) -> dict:
         """The servo's state (plain lists and floats, for a checkpoint's metadata): restoring it
@@ -147,7 +152,7 @@ class StressControl:
         return {"t": self._t, "F": self._F.tolist(), "previous_t": self._previous[0],
                 "previous_F": self._previous[1].tolist(), "L_servo": self._L_servo.tolist(),
                 "filtered": None if self._filtered is None else self._filtered.tolist(),
-                "integral": self._integral.tolist(), "t_update": self._t_update}
+                "integral": self._integral.tolist(), "t_update": self._t_update, "trend": self._trend.tolist()}
 
     def load_state(self, state: dict) -> None:
         """Restore :meth:`state_dict`."""
@@ -157,6 +162,7 @@ class StressControl:
         self._filtered = None if state["filtered"] is None else np.array(state["filtered"], dtype=float)
         self._integral = np.array(state["integral"], dtype=float)
         self._t_update = state["t_update"]
+        self._trend = np.array(state.get("trend", np.zeros((3, 3))), dtype=float)  # older checkpoints: none
 
     def update(self, t: float, sigma: np.ndarray) -> None:
         """Servo: set the stress-driven velocity gradient from the measured Cauchy stress
@@ -166,10 +172,16 @@ class StressControl:
         self._t_update = t
         if self._filtered is None or self.filter_time == 0.0:
             self._filtered = sigma.copy()
+            measured = self._filtered
         else:
-            self._filtered += -np.expm1(-dt / self.filter_time) * (sigma - self._filtered)
+            weight = -np.expm1(-dt / self.filter_time)
+            before = self._filtered.copy()
+            self._filtered += weight * (sigma - self._filtered)
+            if dt > 0:
+                self._trend += weight * ((self._filtered - before) / dt - self._trend)
+            measured = self._filtered + self.filter_time * self._trend  # the average's lag made up
         mask = self._check_mask(self.stress_driven(t))
-        error = np.where(mask, np.asarray(self.target(t), dtype=float) - self._filtered, 0.0)
+        error = np.where(mask, np.asarray(self.target(t), dtype=float) - measured, 0.0)
         command = error
         if self.integral_time is not None:
             # anti-windup: the integral grows only where the rate is not saturated
