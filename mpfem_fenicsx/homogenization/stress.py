@@ -272,6 +272,19 @@ def dissipated_energy(plastic, frictional):
     return np.asarray(plastic, dtype=float) + np.asarray(frictional, dtype=float)
 
 
+def row_increments(series, window: int = 0) -> np.ndarray:
+    """Per-row increments of a history series (T, ...): Savitzky-Golay first derivatives
+    (quadratic fits over ``window`` rows, odd >= 3) that keep an explicit run's small oscillations
+    from flipping the sign of W2 (the thesis low-pass filtered its explicit W2, §4.5); with
+    ``window`` < 3 or fewer rows than it, raw differences with NaN in the first row."""
+    series = np.asarray(series, dtype=float)
+    if window >= 3 and series.shape[0] >= window:
+        from scipy.signal import savgol_filter
+
+        return savgol_filter(series, window, 2, deriv=1, axis=0)
+    return np.concatenate([np.full((1,) + series.shape[1:], np.nan), np.diff(series, axis=0)])
+
+
 def first_crossing(indicator, level, *series, rising: bool = True, last: bool = False):
     """First crossing of ``level`` by ``indicator`` (T,) and the series linearly interpolated there
     (``last``: the latest crossing instead, e.g. an iso-Gamma threshold on a non-monotonic Gamma,

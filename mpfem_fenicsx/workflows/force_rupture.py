@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from ..homogenization import first_crossing, hencky_strain, second_order_work, stress_invariants
+from ..homogenization import first_crossing, hencky_strain, row_increments, second_order_work, stress_invariants
 from ..loading.mixed import normal_stress_path
 from .stress_probes import StressProbeCase, consolidate, run_probe
 
@@ -73,8 +73,6 @@ class ForceRuptureCase(StressProbeCase):
 def rupture_rows(history, t_start: float, start: np.ndarray, final: np.ndarray, w2_window: int = 5) -> dict:
     """RUPTURE_COLUMNS of the probe's rows (after ``t_start``) of a history; ``start`` and
     ``final`` (3,) the path's end stresses (MPa, compression > 0)."""
-    from scipy.signal import savgol_filter
-
     t = history.column("time")
     keep = t > t_start * (1 + 1e-12)
     comps = [f"{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
@@ -82,18 +80,12 @@ def rupture_rows(history, t_start: float, start: np.ndarray, final: np.ndarray, 
     F = np.stack([history.column(f"F{c}")[keep] for c in comps], axis=-1).reshape(-1, 3, 3)
     h = hencky_strain(F)
     mean, q = stress_invariants(-sigma)  # the invariants and W2 take tension > 0
-    if w2_window >= 3 and sigma.shape[0] >= w2_window:
-        dsigma = savgol_filter(-sigma, w2_window, 2, deriv=1, axis=0)
-        dh = savgol_filter(h, w2_window, 2, deriv=1, axis=0)
-    else:
-        dsigma = np.concatenate([np.full((1, 3, 3), np.nan), np.diff(-sigma, axis=0)])
-        dh = np.concatenate([np.full((1, 3, 3), np.nan), np.diff(h, axis=0)])
     normal = np.diagonal(sigma, axis1=1, axis2=2)
     direction = (final - start) / np.linalg.norm(final - start)
     E_c, E_d = history.column("E_c")[keep], history.column("E_d")[keep]
     rows = {"time": t[keep], "sigma_m": mean, "q": q, "path_stress": (normal - start) @ direction,
             "E_c": E_c, "E_d": E_d, "phi": np.divide(E_c, E_d, out=np.full_like(E_c, np.nan), where=E_d > 0),
-            "W2": second_order_work(dsigma, dh)}
+            "W2": second_order_work(row_increments(-sigma, w2_window), row_increments(h, w2_window))}
     for i in range(3):
         rows[f"sigma_{i + 1}{i + 1}"] = normal[:, i]
         rows[f"h_{i + 1}{i + 1}"] = h[:, i, i]

@@ -50,7 +50,7 @@ import numba
 import numpy as np
 from mpi4py import MPI
 
-from ..homogenization import first_crossing, hencky_strain, second_order_work, uniaxial_strengths
+from ..homogenization import first_crossing, hencky_strain, row_increments, second_order_work, uniaxial_strengths
 from ..io.history import read_csv
 from ..io.plots import plot_yield_surface
 from ..loading import reload_gradient, unload_gradient
@@ -290,8 +290,6 @@ def fan_rows(history_csv: str | Path, phi: float, t_unloaded: float, w2_window: 
     ``w2_window`` rows) rather than raw row differences: an explicit reload carries small elastic
     oscillations that flip the sign of raw increments (the thesis low-pass filtered W2 for the
     same reason, §4.5); 0 or a too short reload: raw differences (first row NaN)."""
-    from scipy.signal import savgol_filter
-
     h = read_csv(history_csv)
     rows = h["time"] >= t_unloaded * (1 - 1e-12)
     m = int(rows.sum())
@@ -299,12 +297,7 @@ def fan_rows(history_csv: str | Path, phi: float, t_unloaded: float, w2_window: 
     sigma = -np.stack([h[f"sigma{c}"][rows] for c in comps], axis=1).reshape(-1, 3, 3)  # tension > 0
     F = np.stack([h[f"F{c}"][rows] for c in comps], axis=1).reshape(-1, 3, 3)
     hencky = hencky_strain(F)
-    if w2_window >= 3 and m >= w2_window:
-        dsigma = savgol_filter(sigma, w2_window, 2, deriv=1, axis=0)
-        dh = savgol_filter(hencky, w2_window, 2, deriv=1, axis=0)
-    else:
-        dsigma = np.concatenate([np.full((1, 3, 3), np.nan), np.diff(sigma, axis=0)])
-        dh = np.concatenate([np.full((1, 3, 3), np.nan), np.diff(hencky, axis=0)])
+    dsigma, dh = row_increments(sigma, w2_window), row_increments(hencky, w2_window)
     raw = second_order_work(np.diff(sigma, axis=0), np.diff(hencky, axis=0))
     fan = {"phi": np.full(m, phi), "W2": second_order_work(dsigma, dh), "_W2_raw": np.concatenate([[np.nan], raw])}
     for c in FAN_COLUMNS:
