@@ -96,6 +96,30 @@ def test_pi_servo_follows_a_drifting_stress():
                       integral_time=0.0)
 
 
+def test_pi_servo_does_not_overshoot_the_end_of_a_ramp():
+    """An elastoplastic model medium (elastic modulus 4000 MPa, linear hardening 100 MPa) ramped
+    to 2 MPa at 2000 MPa/s, then held: the PI servo's integral holds the strain rate that followed
+    the ramp; unwinding it after the knot drove the stress 0.064 MPa (3 %) past the target. The
+    integral is scaled with the target's rate: the stress settles within 1 % of the target."""
+    E, H, R, t_ramp = 4000.0, 100.0, 2000.0, 1e-3
+    target = lambda t: min(R * t, R * t_ramp) * np.eye(3)  # noqa: E731
+    control = StressControl(duration=2e-3, stress_driven=np.diag([True, False, False]), rate=100.0, band=0.5,
+                            target=target, integral_time=1e-4, filter_time=1e-5)
+    plastic, errors, times = 0.0, [], np.arange(0.0, 2e-3, 2e-7)
+    for t in times:
+        strain = -np.log(control(t)[0, 0])
+        sigma = E * (strain - plastic)
+        if sigma > H * plastic:  # plastic loading: return to the hardening line
+            plastic = E * strain / (E + H)
+            sigma = H * plastic
+        control.update(t, np.diag([sigma, 0.0, 0.0]))
+        errors.append(sigma - target(t)[0, 0])
+    errors = np.array(errors)
+    held = errors[times > t_ramp]
+    assert np.abs(held).max() < 0.01 * 2.0
+    assert abs(held[-1]) < 1e-6
+
+
 def test_consolidation_then_triaxial_on_the_simple_cubic_cell(tmp_path):
     """Acceptance 1 of issue 24 and a CI-sized triaxial path: the 8 touching spheres of the simple
     cubic cell (elastic: sigma_0 = 10 GPa). Isotropic consolidation, the three normal stresses

@@ -17,7 +17,10 @@ time constant band / (K rate), K the tangent modulus. With the proportional term
 drifting at D MPa/s (a ramped target, or the lateral stress of a triaxial test pushed up by the
 axial compression) is followed with a lag error of D band / (K rate); the integral term
 (``integral_time``, a PI servo) takes that drift up and brings the error back to zero. The
-integral stops growing while the rate is saturated (anti-windup). ``filter_time`` low-passes the
+integral stops growing while the rate is saturated (anti-windup). Following a ramped target,
+the integral holds the strain rate the ramp needs; where the target's rate drops (a ramp's end,
+a waypoint) the integral is scaled down with it (never up): unwinding it would otherwise drive
+the stress past the target (3 % on an elastoplastic model medium). ``filter_time`` low-passes the
 measured stress first (exponential moving average): the explicit pseudo-dynamics make it ring
 about the quasi-static value. An average lags a stress ramped at R MPa/s by R filter_time, so a
 servo holding the average on a ramped target would hold the stress that far ahead of it; the
@@ -104,6 +107,8 @@ class StressControl:
         self._L_servo = np.zeros((3, 3))
         self._filtered = None  # low-passed measured stress (MPa)
         self._trend = np.zeros((3, 3))  # low-passed rate of the filtered stress (MPa/s)
+        self._target_before = np.zeros((3, 3))  # the target at the last update (MPa)
+        self._target_rate = np.zeros((3, 3))  # its rate over the last update interval (MPa/s)
         self._integral = np.zeros((3, 3))  # int e dt (MPa s)
         self._t_update = None  # time of the last update
         self._previous = (0.0, self._F.copy())  # the step before: the solver asks for F0(t_n) again
@@ -145,6 +150,7 @@ class StressControl:
         self._L_servo = np.zeros((3, 3))
         self._filtered, self._integral, self._t_update = None, np.zeros((3, 3)), None
         self._trend = np.zeros((3, 3))
+        self._target_before, self._target_rate = np.zeros((3, 3)), np.zeros((3, 3))
 
     def state_dict(self) -> dict:
         """The servo's state (plain lists and floats, for a checkpoint's metadata): restoring it
@@ -152,7 +158,8 @@ class StressControl:
         return {"t": self._t, "F": self._F.tolist(), "previous_t": self._previous[0],
                 "previous_F": self._previous[1].tolist(), "L_servo": self._L_servo.tolist(),
                 "filtered": None if self._filtered is None else self._filtered.tolist(),
-                "integral": self._integral.tolist(), "t_update": self._t_update, "trend": self._trend.tolist()}
+                "integral": self._integral.tolist(), "t_update": self._t_update, "trend": self._trend.tolist(),
+                "target_before": self._target_before.tolist(), "target_rate": self._target_rate.tolist()}
 
     def load_state(self, state: dict) -> None:
         """Restore :meth:`state_dict`."""
@@ -163,6 +170,8 @@ class StressControl:
         self._integral = np.array(state["integral"], dtype=float)
         self._t_update = state["t_update"]
         self._trend = np.array(state.get("trend", np.zeros((3, 3))), dtype=float)  # older checkpoints: none
+        self._target_before = np.array(state.get("target_before", np.zeros((3, 3))), dtype=float)
+        self._target_rate = np.array(state.get("target_rate", np.zeros((3, 3))), dtype=float)
 
     def update(self, t: float, sigma: np.ndarray) -> None:
         """Servo: set the stress-driven velocity gradient from the measured Cauchy stress
@@ -181,8 +190,20 @@ class StressControl:
                 self._trend += weight * ((self._filtered - before) / dt - self._trend)
             measured = self._filtered + self.filter_time * self._trend  # the average's lag made up
         mask = self._check_mask(self.stress_driven(t))
-        error = np.where(mask, np.asarray(self.target(t), dtype=float) - measured, 0.0)
+        target = np.asarray(self.target(t), dtype=float)
+        error = np.where(mask, target - measured, 0.0)
         command = error
+        if self.integral_time is not None and dt > 0:
+            # the integral holds the strain rate that followed the target's rate: where the target
+            # slows down (the end of a ramp, a waypoint) it is scaled down with it, so it does not
+            # drive the stress past the target while it unwinds (never scaled up)
+            target_rate = (target - self._target_before) / dt
+            previous = self._target_rate
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.where(np.abs(previous) > 0, np.clip(target_rate / previous, -1.0, 1.0), 1.0)
+            self._integral = self._integral * ratio
+            self._target_rate = target_rate
+        self._target_before = target
         if self.integral_time is not None:
             # anti-windup: the integral grows only where the rate is not saturated
             free = np.abs(error + self._integral / self.integral_time) < self.band
