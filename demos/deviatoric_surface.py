@@ -21,6 +21,7 @@ import sys
 
 from mpi4py import MPI
 
+from mpfem_fenicsx.cli.exits import RUN_FAILED, fail
 from mpfem_fenicsx.workflows.compaction import CompactionCase, RunFailure
 from mpfem_fenicsx.workflows.deviatoric_surface import DeviatoricSurfaceCase, run_deviatoric_surface
 
@@ -47,8 +48,7 @@ def main(argv=None) -> int:
     try:
         result = run_deviatoric_surface(case, MPI.COMM_WORLD)
     except RunFailure as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 3
+        fail(RUN_FAILED, str(err))
     if MPI.COMM_WORLD.rank == 0:
         print(f"E_0 = {result['E_0']:.4g} mJ; yield points (theta deg: sigma_m, q MPa, measured Lode angle deg):")
         for theta, sigma_m, q, lode in result["points"]:

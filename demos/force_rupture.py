@@ -21,6 +21,7 @@ import sys
 
 from mpi4py import MPI
 
+from mpfem_fenicsx.cli.exits import RUN_FAILED, fail
 from mpfem_fenicsx.workflows.compaction import CompactionCase, RunFailure
 from mpfem_fenicsx.workflows.force_rupture import ForceRuptureCase, run_force_rupture
 
@@ -48,8 +49,7 @@ def main(argv=None) -> int:
     try:
         result = run_force_rupture(case, MPI.COMM_WORLD)
     except RunFailure as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 3
+        fail(RUN_FAILED, str(err))
     if MPI.COMM_WORLD.rank == 0:
         print(f"E_0 = {result['E_0']:.4g} mJ; E_c / E_d under the quasi-static part: "
               f"{result['phi_quasi_static']:.2g} (phi_c = {args.phi_c:g})")

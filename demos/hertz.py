@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from mpfem_fenicsx.cli.exits import bad_input_exits
 from mpfem_fenicsx.workflows.hertz import HertzCase, run_hertz
 
 
@@ -32,7 +33,10 @@ def main(argv=None):
     args = parser.parse_args(argv)
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
-    case = HertzCase(size_min=args.size_min, steps=args.steps)
+    with bad_input_exits():
+        case = HertzCase(size_min=args.size_min, steps=args.steps)
+        if args.increments < 100:
+            raise ValueError(f"--increments must be >= 100, got {args.increments}")
     if args.solver == "explicit":
         res = run_hertz(case, args.out, comm, log=say, solver="explicit", explicit_increments=args.increments,
                         rows=40)

@@ -35,9 +35,10 @@ import numpy as np
 from mpi4py import MPI
 from scipy.spatial.transform import Rotation
 
+from mpfem_fenicsx.cli.exits import bad_input_exits
 from mpfem_fenicsx.homogenization import hencky_strain
 from mpfem_fenicsx.meshes.packing import Packing
-from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
+from mpfem_fenicsx.workflows.compaction import CompactionCase, initial_packing, run_compaction
 
 #: one generic orientation for every particle mesh (0.3 rad about (1, 2, 3)): identical particles
 #: stay exact translates while their contact points are inside facets (no node-on-node contact)
@@ -134,12 +135,11 @@ def main(argv=None) -> None:
     out = Path(args.out)
     results = {}
     for loading in (("isotropic", "die") if args.loading == "both" else (args.loading,)):
-        try:
+        with bad_input_exits():  # the case and its packing, checked before any mesh
             case = simple_cubic_case(loading, args.radius, args.target_density, args.increments, str(out),
                                      visual=not args.no_visual, face_copies_only=args.face_copies_only)
-            res = run_compaction(case, comm, log=lambda *a: None)
-        except ValueError as err:
-            raise SystemExit(f"error: {err}")
+            initial_packing(case)
+        res = run_compaction(case, comm, log=lambda *a: None)
         chk = checks(res)
         results[loading] = (res, chk)
         if comm.rank == 0:

@@ -10,7 +10,8 @@ import argparse
 
 from mpi4py import MPI
 
-from mpfem_fenicsx.workflows.foundation import SOLVERS, run_sphere_squeeze
+from mpfem_fenicsx.cli.exits import bad_input_exits
+from mpfem_fenicsx.workflows.foundation import SOLVERS, check_sphere_squeeze, run_sphere_squeeze
 
 
 def main(argv=None):
@@ -21,6 +22,8 @@ def main(argv=None):
     parser.add_argument("--explicit-steps", type=int, default=4000)
     parser.add_argument("--out", default="results/sphere_squeeze")
     args = parser.parse_args(argv)
+    with bad_input_exits():
+        check_sphere_squeeze(args.solver, args.reduction, args.refinement, explicit_steps=args.explicit_steps)
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     res = run_sphere_squeeze(args.solver, reduction=args.reduction, refinement=args.refinement,

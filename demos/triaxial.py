@@ -26,6 +26,7 @@ from mpi4py import MPI
 
 from mpfem_fenicsx.io.plots import plot_loading_path
 from mpfem_fenicsx.loading.mixed import triaxial_control
+from mpfem_fenicsx.cli.exits import RUN_FAILED, fail
 from mpfem_fenicsx.workflows.compaction import CompactionCase, RunFailure, run_compaction
 
 
@@ -72,8 +73,7 @@ def main(argv=None) -> int:
     try:
         result = run_compaction(case, MPI.COMM_WORLD)
     except RunFailure as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 3
+        fail(RUN_FAILED, str(err))
     h = result.history
     if MPI.COMM_WORLD.rank == 0:
         plot_loading_path(h.path, result.out_dir / "loading_path.png",

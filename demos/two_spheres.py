@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from mpfem_fenicsx.cli.exits import bad_input_exits
 from mpfem_fenicsx.io import History
 from mpfem_fenicsx.workflows.two_spheres import TwoSphereCase, run_two_spheres, unloading_branch
 
@@ -57,6 +58,10 @@ def main(argv=None):
     parser.add_argument("--replot", action="store_true",
                         help="no simulation: summary, curves and figure from the history_<ratio>.csv in --out")
     args = parser.parse_args(argv)
+    with bad_input_exits():  # every ratio's case before the first run
+        cases = {ratio: replace(d, ratio=ratio, gamma=args.gamma, size_min=args.size_min, grading=args.grading,
+                                refine_radius=args.refine_radius, model=args.model, wedge_angle=args.wedge_angle,
+                                load_steps=args.load_steps, unload_steps=args.unload_steps) for ratio in args.ratios}
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     out = Path(args.out)
@@ -64,9 +69,7 @@ def main(argv=None):
                                             "a0_mm", "F0_N", "samples", "pull_off_mm", "wall_s"], comm)
     curves = {}
     for ratio in args.ratios:
-        case = replace(d, ratio=ratio, gamma=args.gamma, size_min=args.size_min, grading=args.grading,
-                       refine_radius=args.refine_radius, model=args.model, wedge_angle=args.wedge_angle,
-                       load_steps=args.load_steps, unload_steps=args.unload_steps)
+        case = cases[ratio]
         if args.replot:
             path = out / f"history_{ratio:g}.csv"
             if not path.exists():

@@ -13,8 +13,9 @@ import argparse
 import numpy as np
 from mpi4py import MPI
 
+from mpfem_fenicsx.cli.exits import bad_input_exits
 from mpfem_fenicsx.material import LEAD
-from mpfem_fenicsx.workflows.foundation import SOLVERS, run_uniaxial
+from mpfem_fenicsx.workflows.foundation import SOLVERS, check_uniaxial, run_uniaxial
 
 
 def main(argv=None):
@@ -24,6 +25,8 @@ def main(argv=None):
     parser.add_argument("--cells", type=int, default=2, help="hexahedra per edge of the 1 mm cube")
     parser.add_argument("--out", default="results/uniaxial")
     args = parser.parse_args(argv)
+    with bad_input_exits():
+        check_uniaxial(args.solver, args.log_strain, args.cells)
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     res = run_uniaxial(args.solver, LEAD, args.log_strain, args.cells, args.out, comm, log=say)

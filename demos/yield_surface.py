@@ -26,6 +26,7 @@ import sys
 from mpi4py import MPI
 
 from mpfem_fenicsx.cli.compaction import case_from_args, parser
+from mpfem_fenicsx.cli.exits import RUN_FAILED, bad_input_exits, fail
 from mpfem_fenicsx.workflows.compaction import RunFailure
 from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase, run_yield_surface, surfaces
 
@@ -57,12 +58,10 @@ def main(argv=None) -> None:
     args.no_visual = True  # the stages write histories, the fan its own figure
     reload_solver, args.solver = args.solver, "explicit"  # --solver: the reloads' (loading: explicit)
     base = case_from_args(args, args.loading)
-    try:
+    with bad_input_exits():
         case = YieldSurfaceCase(base=base, solver=reload_solver, reload_steps=args.reload_steps, nphi=args.nphi, unload_stress_ratio=args.unload_ratio,
                                 amplitude_factor=args.amplitude_factor, dissipation_threshold=args.threshold,
                                 gamma_thresholds=tuple(args.gamma_thresholds), out_dir=args.out)
-    except ValueError as err:
-        raise SystemExit(f"error: {err}")
     if args.surfaces_only:
         if comm.rank == 0:
             surfaces(case, log=say)
@@ -70,9 +69,7 @@ def main(argv=None) -> None:
     try:
         result = run_yield_surface(case, comm, log=say)
     except RunFailure as err:
-        if comm.rank == 0:
-            print(f"error: {err}", file=sys.stderr)
-        raise SystemExit(3)
+        fail(RUN_FAILED, str(err))
     say(f"done in {result['wall_time']:.0f} s: {args.out}/fan.csv, surfaces.csv, uniaxial.csv, yield_surface.png")
 
 

@@ -19,6 +19,7 @@ holds N sphere centres in [0, d) per axis and their radii.
 from __future__ import annotations
 
 import itertools
+import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,8 +29,9 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["AssemblyParticles", "Duplicates", "Packing", "assembly_particles", "duplicate_particles",
-           "generate_packing", "periodic_pair_realizations", "read_packing", "write_packing"]
+__all__ = ["PACKING_FORMATS", "AssemblyParticles", "Duplicates", "Packing", "assembly_particles",
+           "duplicate_particles", "generate_packing", "packing_format", "periodic_pair_realizations", "read_packing",
+           "write_packing"]
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
@@ -112,11 +114,14 @@ class Packing:
         rel = self._overlaps()[3]
         return float(max(rel.max(initial=0.0), 0.0))
 
-    def validate(self, overlap_tolerance: float = 1e-6) -> Packing:
+    def validate(self, overlap_tolerance: float = 1e-6, radius_factor: float = 1.0) -> Packing:
         """Raise ValueError on non-positive sizes, centres outside [0, d), or overlapping spheres.
 
         Overlaps are relative to the smaller radius of the pair and are checked over all periodic
-        images with a cKDTree. Returns ``self`` so that calls can be chained.
+        images with a cKDTree, on the radii times ``radius_factor`` (e.g. the assembly's 0.99
+        reduction: a DEM packing left stable under a small confining stress carries contact
+        overlaps of ~0.1 % of a radius, which that reduction removes). Returns ``self`` so that
+        calls can be chained.
         """
         cell, c, r = self.cell, self.centres, self.radii
         if not np.all(np.isfinite(cell) & (cell > 0)):
@@ -133,11 +138,14 @@ class Packing:
             p, ax = np.argwhere(outside)[0]
             raise ValueError(f"centre of particle {p} outside the cell: {'xyz'[ax]}={float(c[p, ax])!r} not in "
                              f"[0, {float(cell[ax])!r}) mm")
-        i, j, shift, rel = self._overlaps()
+        if not 0.0 < radius_factor <= 1.0:
+            raise ValueError(f"radius_factor must be in (0, 1], got {radius_factor}")
+        i, j, shift, rel = (self if radius_factor == 1.0 else self.scaled(radius_factor))._overlaps()
         if rel.size and rel.max() > overlap_tolerance:
             k = np.argmax(rel)
+            after = "" if radius_factor == 1.0 else f" after the radius reduction x{radius_factor:g}"
             raise ValueError(f"overlap of particles {i[k]} and {j[k]} (image shift {shift[k].tolist()}): "
-                             f"{rel[k]:.3g} of the smaller radius > overlap_tolerance={overlap_tolerance:g}")
+                             f"{rel[k]:.3g} of the smaller radius{after} > overlap_tolerance={overlap_tolerance:g}")
         return self
 
 
@@ -153,35 +161,173 @@ def write_packing(packing: Packing, path) -> None:
         np.savetxt(f, np.column_stack([packing.centres, packing.radii]), fmt="%.17g")
 
 
-def read_packing(path, validate: bool = True, overlap_tolerance: float = 1e-6) -> Packing:
-    """Read a packing file (format of :func:`write_packing`; ``#`` comments and blank lines allowed).
+#: the packing file formats :func:`read_packing` recognizes
+PACKING_FORMATS = ("plain", "yade", "lammps")
 
-    Raises ValueError naming the file and line of a malformed line; with ``validate`` the packing
-    is also checked by :meth:`Packing.validate` (a DEM export has small contact overlaps: raise
-    ``overlap_tolerance``, or read with ``validate=False`` and validate ``scaled(0.99)``).
+# a cell size in a comment header, e.g. YADE scripts' "# dx dy dz (mm) = 0.827 0.827 0.827 ; ..." or
+# "# cell = 1 1 1"
+_NUMBER = r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
+_CELL_HEADER = re.compile(r"(?:dx\s*,?\s*dy\s*,?\s*dz|cell(?:[ _]?size)?|hsize)[^=:\n]*[=:]\s*" + r"[\s,;]+".join([_NUMBER] * 3),
+                          re.IGNORECASE)
+
+
+def packing_format(path) -> str:
+    """Which of :data:`PACKING_FORMATS` a packing file is: ``lammps`` (a LAMMPS / LIGGGHTS dump,
+    ``ITEM: TIMESTEP`` ...), ``yade`` (a YADE ``export.text`` file: ``#format x_y_z_r`` or sphere
+    lines ``x y z r`` without a cell line, the cell in a comment header or given by the caller),
+    else ``plain`` (:func:`write_packing`: a line ``dx dy dz``, then ``x y z r`` lines)."""
+    lines = Path(path).read_text().splitlines()
+    for line in lines:
+        if line.strip():
+            if line.strip().upper().startswith("ITEM:"):
+                return "lammps"
+            break
+    for line in lines:
+        text = line.strip()
+        if text.lower().startswith("#format"):
+            return "yade"
+        fields = text.split("#", 1)[0].split()
+        if fields:
+            return "yade" if len(fields) >= 4 else "plain"
+    return "plain"
+
+
+def read_packing(path, validate: bool = True, overlap_tolerance: float = 1e-6, cell=None,
+                 length_scale: float = 1.0) -> Packing:
+    """Read a packing file as a DEM code left it (:func:`packing_format` tells which):
+
+    - ``plain`` (:func:`write_packing`): a line ``dx dy dz``, then one ``x y z r`` line per sphere;
+    - ``yade`` (YADE ``export.text``, ``#format x_y_z_r``; extra columns ignored): the cell from a
+      comment header (``# dx dy dz (mm) = 0.827 0.827 0.827 ; ...``, ``# cell = ...``) or ``cell``;
+    - ``lammps`` (LAMMPS / LIGGGHTS ``dump custom``): the last snapshot, its ``BOX BOUNDS`` (an
+      orthogonal box; its lower corner becomes the origin) and the columns ``x y z`` (or ``xu``
+      / ``xs`` ...) and ``radius`` (or ``diameter``).
+
+    ``#`` comments and blank lines are allowed. The DEM formats' centres are wrapped into the
+    periodic cell (DEM codes let them leave it). ``length_scale`` multiplies every length (e.g.
+    1000 for a file in metres). Raises ValueError naming the file and line of a malformed line;
+    with ``validate`` the packing is checked by :meth:`Packing.validate` (a DEM packing has small
+    contact overlaps: raise ``overlap_tolerance``, or validate with the assembly's radius factor).
     """
     path = Path(path)
-    cell, rows = None, []
+    if not (np.isfinite(length_scale) and length_scale > 0):
+        raise ValueError(f"length_scale must be > 0, got {length_scale}")
+    reader = {"plain": _read_plain, "yade": _read_yade, "lammps": _read_lammps}[packing_format(path)]
+    cell, centres, radii, wrap = reader(path, cell)
+    cell, centres, radii = (np.asarray(a, dtype=float) * length_scale for a in (cell, centres, radii))
+    if wrap and cell.shape == (3,) and np.all(np.isfinite(cell) & (cell > 0)):
+        centres = np.mod(centres, cell)
+        centres[centres >= cell] = 0.0  # mod of a tiny negative value rounds up to the cell size
+    packing = Packing(cell, centres, radii)
+    return packing.validate(overlap_tolerance) if validate else packing
+
+
+def _numbers(path, lineno, line, what, expected) -> list[float]:
+    fields = line.split("#", 1)[0].split()
+    try:
+        values = [float(v) for v in fields]
+    except ValueError:
+        raise ValueError(f"{path}: line {lineno}: {what} must hold {expected} numbers, got {line.strip()!r}")
+    if len(values) != expected:
+        raise ValueError(f"{path}: line {lineno}: {what} must hold {expected} numbers, got {len(values)}")
+    return values
+
+
+def _read_plain(path, cell):
+    rows, found = [], None
     for lineno, line in enumerate(path.read_text().splitlines(), start=1):
-        fields = line.split("#", 1)[0].split()
-        if not fields:
+        if not line.split("#", 1)[0].split():
             continue
-        what, expected = ("cell line 'dx dy dz'", 3) if cell is None else ("sphere line 'x y z r'", 4)
-        try:
-            values = [float(v) for v in fields]
-        except ValueError:
-            raise ValueError(f"{path}: line {lineno}: {what} must hold {expected} numbers, got {line.strip()!r}")
-        if len(values) != expected:
-            raise ValueError(f"{path}: line {lineno}: {what} must hold {expected} numbers, got {len(values)}")
-        if cell is None:
-            cell = values
+        if found is None:
+            found = _numbers(path, lineno, line, "cell line 'dx dy dz'", 3)
         else:
-            rows.append(values)
-    if cell is None or not rows:
+            rows.append(_numbers(path, lineno, line, "sphere line 'x y z r'", 4))
+    if found is None or not rows:
         raise ValueError(f"{path}: expected a cell line 'dx dy dz' and at least one sphere line 'x y z r'")
     rows = np.array(rows)
-    packing = Packing(cell, rows[:, :3], rows[:, 3])
-    return packing.validate(overlap_tolerance) if validate else packing
+    return (found if cell is None else cell), rows[:, :3], rows[:, 3], False
+
+
+def _read_yade(path, cell):
+    columns, header_cell, rows = ["x", "y", "z", "r"], None, []
+    for lineno, line in enumerate(path.read_text().splitlines(), start=1):
+        text = line.strip()
+        if text.startswith("#"):
+            if text.lower().startswith("#format"):
+                columns = text[len("#format"):].strip().split("_")
+            match = _CELL_HEADER.search(text)
+            if match and header_cell is None:
+                header_cell = [float(v) for v in match.groups()]
+            continue
+        if not text:
+            continue
+        rows.append(_numbers(path, lineno, line, f"sphere line '{' '.join(columns)}'", len(columns)))
+    missing = [c for c in "xyzr" if c not in columns]
+    if missing:
+        raise ValueError(f"{path}: YADE #format needs the columns x, y, z, r; missing {', '.join(missing)}")
+    if not rows:
+        raise ValueError(f"{path}: no sphere line 'x y z r'")
+    cell = header_cell if cell is None else cell
+    if cell is None:
+        raise ValueError(f"{path}: a YADE export without its periodic cell: give it (--cell dx dy dz) or add a header "
+                         f"line '# dx dy dz = ...'")
+    rows = np.array(rows)
+    return cell, rows[:, [columns.index(c) for c in "xyz"]], rows[:, columns.index("r")], True
+
+
+def _read_lammps(path, cell):
+    lines = path.read_text().splitlines()
+    starts = [k for k, line in enumerate(lines) if line.strip().upper().startswith("ITEM: TIMESTEP")]
+    if not starts:
+        raise ValueError(f"{path}: a LAMMPS / LIGGGHTS dump must start with 'ITEM: TIMESTEP'")
+    block, offset = lines[starts[-1]:], starts[-1]  # the last snapshot
+    lo = hi = names = None
+    count = None
+    k = 0
+    while k < len(block):
+        head = block[k].strip().upper()
+        if head.startswith("ITEM: NUMBER OF ATOMS"):
+            count = int(block[k + 1].split()[0])
+            k += 2
+        elif head.startswith("ITEM: BOX BOUNDS"):
+            if "XY" in head.split():
+                raise ValueError(f"{path}: line {offset + k + 1}: a triclinic box is not supported (orthogonal only)")
+            bounds = [_numbers(path, offset + k + 2 + a, block[k + 1 + a], "box bounds line 'lo hi'", 2)
+                      for a in range(3)]
+            lo, hi = np.array(bounds)[:, 0], np.array(bounds)[:, 1]
+            k += 4
+        elif head.startswith("ITEM: ATOMS"):
+            names = block[k].split()[2:]
+            body = block[k + 1:k + 1 + (count if count is not None else len(block))]
+            atoms_line = offset + k + 2
+            break
+        else:
+            k += 1
+    if names is None or lo is None:
+        raise ValueError(f"{path}: the dump's last snapshot needs 'ITEM: BOX BOUNDS' and 'ITEM: ATOMS' sections")
+    size = hi - lo
+    axes = []
+    for a, axis in enumerate("xyz"):
+        for name, scaled in ((axis, False), (axis + "u", False), (axis + "s", True), (axis + "su", True)):
+            if name in names:
+                axes.append((names.index(name), scaled))
+                break
+        else:
+            raise ValueError(f"{path}: line {atoms_line - 1}: ATOMS columns need {axis} (or {axis}u, {axis}s); got "
+                             f"{' '.join(names)}")
+    if "radius" in names:
+        radius_col, factor = names.index("radius"), 1.0
+    elif "diameter" in names:
+        radius_col, factor = names.index("diameter"), 0.5
+    else:
+        raise ValueError(f"{path}: line {atoms_line - 1}: ATOMS columns need radius (or diameter); got {' '.join(names)}")
+    rows = np.array([_numbers(path, atoms_line + i, line, "atom line", len(names)) for i, line in enumerate(body)
+                     if line.strip()])
+    if count is not None and rows.shape[0] != count:
+        raise ValueError(f"{path}: the last snapshot holds {rows.shape[0]} atoms, its header says {count}")
+    centres = np.column_stack([lo[a] + rows[:, c] * size[a] if scaled else rows[:, c]
+                               for a, (c, scaled) in enumerate(axes)]) - lo
+    return (size if cell is None else cell), centres, factor * rows[:, radius_col], True
 
 
 # --------------------------------------------------------------------------------------------

@@ -5,7 +5,7 @@ set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 venv="$root/.venv"
 stamp="$venv/.mpfem-bootstrap"
-want="$(sha256sum "$root/pyproject.toml" | cut -c1-16)"
+want="$(cat "$root/pyproject.toml" "${BASH_SOURCE[0]}" | sha256sum | cut -c1-16)"
 if [[ -x "$venv/bin/python" && -f "$stamp" && "$(cat "$stamp")" == "$want" ]]; then
   exit 0
 fi
@@ -35,5 +35,11 @@ rm -rf "$venv"
 "$python" -m venv "$venv"
 "$venv/bin/python" -m pip install --quiet --upgrade pip
 "$venv/bin/python" -m pip install --quiet -e "$root[test]"
+# DOLFINx's compiled module needs libmpi.so.12 (in .venv/lib), which only mpi4py knows how to
+# find: a user script importing dolfinx first failed ("libmpi.so.12: cannot open shared object
+# file"). A .pth line loads the library (no MPI_Init) at interpreter start, in any import order.
+site="$("$venv/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
+echo "import os, sys, ctypes; _p = os.path.join(sys.prefix, 'lib', 'libmpi.so.12'); os.path.exists(_p) and ctypes.CDLL(_p, mode=ctypes.RTLD_GLOBAL)" \
+  > "$site/mpfem_libmpi_first.pth"
 echo "$want" > "$stamp"
 echo "bootstrap: done"

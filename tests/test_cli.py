@@ -10,6 +10,7 @@ import pytest
 from mpfem_fenicsx.cli.casefile import SCHEMA, example_case, load_case
 from mpfem_fenicsx.cli.main import main
 from mpfem_fenicsx.io import read_csv
+from mpfem_fenicsx.meshes.packing import read_packing as read_packing_file
 
 TINY = "demos/cases/tiny.toml"
 
@@ -92,6 +93,77 @@ def test_bad_packing_file_is_rejected_with_sphere_indices(tmp_path, capsys, rows
         assert w in err, (w, err)
     # the same check through `mpfem pack --input`
     assert main(["pack", "--input", str(tmp_path / "packing.txt"), "--out", str(tmp_path / "o.txt")]) == 2
+
+
+CHECK_REFUSES = [
+    # (packing file text, case's [loading] lines, words of the one-line error): what `run` refuses
+    ("1 1 1\n0.2 0.2 0.2 0.1\n0.3 0.2 0.2 0.1\n0.7 0.7 0.7 0.1\n", "", ["overlap of particles 0 and 1"]),
+    ("1 1 1\n0.2 0.2 0.2 0.1\n0.6 nan 0.6 0.1\n", "", ["particle 1", "outside the cell"]),
+    ("1 1\n0.2 0.2 0.2 0.1\n", "", ["line 1", "cell line 'dx dy dz' must hold 3 numbers"]),
+    ("", "", ["expected a cell line"]),
+    ("1 1 1\n0.2 0.2 0.2 0.6\n", "", ["radius must be < min(cell)/2", "particle 0"]),
+    ("0.4 0.4 0.4\n" + "".join(f"{x} {y} {z} 0.1\n" for x in (0.1, 0.3) for y in (0.1, 0.3) for z in (0.1, 0.3)),
+     "[loading]\ntarget_density = 0.45\n", ["loading.target_density = 0.45", "0.508"]),
+]
+
+
+@pytest.mark.parametrize("packing, loading, words", CHECK_REFUSES)
+def test_check_refuses_what_run_refuses(tmp_path, capsys, packing, loading, words):
+    (tmp_path / "packing.txt").write_text(packing)
+    case = _case(tmp_path, "[packing]\nfile = 'packing.txt'\n" + loading)
+    code = main(["run", case, "--check"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    for w in words:
+        assert w in err, (w, err)
+
+
+def test_check_reads_a_dem_export_with_its_contact_overlaps(tmp_path, capsys):
+    """A YADE export with its cell in a comment header and 0.12 % of a radius of contact overlap
+    (a packing held under 10 kPa): valid for a run (the 0.99 radius reduction removes it), the
+    format and the largest overlap said; a 3 % overlap is refused."""
+    r, gap = 0.1, 0.1 * (2 - 0.0012)
+    rows = [(0.2, 0.2, 0.2), (0.2 + gap, 0.2, 0.2), (0.6, 0.6, 0.6)]
+    header = "# dx dy dz (mm) = 1.0 1.0 1.0 ; solid_fraction = 0.0126 ; N = 3\n"
+    (tmp_path / "yade.txt").write_text(header + "".join(f"{x} {y} {z} {r}\n" for x, y, z in rows))
+    case = _case(tmp_path, "[packing]\nfile = 'yade.txt'\n[loading]\ntarget_density = 0.5\n")
+    assert main(["run", case, "--check"]) == 0
+    out = capsys.readouterr().out
+    assert "read as yade" in out and "largest overlap 0.0012" in out and "valid" in out, out
+    assert main(["pack", "--input", str(tmp_path / "yade.txt"), "--out", str(tmp_path / "ours.txt")]) == 0
+    assert read_packing_file(tmp_path / "ours.txt", validate=False).cell.tolist() == [1.0] * 3
+    rows[1] = (0.2 + 0.194, 0.2, 0.2)
+    (tmp_path / "yade.txt").write_text(header + "".join(f"{x} {y} {z} {r}\n" for x, y, z in rows))
+    assert main(["run", case, "--check"]) == 2
+    assert "after the radius reduction x0.99" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("demo, args, words", [
+    ("isotropic", ["--packing", "missing.txt"], ["No such file"]),
+    ("simple_cubic", ["--radius", "-1"], ["cell sizes must be finite and > 0"]),
+    ("uniaxial", ["--log-strain", "-5"], ["log_strain must be in (0, 2]"]),
+    ("hertz", ["--steps", "0"], ["steps must be >= 1"]),
+    ("sphere_squeeze", ["--reduction", "2"], ["reduction must be in (0, 0.6)"]),
+    ("two_spheres", ["--gamma", "-1"], ["contact.gamma", ">= 0"]),
+    ("yield_surface", ["--target-density", "1.5"], ["target_density must be in (0, 1)"]),
+])
+def test_demos_exit_2_on_bad_input_like_mpfem(tmp_path, root, python, demo, args, words):
+    proc = subprocess.run([python, str(root / "demos" / f"{demo}.py"), *args, "--out", str(tmp_path / "o")],
+                          capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    err = proc.stderr.strip()
+    assert proc.returncode == 2 and len(err.splitlines()) == 1 and f"{demo}.py: error: " in err, err
+    for w in words:
+        assert w in err, (w, err)
+
+
+def test_dolfinx_imports_first_in_the_project_environment(tmp_path, root):
+    """A user script whose first import is dolfinx (libmpi.so.12 sits in .venv/lib, which only
+    mpi4py knew how to find): the bootstrap's .pth preloads it."""
+    proc = subprocess.run([str(root / ".venv" / "bin" / "python"), "-c",
+                           "import dolfinx, dolfinx.mesh\nfrom mpi4py import MPI\n"
+                           "m = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 1, 1, 1)\nprint(m.topology.dim)"],
+                          capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert proc.returncode == 0 and proc.stdout.strip() == "3", proc.stderr[-500:]
 
 
 def test_unreachable_target_density_exits_2(tmp_path, capsys):

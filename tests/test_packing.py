@@ -265,3 +265,74 @@ def test_every_periodic_neighbour_pair_is_realized_once_by_clp_copies(jammed50):
     assert near.sum() > 100 and mixed.sum() > 0  # the case that copies on half of the faces miss
     counts = [realizations(allowed, a.original, a.shift, *k) for k in zip(i[near], j[near], s[near])]
     assert counts == [1] * int(near.sum())
+
+
+# ------------------------------------------------------------------------------ DEM exports
+# What DEM codes write (issue 25): YADE's export.text (#format x_y_z_r, the cell in a header a
+# script adds, or given), LAMMPS / LIGGGHTS dumps (box bounds, x y z radius among other columns).
+YADE_HEADER = ("# dx dy dz (mm) = 0.827 0.827 0.827 ; solid_fraction = 0.02 ; N = 3\n"
+               "0.1 0.2 0.3 0.08\n0.2595 0.2 0.3 0.08\n0.85 0.5 0.5 0.07\n")  # 3rd centre outside: wrapped
+YADE_FORMAT = "#format x_y_z_r_matId\n0.1 0.2 0.3 0.08 1\n0.5 0.5 0.5 0.07 1\n"
+LAMMPS_DUMP = """ITEM: TIMESTEP
+0
+ITEM: NUMBER OF ATOMS
+1
+ITEM: BOX BOUNDS pp pp pp
+0 1
+0 1
+0 1
+ITEM: ATOMS id type x y z radius
+1 1 0.5 0.5 0.5 0.3
+ITEM: TIMESTEP
+5000
+ITEM: NUMBER OF ATOMS
+2
+ITEM: BOX BOUNDS pp pp pp
+-0.4 0.4
+-0.4 0.4
+-0.4 0.4
+ITEM: ATOMS id type x y z vx vy vz diameter
+1 1 0.0 0.0 0.0 0 0 0 0.2
+2 1 0.35 -0.39 0.2 0 0 0 0.16
+"""
+
+
+def test_dem_exports_are_read_as_they_come(tmp_path):
+    from mpfem_fenicsx.meshes.packing import packing_format
+
+    yade = tmp_path / "yade.txt"
+    yade.write_text(YADE_HEADER)
+    p = read_packing(yade, validate=False)
+    assert packing_format(yade) == "yade" and p.cell.tolist() == [0.827] * 3
+    assert p.centres[2].tolist() == pytest.approx([0.85 - 0.827, 0.5, 0.5])  # wrapped into the cell
+    # 0.1 % of a radius of contact overlap, as a DEM packing held under 10 kPa: removed by the run's
+    # 0.99 reduction, refused without it
+    assert p.max_overlap() == pytest.approx(0.0005 / 0.08)
+    p.validate(radius_factor=0.99)
+    with pytest.raises(ValueError, match="overlap of particles 0 and 1"):
+        p.validate()
+    formatted = tmp_path / "format.txt"
+    formatted.write_text(YADE_FORMAT)
+    with pytest.raises(ValueError, match="without its periodic cell.*--cell"):
+        read_packing(formatted)
+    q = read_packing(formatted, cell=(1, 1, 1), length_scale=2.0)  # e.g. a file in other units
+    assert q.cell.tolist() == [2, 2, 2] and q.radii.tolist() == [0.16, 0.14] and q.centres[1].tolist() == [1, 1, 1]
+    dump = tmp_path / "dump.liggghts"
+    dump.write_text(LAMMPS_DUMP)
+    d = read_packing(dump)  # the last snapshot, its box's lower corner as the origin, diameter / 2
+    assert packing_format(dump) == "lammps" and d.num_particles == 2 and d.cell.tolist() == pytest.approx([0.8] * 3)
+    assert d.radii.tolist() == [0.1, 0.08]
+    np.testing.assert_allclose(d.centres, [[0.4] * 3, [0.75, 0.01, 0.6]], atol=1e-12)
+    tri = tmp_path / "tri.dump"
+    tri.write_text(LAMMPS_DUMP.replace("BOX BOUNDS pp pp pp\n-0.4 0.4\n-0.4 0.4\n-0.4 0.4",
+                                       "BOX BOUNDS xy xz yz pp pp pp\n-0.4 0.4 0\n-0.4 0.4 0\n-0.4 0.4 0"))
+    with pytest.raises(ValueError, match="triclinic"):
+        read_packing(tri)
+
+
+def test_overlap_beyond_the_radius_reduction_is_refused():
+    """A 3 % overlap is not a DEM contact: the 0.99 reduction (2 % of r_i + r_j) leaves it."""
+    p = Packing([1, 1, 1], [[0.2, 0.2, 0.2], [0.394, 0.2, 0.2]], [0.1, 0.1])
+    assert p.max_overlap() == pytest.approx(0.06)
+    with pytest.raises(ValueError, match=r"after the radius reduction x0.99"):
+        p.validate(radius_factor=0.99)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 
 from mpi4py import MPI
@@ -13,6 +12,7 @@ from ..io.progress import Progress
 from ..loading import PROFILES
 from ..meshes.cubesphere import RESOLUTIONS
 from ..workflows.compaction import CompactionCase, RunFailure, run_compaction
+from .exits import BAD_INPUT, RUN_FAILED, bad_input_exits, fail
 
 
 def parser(loading: str, doc: str) -> argparse.ArgumentParser:
@@ -53,8 +53,8 @@ def parser(loading: str, doc: str) -> argparse.ArgumentParser:
 
 
 def case_from_args(args: argparse.Namespace, loading: str) -> CompactionCase:
-    """The compaction case of parsed :func:`parser` arguments (exits with a one-line error on bad input)."""
-    try:
+    """The compaction case of parsed :func:`parser` arguments (exits 2 with a one-line error on bad input)."""
+    with bad_input_exits():
         return CompactionCase(particles=args.particles, target_density=args.target_density, loading=loading,
                               bc=args.bc, images=args.images, solver=args.solver, seed=args.seed,
                               packing_file=args.packing, packing_fraction=args.packing_fraction, d_bc=args.d_bc,
@@ -62,8 +62,6 @@ def case_from_args(args: argparse.Namespace, loading: str) -> CompactionCase:
                               profile=args.profile,
                               mesh=args.mesh, refinement=args.refinement, outputs=args.outputs, visual=not args.no_visual,
                               checkpoint_every=args.checkpoint_every, out_dir=args.out)
-    except ValueError as err:
-        raise SystemExit(f"error: {err}")
 
 
 def main(loading: str, doc: str, argv=None) -> None:
@@ -75,11 +73,9 @@ def main(loading: str, doc: str, argv=None) -> None:
     try:
         res = run_compaction(case, comm, log=say, restart=args.restart, progress=Progress(comm))
     except RunFailure as err:  # diverged: history and last checkpoint kept
-        if comm.rank == 0:
-            print(f"error: {err}", file=sys.stderr)
-        raise SystemExit(3)
-    except ValueError as err:  # bad input found while building (packing file, unreachable density, ...)
-        raise SystemExit(f"error: {err}")
+        fail(RUN_FAILED, str(err))
+    except (ValueError, OSError) as err:  # bad input found while building (packing file, unreachable density, ...)
+        fail(BAD_INPUT, str(err))
     h = res.history
     say(f"done: rho = {h.column('rho')[-1]:.4f} (imposed {h.column('rho_imposed')[-1]:.4f}), "
         f"sigma_m = {h.column('sigma_m')[-1]:.3f} MPa, sigma_d = {h.column('sigma_d')[-1]:.3f} MPa, "

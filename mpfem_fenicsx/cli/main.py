@@ -19,8 +19,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-BAD_INPUT = 2
-RUN_FAILED = 3
+from .exits import BAD_INPUT, RUN_FAILED
 
 
 class _Exit(Exception):
@@ -59,8 +58,11 @@ def _parser() -> argparse.ArgumentParser:
 
     pack = sub.add_parser("pack", help="generate a packing file, or check and convert one",
                           description="Generate a seeded frictionless periodic packing (--particles), or read "
-                                      "a packing file (--input: 'dx dy dz' then 'x y z r' lines, e.g. a YADE "
-                                      "export), check it (overlaps, spheres outside the cell) and write it.")
+                                      "a packing file as a DEM code left it (--input: ours, 'dx dy dz' then 'x y z r' "
+                                      "lines; a YADE export.text, '#format x_y_z_r', its cell in a '# dx dy dz = ...' "
+                                      "header or --cell; a LAMMPS / LIGGGHTS dump with box bounds and x y z radius "
+                                      "columns), check it (overlaps left after the run's 0.99 radius reduction, "
+                                      "spheres outside the cell) and write it in our format.")
     src = pack.add_mutually_exclusive_group(required=True)
     src.add_argument("--particles", type=int, help="number of spheres to generate (>= ~20 for a periodic cell)")
     src.add_argument("--input", help="packing file to check / convert")
@@ -73,7 +75,11 @@ def _parser() -> argparse.ArgumentParser:
                       help="multiply the input's radii by this factor (e.g. 0.99 for a DEM export with contact "
                            "overlaps)")
     pack.add_argument("--tolerance", type=float, default=1e-6,
-                      help="overlap tolerance, relative to the smaller radius of a pair")
+                      help="overlap tolerance, relative to the smaller radius of a pair, after the radius reduction")
+    pack.add_argument("--cell", type=float, nargs=3, default=None, metavar=("DX", "DY", "DZ"),
+                      help="periodic cell of the input (mm; e.g. a YADE export without a cell header)")
+    pack.add_argument("--length-scale", type=float, default=1.0,
+                      help="multiply the input's lengths by this (e.g. 1000 for a DEM file in metres)")
     pack.add_argument("--out", required=True, help="packing file to write")
 
     plot = sub.add_parser("plot", help="draw the figures of a results folder again",
@@ -89,7 +95,7 @@ def _parser() -> argparse.ArgumentParser:
 def _run(args, comm) -> None:
     from ..io.checkpoint import CheckpointError
     from ..io.progress import Progress
-    from ..workflows.compaction import RunFailure, run_compaction
+    from ..workflows.compaction import RunFailure, initial_packing, run_compaction
     from .casefile import CaseError, load_case
 
     say = _say(comm)
@@ -98,8 +104,16 @@ def _run(args, comm) -> None:
     except CaseError as err:
         raise _Exit(BAD_INPUT, str(err))
     if args.check:
-        say(f"{args.case}: valid ({case.particles if case.packing_file is None else case.packing_file} particles, "
-            f"{case.bc}, {case.loading} to {case.target_density}, {case.solver})")
+        if case.packing_file is not None:  # what `run` would refuse while building, before any mesh
+            try:
+                packing, rho0 = initial_packing(case, log=say)
+            except (ValueError, OSError) as err:
+                raise _Exit(BAD_INPUT, f"{args.case}: {err}")
+            packing = f"{case.packing_file}: {packing.num_particles}, rho0 {rho0:.4f}"
+        else:
+            packing = f"{case.particles} generated"
+        say(f"{args.case}: valid ({packing} particles, {case.bc}, {case.loading} to {case.target_density}, "
+            f"{case.solver})")
         return
     start = time.perf_counter()
     try:
@@ -119,17 +133,25 @@ def _run(args, comm) -> None:
 
 
 def _pack(args, comm) -> None:
-    from ..meshes.packing import generate_packing, read_packing, write_packing
+    from ..meshes.packing import generate_packing, packing_format, read_packing, write_packing
+    from ..workflows.compaction import CompactionCase
 
     say = _say(comm)
     try:
         if args.input is not None:
             if not 0.5 <= args.scale <= 1.5:
                 raise ValueError(f"--scale = {args.scale} is out of range: must be in [0.5, 1.5]")
-            packing = read_packing(args.input, validate=False)
+            if not 1e-6 <= args.length_scale <= 1e6:
+                raise ValueError(f"--length-scale = {args.length_scale} is out of range: must be in [1e-6, 1e6]")
+            packing = read_packing(args.input, validate=False, cell=args.cell, length_scale=args.length_scale)
+            say(f"{args.input}: read as {packing_format(args.input)}")
             if args.scale != 1.0:
                 packing = packing.scaled(args.scale)
-            packing.validate(overlap_tolerance=args.tolerance)
+            reduction = CompactionCase.radius_factor  # what a run does to the radii before meshing
+            packing.validate(overlap_tolerance=args.tolerance, radius_factor=reduction)
+            if packing.max_overlap() > 0:
+                say(f"largest overlap {packing.max_overlap():.3g} of the smaller radius, removed by the run's radius "
+                    f"reduction x{reduction:g}")
         else:
             if not 0 < args.r_min <= args.r_max:
                 raise ValueError(f"--r-min = {args.r_min}, --r-max = {args.r_max}: must be 0 < r_min <= r_max (mm)")

@@ -49,7 +49,11 @@ def render_grid(grid, path: str | Path, *, title: str = "", label: str = "von Mi
     """Off-screen picture of a pyvista grid coloured by its cell array ``label``, with a scalar
     bar (title = the label with its unit) and axes."""
     import pyvista
+    from vtkmodules.vtkCommonCore import vtkLogger
 
+    # off screen without an X server VTK logs "bad X server connection" on every render (a
+    # warning only: it falls back to its off-screen context); keep its errors
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
     pyvista.OFF_SCREEN = True
     plotter = pyvista.Plotter(off_screen=True, window_size=(1000, 800))
     plotter.add_mesh(grid, scalars=label, cmap="viridis", show_edges=True, edge_color="#333333",

@@ -71,7 +71,8 @@ from ..material import LEAD, ElastoPlastic
 from ..meshes.cubesphere import RESOLUTIONS
 from ..meshes import ParticleCentroids, node_particles, particle_mesh, particle_volumes
 from ..meshes.packing import (Duplicates, Packing, assembly_particles, duplicate_particles, generate_packing,
-                              periodic_pair_realizations, read_packing, write_packing)
+                              packing_format, periodic_pair_realizations, read_packing,
+                              write_packing)
 from ..problem import SolidProblem
 from ..solvers import ImplicitSolver, StepControl
 from ..solvers.implicit import NonConvergence
@@ -262,14 +263,31 @@ class CompactionResult:
     extra: dict = field(default_factory=dict)
 
 
-def _packing(case: CompactionCase) -> Packing:
+def initial_packing(case: CompactionCase, log=None) -> tuple[Packing, float]:
+    """The case's packing (its object, its file, or the generator) and its initial relative
+    density rho0 = V_p / V0 with the meshed radii (thesis eq. 2.5), checked before any mesh:
+    spheres in the cell, no overlap left after the ``radius_factor`` reduction (a DEM packing's
+    small contact overlaps are accepted; ``log`` reports the largest), and rho0 below the target.
+    Raises ValueError naming the file, particle or field."""
     if case.packing is not None:
-        case.packing.validate()
-        return case.packing
-    if case.packing_file is not None:
-        return read_packing(case.packing_file)
-    return generate_packing(case.particles, case.r_min, case.r_max, seed=case.seed,
-                            target_fraction=case.packing_fraction)
+        packing = case.packing
+    elif case.packing_file is not None:
+        packing = read_packing(case.packing_file, validate=False)
+        if log is not None:
+            log(f"packing: {case.packing_file} read as {packing_format(case.packing_file)}")
+    else:
+        packing = generate_packing(case.particles, case.r_min, case.r_max, seed=case.seed,
+                                   target_fraction=case.packing_fraction)
+    packing.validate(radius_factor=case.radius_factor)
+    overlap = packing.max_overlap()
+    if overlap > 0 and log is not None:
+        log(f"packing: largest overlap {overlap:.3g} of the smaller radius, removed by the radius reduction "
+            f"x{case.radius_factor:g}")
+    rho0 = solid_volume(packing.radii * case.radius_factor) / float(np.prod(packing.cell))
+    if not rho0 < case.target_density < 1.0:
+        raise ValueError(f"loading.target_density = {case.target_density} is out of range: must be in "
+                         f"({rho0:.4f}, 1), above the packing's initial relative density V_p / V0 = {rho0:.4f}")
+    return packing, rho0
 
 
 @dataclass
@@ -310,7 +328,7 @@ def loading_path(case: CompactionCase, rho0: float) -> GradientPath:
 
 def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> CompactionModel:
     """Packing, duplicated particles, mesh, bulk problem, constraints and contact of a case."""
-    packing = _packing(case)
+    packing, rho0 = initial_packing(case, log)
     n = packing.num_particles
     d_bc = (case.d_bc if case.d_bc is not None else DEFAULT_D_BC[case.bc]) * float(packing.radii.max())
     if case.uses_images:  # CLP by periodic images: no copies
@@ -325,10 +343,6 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
         f"{int(is_copy.sum())} duplicated particles (d_bc = {d_bc:.4g} mm, bc {case.bc})")
 
     solid0 = solid_volume(radii[:n])  # thesis eq. 2.5, initial (meshed) radii
-    rho0 = solid0 / float(np.prod(packing.cell))
-    if not rho0 < case.target_density < 1.0:
-        raise ValueError(f"loading.target_density = {case.target_density} is out of range: must be in "
-                         f"({rho0:.4f}, 1), above the packing's initial relative density V_p / V0 = {rho0:.4f}")
 
     divisions, layers = case.mesh_divisions
     # surface element edge at a cube-face centre of the smallest particle (equi-angular grid)

@@ -35,6 +35,29 @@ def _check_solver(solver: str) -> None:
         raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
 
 
+def check_uniaxial(solver: str, log_strain: float, cells: int) -> None:
+    """The inputs of :func:`run_uniaxial`, checked before any mesh (ValueError naming the field)."""
+    _check_solver(solver)
+    if not 0 < log_strain <= 2:
+        raise ValueError(f"log_strain must be in (0, 2], got {log_strain}")
+    if not 1 <= cells <= 32:
+        raise ValueError(f"cells must be in [1, 32] hexahedra per edge, got {cells}")
+
+
+def check_sphere_squeeze(solver: str, reduction: float, refinement: int = 1, cap: float = 0.75,
+                         explicit_steps: int = 6000) -> None:
+    """The inputs of :func:`run_sphere_squeeze`, checked before any mesh (ValueError naming the field)."""
+    _check_solver(solver)
+    if not 0 < reduction < 0.6:
+        raise ValueError(f"reduction must be in (0, 0.6), got {reduction}")
+    if not 0.3 < cap < 1.0:
+        raise ValueError(f"cap must be in (0.3, 1), got {cap}")
+    if not 1 <= refinement <= 4:
+        raise ValueError(f"refinement must be in [1, 4], got {refinement}")
+    if explicit_steps < 10:
+        raise ValueError(f"explicit_steps must be >= 10, got {explicit_steps}")
+
+
 def _mean_over_points(problem: SolidProblem, values: np.ndarray) -> float:
     """Volume average of a quadrature-point field over all ranks."""
     return problem.integrate_points(values) / problem.integrate_points(np.ones_like(values))
@@ -62,9 +85,7 @@ def run_uniaxial(solver: str = "implicit", material: ElastoPlastic = LEAD, log_s
     ``explicit_time / explicit_steps``. Writes ``stress_strain.csv`` (log_strain, true_stress_MPa,
     eps_p) and, for the explicit solver, ``energy.csv``.
     """
-    _check_solver(solver)
-    if not 0 < log_strain <= 2:
-        raise ValueError(f"log_strain must be in (0, 2], got {log_strain}")
+    check_uniaxial(solver, log_strain, cells)
     out_dir = Path(out_dir)
     length = 1.0
     mesh = dolfinx.mesh.create_box(comm, [[0, 0, 0], [length] * 3], [cells] * 3,
@@ -140,11 +161,7 @@ def run_sphere_squeeze(solver: str = "implicit", material: ElastoPlastic = LEAD,
     ``visual``: ParaView series ``<solver>.xdmf`` (displacement, von Mises, eps_p) and a
     PNG of the final deformed particle coloured by von Mises stress.
     """
-    _check_solver(solver)
-    if not 0 < reduction < 0.6:
-        raise ValueError(f"reduction must be in (0, 0.6), got {reduction}")
-    if not 0.3 < cap < 1.0:
-        raise ValueError(f"cap must be in (0.3, 1), got {cap}")
+    check_sphere_squeeze(solver, reduction, refinement, cap, explicit_steps)
     out_dir = Path(out_dir)
     assembly = particle_mesh([[0.0, 0.0, 0.0]], [radius], comm, refinement=refinement,
                              cell_type=cell_type, tet_order=tet_order, tet_size=tet_size)

@@ -47,6 +47,17 @@ class HertzCase:
     core: float = 0.1  # rigid driving core radius (relative)
     penalty_factor: float = 10.0  # k = factor * E / (size_min r), see contact.laws.default_penalty
 
+    def __post_init__(self):
+        if not (self.E > 0 and 0 <= self.nu < 0.5 and self.radius > 0):
+            raise ValueError(f"HertzCase: E must be > 0 MPa, nu in [0, 0.5), radius > 0 mm; got {self.E}, {self.nu}, "
+                             f"{self.radius}")
+        if not 0 < self.delta_max_over_r <= 0.05:
+            raise ValueError(f"HertzCase.delta_max_over_r must be in (0, 0.05], got {self.delta_max_over_r}")
+        if self.steps < 1:
+            raise ValueError(f"HertzCase.steps must be >= 1, got {self.steps}")
+        if not 0 < self.size_min <= self.size:
+            raise ValueError(f"HertzCase.size_min must be in (0, size = {self.size}] (relative to r), got {self.size_min}")
+
     def hertz_force(self, delta):
         e_star = self.E / (2.0 * (1.0 - self.nu ** 2))
         return 4.0 / 3.0 * e_star * np.sqrt(self.radius / 2.0) * np.asarray(delta) ** 1.5

@@ -109,6 +109,16 @@ class TwoSphereCase:
     def __post_init__(self):
         if self.model not in ("quarter", "wedge"):
             raise ValueError(f"TwoSphereCase.model must be 'quarter' or 'wedge', got {self.model!r}")
+        if not self.ratio > 0:
+            raise ValueError(f"TwoSphereCase.ratio (sigma_c / sigma_y) must be > 0, got {self.ratio}")
+        if not 0 < self.size_min <= 0.2:
+            raise ValueError(f"TwoSphereCase.size_min must be in (0, 0.2] (element size / r), got {self.size_min}")
+        if not 0 < self.wedge_angle <= 45:
+            raise ValueError(f"TwoSphereCase.wedge_angle must be in (0, 45] degrees, got {self.wedge_angle}")
+        if self.load_steps < 1 or self.unload_steps < 1:
+            raise ValueError(f"TwoSphereCase.load_steps / unload_steps must be >= 1, got {self.load_steps} / "
+                             f"{self.unload_steps}")
+        self.law()  # the contact law's own ranges (gamma >= 0, ...), before any mesh
 
     @property
     def symmetry_factor(self) -> float:
