@@ -21,14 +21,13 @@ import argparse
 import sys
 import time
 from dataclasses import replace
-from pathlib import Path
 
 from mpi4py import MPI
 
 import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
 import numpy as np
 from mpfem_fenicsx.loading.mixed import StressControl, normal_stress_path
-from mpfem_fenicsx.meshes.packing import Packing
+from mpfem_fenicsx.meshes.packing import simple_cubic_packing
 from mpfem_fenicsx.workflows.compaction import CompactionCase
 from mpfem_fenicsx.workflows.force_rupture import ForceRuptureCase, rupture_points, rupture_rows
 from mpfem_fenicsx.workflows.stress_probes import consolidate, run_probe
@@ -36,18 +35,12 @@ from mpfem_fenicsx.workflows.stress_probes import consolidate, run_probe
 START, FINAL = np.full(3, 0.2), np.array([0.2, 0.2, -6.0])
 
 
-def simple_cubic(r: float = 0.1) -> Packing:
-    """8 touching spheres of radius r (mm) in a periodic cube of side 4 r (the tests' cell)."""
-    corners = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=float)
-    return Packing(cell=np.full(3, 4 * r), centres=r + 2 * r * corners, radii=np.full(8, r))
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--probes", nargs="+", default=["force:1", "force:4", "strain:100", "strain:20", "strain:5"])
     p.add_argument("--out", default="results/force_rupture_rates")
     args = p.parse_args(argv)
-    base = CompactionCase(packing=simple_cubic(), bc="CLP", d_bc=0.8, images=False, exact_volume=False, gamma=1e-2,
+    base = CompactionCase(packing=simple_cubic_packing(), bc="CLP", d_bc=0.8, images=False, exact_volume=False, gamma=1e-2,
                           duration=1e-3, increments=1000, outputs=10, visual=False, out_dir=args.out)
     case = ForceRuptureCase(base=base, p_load=2.0, p_probe=0.2, final_stress=tuple(FINAL), rows_per_probe=40,
                             out_dir=args.out)

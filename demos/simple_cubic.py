@@ -33,53 +33,10 @@ from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
-from scipy.spatial.transform import Rotation
 
 from mpfem_fenicsx.cli.exits import bad_input_exits
-from mpfem_fenicsx.homogenization import hencky_strain
-from mpfem_fenicsx.meshes.packing import Packing
-from mpfem_fenicsx.workflows.compaction import CompactionCase, initial_packing, run_compaction
-
-#: one generic orientation for every particle mesh (0.3 rad about (1, 2, 3)): identical particles
-#: stay exact translates while their contact points are inside facets (no node-on-node contact)
-MESH_ROTATION = Rotation.from_rotvec(0.3 * np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)).as_matrix()
-COMPONENTS = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
-
-
-def simple_cubic_packing(radius: float) -> Packing:
-    """8 spheres of radius r at r + 2 r {0, 1}^3 in a periodic cube of side 4 r (mm)."""
-    grid = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=float)
-    return Packing(cell=np.full(3, 4.0 * radius), centres=radius * (1.0 + 2.0 * grid), radii=np.full(8, radius))
-
-
-def simple_cubic_case(loading: str, radius: float = 0.1, target_density: float = 0.95, increments: int = 4000,
-                      out_dir: str = "results/simple_cubic", visual: bool = True, outputs: int = 40,
-                      face_copies_only: bool = False) -> CompactionCase:
-    """The thesis §2.6 cell: CLP by copies, radii not shrunk (exact pi / 6; the particle meshes are
-    inscribed in their touching spheres), all copies (or the 12 face copies of the thesis)."""
-    return CompactionCase(packing=simple_cubic_packing(radius), loading=loading, bc="CLP", images=False,
-                          exact_volume=False, corners=not face_copies_only,
-                          d_bc=1.0, radius_factor=1.0, mesh_rotation=MESH_ROTATION, target_density=target_density,
-                          increments=increments, outputs=outputs, visual=visual, out_dir=str(Path(out_dir) / loading))
-
-
-def checks(result) -> dict[str, np.ndarray]:
-    """The thesis §2.6 verification quantities along the history of a simple cubic run."""
-    h = result.history
-    path = result.extra["model"].path
-    t = h.column("time")
-    F = np.stack([h.column(f"F{i}{j}") for i in (1, 2, 3) for j in (1, 2, 3)], axis=1).reshape(-1, 3, 3)
-    F0 = np.stack([path(ti) for ti in t])
-    h_lsq, h_aux = hencky_strain(F), hencky_strain(F0)
-    schmidt = np.stack([h.column(f"sigma_schmidt_{i}{i}") for i in (1, 2, 3)], axis=1).mean(axis=1)
-    out = {"time": t, "rho": h.column("rho"), "rho_pi6": np.pi / (6.0 * np.linalg.det(F))}
-    for a, b in COMPONENTS:
-        out[f"h_lsq_{a + 1}{b + 1}"] = h_lsq[:, a, b]
-        out[f"h_aux_{a + 1}{b + 1}"] = h_aux[:, a, b]
-    out["sigma_m_love_weber"] = h.column("sigma_m")
-    out["sigma_m_schmidt"] = schmidt
-    return out
-
+from mpfem_fenicsx.workflows.compaction import initial_packing, run_compaction
+from mpfem_fenicsx.workflows.simple_cubic import COMPONENTS, checks, simple_cubic_case
 
 def write_checks(data: dict[str, np.ndarray], path: Path) -> None:
     with open(path, "w", newline="") as fh:

@@ -21,7 +21,6 @@ is first relaxed to static equilibrium): W2 then needs no filter, at ~10x the co
 Stresses in MPa, compression > 0.
 """
 
-import sys
 
 from mpi4py import MPI
 

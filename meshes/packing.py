@@ -30,7 +30,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 __all__ = ["PACKING_FORMATS", "AssemblyParticles", "Duplicates", "Packing", "assembly_particles",
-           "duplicate_particles", "generate_packing", "packing_format", "periodic_pair_realizations", "read_packing",
+           "duplicate_particles", "generate_packing", "packing_format", "simple_cubic_packing", "periodic_pair_realizations", "read_packing",
            "write_packing"]
 
 
@@ -147,6 +147,14 @@ class Packing:
             raise ValueError(f"overlap of particles {i[k]} and {j[k]} (image shift {shift[k].tolist()}): "
                              f"{rel[k]:.3g} of the smaller radius{after} > overlap_tolerance={overlap_tolerance:g}")
         return self
+
+
+def simple_cubic_packing(radius: float = 0.1) -> Packing:
+    """The ordered cell of thesis §2.6: 8 touching spheres of radius r (mm) at r + 2 r {0, 1}^3 in
+    a periodic cube of side 4 r (solid fraction pi / 6)."""
+    _check_positive("radius", radius)
+    grid = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=float)
+    return Packing(cell=np.full(3, 4.0 * radius), centres=radius * (1.0 + 2.0 * grid), radii=np.full(8, radius))
 
 
 # --------------------------------------------------------------------------------------------

@@ -1,7 +1,6 @@
 """Granular volumes (issue 4): GDH / GDF / CLPS / CLP constraints, rigid motions, CLP by copies
 vs CLP by periodic images, on small simple-cubic cells (8 equal spheres, thesis §2.6)."""
 
-import itertools
 
 import numpy as np
 import pytest
@@ -9,13 +8,10 @@ from mpi4py import MPI
 
 from mpfem_fenicsx.constraints.granular import cubic_weights
 from mpfem_fenicsx.meshes import node_particles
-from mpfem_fenicsx.meshes.packing import Packing
+from mpfem_fenicsx.meshes.packing import Packing, simple_cubic_packing
 from mpfem_fenicsx.workflows.compaction import CompactionCase, build_compaction, run_compaction
 
 
-def simple_cubic(r: float = 0.1) -> Packing:
-    centres = r + 2 * r * np.array(list(itertools.product([0, 1], repeat=3)), dtype=float)
-    return Packing(cell=np.full(3, 4 * r), centres=centres, radii=np.full(8, r))
 
 
 def quiet(*args):
@@ -23,7 +19,7 @@ def quiet(*args):
 
 
 def small_case(tmp_path, **kw) -> CompactionCase:
-    options = dict(packing=simple_cubic(), target_density=0.56, increments=100, outputs=3, visual=False,
+    options = dict(packing=simple_cubic_packing(), target_density=0.56, increments=100, outputs=3, visual=False,
                    duration=1e-4, out_dir=str(tmp_path), d_bc=0.8, images=False, exact_volume=False)
     options.update(kw)
     return CompactionCase(**options)
@@ -154,7 +150,7 @@ def test_clp_by_copies_equals_clp_by_images(tmp_path, lattice):
 
     F0 = np.diag([0.975, 0.98, 0.97])
     F0[0, 1] = 0.004
-    packing = simple_cubic() if lattice == "simple cubic" else face_centred_cubic()
+    packing = simple_cubic_packing() if lattice == "simple cubic" else face_centred_cubic()
     results = []
     for images in (False, True):
         model = build_compaction(small_case(tmp_path, bc="CLP", images=images, packing=packing,

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from mpfem_fenicsx.meshes.packing import (Packing, _periodic_pairs, assembly_particles, duplicate_particles,
-                                          generate_packing, read_packing, write_packing)
+                                          generate_packing, read_packing, simple_cubic_packing,
+                                          write_packing)
 
 R_MIN, R_MAX = 0.082, 0.147  # thesis radii, mm
 
@@ -18,8 +19,7 @@ def jammed50():
 
 def simple_cubic(r=1.0):
     """8 spheres at (r, r, r) + {0, 2r}^3 in a cube of side 4r (touching, also through the faces)."""
-    offsets = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=float)
-    return Packing([4 * r] * 3, r + 2 * r * offsets, np.full(8, r))
+    return simple_cubic_packing(r)
 
 
 def contact_numbers(packing, gap_tol):

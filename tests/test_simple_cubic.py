@@ -1,7 +1,6 @@
 """Simple cubic cell (thesis §2.6, issue 5): the homogenization of a whole compaction run checked
 against the exact answers of an ordered packing, isotropic and die loading to rho = 0.95."""
 
-import sys
 
 import numpy as np
 import pytest
@@ -17,9 +16,8 @@ INCREMENTS = {"isotropic": 1500, "die": 4000}
 
 
 @pytest.fixture(scope="module")
-def simple_cubic(root):
-    sys.path.insert(0, str(root / "demos"))
-    import simple_cubic
+def simple_cubic():
+    from mpfem_fenicsx.workflows import simple_cubic
 
     return simple_cubic
 

@@ -57,18 +57,16 @@ def test_uniaxial_strengths_of_an_ellipse():
 
 # -- a small fan on the simple cubic cell (finite elements) --------------------------------------
 @pytest.fixture(scope="module")
-def fan(root, tmp_path_factory):
+def fan(tmp_path_factory):
     """Simple cubic cell (8 spheres, CLP), adhesive (gamma = 1e-2), isotropic compaction to
     rho = 0.70 in 600 increments, unload, 4 reloads of 200 increments with A = 3 |h_v^d|."""
-    import sys
     from dataclasses import replace
 
     from mpi4py import MPI
 
     from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase, run_yield_surface
 
-    sys.path.insert(0, str(root / "demos"))
-    from simple_cubic import simple_cubic_case
+    from mpfem_fenicsx.workflows.simple_cubic import simple_cubic_case
 
     out = tmp_path_factory.mktemp("fan")
     base = replace(simple_cubic_case("isotropic", target_density=0.70, increments=600, visual=False, outputs=10),
