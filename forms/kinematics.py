@@ -16,7 +16,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..material.hencky_j2 import _inverse3
+from ..material.hencky_j2 import inverse3
 
 _CHUNK = 64  # cells per parallel chunk: scratch matrices are allocated once per chunk
 
@@ -42,7 +42,7 @@ def _gradients(cells, x, gdofs, dpsi, u, dofs, dphi, out):
                         xi = x[node, i]
                         for j in range(3):
                             J[i, j] += xi * dpsi[q, a, j]
-                _inverse3(J, K)
+                inverse3(J, K)
                 G[:] = 0.0  # G = sum_b u_b (x) dphi_b/dxi, so that Grad u = G J^-1
                 for b in range(nd):
                     dof = dofs[cell, b]

@@ -462,6 +462,14 @@ class ContactModel:
         r.assemblyBegin()
         r.assemblyEnd()
 
+    @property
+    def tangent_pattern(self) -> tuple[np.ndarray, np.ndarray]:
+        """Rows and columns (local dof indices, COO) of the last :meth:`evaluate` with ``tangent``:
+        the sparsity of :meth:`tangent_matrix` (a solver rebuilds its summed matrix when it
+        changes)."""
+        rows, cols, _ = self._coo
+        return rows, cols
+
     def tangent_matrix(self, template: PETSc.Mat) -> PETSc.Mat:
         """Contact tangent as a new AIJ matrix with the layout of ``template``."""
         rows, cols, vals = self._coo

@@ -125,7 +125,9 @@ def _mul_abt(a, b, out):
 
 
 @numba.njit(cache=True, inline="always")
-def _inverse3(F, Finv):
+def inverse3(F, Finv):
+    """Finv = F^-1 of a 3 x 3 matrix (cofactors over the determinant; numba kernel, shared with
+    the forms' gradient kernel)."""
     det = (F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
            - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
            + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]))
@@ -152,7 +154,7 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
     for qp in range(q0, q1):
         three_mu = 3.0 * mu
         f = F[qp]
-        _inverse3(f, Finv)
+        inverse3(f, Finv)
         c = cp_inv_n[qp]
         C[0, 0] = c[0]
         C[1, 1] = c[1]

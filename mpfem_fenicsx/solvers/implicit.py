@@ -182,7 +182,7 @@ class ImplicitSolver:
         if self.contact is None:
             return False
         K_c = self.contact.tangent_matrix(self.K)
-        rows, cols, _ = self.contact._coo
+        rows, cols = self.contact.tangent_pattern
         key = (rows.size, hash(rows.tobytes()), hash(cols.tobytes()))
         # collective: another rank's contact points may add entries to this rank's rows
         changed = self.comm.allreduce(key != getattr(self, "_contact_pattern", None), op=MPI.LOR)
