@@ -145,11 +145,9 @@ class ExplicitSolver:
         mean (rigid) peculiar velocity only, c m_node (w_b - <w>), <.> the mass average, so that
         rearrangements are relaxed while the bodies' deformation is not resisted and momentum is
         conserved (default: node by node). Its forces have a first moment sum f_b (x) x_b: a
-        viscous stress that the Schmidt reactions see and the Love-Weber contact sum does not
-        (measured on 50 particles: E_damp 2.9 % of E_p, Schmidt up to 5.2 % below Love-Weber).
-        Removing the bodies' affine velocity fit as well (no first moment) was tried: the
-        centroids then lag the imposed flow (rho 2.5 % low on 24 particles) and Love-Weber vs
-        Schmidt is no better (measured 6 %)."""
+        viscous stress that the full :attr:`reaction` sees and the Love-Weber contact sum does
+        not, hence :attr:`static_reaction` for the Schmidt stress (measurements: bench/README.md,
+        "Damping, inertia and the Schmidt stress")."""
         self.problem = problem
         self.damped_bodies = None if damped_bodies is None else np.asarray(damped_bodies, dtype=np.int64)
         self.contact = contact  # optional ContactModel: its forces join the internal ones
@@ -453,11 +451,10 @@ class ExplicitSolver:
     def static_reaction(self) -> np.ndarray:
         """Forces (N) the medium exerts at the current step on every owned unrolled dof, without
         the integrator's own terms: f_int + f_bv - f_c (no relaxation damping, no inertia).
-        Its moment is the mean stress of the material and contacts; the damping's first moment
-        and the lumped inertia in :attr:`reaction` shifted the Schmidt stress of a 24-particle CLP
-        run by 0.03-0.34 MPa of 7 (measured at the end of ``demos/isotropic.py``: Schmidt from
-        :attr:`reaction` 7.29 / 5.84 / 7.14 MPa, from this 7.32 / 6.18 / 7.36, Love-Weber 7.29 /
-        6.16 / 7.33, sum f_int x / V 7.30 / 6.16 / 7.33)."""
+        Its moment is the mean stress of the material and contacts, the reaction the Schmidt
+        stress (eq. 2.19) is built from; the damping's first moment and the lumped inertia in
+        :attr:`reaction` would bias it (bench/README.md, "Damping, inertia and the Schmidt
+        stress")."""
         n = self.constraint.num_owned
         return self.f_int.array_r[:n] + self.f_visc.array_r[:n] + self.f_cont.array_r[:n]
 
