@@ -28,7 +28,7 @@ import time
 from mpi4py import MPI
 
 import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
-from mpfem_fenicsx.constraints.granular import KINDS
+from mpfem_fenicsx.boundary import KINDS
 from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS, unit_ball_hex
 from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 

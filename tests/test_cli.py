@@ -140,7 +140,7 @@ def test_check_reads_a_dem_export_with_its_contact_overlaps(tmp_path, capsys):
 
 @pytest.mark.parametrize("demo, args, words", [
     ("isotropic", ["--packing", "missing.txt"], ["No such file"]),
-    ("simple_cubic", ["--radius", "-1"], ["cell sizes must be finite and > 0"]),
+    ("simple_cubic", ["--radius", "-1"], ["radius must be > 0 mm"]),
     ("uniaxial", ["--log-strain", "-5"], ["log_strain must be in (0, 2]"]),
     ("hertz", ["--steps", "0"], ["steps must be >= 1"]),
     ("sphere_squeeze", ["--reduction", "2"], ["reduction must be in (0, 0.6)"]),

@@ -2,7 +2,7 @@
 
 Every case is a ``CompactionCase`` of the thesis' chapter-2 set-up: lead (thesis table 2.1, the
 library's ``LEAD``), 50 particles (seed 1), friction 0.1, explicit, d_bc per thesis table 2.3
-(``DEFAULT_D_BC``: CLP 1.8 r_max, the others 2.5 r_max). Each stage names its cases; a case runs
+(``mpfem_fenicsx.boundary.BOUNDARY_KINDS``: CLP 1.8 r_max, the others 2.5 r_max). Each stage names its cases; a case runs
 into ``validation/runs/<name>/`` (``done`` written at the end: a finished case is not repeated).
 """
 

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from ..constraints.granular import KINDS
+from ..boundary import KINDS
 from ..loading import PROFILES
 from ..material import ElastoPlastic
 from ..meshes.cubesphere import RESOLUTIONS

@@ -7,7 +7,7 @@ import time
 
 from mpi4py import MPI
 
-from ..constraints.granular import KINDS
+from ..boundary import KINDS
 from ..io.progress import Progress
 from ..loading import PROFILES
 from ..meshes.cubesphere import RESOLUTIONS

@@ -54,10 +54,10 @@ from scipy.spatial import cKDTree
 
 import dolfinx
 
+from ..boundary import boundary_kind
 from ..meshes import node_particles
 from .affine import AffineConstraint, CouplingRows
 
-KINDS = ("GDH", "GDF", "CLPS", "CLP")
 
 
 def periodic_lattice() -> np.ndarray:
@@ -122,8 +122,7 @@ class GranularBoundaryConditions:
     def __init__(self, V, cell_particle, centres, radii, original, shift, cell, kind: str, gradient, *,
                  coupling_radius: float = 0.5, images=None, anchor: bool = True, comoving: bool = True,
                  equal_rotations: bool = True):
-        if kind not in KINDS:
-            raise ValueError(f"bc must be one of {', '.join(KINDS)}, got {kind!r}")
+        rules = boundary_kind(kind)
         if not 0.0 < coupling_radius < 1.0:
             raise ValueError(f"coupling_radius must be in (0, 1) (fraction of r), got {coupling_radius}")
         self.V = V
@@ -151,17 +150,17 @@ class GranularBoundaryConditions:
         starts = np.searchsorted(nodes.particle[by_particle], np.arange(radii.size + 1))
         self._members = [by_particle[starts[p]:starts[p + 1]] for p in range(radii.size)]
 
-        if kind in ("GDH", "GDF"):
-            driven = np.arange(radii.size) if kind == "GDH" else np.flatnonzero(is_copy)
+        if rules.driven != "none":
+            driven = np.arange(radii.size) if rules.driven == "all" else np.flatnonzero(is_copy)
             for p in driven:
                 self._add_coupling(nodes, p, centres[p], radii[p], coupling_radius, centres[p] - 0.5 * self.cell)
-        elif kind == "CLPS":
+        elif not rules.tied_nodes:  # CLPS: reference points
             for p in np.flatnonzero(is_copy):
                 self._add_periodic_coupling(nodes, p, original[p], centres, radii[p], coupling_radius,
                                             shift[p] * self.cell, equal_rotations)
         else:
             self._add_ties(nodes, is_copy, original, shift)
-        if kind in ("CLP", "CLPS") and anchor:
+        if rules.periodic and anchor:
             self._add_anchor(nodes, centres, radii, is_copy, original)
         self._build()
 
@@ -258,7 +257,7 @@ class GranularBoundaryConditions:
         """Fix the rigid translation: the outermost node of a particle of the volume, which is
         never a coupling master (CLPS couples the central nodes); CLP ties every node of a copied
         particle, so there the particle must have no copy."""
-        used = set(original[is_copy].tolist()) if self.kind == "CLP" else set()
+        used = set(original[is_copy].tolist()) if boundary_kind(self.kind).tied_nodes else set()
         candidates = [p for p in range(self.num_particles) if not is_copy[p] and p not in used]
         if not candidates:
             raise ValueError(f"{self.kind}: every particle has a copy; no node left to anchor the rigid "

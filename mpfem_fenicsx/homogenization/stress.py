@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..boundary import KINDS, boundary_kind
 from .strain import AXIAL, _tensor, _trace, axis_vector, cell_vectors, deviator
 
-BOUNDARY_CONDITIONS = ("GDH", "GDF", "CLPS", "CLP")
+BOUNDARY_CONDITIONS = KINDS  # the thesis' names (mpfem_fenicsx.boundary)
 
 
 # -- invariants --------------------------------------------------------------------------------
@@ -144,15 +145,13 @@ def contact_weights(pair_i, pair_j, original, shift, bc: str, pair_shift=None) -
     Returns:
         (M,) float weights for :func:`love_weber_stress` (and :func:`specific_contact_surface`).
     """
-    kind = str(bc).upper()
-    if kind not in BOUNDARY_CONDITIONS:
-        raise ValueError(f"bc must be one of {', '.join(BOUNDARY_CONDITIONS)}, got {bc!r}")
+    kind = boundary_kind(bc)
     i = np.asarray(pair_i, dtype=np.int64).ravel()
     j = np.asarray(pair_j, dtype=np.int64).ravel()
     if i.shape != j.shape:
         raise ValueError("pair_i and pair_j must have the same length")
     m = i.size
-    if kind == "CLP" or m == 0:
+    if kind.tied_nodes or m == 0:
         return np.ones(m)
     original = np.asarray(original, dtype=np.int64)
     shift = np.rint(np.asarray(shift, dtype=float)).astype(np.int64).reshape(-1, 3)

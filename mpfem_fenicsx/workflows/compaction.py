@@ -52,7 +52,8 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from ..constraints.granular import KINDS, GranularBoundaryConditions, periodic_lattice
+from ..boundary import KINDS, boundary_kind
+from ..constraints.granular import GranularBoundaryConditions, periodic_lattice
 from ..contact import ContactLaw, ContactModel
 from ..contact.laws import default_penalty
 from ..homogenization import (branch_vectors, contact_weights, coordination, dissipated_energy, hencky_strain,
@@ -77,9 +78,6 @@ from ..problem import SolidProblem
 from ..solvers import ImplicitSolver, StepControl
 from ..solvers.implicit import NonConvergence
 from ..solvers.explicit import ExplicitSettings, ExplicitSolver
-
-#: d_bc / r_max giving stabilized results with a 50-particle volume (thesis table 2.3)
-DEFAULT_D_BC = {"GDH": 2.5, "GDF": 2.5, "CLPS": 2.5, "CLP": 1.8}
 
 
 @dataclass
@@ -225,7 +223,7 @@ class CompactionCase:
                              f"segments_after, got {self.segment_steps}")
         if self.checkpoint_every < 0:
             raise ValueError(f"checkpoint_every must be >= 0 outputs (0: no checkpoints), got {self.checkpoint_every}")
-        if self.control is not None and (self.bc not in ("CLP", "CLPS") or self.solver != "explicit"):
+        if self.control is not None and (not boundary_kind(self.bc).periodic or self.solver != "explicit"):
             raise ValueError(f"control (stress-driven components) needs bc CLP or CLPS and the explicit solver, got "
                              f"bc={self.bc!r}, solver={self.solver!r}")
 
@@ -233,7 +231,7 @@ class CompactionCase:
     @property
     def uses_images(self) -> bool:
         """CLP realized by contact with periodic images (no copies)."""
-        return self.bc == "CLP" and self.images is not False
+        return boundary_kind(self.bc).tied_nodes and self.images is not False
 
     @property
     def mesh_divisions(self) -> tuple[int, int]:
@@ -330,11 +328,12 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     """Packing, duplicated particles, mesh, bulk problem, constraints and contact of a case."""
     packing, rho0 = initial_packing(case, log)
     n = packing.num_particles
-    d_bc = (case.d_bc if case.d_bc is not None else DEFAULT_D_BC[case.bc]) * float(packing.radii.max())
+    kind = boundary_kind(case.bc)
+    d_bc = (case.d_bc if case.d_bc is not None else kind.default_d_bc) * float(packing.radii.max())
     if case.uses_images:  # CLP by periodic images: no copies
         copies = Duplicates(np.zeros(0, np.int64), np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(0))
     else:
-        copies = duplicate_particles(packing, d_bc, faces="half" if case.bc == "CLP" else "all",
+        copies = duplicate_particles(packing, d_bc, faces=kind.copy_faces,
                                      corners=case.corners)
     centres, radii, original, shift = assembly_particles(packing, copies)
     radii = radii * case.radius_factor
@@ -357,7 +356,7 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     mesh = assembly.mesh
     owned_cells = mesh.topology.index_map(3).size_local
     cell_particle = assembly.cell_tags.values[:owned_cells]
-    active = np.flatnonzero(~is_copy[cell_particle]) if case.bc == "CLP" else None
+    active = np.flatnonzero(~is_copy[cell_particle]) if kind.tied_nodes else None
     problem = SolidProblem(mesh, case.material, tangent=case.solver == "implicit", active_cells=active)
     V = problem.V
 
@@ -366,7 +365,7 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
 
     # CLP's tied copies: one body pair per periodic pair (copy-copy only for mixed lattice shifts);
     # solid copies (GDH, GDF, CLPS) touch each other as separate bodies
-    allowed = (periodic_pair_realizations(original, shift) if case.bc == "CLP"
+    allowed = (periodic_pair_realizations(original, shift) if kind.tied_nodes
                else np.ones((radii.size, radii.size), dtype=bool))
     contact = ContactModel(V, assembly.facet_tags, radii.size, law,
                            search_distance=max(0.05 * float(radii.min()), 2 * case.delta_max), allowed=allowed,
@@ -455,7 +454,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
         [f"sigma_schmidt_{c}" for c in comps] + [f"sigma_vol_{c}" for c in comps] + ["sigma_vol_m"] + \
         ["n_contacts", "Z", "rattlers", "Gamma", "Gamma_model", "E_p", "E_f", "E_d", "E_p_model", "E_d_model", "E_c", "E_int", "E_el", "E_contact", "E_visc",
          "E_damp", "W_ext", "unbalanced", "E_c_over_E_int", "wall_time"]
-    periodic = case.bc in ("CLP", "CLPS")  # Schmidt stress defined
+    periodic = boundary_kind(case.bc).periodic  # Schmidt stress defined
     mean_radius = float(np.mean(radii[:n]))
     # the particles of the volume (originals; CLP copies are stiffless, GDH/GDF/CLPS copies lie outside)
     volume_cells = assembly.cell_tags.values[: problem.num_cells] < n

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+from ..boundary import boundary_kind
 from ..loading.mixed import StressControl, pressure_control
 from .compaction import CompactionCase, CompactionModel, run_compaction
 
@@ -48,7 +49,7 @@ class StressProbeCase:
     out_dir: str = "results/stress_probes"
 
     def __post_init__(self):
-        if self.base.bc not in ("CLP", "CLPS") or self.base.solver != "explicit":
+        if not boundary_kind(self.base.bc).periodic or self.base.solver != "explicit":
             raise ValueError(f"base: a stress-controlled probe needs bc CLP or CLPS and the explicit solver, got "
                              f"{self.base.bc!r} / {self.base.solver!r}")
         if not 0 < self.p_probe < self.p_load:

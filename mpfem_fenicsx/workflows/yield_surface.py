@@ -50,6 +50,7 @@ import numba
 import numpy as np
 from mpi4py import MPI
 
+from ..boundary import boundary_kind
 from ..homogenization import first_crossing, hencky_strain, row_increments, second_order_work, uniaxial_strengths
 from ..io.history import read_csv
 from ..io.plots import plot_yield_surface
@@ -102,7 +103,7 @@ class YieldSurfaceCase:
             raise ValueError(f"solver (of the reloads) must be explicit or implicit, got {self.solver!r}")
         if not 4 <= self.reload_steps <= 10000:
             raise ValueError(f"reload_steps must be in [4, 10000] implicit steps, got {self.reload_steps}")
-        if self.base.bc not in ("CLP", "CLPS"):
+        if not boundary_kind(self.base.bc).periodic:
             raise ValueError(f"bc must be CLP or CLPS for a yield surface (periodic volume whose macroscopic "
                              f"gradient is imposed), got {self.base.bc!r}")
         if not 3 <= self.nphi <= 720:
