@@ -300,6 +300,10 @@ def test_stress_path_waypoints():
     ramp = pressure_control(2.0, 1.0, 0.5, rate=1.0, band=1.0, unload_to=1.0, unload=0.5)
     assert ramp.duration == 2.5
     assert [ramp.target(t)[0, 0] for t in (0.5, 1.2, 1.75, 2.4)] == pytest.approx([1.0, 2.0, 1.5, 1.0])
+    # the corners are rounded over 10 % of the shorter segment: C1, off the corner by |rate change| w / 8
+    rounded = [np.diag(path.target(t))[0] for t in (0.95, 0.9999, 1.0, 1.0001, 1.05)]
+    assert rounded[0] == pytest.approx(1.9) and rounded[4] == pytest.approx(1.925)
+    assert rounded[2] == pytest.approx(2.0 - 3.5 * 0.1 / 8) and abs(rounded[3] - rounded[1]) < 1e-3
     for times, stresses, match in (([0, 1, 1], [0, 1, 2], "increase strictly"), ([0, 1], [0, 1, 2], "one"),
                                    ([0, np.nan], [0, 1], "finite"), ([-1, 1], [0, 1], "start >= 0")):
         with pytest.raises(ValueError, match=match):

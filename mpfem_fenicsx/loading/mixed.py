@@ -213,15 +213,49 @@ class StressControl:
         self._L_servo = np.where(mask, 0.5 * (L + L.T), 0.0)
 
 
+def rounded_waypoints(times, values, corner: float = 0.1) -> Callable[[float], np.ndarray]:
+    """t -> values (k,) through the waypoints (``times`` (n,), ``values`` (n, k)), linear in
+    between and held after the last, with each interior corner rounded: over ``corner`` times
+    the shorter adjacent segment, centred on the waypoint, the rate changes linearly from one
+    segment's to the next (C1; the path is off the corner by at most |rate change| x width / 8).
+
+    A stress target whose rate stops at once (the end of a ramp) makes the servo stop the cell at
+    once, and the stress the pseudo-dynamics carried while it moved is lost in a dip (-7 % on the
+    flagship after its consolidation ramp); the PI integral, scaled with the target's rate, then
+    eases off over the rounded corner instead."""
+    times = np.asarray(times, dtype=float)
+    values = np.asarray(values, dtype=float).reshape(times.size, -1)
+    if not 0 <= corner <= 1:
+        raise ValueError(f"corner must be in [0, 1] (fraction of the shorter adjacent segment), got {corner}")
+    rates = np.diff(values, axis=0) / np.diff(times)[:, None]
+    corners = []  # (start a, half width h, value at a, rate before, rate change)
+    for k in range(1, times.size - 1):
+        h = 0.5 * corner * min(times[k] - times[k - 1], times[k + 1] - times[k])
+        if h > 0:
+            a = times[k] - h
+            at_a = values[k - 1] + rates[k - 1] * (a - times[k - 1])
+            corners.append((a, h, at_a, rates[k - 1], rates[k] - rates[k - 1]))
+
+    def path(t: float) -> np.ndarray:
+        for a, h, at_a, before, change in corners:
+            if a < t < a + 2 * h:
+                u = t - a
+                return at_a + before * u + change * u * u / (4 * h)
+        return np.array([np.interp(t, times, values[:, i]) for i in range(values.shape[1])])
+
+    return path
+
+
 def normal_stress_path(times, stresses, rate: float, band: float, start: np.ndarray | None = None,
                        measure: str = "schmidt", integral_time: float | None = None,
-                       filter_time: float = 0.0) -> StressControl:
+                       filter_time: float = 0.0, corner: float = 0.1) -> StressControl:
     """The three normal stresses driven through the waypoints (``times`` (n,) s, increasing;
     ``stresses`` (n, 3) MPa, compression > 0, or (n,) for an isotropic pressure), linearly in
     between and held after the last: load / unload / reload paths, a tensile probe to rupture.
-    The path starts at ``times[0]`` from the gradient ``start`` (default I); shear strains stay
-    zero. ``rate`` (1/s), ``band`` (MPa), ``measure``, ``integral_time`` and ``filter_time`` (s):
-    the servo's (see :class:`StressControl`)."""
+    Interior waypoints are rounded over ``corner`` of the shorter adjacent segment
+    (:func:`rounded_waypoints`). The path starts at ``times[0]`` from the gradient ``start``
+    (default I); shear strains stay zero. ``rate`` (1/s), ``band`` (MPa), ``measure``,
+    ``integral_time`` and ``filter_time`` (s): the servo's (see :class:`StressControl`)."""
     times = np.asarray(times, dtype=float)
     stresses = np.asarray(stresses, dtype=float)
     if stresses.ndim == 1:
@@ -234,8 +268,10 @@ def normal_stress_path(times, stresses, rate: float, band: float, start: np.ndar
     if times[0] < 0 or np.any(np.diff(times) <= 0):
         raise ValueError(f"times must start >= 0 s and increase strictly, got {times.tolist()}")
 
+    rounded = rounded_waypoints(times, stresses, corner)
+
     def target(t):
-        return np.diag([np.interp(t, times, stresses[:, i]) for i in range(3)])
+        return np.diag(rounded(t))
 
     return StressControl(duration=float(times[-1]), stress_driven=np.eye(3, dtype=bool), target=target, rate=rate,
                          band=band, start=np.eye(3) if start is None else start, measure=measure,
@@ -302,6 +338,10 @@ def triaxial_control(confining: float, consolidation: float, hold: float, axial_
     ramp_in = axial_ramp * axial_time
     shortening[axis, axis] = -axial_strain / (axial_time - 0.5 * ramp_in)  # the ramp-in loses half its length
 
+    # the consolidation ramp's end rounded (rounded_waypoints) like the axial rate's start
+    consolidated = rounded_waypoints([0.0, consolidation, start_axial + axial_time], [0.0, confining, confining],
+                                     corner=axial_ramp)
+
     def axial(t):
         if t < start_axial:
             return np.zeros((3, 3))
@@ -310,7 +350,7 @@ def triaxial_control(confining: float, consolidation: float, hold: float, axial_
     return StressControl(
         duration=start_axial + axial_time,
         stress_driven=lambda t: np.eye(3, dtype=bool) if t < start_axial else lateral,
-        target=lambda t: confining * min(t / consolidation, 1.0) * np.eye(3),
+        target=lambda t: float(consolidated(t)[0]) * np.eye(3),
         velocity_gradient=axial,
         rate=rate, band=band, measure=measure, integral_time=integral_time, filter_time=filter_time)
 
