@@ -73,8 +73,8 @@ def main(argv=None) -> dict:
     if args.full:
         case = CompactionCase(**base, outputs=40)
         res = run_compaction(case, comm, log=quiet)
-        timed_steps = res.extra["solver"].step
-        solver = res.extra["solver"]
+        timed_steps = res.solver.step
+        solver = res.solver
         phases = dict(solver.timings)
         wall = time.perf_counter() - start
         setup = wall - sum(phases.values())
@@ -85,7 +85,7 @@ def main(argv=None) -> dict:
         warmup = max(every, warmup // every * every)
         case = CompactionCase(**base, outputs=40, stop_after=warmup)
         res = run_compaction(case, comm, log=quiet)
-        solver = res.extra["solver"]
+        solver = res.solver
         setup = time.perf_counter() - start
         before = dict(solver.timings)
         comm.Barrier()
@@ -108,7 +108,7 @@ def main(argv=None) -> dict:
         "mesh": args.mesh,
         "nodes_per_particle": nodes,
         "dofs": res.num_dofs,
-        "free_dofs": res.extra["model"].bcs.constraint.num_reduced_global,
+        "free_dofs": res.model.bcs.constraint.num_reduced_global,
         "increments_of_run": args.increments,
         "steps": timed_steps,
         "wall_s": round(wall, 3),

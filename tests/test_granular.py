@@ -56,8 +56,8 @@ def residual_at(model, field):
 @pytest.mark.parametrize("bc", ["GDH", "GDF", "CLPS", "CLP"])
 def test_constraints_hold_after_compaction(tmp_path, bc):
     res = run_compaction(small_case(tmp_path, bc=bc), MPI.COMM_SELF, log=quiet)
-    model = res.extra["model"]
-    H = model.bcs.displacement_gradient(res.extra["solver"].t)
+    model = res.model
+    H = model.bcs.displacement_gradient(res.solver.t)
     assert np.abs(H).max() > 0.02  # the cell did deform
     centres, shift, original = model.centres, model.shift, model.original
     cell = res.packing.cell

@@ -28,7 +28,7 @@ def main(name: str, checkpoint: str) -> None:
     case = {c.name: c for cases in STAGES.values() for c in cases}[name].compaction_case(f"/tmp/contact_surface_{name}")
     case.checkpoint_every, case.stop_after = 0, 1
     result = run_compaction(case, MPI.COMM_WORLD, log=lambda *a, **k: None, restart=checkpoint)
-    model, solver = result.extra["model"], result.extra["solver"]
+    model, solver = result.model, result.solver
     pf = model.contact.pair_forces()
     F0 = model.path(solver.t)
     cell = model.packing.cell

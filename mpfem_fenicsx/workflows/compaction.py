@@ -46,7 +46,7 @@ History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C)
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -258,7 +258,8 @@ class CompactionResult:
     wall_time: float
     increments: int
     out_dir: Path
-    extra: dict = field(default_factory=dict)
+    model: CompactionModel | None = None  # what the run was made of (packing -> ... -> contact)
+    solver: object | None = None  # the solver at the end of the run (its state, energies, timings)
 
 
 def initial_packing(case: CompactionCase, log=None) -> tuple[Packing, float]:
@@ -634,7 +635,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
     progress.close()
     if case.stop_after:  # a benchmark's part of a run: no final outputs
         return CompactionResult(history, packing, num_dofs, radii.size, time.perf_counter() - start, total, out,
-                                extra={"model": model, "solver": solver})
+                                model=model, solver=solver)
     if case.checkpoint_every and len(history.rows) % case.checkpoint_every != 0:
         write_checkpoint(solver)  # the final state (the chapter-4 reloads start from it)
     history.write()
@@ -648,7 +649,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
             plot_loading_path(history.path, out / "loading_path.png",
                               title=f"{n} particles, {case.loading} compaction, {case.bc}")
     return CompactionResult(history, packing, num_dofs, radii.size, time.perf_counter() - start, total, out,
-                            extra={"model": model, "solver": solver})
+                            model=model, solver=solver)
 
 
 #: columns added since the first checkpoints (which do not list theirs): filled with NaN on restart

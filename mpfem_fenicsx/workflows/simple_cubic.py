@@ -40,7 +40,7 @@ def simple_cubic_case(loading: str, radius: float = 0.1, target_density: float =
 def checks(result) -> dict[str, np.ndarray]:
     """The thesis §2.6 verification quantities along the history of a simple cubic run."""
     h = result.history
-    path = result.extra["model"].path
+    path = result.model.path
     t = h.column("time")
     F = np.stack([h.column(f"F{i}{j}") for i in (1, 2, 3) for j in (1, 2, 3)], axis=1).reshape(-1, 3, 3)
     F0 = np.stack([path(ti) for ti in t])

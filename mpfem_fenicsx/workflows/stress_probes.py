@@ -93,7 +93,7 @@ def consolidate(case: StressProbeCase, comm: MPI.Comm = MPI.COMM_WORLD, log=prin
     run = run_compaction(replace(case.base, control=case.consolidation(), out_dir=str(out),
                                  checkpoint_every=_FINAL_ONLY, outputs=max(8, case.rows_per_probe)), comm, log=log)
     return ConsolidatedState(time=float(run.history.column("time")[-1]), E_0=float(run.history.column("E_d")[-1]),
-                             checkpoint=sorted((out / "checkpoints").glob("step*"))[-1], model=run.extra["model"])
+                             checkpoint=sorted((out / "checkpoints").glob("step*"))[-1], model=run.model)
 
 
 def run_probe(case: StressProbeCase, state: ConsolidatedState, control: StressControl, name: str,

@@ -166,7 +166,7 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print) -> tuple[
     loaded = run_compaction(replace(base, out_dir=str(out / "load"), checkpoint_every=_FINAL_ONLY,
                                     checkpoint_keep=1), comm, log)
     h = loaded.history
-    model = loaded.extra["model"]
+    model = loaded.model
     base = replace(base, packing=loaded.packing)
     sigma_m_c = float(h.column("sigma_m")[-1])
     rho_imp_c = float(h.column("rho_imposed")[-1])
@@ -257,7 +257,7 @@ def settle(case: YieldSurfaceCase, unloaded: Unloaded, comm: MPI.Comm, log=print
         f"({settled.wall_time:.0f} s)")
     return replace(unloaded, checkpoint=_last_checkpoint(out / "settle"), segments=segments, E_0=E_0,
                    sigma_m_unloaded=float(hs.column("sigma_m")[-1]), Gamma_unloaded=float(hs.column("Gamma")[-1]),
-                   t_unloaded=float(hs.column("time")[-1])), settled.extra["model"]
+                   t_unloaded=float(hs.column("time")[-1])), settled.model
 
 
 def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> CompactionCase:
