@@ -3,7 +3,7 @@
 Data flow per evaluation: u -> F at quadrature points (numba kernel ``forms.kinematics``, checked
 against ``fem.Expression``) -> vectorized
 return mapping (``material.hencky_j2``) writing P_dev (and A_dev) straight into quadrature
-Functions -> residual / Jacobian assembled by DOLFINx from the UFL forms in ``forms/``.
+Functions -> residual / Jacobian assembled by DOLFINx from the UFL forms in ``mpfem_fenicsx/forms``.
 """
 
 from __future__ import annotations
