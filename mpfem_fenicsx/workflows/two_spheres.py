@@ -115,9 +115,9 @@ class TwoSphereCase:
             raise ValueError(f"TwoSphereCase.size_min must be in (0, 0.2] (element size / r), got {self.size_min}")
         if not 0 < self.wedge_angle <= 45:
             raise ValueError(f"TwoSphereCase.wedge_angle must be in (0, 45] degrees, got {self.wedge_angle}")
-        if self.load_steps < 1 or self.unload_steps < 1:
-            raise ValueError(f"TwoSphereCase.load_steps / unload_steps must be >= 1, got {self.load_steps} / "
-                             f"{self.unload_steps}")
+        if self.load_steps < 1 or self.unload_steps < 0:
+            raise ValueError(f"TwoSphereCase.load_steps must be >= 1 and unload_steps >= 0 (0: loading only), got "
+                             f"{self.load_steps} / {self.unload_steps}")
         self.law()  # the contact law's own ranges (gamma >= 0, ...), before any mesh
 
     @property
