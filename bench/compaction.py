@@ -30,7 +30,7 @@ from mpi4py import MPI
 import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
 from mpfem_fenicsx.boundary import KINDS
 from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS, unit_ball_hex
-from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
+from mpfem_fenicsx.workflows.compaction import CompactionCase, CompactionRun, run_compaction
 
 
 def main(argv=None) -> dict:
@@ -83,8 +83,8 @@ def main(argv=None) -> dict:
         # between, one at the end to include the homogenization's cost once)
         every = max(1, args.increments // 40)  # 40 outputs: rho and contacts known at the end of the warm-up
         warmup = max(every, warmup // every * every)
-        case = CompactionCase(**base, outputs=40, stop_after=warmup)
-        res = run_compaction(case, comm, log=quiet)
+        case = CompactionCase(**base, outputs=40)
+        res = CompactionRun(case, comm, log=quiet).run(max_steps=warmup)
         solver = res.solver
         setup = time.perf_counter() - start
         before = dict(solver.timings)

@@ -21,6 +21,7 @@ import sys
 
 from mpi4py import MPI
 
+from mpfem_fenicsx.cli.casefile import add_schema_option
 from mpfem_fenicsx.cli.exits import RUN_FAILED, fail
 from mpfem_fenicsx.workflows.compaction import CompactionCase, RunFailure
 from mpfem_fenicsx.workflows.deviatoric_surface import DeviatoricSurfaceCase, run_deviatoric_surface
@@ -28,14 +29,14 @@ from mpfem_fenicsx.workflows.deviatoric_surface import DeviatoricSurfaceCase, ru
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--particles", type=int, default=24)
-    p.add_argument("--seed", type=int, default=1)
+    add_schema_option(p, "packing", "particles")  # type, default, range and help from the case-file schema
+    add_schema_option(p, "packing", "seed")
     p.add_argument("--p-load", type=float, default=2.0, help="consolidation pressure (MPa, compression > 0)")
     p.add_argument("--p-probe", type=float, default=1.0, help="mean stress of the unloaded state and probes (MPa)")
     p.add_argument("--q-max", type=float, default=3.0, help="von Mises stress at the end of a probe (MPa)")
     p.add_argument("--angles", type=float, nargs="+", default=[0, 10, 20, 30, 40, 50, 60],
                    help="Lode angles of the probes (deg; 0 triaxial compression along x, 60 extension along z)")
-    p.add_argument("--increments", type=int, default=6000, help="explicit increments per 1e-3 s of loading")
+    add_schema_option(p, "solver", "increments", help="per 1e-3 s of loading")
     p.add_argument("--out", default="results/deviatoric_surface")
     args = p.parse_args(argv)
     try:

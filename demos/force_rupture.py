@@ -21,6 +21,7 @@ import sys
 
 from mpi4py import MPI
 
+from mpfem_fenicsx.cli.casefile import add_schema_option
 from mpfem_fenicsx.cli.exits import RUN_FAILED, fail
 from mpfem_fenicsx.workflows.compaction import CompactionCase, RunFailure
 from mpfem_fenicsx.workflows.force_rupture import ForceRuptureCase, run_force_rupture
@@ -28,15 +29,15 @@ from mpfem_fenicsx.workflows.force_rupture import ForceRuptureCase, run_force_ru
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--particles", type=int, default=24)
-    p.add_argument("--seed", type=int, default=1)
+    add_schema_option(p, "packing", "particles")  # type, default, range and help from the case-file schema
+    add_schema_option(p, "packing", "seed")
     p.add_argument("--gamma", type=float, default=1e-2, help="adhesion energy (mJ/mm^2, > 0 to carry tension)")
     p.add_argument("--p-load", type=float, default=2.0, help="consolidation pressure (MPa, compression > 0)")
     p.add_argument("--p-probe", type=float, default=0.2, help="pressure of the unloaded state (MPa)")
     p.add_argument("--final", type=float, nargs=3, default=[0.2, 0.2, -3.0], metavar=("S11", "S22", "S33"),
                    help="normal stresses at the end of the probe (MPa, compression > 0)")
     p.add_argument("--phi-c", type=float, default=1e-3, help="rupture threshold on E_c / E_d")
-    p.add_argument("--increments", type=int, default=6000, help="explicit increments per 1e-3 s of loading")
+    add_schema_option(p, "solver", "increments", help="per 1e-3 s of loading")
     p.add_argument("--out", default="results/force_rupture")
     args = p.parse_args(argv)
     try:

@@ -20,6 +20,7 @@ import numpy as np
 from mpi4py import MPI
 
 from mpfem_fenicsx.cli.exits import bad_input_exits
+from mpfem_fenicsx.solvers import SOLVERS, solver_kind
 from mpfem_fenicsx.workflows.hertz import HertzCase, run_hertz
 
 
@@ -28,7 +29,7 @@ def main(argv=None):
     parser.add_argument("--size-min", type=float, default=0.005, help="element size at the contact / r")
     parser.add_argument("--steps", type=int, default=10)
     parser.add_argument("--out", default="results/hertz")
-    parser.add_argument("--solver", choices=("implicit", "explicit"), default="implicit")
+    parser.add_argument("--solver", choices=SOLVERS, default="implicit")
     parser.add_argument("--increments", type=int, default=8000, help="explicit increments (slow loading)")
     args = parser.parse_args(argv)
     comm = MPI.COMM_WORLD
@@ -37,8 +38,8 @@ def main(argv=None):
         case = HertzCase(size_min=args.size_min, steps=args.steps)
         if args.increments < 100:
             raise ValueError(f"--increments must be >= 100, got {args.increments}")
-    if args.solver == "explicit":
-        res = run_hertz(case, args.out, comm, log=say, solver="explicit", explicit_increments=args.increments,
+    if not solver_kind(args.solver).static:  # a dynamic run compared with the static one
+        res = run_hertz(case, args.out, comm, log=say, solver=args.solver, explicit_increments=args.increments,
                         rows=40)
         say(f"{res.num_dofs} dofs, {res.wall_time:.1f} s")
         implicit = Path(args.out) / "force.csv"

@@ -19,7 +19,7 @@ sigma_schmidt_11..33 (auxiliary-node reactions, CLP/CLPS, empty otherwise); n_co
 E_contact, E_visc, E_damp, W_ext (mJ); unbalanced, E_c_over_E_int (quasi-static measures); wall_time), packing.txt (the packing used),
 particles.xdmf (ParaView: displacement, von Mises, eps_p, particle id) and particles.png
 (deformed particles coloured by von Mises stress). Columns are defined in
-mpfem_fenicsx/workflows/compaction.py.
+mpfem_fenicsx/workflows/history_recorder.py.
 """
 
 from mpfem_fenicsx.cli.compaction import main

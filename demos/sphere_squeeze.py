@@ -11,7 +11,8 @@ import argparse
 from mpi4py import MPI
 
 from mpfem_fenicsx.cli.exits import bad_input_exits
-from mpfem_fenicsx.workflows.foundation import SOLVERS, check_sphere_squeeze, run_sphere_squeeze
+from mpfem_fenicsx.solvers import SOLVERS
+from mpfem_fenicsx.workflows.foundation import check_sphere_squeeze, run_sphere_squeeze
 
 
 def main(argv=None):

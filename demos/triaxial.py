@@ -26,17 +26,18 @@ from mpi4py import MPI
 
 from mpfem_fenicsx.io.plots import plot_loading_path
 from mpfem_fenicsx.loading.mixed import triaxial_control
+from mpfem_fenicsx.cli.casefile import add_schema_option
 from mpfem_fenicsx.cli.exits import RUN_FAILED, fail
 from mpfem_fenicsx.workflows.compaction import CompactionCase, RunFailure, run_compaction
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--particles", type=int, default=24)
-    p.add_argument("--seed", type=int, default=1)
+    add_schema_option(p, "packing", "particles")  # type, default, range and help from the case-file schema
+    add_schema_option(p, "packing", "seed")
     p.add_argument("--confining", type=float, default=2.0, help="confining pressure (MPa, compression > 0)")
     p.add_argument("--axial-strain", type=float, default=0.10, help="axial Hencky shortening (-)")
-    p.add_argument("--increments", type=int, default=6000, help="explicit increments per 1e-3 s of loading")
+    add_schema_option(p, "solver", "increments", help="per 1e-3 s of loading")
     p.add_argument("--rate", type=float, default=100.0, help="servo's largest strain rate (1/s of loading time)")
     p.add_argument("--band", type=float, default=None, help="stress error giving the servo's largest rate (MPa; "
                    "default: a quarter of the confining pressure. A narrow band makes the servo outrun the "
@@ -45,7 +46,9 @@ def main(argv=None) -> int:
     p.add_argument("--integral-time", type=float, default=1e-4, help="PI servo's integral time (s of loading time; "
                    "0: proportional only, which lags behind the lateral stress the axial compression adds)")
     p.add_argument("--filter-time", type=float, default=1e-5, help="low-pass filter of the measured stress (s)")
-    p.add_argument("--outputs", type=int, default=60)
+    p.add_argument("--axial-ramp", type=float, default=0.1, help="fraction of the axial phase over which the "
+                   "axial strain rate rises from zero (a sudden start jolts the lateral stresses)")
+    add_schema_option(p, "output", "outputs", default=60)
     p.add_argument("--out", default="results/triaxial")
     args = p.parse_args(argv)
     if not 0 < args.confining <= 100:
@@ -61,10 +64,13 @@ def main(argv=None) -> int:
         p.error(f"--integral-time must be in [0, 1] s (0: none), got {args.integral_time}")
     if not 0 <= args.filter_time <= 1e-3:
         p.error(f"--filter-time must be in [0, 1e-3] s, got {args.filter_time}")
+    if not 0 <= args.axial_ramp < 1:
+        p.error(f"--axial-ramp must be in [0, 1) (fraction of the axial phase), got {args.axial_ramp}")
     # loading time in units of the flagship's compaction (1e-3 s of mass-scaled time)
     control = triaxial_control(args.confining, consolidation=1e-3, hold=0.3e-3, axial_strain=args.axial_strain,
                                axial_time=1e-3, rate=args.rate, band=args.band, measure=args.measure,
-                               integral_time=args.integral_time or None, filter_time=args.filter_time)
+                               integral_time=args.integral_time or None, filter_time=args.filter_time,
+                               axial_ramp=args.axial_ramp)
     try:
         case = CompactionCase(particles=args.particles, seed=args.seed, bc="CLP", control=control,
                               increments=args.increments, outputs=args.outputs, visual=False, out_dir=args.out)

@@ -15,7 +15,8 @@ from mpi4py import MPI
 
 from mpfem_fenicsx.cli.exits import bad_input_exits
 from mpfem_fenicsx.material import LEAD
-from mpfem_fenicsx.workflows.foundation import SOLVERS, check_uniaxial, run_uniaxial
+from mpfem_fenicsx.solvers import SOLVERS
+from mpfem_fenicsx.workflows.foundation import check_uniaxial, run_uniaxial
 
 
 def main(argv=None):

@@ -145,7 +145,9 @@ def test_check_reads_a_dem_export_with_its_contact_overlaps(tmp_path, capsys):
     ("hertz", ["--steps", "0"], ["steps must be >= 1"]),
     ("sphere_squeeze", ["--reduction", "2"], ["reduction must be in (0, 0.6)"]),
     ("two_spheres", ["--gamma", "-1"], ["contact.gamma", ">= 0"]),
-    ("yield_surface", ["--target-density", "1.5"], ["target_density must be in (0, 1)"]),
+    ("yield_surface", ["--target-density", "1.5"], ["--target-density = 1.5 is out of range", "> 0 and < 1"]),
+    ("triaxial", ["--particles", "1"], ["--particles = 1 is out of range", ">= 2 and <= 5000"]),
+    ("deviatoric_surface", ["--increments", "ten"], ["--increments: 'ten' is not an integer"]),
 ])
 def test_demos_exit_2_on_bad_input_like_mpfem(tmp_path, root, python, demo, args, words):
     proc = subprocess.run([python, str(root / "demos" / f"{demo}.py"), *args, "--out", str(tmp_path / "o")],

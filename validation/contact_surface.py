@@ -21,13 +21,13 @@ from mpi4py import MPI  # noqa: E402
 import mpfem_fenicsx  # noqa: E402,F401  (mpi4py before dolfinx)
 from cases import STAGES  # noqa: E402
 from mpfem_fenicsx.homogenization import contact_weights  # noqa: E402
-from mpfem_fenicsx.workflows.compaction import run_compaction  # noqa: E402
+from mpfem_fenicsx.workflows.compaction import CompactionRun  # noqa: E402
 
 
 def main(name: str, checkpoint: str) -> None:
     case = {c.name: c for cases in STAGES.values() for c in cases}[name].compaction_case(f"/tmp/contact_surface_{name}")
-    case.checkpoint_every, case.stop_after = 0, 1
-    result = run_compaction(case, MPI.COMM_WORLD, log=lambda *a, **k: None, restart=checkpoint)
+    case.checkpoint_every = 0
+    result = CompactionRun(case, MPI.COMM_WORLD, log=lambda *a, **k: None, restart=checkpoint).run(max_steps=1)
     model, solver = result.model, result.solver
     pf = model.contact.pair_forces()
     F0 = model.path(solver.t)

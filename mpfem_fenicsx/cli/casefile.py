@@ -36,7 +36,9 @@ from ..boundary import KINDS
 from ..loading import PROFILES
 from ..material import ElastoPlastic
 from ..meshes.cubesphere import RESOLUTIONS
+from ..solvers import SOLVERS
 from ..workflows.compaction import CompactionCase
+from .exits import BAD_INPUT, fail
 
 
 class CaseError(ValueError):
@@ -160,7 +162,7 @@ SCHEMA: tuple[Key, ...] = (
         "smooth ramps, or the Abaqus smooth step (peak rate mid-path)", choices=tuple(PROFILES), target="profile"),
     # solver (SPEC §6)
     Key("solver", "kind", str, _D.solver, "explicit (central differences, mass scaling) or implicit "
-        "(Newton; experimental for granular volumes)", choices=("explicit", "implicit"), target="solver"),
+        "(Newton; experimental for granular volumes)", choices=SOLVERS, target="solver"),
     Key("solver", "increments", int, _D.increments, "explicit increments over the loading", 10, None,
         target="increments"),
     Key("solver", "steps", int, _D.steps, "implicit load steps (adaptive)", 1, None, target="steps"),
@@ -226,6 +228,45 @@ SECTIONS = tuple(dict.fromkeys(k.section for k in SCHEMA))
 
 def _keys(section: str) -> dict[str, Key]:
     return {k.name: k for k in SCHEMA if k.section == section}
+
+
+def schema_key(section: str, name: str) -> Key:
+    """The case-file key ``[section] name`` of :data:`SCHEMA`."""
+    try:
+        return _keys(section)[name]
+    except KeyError:
+        raise KeyError(f"no case-file key [{section}] {name}") from None
+
+
+def add_schema_option(parser, section: str, name: str, flag: str | None = None, default: Any = "schema",
+                      help: str | None = None) -> None:
+    """A command-line option of the demos from the case-file key ``[section] name``: its type,
+    default, choices and help (meaning, unit, allowed range) come from :data:`SCHEMA`, and the
+    value is checked by the key like a case file's (argparse then exits 2 with one line naming
+    the option). ``flag``: the option (default ``--name`` with dashes); ``default``: another
+    default than the key's (e.g. a demo's own); ``help``: prepended to the key's meaning."""
+    key = schema_key(section, name)
+    flag = flag or "--" + name.replace("_", "-")
+
+    def value(text: str):
+        # one line and exit 2, like a refused case file (argparse's own errors print the usage too)
+        try:
+            parsed = {int: int, float: float, str: str}[key.kind](text)
+        except ValueError:
+            fail(BAD_INPUT, f"argument {flag}: {text!r} is not {'an integer' if key.kind is int else 'a number'}",
+                 parser.prog)
+        try:
+            return key.check(parsed, flag)
+        except CaseError as err:
+            fail(BAD_INPUT, f"argument {flag}: " + str(err).split(": ", 1)[1].replace(key.field, flag), parser.prog)
+
+    meaning = key.doc if help is None else f"{help}; {key.doc}"
+    allowed = "" if key.choices else f"; {key.allowed()}"
+    if key.kind is bool:
+        raise ValueError(f"[{section}] {name} is a switch: give the demo its own --{name} / --no-{name}")
+    parser.add_argument(flag, type=value, default=key.default if default == "schema" else default,
+                        choices=key.choices, metavar=None if key.choices else name.upper(),
+                        help=f"{meaning}{allowed} (default: %(default)s)")
 
 
 def parse_case(data: dict, where: str = "case", base: Path | None = None) -> dict[str, Any]:

@@ -4,48 +4,44 @@ from __future__ import annotations
 
 import argparse
 import time
+from functools import partial
 
 from mpi4py import MPI
 
-from ..boundary import KINDS
 from ..io.progress import Progress
-from ..loading import PROFILES
-from ..meshes.cubesphere import RESOLUTIONS
+from ..solvers import solver_kind
 from ..workflows.compaction import CompactionCase, RunFailure, run_compaction
+from .casefile import add_schema_option
 from .exits import BAD_INPUT, RUN_FAILED, bad_input_exits, fail
 
 
 def parser(loading: str, doc: str) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
-    d = CompactionCase()
-    p.add_argument("--particles", type=int, default=d.particles, help="particles of the generated packing")
-    p.add_argument("--target-density", type=float, default=d.target_density, help="relative density to reach")
-    p.add_argument("--bc", choices=KINDS, default=d.bc, help="boundary conditions (thesis table 2.2)")
+    option = partial(add_schema_option, p)  # type, default, range, unit and help from the case-file schema
+    option("packing", "particles")
+    option("loading", "target_density")
+    option("boundary", "condition", "--bc")
     realization = p.add_mutually_exclusive_group()
     realization.add_argument("--images", dest="images", action="store_const", const=True, default=None,
                              help="CLP by contact with periodic images (the default for CLP)")
     realization.add_argument("--copies", dest="images", action="store_const", const=False,
                              help="CLP by copies tied to their originals (thesis eq. 2.14)")
-    p.add_argument("--solver", choices=("implicit", "explicit"), default=d.solver)
-    p.add_argument("--packing", default=None, help="packing file (header dx dy dz, then x y z r lines)")
-    p.add_argument("--packing-fraction", type=float, default=None,
-                   help="generator: stop at this solid fraction (default: jammed)")
-    p.add_argument("--seed", type=int, default=d.seed)
-    p.add_argument("--d-bc", type=float, default=None, help="duplication distance / r_max (default: thesis table 2.3)")
-    p.add_argument("--gamma", type=float, default=d.gamma, help="adhesion energy (mJ/mm^2)")
-    p.add_argument("--friction", type=float, default=d.friction)
-    p.add_argument("--increments", type=int, default=d.increments, help="explicit increments (mass scaling)")
-    p.add_argument("--profile", choices=tuple(PROFILES), default=d.profile,
-                   help="loading in time: constant strain rate between smooth ramps, or the smooth step")
-    p.add_argument("--steps", type=int, default=d.steps, help="implicit load steps (adaptive)")
-    p.add_argument("--mesh", choices=tuple(RESOLUTIONS), default=d.mesh,
-                   help="particle mesh: chapter2 (thesis appendix A, 561 nodes), chapter4 (10x10 per face, 1 933), "
-                        "coarse (517)")
-    p.add_argument("--refinement", type=int, default=d.refinement, help="cube-sphere refinement")
-    p.add_argument("--outputs", type=int, default=d.outputs, help="history rows / ParaView frames")
+    option("solver", "kind", "--solver")
+    p.add_argument("--packing", default=None, help="packing file (ours: header dx dy dz, then x y z r lines; "
+                   "YADE export.text, LAMMPS / LIGGGHTS dumps)")
+    option("packing", "fraction", "--packing-fraction")
+    option("packing", "seed")
+    option("boundary", "d_bc")
+    option("contact", "gamma")
+    option("contact", "friction")
+    option("solver", "increments")
+    option("loading", "profile")
+    option("solver", "steps")
+    option("mesh", "resolution", "--mesh")
+    option("mesh", "refinement")
+    option("output", "outputs")
     p.add_argument("--no-visual", action="store_true", help="skip ParaView output and the PNG")
-    p.add_argument("--checkpoint-every", type=int, default=d.checkpoint_every,
-                   help="checkpoint every so many outputs, into OUT/checkpoints (0: none)")
+    option("output", "checkpoint_every")
     p.add_argument("--restart", default=None, metavar="CHECKPOINT",
                    help="continue from a checkpoint (directory, or a results folder: its newest one)")
     p.add_argument("--out", default=f"results/{loading}")
@@ -81,7 +77,7 @@ def main(loading: str, doc: str, argv=None) -> None:
         f"sigma_m = {h.column('sigma_m')[-1]:.3f} MPa, sigma_d = {h.column('sigma_d')[-1]:.3f} MPa, "
         f"{round(h.column('n_contacts')[-1])} contacts (Z {h.column('Z')[-1]:.2f}); "
         f"{res.num_particles_model} particles in the model, "
-        f"{res.num_dofs} dofs, {res.increments} {'increments' if args.solver == 'explicit' else 'steps'}, wall {time.perf_counter() - start:.0f} s")
+        f"{res.num_dofs} dofs, {res.increments} {solver_kind(args.solver).increment_word}, wall {time.perf_counter() - start:.0f} s")
     say(f"outputs in {res.out_dir}/: history.csv, packing.txt"
         + ("" if not args.checkpoint_every else ", checkpoints/")
         + ("" if args.no_visual else ", particles.xdmf (ParaView), particles.png, loading_path.png"))

@@ -97,6 +97,17 @@ def default_penalty(E: float, length: float, factor: float = 10.0) -> float:
     return factor * E / length
 
 
+#: normal branches of the law (``branch code % 4``, see :func:`law_point`)
+OVERLAP, ADHESIVE_LOADING, SOFTENING, SEPARATED = 0, 1, 2, 3
+#: tangential branches (``branch code // 4``)
+NO_TANGENT, STICK, SLIP = 0, 1, 2
+
+
+def normal_branch(code):
+    """The normal branch (OVERLAP, ADHESIVE_LOADING, SOFTENING or SEPARATED) of branch codes."""
+    return code % 4
+
+
 @numba.njit(cache=True)
 def law_point(d, sx, sy, sz, nx, ny, nz, alpha_n, smax_n, tpx, tpy, tpz, k, kt, mu, sigma_c, delta_max,
               p0, alpha_forced, branch, t1_held, out):
@@ -120,22 +131,22 @@ def law_point(d, sx, sy, sz, nx, ny, nz, alpha_n, smax_n, tpx, tpy, tpz, k, kt, 
     d1 = peak / k
     if branch < 0:
         if d < 0.0:
-            nb = 0
+            nb = OVERLAP
         elif d < delta_max:
-            nb = 1 if d <= d1 else 2
+            nb = ADHESIVE_LOADING if d <= d1 else SOFTENING
         else:
-            nb = 3
+            nb = SEPARATED
     else:
         nb = branch % 4
-    if nb == 0:
+    if nb == OVERLAP:
         t1 = -k * d
         dt1 = -k
         if t1 > sm:
             sm = t1
-    elif nb == 1:
+    elif nb == ADHESIVE_LOADING:
         t1 = -k * d
         dt1 = -k
-    elif nb == 2:
+    elif nb == SOFTENING:
         if np.isnan(t1_held):
             t1 = -peak * (delta_max - d) / (delta_max - d1)
             dt1 = peak / (delta_max - d1)
@@ -173,17 +184,17 @@ def law_point(d, sx, sy, sz, nx, ny, nz, alpha_n, smax_n, tpx, tpy, tpz, k, kt, 
     sx -= dot * nx
     sy -= dot * ny
     sz -= dot * nz
-    tb = 0
+    tb = NO_TANGENT
     if branch < 0:
         if t1 > 0.0 and mu > 0.0:
             trx = tpx - kt * sx
             try_ = tpy - kt * sy
             trz = tpz - kt * sz
-            tb = 1 if np.sqrt(trx * trx + try_ * try_ + trz * trz) <= mu * t1 else 2
+            tb = STICK if np.sqrt(trx * trx + try_ * try_ + trz * trz) <= mu * t1 else SLIP
     else:
         tb = branch // 4
     out[8] = 4 * tb + nb
-    if tb == 0:
+    if tb == NO_TANGENT:
         out[1] = 0.0
         out[2] = 0.0
         out[3] = 0.0
@@ -191,7 +202,7 @@ def law_point(d, sx, sy, sz, nx, ny, nz, alpha_n, smax_n, tpx, tpy, tpz, k, kt, 
     trx = tpx - kt * sx
     try_ = tpy - kt * sy
     trz = tpz - kt * sz
-    if tb == 1:
+    if tb == STICK:
         out[1] = trx
         out[2] = try_
         out[3] = trz

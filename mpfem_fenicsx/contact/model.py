@@ -21,185 +21,18 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
 import dolfinx
 
-from .laws import ContactLaw, evaluate_law, law_point
-from .search import FACING, ContactPoints, ContactSearch, _project, corner_normals, facet_areas, surface_normals
+from .kernels import contact_areas, coo_entries, lookup, point_tangents, point_weights, relative_motion
+from .laws import ADHESIVE_LOADING, OVERLAP, SEPARATED, SOFTENING, ContactLaw, evaluate_law, normal_branch
+from .search import ContactPoints, ContactSearch, corner_normals, facet_areas, surface_normals
 from .surface import ContactSurface
 
 PASS_WEIGHT = 0.5  # two-pass symmetric treatment
-
-
-@numba.njit(cache=True)
-def _shape(nv, xi, eta, out):
-    if nv == 4:
-        out[0] = (1 - xi) * (1 - eta)
-        out[1] = xi * (1 - eta)
-        out[2] = (1 - xi) * eta
-        out[3] = xi * eta
-    else:
-        out[0] = 1 - xi - eta
-        out[1] = xi
-        out[2] = eta
-        out[3] = 0.0
-
-
-@numba.njit(cache=True)
-def _point_weights(facets, nv, slave, facet, xi, nodes, weights):
-    """Nodes (n, 5) and weights c_a (n, 5) of every contact point (unused slots: node -1)."""
-    N = np.empty(4)
-    for p in range(slave.size):
-        _shape(nv, xi[p, 0], xi[p, 1], N)
-        nodes[p, 0] = slave[p]
-        weights[p, 0] = 1.0
-        for v in range(4):
-            if v < nv:
-                nodes[p, 1 + v] = facets[facet[p], v]
-                weights[p, 1 + v] = -N[v]
-            else:
-                nodes[p, 1 + v] = -1
-                weights[p, 1 + v] = 0.0
-
-
-def _lookup(sorted_keys: np.ndarray, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Positions of ``keys`` in ``sorted_keys`` (non-empty) and the mask of those found."""
-    pos = np.minimum(np.searchsorted(sorted_keys, keys), sorted_keys.size - 1)
-    return pos, sorted_keys[pos] == keys
-
-
-def _relative_motion(nodes: np.ndarray, weights: np.ndarray, dU: np.ndarray) -> np.ndarray:
-    """(n, 3) motion of each contact point's slave relative to its master point,
-    sum_a c_a dU_a over the point's nodes (unused slots: node -1)."""
-    used = nodes >= 0
-    return np.einsum("pa,pad->pd", weights * used, dU[np.where(used, nodes, 0)])
-
-
-@numba.njit(cache=True)
-def _point_forces(pos, pos_n, nv, cn, branch, t1_held, alpha_n, smax_n, tpx, tpy, tpz, scale, k, kt, mu, sigma_c,
-                  delta_max, p0, alpha_forced, forces, res, law_out, facet_index, N):
-    """Nodal forces (on the bodies) of one contact point for node positions ``pos`` (nn, 3):
-    projection of pos[0] on the facet pos[1:] (corner normals ``cn``), gap, normal, slip since
-    pos_n, law."""
-    _project(pos[0], pos, facet_index, nv, cn, res)
-    _shape(nv, res[0], res[1], N)
-    nx, ny, nz = res[3], res[4], res[5]
-    s = np.zeros(3)
-    for d in range(3):
-        s[d] = pos[0, d] - pos_n[0, d]
-        for v in range(nv):
-            s[d] -= N[v] * (pos[1 + v, d] - pos_n[1 + v, d])
-    law_point(res[2], s[0], s[1], s[2], nx, ny, nz, alpha_n, smax_n, tpx, tpy, tpz, k, kt, mu, sigma_c,
-              delta_max, p0, alpha_forced, branch, t1_held, law_out)
-    fx = scale * (law_out[0] * nx + law_out[1])
-    fy = scale * (law_out[0] * ny + law_out[2])
-    fz = scale * (law_out[0] * nz + law_out[3])
-    forces[0, 0] = fx
-    forces[0, 1] = fy
-    forces[0, 2] = fz
-    for v in range(nv):
-        forces[1 + v, 0] = -N[v] * fx
-        forces[1 + v, 1] = -N[v] * fy
-        forces[1 + v, 2] = -N[v] * fz
-
-
-@numba.njit(parallel=True, cache=True)
-def _point_tangents(x, x_n, facets, nv, corner, slave, facet, branch, held, T1, shift, shift_n, alpha_n, smax_n, tt_n, scale, k, kt, mu,
-                    sigma_c, delta_max, p0, alpha_forced, K):
-    """Consistent tangent of every contact point by central differences of :func:`_point_forces`
-    over the positions of its nodes: K (n, 3 nn, 3 nn) = d r / d u, r = -forces on the bodies.
-    The law stays on the branches of the current state (``branch``), so the differences never
-    straddle a kink of the law (e.g. gap = 0 between overlap and opening).
-
-    Differentiating the whole point evaluation (projection, normal, gap, slip, law) gives the
-    complete node-to-surface linearization (normal rotation, sliding of the projection point)
-    that the frozen-normal tangent misses, at 2 x 3 nn point evaluations per point. The corner
-    normals of the master facets are those of the last converged configuration (constant over
-    an increment), so the tangent is that of the residual Newton actually solves.
-
-    Exception: at the points flagged ``held`` that are on the softening branch, the traction is
-    held at its current value ``T1`` (zero slope; see ``ContactModel.evaluate``).
-    """
-    n = slave.size
-    nn = 1 + nv
-    for p in numba.prange(n):
-        pos = np.empty((nn, 3))
-        pos_n = np.empty((nn, 3))
-        nodes = np.empty(nn, np.int64)
-        nodes[0] = slave[p]
-        for v in range(nv):
-            nodes[1 + v] = facets[facet[p], v]
-        size2 = 0.0
-        for a in range(nn):
-            for d in range(3):
-                pos[a, d] = x[nodes[a], d]
-                pos_n[a, d] = x_n[nodes[a], d]
-        for d in range(3):  # slave seen in the frame of the (unshifted) master, as in the search
-            pos[0, d] -= shift[p, d]
-            pos_n[0, d] -= shift_n[p, d]
-        for d in range(3):
-            size2 += (pos[1, d] - pos[2, d]) ** 2
-        h = 1e-7 * np.sqrt(size2)
-        fp = np.empty((nn, 3))
-        fm = np.empty((nn, 3))
-        res = np.empty(8)
-        law_out = np.empty(9)
-        N = np.empty(4)
-        facet_index = np.arange(1, 5)
-        hold = T1[p] if (held[p] and branch[p] % 4 == 2) else np.nan
-        for b in range(nn):
-            for j in range(3):
-                pos[b, j] += h
-                _point_forces(pos, pos_n, nv, corner[facet[p]], branch[p], hold, alpha_n[p], smax_n[p], tt_n[p, 0], tt_n[p, 1], tt_n[p, 2],
-                              scale[p], k, kt, mu, sigma_c, delta_max, p0, alpha_forced, fp, res, law_out,
-                              facet_index, N)
-                pos[b, j] -= 2.0 * h
-                _point_forces(pos, pos_n, nv, corner[facet[p]], branch[p], hold, alpha_n[p], smax_n[p], tt_n[p, 0], tt_n[p, 1], tt_n[p, 2],
-                              scale[p], k, kt, mu, sigma_c, delta_max, p0, alpha_forced, fm, res, law_out,
-                              facet_index, N)
-                pos[b, j] += h
-                for a in range(nn):
-                    for i in range(3):
-                        K[p, 3 * a + i, 3 * b + j] = -(fp[a, i] - fm[a, i]) / (2.0 * h)
-
-
-@numba.njit(cache=True)
-def _coo_entries(nodes, blocks, K, rows, cols, vals):
-    """(3 nn)^2 tangent entries per point, global dof indices."""
-    k = 0
-    nn = nodes.shape[1]
-    for p in range(nodes.shape[0]):
-        for a in range(nn):
-            for b in range(nn):
-                for i in range(3):
-                    for j in range(3):
-                        rows[k] = blocks[nodes[p, a]] * 3 + i
-                        cols[k] = blocks[nodes[p, b]] * 3 + j
-                        vals[k] = K[p, 3 * a + i, 3 * b + j]
-                        k += 1
-    return k
-
-
-@numba.njit(cache=True)
-def _contact_areas(slave, master_normal, node_facet_ptr, node_facets, facet_area, facet_normal, nv, out):
-    """Tributary area of each contact point's slave node, counting only the slave facets that
-    face the master (n_slave_facet . n_master < -FACING): a node on an edge of a block gets the
-    share of its contact face only, not of the side faces."""
-    for p in range(slave.size):
-        s = slave[p]
-        acc = 0.0
-        for j in range(node_facet_ptr[s], node_facet_ptr[s + 1]):
-            f = node_facets[j]
-            dot = 0.0
-            for d in range(3):
-                dot += facet_normal[f, d] * master_normal[p, d]
-            if dot < -FACING:
-                acc += facet_area[f] / nv
-        out[p] = acc
 
 
 @dataclass
@@ -294,11 +127,11 @@ class ContactModel:
         alpha_n, smax_n, work_n = np.zeros(keys.size), np.zeros(keys.size), np.zeros(keys.size)
         tt_n = np.zeros((keys.size, 3))
         if old.keys.size:  # new points start with an empty history
-            pos, known = _lookup(old.keys, keys)
+            pos, known = lookup(old.keys, keys)
             alpha_n[known], smax_n[known] = old.alpha[pos[known]], old.smax[pos[known]]
             tt_n[known], work_n[known] = old.tt[pos[known]], old.work[pos[known]]
         if self._armed[0].size:  # snapped in by an earlier iterate of this increment
-            pos, known = _lookup(self._armed[0], keys)
+            pos, known = lookup(self._armed[0], keys)
             smax_n[known] = np.maximum(smax_n[known], self._armed[1][pos[known]])
         if self._separated.size:  # memory erased by an earlier iterate of this increment
             gone = np.isin(keys, self._separated)
@@ -307,13 +140,13 @@ class ContactModel:
         n = pts.size
         nodes = np.empty((n, 5), np.int64)
         weights = np.empty((n, 5))
-        _point_weights(s.facets, s.vertices_per_facet, pts.slave, pts.facet, pts.xi, nodes, weights)
-        jump = _relative_motion(nodes, weights, U - self.U_committed)
+        point_weights(s.facets, s.vertices_per_facet, pts.slave, pts.facet, pts.xi, nodes, weights)
+        jump = relative_motion(nodes, weights, U - self.U_committed)
         jump -= pts.shift - shift_n  # relative motion includes the image's displacement
         facet_normal, _ = surface_normals(x, s.facets, s.vertices_per_facet)
         area = np.empty(n)
         if n:
-            _contact_areas(pts.slave, pts.normal, s.node_facet_ptr, s.node_facets,
+            contact_areas(pts.slave, pts.normal, s.node_facet_ptr, s.node_facets,
                            facet_areas(x, s.facets, s.vertices_per_facet), facet_normal,
                            s.vertices_per_facet, area)
 
@@ -348,20 +181,20 @@ class ContactModel:
             K = np.empty((n, 3 * nn, 3 * nn))
             x_n = s.X + self.U_committed
             if n:
-                _point_tangents(x, x_n, s.facets, s.vertices_per_facet, self.corner_normals(), pts.slave, pts.facet, branch, held, T1,
+                point_tangents(x, x_n, s.facets, s.vertices_per_facet, self.corner_normals(), pts.slave, pts.facet, branch, held, T1,
                                 pts.shift, shift_n, alpha_n, smax_n, tt_n, scale, *params, K)
             size = n * 9 * nn * nn
             rows = np.empty(size, PETSc.IntType)
             cols = np.empty(size, PETSc.IntType)
             vals = np.empty(size)
-            k = _coo_entries(nodes[:, :nn], s.blocks, K, rows, cols, vals) if n else 0
+            k = coo_entries(nodes[:, :nn], s.blocks, K, rows, cols, vals) if n else 0
             self._coo = (rows[:k], cols[:k], vals[:k])
 
     def _track_peeling(self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray) -> np.ndarray:
         """Snap bookkeeping of the adhesive points over the iterates of an increment; returns the
         mask of the points whose softening slope the tangent holds at zero."""
         held = np.zeros(keys.size, np.bool_)
-        snapped = (branch % 4 == 3) & (smax_n > 0)
+        snapped = (normal_branch(branch) == SEPARATED) & (smax_n > 0)
         if snapped.any():
             self._separated = np.union1d(self._separated, keys[snapped])
         # A point that the last iterate put on the softening branch and this one sends back
@@ -376,16 +209,16 @@ class ContactModel:
         # (quadratic); after a kink overshoot it is held for one update only.
         last_keys, last_branch = self._last
         if last_keys.size:
-            pos, known = _lookup(last_keys, keys)
-            was_softening = known & (last_branch[pos] % 4 == 2)
-            softening = branch % 4 == 2
-            back = keys[was_softening & (branch % 4 < 2)]  # not on to separation
+            pos, known = lookup(last_keys, keys)
+            was_softening = known & (normal_branch(last_branch[pos]) == SOFTENING)
+            softening = normal_branch(branch) == SOFTENING
+            back = keys[was_softening & (normal_branch(branch) <= ADHESIVE_LOADING)]  # not on to separation
             if back.size:
                 self._separated = np.union1d(self._separated, back[np.isin(back, self._returned)])
                 self._returned = np.union1d(self._returned, back)
             # held for the one update after it re-enters softening: if it stays there, its
             # softening is stable and the exact slope returns (quadratic, not linear, rate)
-            reentered = known & (last_branch[pos] % 4 < 2) & softening
+            reentered = known & (normal_branch(last_branch[pos]) <= ADHESIVE_LOADING) & softening
             if reentered.any() and self._returned.size:
                 held = reentered & np.isin(keys, self._returned)
         return held
@@ -407,9 +240,9 @@ class ContactModel:
         last_keys, last_branch = self._last
         if not last_keys.size:
             return
-        pos, known = _lookup(last_keys, keys)
-        was_closed = known & (last_branch[pos] % 4 == 0)
-        closed = branch % 4 == 0
+        pos, known = lookup(last_keys, keys)
+        was_closed = known & (normal_branch(last_branch[pos]) == OVERLAP)
+        closed = normal_branch(branch) == OVERLAP
         virgin = smax_n == 0.0
         if self._separated.size:
             virgin &= ~np.isin(keys, self._separated)
@@ -437,7 +270,7 @@ class ContactModel:
         lam = 1.0
         pts = self.points
         if pts is not None and pts.size:
-            jump = _relative_motion(self.nodes, self.weights, self.surface.gather(direction))
+            jump = relative_motion(self.nodes, self.weights, self.surface.gather(direction))
             dgap = np.einsum("pd,pd->p", jump, pts.normal)
             closed = pts.gap < 0
             depth = max(-pts.gap[closed].min(), 0.0) if closed.any() else 0.0

@@ -145,7 +145,7 @@ def _solve3(a, b):
 
 
 @numba.njit(cache=True)
-def _project(p, x, f, nv, cn, res):
+def project_point(p, x, f, nv, cn, res):
     """Projection of p on facet f along the facet's smoothed normal field.
 
     The master normal is interpolated from the facet's corner normals ``cn`` (nv, 3) with the
@@ -273,7 +273,7 @@ def _narrow_phase(x, facets, nv, corner, facet_box, facet_normal, node_normal, b
                         facing += facet_normal[f, d] * node_normal[s, d]
                     if facing > -SEARCH_FACING:
                         continue
-                    _project(p, x, facets[f], nv, corner[f], res)
+                    project_point(p, x, facets[f], nv, corner[f], res)
                     # prefer projections inside a facet; among them the smallest distance
                     score = res[6] + (0.0 if res[7] > 0.5 else 1e3 * distance + res[6])
                     if score < best_score:

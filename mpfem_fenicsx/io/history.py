@@ -9,6 +9,27 @@ import numpy as np
 from mpi4py import MPI
 
 
+#: the components of a 3 x 3 tensor in history columns, row by row: "11", "12", ..., "33"
+TENSOR_COMPONENTS = tuple(f"{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))
+
+
+def tensor_columns(prefix: str) -> list[str]:
+    """The nine column names of the tensor ``prefix`` (e.g. "F" -> F11, F12, ..., F33)."""
+    return [prefix + c for c in TENSOR_COMPONENTS]
+
+
+def tensor_values(prefix: str, tensor) -> dict[str, float]:
+    """A (3, 3) tensor as the history values of its columns ``prefix`` + 11 ... 33."""
+    return dict(zip(tensor_columns(prefix), np.asarray(tensor, dtype=float).ravel()))
+
+
+def tensor_from_columns(columns, prefix: str) -> np.ndarray:
+    """(n, 3, 3) tensors from the columns ``prefix`` + 11 ... 33 of a mapping of column arrays
+    (``read_csv``) or a :class:`History`."""
+    get = columns.column if isinstance(columns, History) else columns.__getitem__
+    return np.stack([np.asarray(get(c), dtype=float) for c in tensor_columns(prefix)], axis=-1).reshape(-1, 3, 3)
+
+
 class History:
     """Collects rows of named values; :meth:`write` saves ``path`` (rank 0 only).
 
@@ -38,6 +59,10 @@ class History:
 
     def column(self, name: str) -> np.ndarray:
         return self.array()[:, self.columns.index(name)]
+
+    def tensor(self, prefix: str) -> np.ndarray:
+        """(rows, 3, 3) tensors of the columns ``prefix`` + 11 ... 33 (e.g. "F", "sigma_vol_")."""
+        return tensor_from_columns(self, prefix)
 
     def write(self) -> Path:
         if self.comm.rank == 0:

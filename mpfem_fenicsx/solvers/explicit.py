@@ -52,6 +52,7 @@ from .. import forms
 from ..contact.model import PASS_WEIGHT
 from ..loading import PrescribedDisplacements
 from ..problem import SolidProblem
+from .mass_scaling import ElementMassScaling
 from .state import check_layout, histories_state, load_histories
 
 
@@ -137,7 +138,13 @@ class PhaseTimes(dict):
 
 
 class ExplicitSolver:
-    """Central-difference integrator of a :class:`SolidProblem` with prescribed displacements."""
+    """Central-difference integrator of a :class:`SolidProblem` with prescribed displacements.
+
+    The solver interface it shares with :class:`~mpfem_fenicsx.solvers.implicit.ImplicitSolver`:
+    ``t``, ``step``, :meth:`run_path`, :attr:`macroscopic_reaction`, :meth:`energy_record`,
+    :meth:`unbalanced_ratio`, :meth:`state_dict` / :meth:`load_state`."""
+
+    name = "explicit"
 
     def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, settings: ExplicitSettings,
                  contact=None, damped_bodies: np.ndarray | None = None):
@@ -155,36 +162,9 @@ class ExplicitSolver:
         self.settings = settings
         self.constraint = bcs.constraint or bcs.build()
         self.comm = problem.comm
-        mat = problem.params
         mesh = problem.mesh
 
-        # element stable increments and element-wise mass scaling
-        c_d = mat.dilatational_wave_speed
-        xi = settings.bulk_viscosity_linear
-        length = problem.min_cell_length()
-        dt_e = settings.safety * length / c_d * (np.sqrt(1.0 + xi * xi) - xi)
-        self.dt_stable_unscaled = self.comm.allreduce(float(dt_e.min()), op=MPI.MIN)
-        scale = np.ones_like(dt_e)
-        if settings.target_dt is not None:
-            scale = np.maximum(1.0, (settings.target_dt / (settings.deformation_margin * dt_e)) ** 2)
-            self.dt = settings.target_dt
-        else:
-            self.dt = self.dt_stable_unscaled
-        self.mass_scaling_max = self.comm.allreduce(float(scale.max()), op=MPI.MAX)
-
-        DG0 = dolfinx.fem.functionspace(mesh, ("DG", 0))
-        cell_dofs = DG0.dofmap.list[: problem.num_cells, 0]
-
-        def cell_function(values, name):
-            fn = dolfinx.fem.Function(DG0, name=name)
-            fn.x.array[cell_dofs] = values
-            fn.x.scatter_forward()
-            return fn
-
-        self.density = cell_function(mat.density * scale, "density")
-        wave_speed = cell_function(c_d / np.sqrt(scale), "wave_speed")
-        cell_length = cell_function(length, "cell_length")
-        self._scaling = (scale, cell_dofs, wave_speed, cell_length, c_d, xi)
+        wave_speed, cell_length = self._element_mass_scaling(settings)
         self._contact_mass = None  # per owned surface node, set by _contact_mass_scaling
         self._build_mass()
 
@@ -221,6 +201,17 @@ class ExplicitSolver:
         self._H_prev = np.zeros((3, 3))  # H = F0 - I at the previous step
         self._image_force = None  # bcs.image_force() at the current step (saved with the state)
 
+    def _element_mass_scaling(self, settings: ExplicitSettings):
+        """Element stable increments and element-wise mass scaling (:mod:`.mass_scaling`): sets
+        ``dt``, ``dt_stable_unscaled``, ``mass_scaling_max``, the scaled ``density``; returns the
+        cell functions of the scaled wave speed and of the element length (bulk viscosity)."""
+        self.scaling, dt_e = ElementMassScaling.build(self.problem, settings)
+        self.dt_stable_unscaled = self.comm.allreduce(float(dt_e.min()), op=MPI.MIN)
+        self.dt = settings.target_dt if settings.target_dt is not None else self.dt_stable_unscaled
+        self.mass_scaling_max = self.scaling.largest(self.comm)
+        self.density = self.scaling.density
+        return self.scaling.wave_speed, self.scaling.cell_length
+
     def _build_mass(self) -> None:
         """Lumped mass (with the contact springs' mass) and its reduction."""
         mass = self.problem.lumped_mass(self.density)
@@ -234,27 +225,22 @@ class ExplicitSolver:
         """Variable mass scaling: where the deformed elements' stable increment fell below dt / 0.9,
         raise their density so that it is back; the bulk viscosity takes the current lengths; the
         contact mass follows the current contact stiffness (see _contact_mass_scaling)."""
-        scale, cell_dofs, wave_speed, cell_length, c_d, xi = self._scaling
+        scaling = self.scaling
         length = self.problem.min_cell_length(deformed=True)
-        dt_e = self.settings.safety * length / c_d * (np.sqrt(1.0 + xi * xi) - xi)
+        dt_e = scaling.stable_increments(length)
         need = (self.dt / (0.9 * dt_e)) ** 2
-        grow = need > scale
-        cell_length.x.array[cell_dofs] = length
-        cell_length.x.scatter_forward()
+        grow = need > scaling.scale
+        scaling.set_lengths(length)
         contact_grows = False
         if self._contact_mass is not None:
             contact_grows = bool((self._contact_mass_needed(self.contact) > 1.05 * self._contact_mass).any())
         if not self.comm.allreduce(bool(grow.any()) or contact_grows, op=MPI.LOR):
             return
-        scale[grow] = need[grow]
-        rho = self.problem.params.density
-        self.density.x.array[cell_dofs] = rho * scale
-        self.density.x.scatter_forward()
-        wave_speed.x.array[cell_dofs] = c_d / np.sqrt(scale)
-        wave_speed.x.scatter_forward()
+        scaling.scale[grow] = need[grow]
+        scaling.apply()
         self.mass_red.destroy()
         self._build_mass()
-        self.mass_scaling_max = self.comm.allreduce(float(scale.max()), op=MPI.MAX)
+        self.mass_scaling_max = scaling.largest(self.comm)
 
     def _contact_mass_scaling(self, mass, contact, settings) -> None:
         """Penalty contact adds springs to the surface nodes. With a target increment, add to
@@ -458,6 +444,24 @@ class ExplicitSolver:
         n = self.constraint.num_owned
         return self.f_int.array_r[:n] + self.f_visc.array_r[:n] + self.f_cont.array_r[:n]
 
+    @property
+    def macroscopic_reaction(self) -> np.ndarray:
+        """The reaction the Schmidt stress (eq. 2.19) is built from: :attr:`static_reaction`."""
+        return self.static_reaction
+
+    def energy_record(self) -> dict[str, float]:
+        """The energies of a history row (mJ): E_int, E_el, E_p (the whole model), E_contact,
+        E_c (kinetic), E_visc, E_damp, W_ext."""
+        e = self.energies
+        return dict(E_int=e.internal, E_el=e.elastic, E_p=e.plastic, E_contact=e.contact, E_c=e.kinetic,
+                    E_visc=e.viscous, E_damp=e.damping, W_ext=e.external)
+
+    @property
+    def total_steps(self) -> int:
+        """Increments from t = 0 to settings.t_end."""
+        return int(np.ceil(self.settings.t_end / self.settings.target_dt - 1e-9)) \
+            if self.settings.target_dt is not None else int(np.ceil(self.settings.t_end / self.dt - 1e-9))
+
     def unbalanced_ratio(self) -> float:
         """Out-of-balance ratio at the current step (-): ||P^T (f_int + f_bv - f_c)|| / ||P^T f_int||,
         2-norms over the free (reduced) dofs of the forces the medium exerts, without the integrator's
@@ -478,6 +482,31 @@ class ExplicitSolver:
         return ratio
 
     # -- stepping ----------------------------------------------------------------------------
+    def _tally_work(self, reaction, inertia, du, dg, image_force, H_n, t_new: float) -> None:
+        """The energies' increments around step n (the balance of the module docstring): the
+        reaction's, internal, viscous, contact, damping and carrier work over the centred
+        displacement increment ``du`` (offset part ``dg``)."""
+        n = self.constraint.num_owned
+        e = self.energies
+        e.external += self._dot(reaction, du)
+        if image_force is not None:
+            # the images' shifts S = F0 (L o s) move: their work sum f_slave . dS (centred increment of
+            # H around step n, as du) is done by the loading (W_ext) and absorbed by the contacts
+            # (relative motion du_s - du_m - dS), which -f_c . du alone misses
+            H_new = self.bcs.displacement_gradient(t_new)
+            image_work = float(np.sum(image_force * 0.5 * (H_new - (self._H_prev if self.step > 0 else H_n))))
+            e.external += image_work
+            e.contact += image_work
+            self._H_prev = H_n
+        e.internal += self._dot(self.f_int.array_r[:n], du)
+        e.viscous += self._dot(self.f_visc.array_r[:n], du)
+        e.contact += self._dot(self.f_cont.array_r[:n], du)
+        carrier = inertia
+        if self.settings.damping > 0 or self.settings.local_damping > 0:
+            e.damping += self._dot(self.f_damp.array_r[:n], du - dg)
+            carrier = carrier + self.f_damp.array_r[:n]
+        e.carrier += self._dot(carrier, dg)
+
     def advance(self) -> None:
         """One central-difference step t_n -> t_{n+1}."""
         dt = self.dt
@@ -534,25 +563,8 @@ class ExplicitSolver:
         # centred displacement increment around step n (one-sided at the start) and its offset part
         du = 0.5 * (u.x.array[:n] - (self._u_prev if self.step > 0 else u_n))
         dg = 0.5 * (g_new - (self._g_prev if self.step > 0 else g_n))
+        self._tally_work(reaction, inertia, du, dg, image_force, H_n if image_force is not None else None, t_new)
         e = self.energies
-        e.external += self._dot(reaction, du)
-        if image_force is not None:
-            # the images' shifts S = F0 (L o s) move: their work sum f_slave . dS (centred increment of
-            # H around step n, as du) is done by the loading (W_ext) and absorbed by the contacts
-            # (relative motion du_s - du_m - dS), which -f_c . du alone misses
-            H_new = self.bcs.displacement_gradient(t_new)
-            image_work = float(np.sum(image_force * 0.5 * (H_new - (self._H_prev if self.step > 0 else H_n))))
-            e.external += image_work
-            e.contact += image_work
-            self._H_prev = H_n
-        e.internal += self._dot(self.f_int.array_r[:n], du)
-        e.viscous += self._dot(self.f_visc.array_r[:n], du)
-        e.contact += self._dot(self.f_cont.array_r[:n], du)
-        carrier = inertia
-        if self.settings.damping > 0 or self.settings.local_damping > 0:
-            e.damping += self._dot(self.f_damp.array_r[:n], du - dg)
-            carrier = carrier + self.f_damp.array_r[:n]
-        e.carrier += self._dot(carrier, dg)
         self._u_prev[:] = u_n
         self._g_prev[:] = g_n
         self._v_half_prev[:] = v_half
@@ -583,14 +595,13 @@ class ExplicitSolver:
         the contact mass, the lumped masses, the energies; with the material and contact
         histories (prefixes ``material/`` and ``contact/``). Restoring it with :meth:`load_state`
         on the same model and partition continues the run bit for bit."""
-        scale, cell_dofs, wave_speed, cell_length, c_d, xi = self._scaling
         data = {name: np.array(getattr(self, name, 0.0)) for name in self._SCALARS}
         data.update({
             "x": self.x.array_r.copy(), "v_red": self.v_red.array_r.copy(), "u": self.problem.u.x.array.copy(),
             "velocity": self.velocity.x.array.copy(), "u_prev": self._u_prev.copy(),
             "v_half_prev": self._v_half_prev.copy(), "g_prev": self._g_prev.copy(),
             "reaction": np.asarray(getattr(self, "_reaction_last", np.zeros(0))).copy(),
-            "mass_scale": scale.copy(), "cell_length": cell_length.x.array.copy(), "mass": self.mass.x.array.copy(),
+            "mass_scale": self.scaling.scale.copy(), "cell_length": self.scaling.cell_length.x.array.copy(), "mass": self.mass.x.array.copy(),
             "mass_red": self.mass_red.array_r.copy(), "H_prev": self._H_prev.copy(),
             "image_force": np.zeros(0) if self._image_force is None else self._image_force.copy(),
             "contact_mass": np.zeros(0) if self._contact_mass is None else self._contact_mass.copy(),
@@ -618,13 +629,9 @@ class ExplicitSolver:
         self._u_prev[:], self._v_half_prev[:], self._g_prev[:] = data["u_prev"], data["v_half_prev"], data["g_prev"]
         self._reaction_last = data["reaction"].copy()
         # mass scaling as it was (not rebuilt: the contact mass depends on the contact history)
-        scale, cell_dofs, wave_speed, cell_length, c_d, xi = self._scaling
-        scale[:] = data["mass_scale"]
-        self.density.x.array[cell_dofs] = self.problem.params.density * scale
-        self.density.x.scatter_forward()
-        wave_speed.x.array[cell_dofs] = c_d / np.sqrt(scale)
-        wave_speed.x.scatter_forward()
-        cell_length.x.array[:] = data["cell_length"]
+        self.scaling.scale[:] = data["mass_scale"]
+        self.scaling.apply()
+        self.scaling.cell_length.x.array[:] = data["cell_length"]
         self._contact_mass = data["contact_mass"].copy() if data["contact_mass"].size else None
         self.mass.x.array[:] = data["mass"]
         self.mass_red.array_w[:] = data["mass_red"]
@@ -666,3 +673,9 @@ class ExplicitSolver:
                 with self.timings("output"):
                     on_output(self)
         return total
+
+    def run_path(self, on_output: Callable[["ExplicitSolver"], None] | None = None, *, outputs: int = 100,
+                 every: int | None = None, max_steps: int | None = None,
+                 on_step: Callable[["ExplicitSolver"], None] | None = None, log=None) -> int:
+        """The solver interface's run: :meth:`run` to settings.t_end (``log`` unused)."""
+        return self.run(on_output, outputs=outputs, max_steps=max_steps, every=every, on_step=on_step)

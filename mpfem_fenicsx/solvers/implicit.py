@@ -67,12 +67,20 @@ DEFAULT_OPTIONS = {
 
 
 class ImplicitSolver:
-    """Newton-Raphson on the reduced system, one SNES solve per load increment."""
+    """Newton-Raphson on the reduced system, one SNES solve per load increment.
+
+    The solver interface it shares with :class:`~mpfem_fenicsx.solvers.explicit.ExplicitSolver`:
+    ``t``, ``step`` (converged increments), :meth:`run_path` (the ``controls`` of the path, one
+    per segment), :attr:`macroscopic_reaction`, :meth:`energy_record`, :meth:`unbalanced_ratio`,
+    :meth:`state_dict` / :meth:`load_state`."""
+
+    name = "implicit"
 
     def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, *, contact=None,
                  petsc_options: dict | None = None, prefix: str = "mpfem_implicit_",
-                 regularization: np.ndarray | None = None):
-        """``regularization``: stiffness k_i (N/mm) per owned dof of a pseudo-time viscous drag
+                 regularization: np.ndarray | None = None, controls: list[StepControl] | None = None):
+        """``controls``: the step controls :meth:`run_path` runs one after the other (one per
+        segment of the loading path). ``regularization``: stiffness k_i (N/mm) per owned dof of a pseudo-time viscous drag
         r_i += k_i (w_i - w_i,n) towards the last converged state (w = u - g, the motion relative
         to the moving offsets, e.g. a comoving homogeneous flow): it makes free-floating bodies
         (particles before contact) solvable and vanishes as the state stops changing; its work
@@ -92,6 +100,8 @@ class ImplicitSolver:
         self.K_total = self.K  # bulk + contact tangent (a separate matrix once contact is on)
         self._J_contact = None  # P^T K_total P with the current contact pattern
         self.t = 0.0
+        self.step = 0  # converged increments (an adopted explicit state continues its count)
+        self.controls = list(controls or [])
         self.iterations_total = 0
         self.dt_next = None  # increment to try next (kept for restarts)
         self.regularization = None
@@ -230,6 +240,42 @@ class ImplicitSolver:
         return self.comm.allreduce(float(self.r_full.array_r[owned].sum()))
 
     @property
+    def macroscopic_reaction(self) -> np.ndarray:
+        """The reaction the Schmidt stress (eq. 2.19) is built from: :attr:`reaction` (static)."""
+        return self.reaction
+
+    def energy_record(self) -> dict[str, float]:
+        """The energies of a history row (mJ): quasi-static, no kinetic or viscous energy; E_el the
+        stored energy, E_p the plastic work of the converged increments (the whole model), E_damp
+        the regularization's work; E_int, E_contact, W_ext not tallied (NaN)."""
+        return dict(E_int=np.nan, E_el=self.problem.stored_energy(), E_p=self.plastic_work, E_contact=np.nan,
+                    E_c=0.0, E_visc=0.0, E_damp=self.regularization_work, W_ext=np.nan)
+
+    def unbalanced_ratio(self) -> float:
+        """NaN: Newton's converged residual (its tolerance) bounds the out-of-balance forces."""
+        return float("nan")
+
+    @property
+    def total_steps(self) -> int:
+        """Increments of :attr:`controls` at their initial increments (no cut-back)."""
+        starts = [0.0] + [c.t_end for c in self.controls[:-1]]
+        return sum(round((c.t_end - t0) / c.dt) for c, t0 in zip(self.controls, starts))
+
+    def run_path(self, on_output: Callable[["ImplicitSolver"], None] | None = None, *, outputs: int = 0,
+                 every: int | None = None, max_steps: int | None = None, on_step=None,
+                 log: Callable[[str], None] | None = None) -> int:
+        """The solver interface's run: each of :attr:`controls` from the current time (a restart
+        enters one), ``on_output`` after every converged increment (``outputs``, ``every``,
+        ``on_step`` unused: every increment is an output). Returns the increments made."""
+        if max_steps is not None or on_step is not None:
+            raise ValueError("ImplicitSolver.run_path: max_steps and on_step are explicit-only")
+        total = 0
+        for control in self.controls:
+            if self.t < control.t_end * (1 - 1e-12):
+                total += self.run(control, on_step=on_output, log=log)
+        return total
+
+    @property
     def reaction(self) -> np.ndarray:
         """Reaction (N) on every owned unrolled dof: the full residual (zero on free dofs)."""
         return self.r_full.array_r[: self.constraint.num_owned]
@@ -298,7 +344,7 @@ class ImplicitSolver:
         """This rank's converged state (for checkpoints): time, next increment, reduced and full
         displacement, regularization anchor and work, plastic work, Newton count; with the material and contact
         histories (prefixes ``material/`` and ``contact/``)."""
-        data = {"t": np.array(self.t), "dt_next": np.array(np.nan if self.dt_next is None else self.dt_next),
+        data = {"t": np.array(self.t), "step": np.array(self.step), "dt_next": np.array(np.nan if self.dt_next is None else self.dt_next),
                 "iterations_total": np.array(self.iterations_total), "x": self.x.array_r.copy(),
                 "u": self.problem.u.x.array.copy(), "regularization_work": np.array(self.regularization_work),
                 "plastic_work": np.array(self.plastic_work)}
@@ -311,6 +357,7 @@ class ImplicitSolver:
         """Restore :meth:`state_dict` (same model, same number of ranks and partition)."""
         check_layout(data, self.x, self.problem.u)
         self.t = float(data["t"])
+        self.step = int(data.get("step", 0))  # checkpoints before 2026-11-25 did not record it
         self.dt_next = None if np.isnan(data["dt_next"]) else float(data["dt_next"])
         self.iterations_total = int(data["iterations_total"])
         self.regularization_work = float(data["regularization_work"])
@@ -342,6 +389,7 @@ class ImplicitSolver:
             if key in data:
                 data[key] = data[key] - c
         self.t = float(data["t"])
+        self.step = int(data.get("step", 0))
         self.dt_next, self.iterations_total, self.regularization_work, self.plastic_work = None, 0, 0.0, 0.0
         load_histories(self.problem, self.contact, data)
         self.bcs.apply(self.t)
@@ -389,6 +437,7 @@ class ImplicitSolver:
                     float(np.sum(self.regularization.array_r * dw * dw)))
                 self._w_converged[:] = self._peculiar()
             self.t = t_new
+            self.step += 1
             steps += 1
             self.x.copy(self.x_old)
             self._refresh_tangent()  # as a restart from here would (restarts are exact)

@@ -4,49 +4,16 @@ duplicated particles -> GDH / GDF / CLPS / CLP constraints -> contact -> solver 
 Sign convention: reported stresses are positive in compression (sigma_m > 0 in compaction);
 strains keep their sign (h_v < 0 in compaction). Units mm, N, MPa, s.
 
-History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C):
-- time (s); rho = V_p / (V0 det F) (eq. 2.4-2.5: V_p = 4/3 pi sum r^3 of the particles' initial,
-  meshed radii; F the least-squares gradient of the VEP centroids, eq. 2.2, C.3-C.6);
-  rho_imposed (same with F0, the auxiliary-node gradient); rho_fe (finite-element particle
-  volumes / V0 det F: the faceted mesh holds less solid than the spheres, 6.5 % at 517 nodes);
-- h_v, h_d, h_tilde_d: Hencky strain invariants of F (eq. 2.3, 2.8-2.9, 4.3-4.4; natural sign,
-  h_v < 0 in compaction; Rendulic axis I = z, the die axis); nonaffine: rms distance of the
-  volume's centroids from the fitted affine motion F X + c, over the mean radius (-);
-- sigma_m, sigma_d, sigma_tilde_d: Love-Weber invariants (eq. 2.6, 2.10-2.11, 4.1-4.2; compression
-  > 0); F11..F33 (least squares), sigma11..sigma33 (Love-Weber tensor, compression > 0, counted
-  by the appendix-C rules), sigma_schmidt_11..33 (CLP/CLPS: from the auxiliary nodes' reactions,
-  the forces through the ties / couplings and the periodic images times the lattice vectors,
-  P = R / V0, sigma = P F0^T / det F0, eq. 2.14, 2.19, compression > 0; explicit: the medium's
-  forces f_int + f_bv - f_c on the copies, without the relaxation damping and inertia; empty
-  otherwise); sigma_vol_11..33, sigma_vol_m: the volume average (1/V) sum int sigma dv of the
-  Cauchy stress of the volume's particles (eq. C.7, ``SolidProblem.cell_stress_integrals``;
-  compression > 0). In static equilibrium the three stresses agree; they are independent
-  measures (contact forces and centroids; boundary reactions; the particles' stress field);
-- n_contacts: force-carrying contacts of the periodic volume (pairs with a loaded point, in
-  compression or adhesive tension; appendix-C weights: one per physical contact), Z = 2 n_contacts
-  / N the mean coordination number, rattlers the particles of the volume with fewer than 4
-  (homogenization.coordination); Gamma = S / (V0 det F) (mm^-1, eq. 4.13, S the contact
-  area of the volume, one per pair, appendix-C weights); Gamma_model: the same with S summed over
-  every contact of the model (GDH / GDF / CLPS: the copies' contacts too), still over the volume's
-  V, the reading of the thesis' footnote 4 of §4.4.1 ("each contact of the MPFEM model");
-- energies (mJ): E_p plastic work of the volume's particles (eq. 4.11; GDH / GDF / CLPS copies
-  deform too, outside the volume), E_f frictional (eq. 4.12; every modelled contact), E_d = E_p +
-  E_f (eq. 4.10, the chapter-4 iso-dissipation criterion), E_p_model and E_d_model the same over
-  the whole model (copies included; = E_p, E_d for CLP, whose copies are stiffless shells),
-  E_c kinetic (of the motion relative to the imposed flow), E_int internal work, E_el stored
-  elastic, E_contact work absorbed by contact, E_visc bulk viscosity, E_damp relaxation damping,
-  W_ext external work;
-- unbalanced: out-of-balance ratio ||P^T (f_int + f_bv - f_c)|| / ||P^T f_int|| over the free dofs
-  (ExplicitSolver.unbalanced_ratio: 0 in static equilibrium; NaN for implicit rows, whose Newton
-  tolerance bounds it); E_c_over_E_int = E_c / E_int (kinetic over internal energy, -): the two
-  quasi-static measures of an explicit row;
-- wall_time (s).
+Data flow: :class:`CompactionCase` -> :func:`build_compaction` (:class:`CompactionModel`) ->
+:func:`make_solver` -> :class:`CompactionRun` (the loop, :class:`HistoryRecorder` for the rows,
+:class:`CompactionCheckpoints`) -> :class:`CompactionResult`. History columns:
+:mod:`.history_recorder`.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -56,10 +23,7 @@ from ..boundary import KINDS, boundary_kind
 from ..constraints.granular import GranularBoundaryConditions, periodic_lattice
 from ..contact import ContactLaw, ContactModel
 from ..contact.laws import default_penalty
-from ..homogenization import (branch_vectors, contact_weights, coordination, dissipated_energy, hencky_strain,
-                              least_squares_gradient, love_weber_stress, piola_to_cauchy, relative_density,
-                              rendulic_strain, rendulic_stress, solid_volume, specific_contact_surface,
-                              strain_invariants, stress_invariants)
+from ..homogenization import solid_volume
 from ..io import History
 from ..io.checkpoint import (CheckpointError, checkpoint_path, load_checkpoint, prune_checkpoints,
                              resolve_checkpoint, save_checkpoint)
@@ -70,14 +34,15 @@ from ..io.render import render_deformed
 from ..loading import PROFILES, GradientPath, compaction_gradient
 from ..material import LEAD, ElastoPlastic
 from ..meshes.cubesphere import RESOLUTIONS
-from ..meshes import ParticleCentroids, node_particles, particle_mesh, particle_volumes
+from ..meshes import node_particles, particle_mesh, particle_volumes
 from ..meshes.packing import (Duplicates, Packing, assembly_particles, duplicate_particles, generate_packing,
                               packing_format, periodic_pair_realizations, read_packing,
                               write_packing)
 from ..problem import SolidProblem
-from ..solvers import ImplicitSolver, StepControl
+from ..solvers import ImplicitSolver, StepControl, solver_kind
 from ..solvers.implicit import NonConvergence
 from ..solvers.explicit import ExplicitSettings, ExplicitSolver
+from .history_recorder import COLUMNS, HistoryRecorder
 
 
 @dataclass
@@ -175,17 +140,13 @@ class CompactionCase:
     #: write a checkpoint every so many outputs (and at the end) into out_dir/checkpoints; 0: never
     checkpoint_every: int = 10
     checkpoint_keep: int = 2  # newest checkpoints kept (0: all)
-    #: explicit: stop after so many increments (0: run to the end); benchmarks time a part of a
-    #: run at the increment of the whole
-    stop_after: int = 0
     visual: bool = True
     out_dir: str = "results/isotropic"
 
     def __post_init__(self):
         if self.bc not in KINDS:
             raise ValueError(f"bc must be one of {', '.join(KINDS)}, got {self.bc!r}")
-        if self.solver not in ("implicit", "explicit"):
-            raise ValueError(f"solver must be implicit or explicit, got {self.solver!r}")
+        solver_kind(self.solver)  # ValueError naming the solvers
         if self.images is True and self.bc != "CLP":
             raise ValueError(f"images=True realizes CLP only, got bc={self.bc!r}")
         if self.loading not in ("isotropic", "die"):
@@ -223,7 +184,7 @@ class CompactionCase:
                              f"segments_after, got {self.segment_steps}")
         if self.checkpoint_every < 0:
             raise ValueError(f"checkpoint_every must be >= 0 outputs (0: no checkpoints), got {self.checkpoint_every}")
-        if self.control is not None and (not boundary_kind(self.bc).periodic or self.solver != "explicit"):
+        if self.control is not None and (not boundary_kind(self.bc).periodic or not solver_kind(self.solver).stress_control):
             raise ValueError(f"control (stress-driven components) needs bc CLP or CLPS and the explicit solver, got "
                              f"bc={self.bc!r}, solver={self.solver!r}")
 
@@ -314,6 +275,12 @@ class CompactionModel:
     def is_copy(self) -> np.ndarray:
         return np.any(self.shift != 0, axis=1)
 
+    def follow(self, case: CompactionCase) -> None:
+        """Reuse this model for ``case`` (same packing, mesh and contact settings): its loading
+        path replaces the model's, the constraints follow it."""
+        self.case = case
+        self.path = self.bcs.gradient = loading_path(case, self.rho0)
+
 
 def loading_path(case: CompactionCase, rho0: float) -> GradientPath:
     """F0(t): the compaction from ``rho0`` to the target density, then ``case.segments_after``;
@@ -358,7 +325,8 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     owned_cells = mesh.topology.index_map(3).size_local
     cell_particle = assembly.cell_tags.values[:owned_cells]
     active = np.flatnonzero(~is_copy[cell_particle]) if kind.tied_nodes else None
-    problem = SolidProblem(mesh, case.material, tangent=case.solver == "implicit", active_cells=active)
+    problem = SolidProblem(mesh, case.material, tangent=solver_kind(case.solver).tangent,
+                           active_cells=active)
     V = problem.V
 
     rho0_fe = float(particle_volumes(assembly, problem.u)[:n].sum()) / float(np.prod(packing.cell))
@@ -372,284 +340,253 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
                            search_distance=max(0.05 * float(radii.min()), 2 * case.delta_max), allowed=allowed,
                            shifts=periodic_lattice() * packing.cell if case.uses_images else None)
     bcs = GranularBoundaryConditions(V, cell_particle, centres, radii, original, shift, packing.cell, case.bc, path,
-                                     images=contact if case.uses_images else None, anchor=case.solver == "implicit",
+                                     images=contact if case.uses_images else None, anchor=solver_kind(case.solver).anchored,
                                      comoving=case.comoving, equal_rotations=case.equal_rotations)
     return CompactionModel(case, packing, centres, radii, original, shift, assembly, problem, bcs, contact, path,
                            solid0, rho0, rho0_fe, h_contact)
 
 
-def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print, *,
-                   restart: str | Path | None = None, progress: Progress | None = None,
-                   model: CompactionModel | None = None) -> CompactionResult:
-    """Compact the volume to ``case.target_density``; see the module docstring for outputs.
-
-    ``restart``: a checkpoint directory written by an earlier run of the same case (same
-    packing, mesh and number of ranks): the run continues from it and reproduces the
-    uninterrupted one (explicit: bit for bit). ``model``: a model built earlier for the same
-    packing, mesh and contact settings on ``comm`` (a fan of reloads restarts one checkpoint many
-    times; only the path of ``case`` and its outputs may differ), whose state the restart
-    overwrites. Checkpoints go to ``out_dir/checkpoint`` every
-    ``case.checkpoint_every`` outputs and at the end. A diverging or non-converging run raises
-    :class:`RunFailure` after writing its history so far; the last good checkpoint stays."""
-    start = time.perf_counter()
-    out = Path(case.out_dir)
-    meta = None
-    if restart is not None:
-        restart = resolve_checkpoint(restart)
-        arrays, meta = load_checkpoint(restart, comm)  # checks the number of ranks before any build
-        if case.packing is None and case.packing_file is None:  # the checkpoint's own packing
-            pk = meta["packing"]
-            case.packing = Packing(pk["cell"], pk["centres"], pk["radii"])
-    if model is None:
-        model = build_compaction(case, comm, log)
-    else:  # reuse: only the path changes (the restart then restores every state variable)
-        if restart is None:
-            raise ValueError("run_compaction: a reused model needs a restart checkpoint")
-        model.case = case
-        model.path = model.bcs.gradient = loading_path(case, model.rho0)
-    packing, problem, bcs, contact, path = model.packing, model.problem, model.bcs, model.contact, model.path
-    assembly, radii = model.assembly, model.radii
-    V = problem.V
-    n = packing.num_particles
-    solid0, rho0 = model.solid_volume0, model.rho0
-    cell_volume0 = float(np.prod(packing.cell))
-    progress = progress or Progress(comm, stream=_LogStream(log))
-
-    num_dofs = V.dofmap.index_map.size_global * 3
-    if case.solver == "explicit":
-        settings = ExplicitSettings(t_end=path.duration, target_dt=case.duration / case.increments,
-                                    damping=case.damping / case.duration, local_damping=case.local_damping)
-
-        # every particle is carried by the imposed flow (comoving constraints): the damping relaxes
-        # each particle's rigid motion relative to it; a copy's nodes belong to their original
-        # (tied: one material body, whose copy nodes may hold contact mass)
-        node_particle = node_particles(problem.V, assembly.cell_tags.values[: problem.num_cells])
-        solver = ExplicitSolver(problem, bcs, settings, contact=contact,
-                                damped_bodies=model.original[node_particle])
-        log(f"model: {radii.size} particles, {num_dofs} dofs ({bcs.constraint.num_reduced_global} free), "
-            f"rho0 = {rho0:.4f} (finite elements {model.rho0_fe:.4f}) -> "
-            f"{'stress-controlled' if case.control is not None else case.target_density}, dt = {solver.dt:.3g} s "
-            f"(unscaled {solver.dt_stable_unscaled:.3g} s), {case.increments} increments")
-        total_steps = int(np.ceil(path.duration / settings.target_dt - 1e-9))
-    else:
+def make_solver(case: CompactionCase, model: CompactionModel, log=print):
+    """The solver factory: the case's solver on the model (the one place that reads its name),
+    with the increments of the whole path."""
+    problem, bcs, path = model.problem, model.bcs, model.path
+    num_dofs = problem.V.dofmap.index_map.size_global * 3
+    model_line = (f"model: {model.radii.size} particles, {num_dofs} dofs ({bcs.constraint.num_reduced_global} free), "
+                  f"rho0 = {model.rho0:.4f}")
+    if solver_kind(case.solver).static:
         log("WARNING: implicit granular runs are experimental: with the pseudo-time drag the free "
             "particles are solvable, but Newton needs many cut-backs once contacts yield, and may stall on "
             "frictional stick / slip switches (verified on the 8-sphere simple cubic cell: compaction, "
             "restart, chapter-4 reloads); use the explicit solver for production runs")
-        h = model.contact_length
         nodal_volume = problem.lumped_mass(1.0).x.array[: bcs.constraint.num_owned]
         # backtracking line search: frictional stick / slip switches make full Newton steps cycle
         # (an explicit state relaxed to rest stalled at 1e-1 of its residual without it)
-        solver = ImplicitSolver(problem, bcs, contact=contact, petsc_options={"snes_linesearch_type": "bt"},
-                                regularization=case.regularization * case.material.E * nodal_volume / h ** 2)
-        controls = implicit_step_controls(case, path)
-        total_steps = sum(round((c.t_end - start) / c.dt) for c, start in zip(controls, path.knots))
-        log(f"model: {radii.size} particles, {num_dofs} dofs ({bcs.constraint.num_reduced_global} free), "
-            f"rho0 = {rho0:.4f} -> {case.target_density}, implicit, {total_steps} steps")
+        solver = ImplicitSolver(problem, bcs, contact=model.contact, petsc_options={"snes_linesearch_type": "bt"},
+                                regularization=case.regularization * case.material.E * nodal_volume
+                                / model.contact_length ** 2, controls=implicit_step_controls(case, path))
+        log(f"{model_line} -> {case.target_density}, implicit, {solver.total_steps} steps")
+        return solver
+    settings = ExplicitSettings(t_end=path.duration, target_dt=case.duration / case.increments,
+                                damping=case.damping / case.duration, local_damping=case.local_damping)
+    # every particle is carried by the imposed flow (comoving constraints): the damping relaxes
+    # each particle's rigid motion relative to it; a copy's nodes belong to their original
+    # (tied: one material body, whose copy nodes may hold contact mass)
+    node_particle = node_particles(problem.V, model.assembly.cell_tags.values[: problem.num_cells])
+    solver = ExplicitSolver(problem, bcs, settings, contact=model.contact, damped_bodies=model.original[node_particle])
+    log(f"{model_line} (finite elements {model.rho0_fe:.4f}) -> "
+        f"{'stress-controlled' if case.control is not None else case.target_density}, dt = {solver.dt:.3g} s "
+        f"(unscaled {solver.dt_stable_unscaled:.3g} s), {case.increments} increments")
+    return solver
 
-    centroids = ParticleCentroids(assembly, problem.u)
-    X0 = np.ascontiguousarray(centroids()[:n])  # one memory layout: a restart reproduces the BLAS round-off
-    comps = [f"{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
-    columns = ["time", "rho", "rho_imposed", "rho_fe", "h_v", "h_d", "h_tilde_d", "nonaffine", "sigma_m", "sigma_d",
-               "sigma_tilde_d"] + [f"F{c}" for c in comps] + [f"sigma{c}" for c in comps] + \
-        [f"sigma_schmidt_{c}" for c in comps] + [f"sigma_vol_{c}" for c in comps] + ["sigma_vol_m"] + \
-        ["n_contacts", "Z", "rattlers", "Gamma", "Gamma_model", "E_p", "E_f", "E_d", "E_p_model", "E_d_model", "E_c", "E_int", "E_el", "E_contact", "E_visc",
-         "E_damp", "W_ext", "unbalanced", "E_c_over_E_int", "wall_time"]
-    periodic = boundary_kind(case.bc).periodic  # Schmidt stress defined
-    mean_radius = float(np.mean(radii[:n]))
-    # the particles of the volume (originals; CLP copies are stiffless, GDH/GDF/CLPS copies lie outside)
-    volume_cells = assembly.cell_tags.values[: problem.num_cells] < n
-    history = History(out / "history.csv", columns, comm, flush_every_row=True)
-    checkpoint_root = out / "checkpoints"
-    last_checkpoint = [None]
-    wall_offset = 0.0
-    if meta is not None:  # restart: model, solver, history and clocks as they were
-        # an explicit state (relaxed to rest) may be continued implicitly, not the reverse (no velocities)
-        adopt = meta["solver"] == "explicit" and case.solver == "implicit"
+
+class CompactionCheckpoints:
+    """The checkpoints of a compaction run in ``root``: every ``every`` history rows and at the
+    end, the newest ``keep`` kept; each holds the solver's state, the history so far, the
+    reference centroids, the packing, the control's state and F0 (a run continues from one bit
+    for bit, explicit)."""
+
+    def __init__(self, root: Path, comm: MPI.Comm, every: int, keep: int, restart: Path | None = None):
+        self.root, self.comm, self.every, self.keep = Path(root), comm, every, keep
+        self.last: Path | None = None
+        self.restart = restart
+
+    def due(self, rows: int) -> bool:
+        return bool(self.every) and rows % self.every == 0
+
+    def write(self, solver, model: CompactionModel, history: History, reference_centroids: np.ndarray,
+              wall_time: float) -> None:
+        case, packing, V = model.case, model.packing, model.problem.V
+        arrays = {f"solver/{k}": v for k, v in solver.state_dict().items()}
+        arrays["dof_coordinates"] = _dof_coordinates(V)
+        directory = checkpoint_path(self.root, solver.step)
+        save_checkpoint(directory, self.comm, arrays, {
+            "step": solver.step, "t": solver.t, "solver": case.solver, "bc": case.bc,
+            "num_dofs": V.dofmap.index_map.size_global * 3,
+            "centroids0": reference_centroids.tolist(), "history": history.rows, "columns": history.columns,
+            "control": None if case.control is None else case.control.state_dict(),
+            "F0": model.path(solver.t).tolist(), "wall_time": wall_time,
+            "packing": {"cell": packing.cell.tolist(), "centres": packing.centres.tolist(),
+                        "radii": packing.radii.tolist()}})
+        if self.comm.rank == 0:
+            prune_checkpoints(self.root, self.keep)
+        self.last = directory
+
+    @property
+    def resume_from(self) -> Path | None:
+        """The newest good checkpoint: the last written, or the one the run restarted from."""
+        return self.last or self.restart
+
+    def restore(self, arrays: dict, meta: dict, solver, model: CompactionModel, history: History) -> None:
+        """Continue from a checkpoint read with ``load_checkpoint``: the control's state, the
+        history rows, the solver's state (an implicit solver adopts an explicit state relaxed to
+        rest). Raises CheckpointError if it was written for another model or partition."""
+        case, V = model.case, model.problem.V
+        num_dofs = V.dofmap.index_map.size_global * 3
+        adopt = meta["solver"] != case.solver and meta["solver"] in solver_kind(case.solver).continues
         if meta["num_dofs"] != num_dofs or (meta["solver"] != case.solver and not adopt) or meta["bc"] != case.bc:
-            raise CheckpointError(f"restart: {restart} was written for another model ({meta['num_dofs']} dofs, "
+            raise CheckpointError(f"restart: {self.restart} was written for another model ({meta['num_dofs']} dofs, "
                                   f"{meta['solver']}, {meta['bc']}; this case: {num_dofs} dofs, {case.solver}, {case.bc})")
         if arrays["dof_coordinates"].shape != _dof_coordinates(V).shape or \
                 not np.array_equal(arrays["dof_coordinates"], _dof_coordinates(V)):
-            raise CheckpointError(f"restart: {restart} was written with another mesh partition")
+            raise CheckpointError(f"restart: {self.restart} was written with another mesh partition")
         if case.control is not None:  # the servo before the solver asks it for F0
             if meta.get("control") is not None:  # as it was (a new stress path continues it)
                 case.control.load_state(meta["control"])
             elif meta.get("F0") is not None:  # a stress path from a strain-driven state
                 case.control.begin(float(meta["t"]), np.array(meta["F0"], dtype=float))
             else:
-                raise CheckpointError(f"restart: {restart} does not record its gradient F0 (written before "
+                raise CheckpointError(f"restart: {self.restart} does not record its gradient F0 (written before "
                                       "2026-11-25): a stress-controlled run cannot continue it")
-        X0 = np.ascontiguousarray(meta["centroids0"], dtype=float)
-        history.rows = _history_rows(meta, columns)
+        history.rows = _history_rows(meta, history.columns)
         state = {k[7:]: v for k, v in arrays.items() if k.startswith("solver/")}
         if adopt:
-            solver.adopt_state(state, translation=_anchor_displacement(bcs, V, state["u"], float(state["t"])))
-            solver.plastic_work = history.rows[-1][columns.index("E_p_model")]  # the tally goes on
+            solver.adopt_state(state, translation=_anchor_displacement(model.bcs, V, state["u"], float(state["t"])))
+            solver.plastic_work = history.rows[-1][history.columns.index("E_p_model")]  # the tally goes on
         else:
             solver.load_state(state)
-        wall_offset = float(meta["wall_time"])
-        log(f"restart from {restart}: step {meta['step']}, t = {meta['t']:.6g} s, {len(history.rows)} history rows")
-    writer = None
-    if case.visual:
-        fields = CellFields(problem, assembly.cell_tags)
-        name = "particles.xdmf" if meta is None else f"particles_from_step{meta['step']}.xdmf"
-        writer = ParaViewWriter(out / name, problem, fields, contact=contact)
 
-    def write_checkpoint(s) -> None:
-        arrays = {f"solver/{k}": v for k, v in s.state_dict().items()}
-        arrays["dof_coordinates"] = _dof_coordinates(V)
-        step = s.step if case.solver == "explicit" else len(history.rows)
-        directory = checkpoint_path(checkpoint_root, step)
-        save_checkpoint(directory, comm, arrays, {
-            "step": step, "t": s.t, "solver": case.solver, "bc": case.bc, "num_dofs": num_dofs,
-            "centroids0": X0.tolist(), "history": history.rows, "columns": columns,
-            "control": None if case.control is None else case.control.state_dict(),
-            "F0": path(s.t).tolist(),
-            "wall_time": wall_offset + time.perf_counter() - start,
-            "packing": {"cell": packing.cell.tolist(), "centres": packing.centres.tolist(),
-                        "radii": packing.radii.tolist()}})
+
+class CompactionRun:
+    """One compaction run, its parts named after the data flow: the model (packing -> assembly
+    -> problem -> constraints + contact, :func:`build_compaction`), the solver
+    (:func:`make_solver`), the history recorder (:class:`HistoryRecorder`, the column schema),
+    the checkpoints (:class:`CompactionCheckpoints`); :meth:`run` drives the loop.
+
+    ``restart``: a checkpoint directory written by an earlier run of the same case (same
+    packing, mesh and number of ranks): the run continues from it and reproduces the
+    uninterrupted one (explicit: bit for bit); a case without packing takes the checkpoint's.
+    ``model``: a model built earlier for the same packing, mesh and contact settings on ``comm``
+    (a fan of reloads restarts one checkpoint many times; only the path of ``case`` and its
+    outputs may differ), whose state the restart overwrites. The case is not modified."""
+
+    def __init__(self, case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print, *,
+                 restart: str | Path | None = None, progress: Progress | None = None,
+                 model: CompactionModel | None = None):
+        self.start = time.perf_counter()
+        self.comm, self.log = comm, log
+        arrays = meta = None
+        if restart is not None:
+            restart = resolve_checkpoint(restart)
+            arrays, meta = load_checkpoint(restart, comm)  # checks the number of ranks before any build
+            if case.packing is None and case.packing_file is None:  # the checkpoint's own packing
+                pk = meta["packing"]
+                case = replace(case, packing=Packing(pk["cell"], pk["centres"], pk["radii"]))
+        self.case = case
+        self.out = Path(case.out_dir)
+        if model is None:
+            model = build_compaction(case, comm, log)
+        else:  # reuse: only the path changes (the restart then restores every state variable)
+            if restart is None:
+                raise ValueError("CompactionRun: a reused model needs a restart checkpoint")
+            model.follow(case)
+        self.model = model
+        self.solver = make_solver(case, model, log)
+        self.recorder = HistoryRecorder(model, comm, None if meta is None else meta["centroids0"])
+        self.history = History(self.out / "history.csv", COLUMNS, comm, flush_every_row=True)
+        self.checkpoints = CompactionCheckpoints(self.out / "checkpoints", comm, case.checkpoint_every,
+                                                 case.checkpoint_keep, restart)
+        self.progress = progress or Progress(comm, stream=_LogStream(log))
+        self.wall_offset = 0.0
+        if meta is not None:  # restart: model, solver, history and clocks as they were
+            self.checkpoints.restore(arrays, meta, self.solver, model, self.history)
+            self.wall_offset = float(meta["wall_time"])
+            log(f"restart from {restart}: step {meta['step']}, t = {meta['t']:.6g} s, "
+                f"{len(self.history.rows)} history rows")
+        self.writer = self.fields = None
+        if case.visual:
+            self.fields = CellFields(model.problem, model.assembly.cell_tags)
+            name = "particles.xdmf" if meta is None else f"particles_from_step{meta['step']}.xdmf"
+            self.writer = ParaViewWriter(self.out / name, model.problem, self.fields, contact=model.contact)
         if comm.rank == 0:
-            prune_checkpoints(checkpoint_root, case.checkpoint_keep)
-        last_checkpoint[0] = directory
+            self.out.mkdir(parents=True, exist_ok=True)
+            write_packing(model.packing, self.out / "packing.txt")
 
-    def volume_stress_integral() -> np.ndarray:
-        """sum over the volume's particles of int sigma dv (N mm, (3, 3), tension > 0; eq. C.7)."""
-        return comm.allreduce(problem.cell_stress_integrals()[volume_cells].sum(axis=0), op=MPI.SUM)
+    @property
+    def wall_time(self) -> float:
+        """Wall time of the run (s), the restarted runs' before it included."""
+        return self.wall_offset + time.perf_counter() - self.start
 
-    def schmidt_stress(reaction, F0) -> np.ndarray:
-        """Cauchy stress (MPa, tension > 0) of the auxiliary nodes' reactions (eq. 2.14, 2.19)."""
-        return piola_to_cauchy(bcs.macroscopic_force(reaction) / cell_volume0, F0)
+    def write_checkpoint(self) -> None:
+        self.checkpoints.write(self.solver, self.model, self.history, self.recorder.X0, self.wall_time)
 
-    def record(s) -> None:
-        x = centroids()
-        F, c = least_squares_gradient(X0, x[:n])
-        # rms distance of the centroids from the best affine motion, over the mean radius
-        nonaffine = float(np.sqrt(np.mean(np.sum((x[:n] - X0 @ F.T - c) ** 2, axis=1)))) / mean_radius
-        h = hencky_strain(F)
-        h_v, h_d = strain_invariants(h)
-        h_tilde_d = rendulic_strain(h)[1]
-        F0 = path(s.t)
-        volume = np.linalg.det(F) * cell_volume0
-        rho = relative_density(solid0, cell_volume0, F)
-        # Love-Weber over the model's contacts with the appendix-C counting weights
-        pf = contact.pair_forces()
-        pairs = pf["pairs"]
-        image = np.rint(np.linalg.solve(F0, pf["shift"].T).T / packing.cell).astype(np.int64)
-        weights = contact_weights(pairs[:, 0], pairs[:, 1], model.original, model.shift, case.bc, image)
-        sigma_lw = love_weber_stress(pf["force"], branch_vectors(x, pairs[:, 0], pairs[:, 1], pf["shift"]),
-                                     volume, weights)  # tension > 0
-        sigma_m, sigma_d = stress_invariants(sigma_lw)
-        sigma_tilde_d = rendulic_stress(sigma_lw)[1]
-        gamma = specific_contact_surface(pf["area"], cell_volume0, F, weights)
-        gamma_model = specific_contact_surface(pf["area"], cell_volume0, F)
-        carrying = pf["points"] > 0  # pairs within the search distance may carry no force
-        n_contacts, mean_z, rattlers = coordination(pairs[carrying, 0], pairs[carrying, 1], model.original,
-                                                    weights[carrying], n)
-        # third measure, from the particles' stress field: (1/V) sum int sigma dv (eq. C.7)
-        sigma_vol = volume_stress_integral() / volume
-        sigma_s = np.full((3, 3), np.nan)
-        if periodic:  # Schmidt: reactions conjugate to F0 (auxiliary nodes), eq. 2.14
-            # explicit: the medium's forces only (damping and inertia of the pseudo-dynamics out)
-            reaction = s.static_reaction if case.solver == "explicit" else s.reaction
-            sigma_s = schmidt_stress(reaction, F0)
-        if case.solver == "explicit":
-            e = s.energies
-            energies = dict(E_int=e.internal, E_el=e.elastic, E_p=e.plastic, E_contact=e.contact,
-                            E_c=e.kinetic, E_visc=e.viscous, E_damp=e.damping, W_ext=e.external)
-            fraction, step = s.step / total_steps, s.step
-            unbalanced = s.unbalanced_ratio()
-        else:  # quasi-static: no kinetic / viscous energy; E_damp = the regularization's work
-            energies = dict(E_int=np.nan, E_el=problem.stored_energy(), E_p=s.plastic_work,
-                            E_contact=np.nan, E_c=0.0, E_visc=0.0, E_damp=s.regularization_work, W_ext=np.nan)
-            fraction, step = s.t / path.duration, len(history.rows) + 1
-            unbalanced = np.nan  # Newton's converged residual (its tolerance) stands for it
-        if not (np.isfinite(rho) and np.isfinite(sigma_lw).all() and np.isfinite(energies["E_p"])):
-            raise FloatingPointError(f"non-finite state at step {step} (t={s.t:.4g} s): rho={rho}, "
-                                     f"sigma_m={sigma_m}")
-        # the solvers tally the whole model; the volume's particles carry E_p (copies outside)
-        energies["E_p_model"] = energies["E_p"]
-        energies["E_p"] = problem.plastic_work(volume_cells)
-        energies["E_f"] = contact.frictional_work
-        energies["E_d"] = float(dissipated_energy(energies["E_p"], energies["E_f"]))
-        energies["E_d_model"] = float(dissipated_energy(energies["E_p_model"], energies["E_f"]))
-        wall = wall_offset + time.perf_counter() - start
-        history.append(time=s.t, rho=rho, rho_imposed=relative_density(solid0, cell_volume0, F0),
-                       rho_fe=float(centroids.volumes[:n].sum()) / volume, h_v=h_v, h_d=h_d, h_tilde_d=h_tilde_d,
-                       nonaffine=nonaffine,
-                       sigma_m=sigma_m, sigma_d=sigma_d, sigma_tilde_d=sigma_tilde_d,
-                       **{f"F{c}": v for c, v in zip(comps, F.ravel())},
-                       **{f"sigma{c}": v for c, v in zip(comps, -sigma_lw.ravel())},
-                       **{f"sigma_schmidt_{c}": v for c, v in zip(comps, -sigma_s.ravel())},
-                       **{f"sigma_vol_{c}": v for c, v in zip(comps, -sigma_vol.ravel())},
-                       sigma_vol_m=stress_invariants(sigma_vol)[0],
-                       n_contacts=n_contacts, Z=mean_z, rattlers=rattlers, Gamma=gamma, Gamma_model=gamma_model,
-                       unbalanced=unbalanced,
-                       E_c_over_E_int=energies["E_c"] / energies["E_int"] if energies["E_int"] > 0 else np.nan,
-                       wall_time=wall, **energies)
-        if writer is not None:
-            writer.write(s.t)
-        progress.update(fraction, step, total_steps, rho=rho, sigma_m=sigma_m,
-                        extra=f"unbalanced {unbalanced:.2g}  contacts {n_contacts:.0f} (Z {mean_z:.2f})  "
-                              f"E_p {energies['E_p']:.3g} mJ  E_c {energies['E_c']:.2g} mJ")
-        if case.checkpoint_every and len(history.rows) % case.checkpoint_every == 0:
-            write_checkpoint(s)
+    def record(self, solver) -> None:
+        """An output: a history row, the ParaView fields, the progress line, a checkpoint when due."""
+        row = self.recorder.measure(solver, self.wall_time)
+        self.history.append(**row)
+        if self.writer is not None:
+            self.writer.write(solver.t)
+        self.progress.update(solver.t / self.model.path.duration, solver.step, self.solver.total_steps,
+                             rho=row["rho"], sigma_m=row["sigma_m"],
+                             extra=f"unbalanced {row['unbalanced']:.2g}  contacts {row['n_contacts']:.0f} "
+                                   f"(Z {row['Z']:.2f})  E_p {row['E_p']:.3g} mJ  E_c {row['E_c']:.2g} mJ")
+        if self.checkpoints.due(len(self.history.rows)):
+            self.write_checkpoint()
 
-    if comm.rank == 0:
-        out.mkdir(parents=True, exist_ok=True)
-        write_packing(packing, out / "packing.txt")
-    def servo(s) -> None:
+    def servo(self, solver) -> None:
         """Mixed control, every ``control.every`` increments: the measured Cauchy stress
-        (compression > 0) to the servo: the auxiliary nodes' reactions (Schmidt, eq. 2.19) or the
-        volume average of the particles' stress over the cell (eq. C.7), ``control.measure``."""
-        if s.step % path.every:
-            return
-        F0 = path(s.t)
-        if path.measure == "schmidt":
-            sigma = schmidt_stress(s.static_reaction, F0)
-        else:
-            sigma = volume_stress_integral() / (np.linalg.det(F0) * cell_volume0)
-        path.update(s.t, -sigma)
+        (compression > 0) of ``control.measure`` to the servo."""
+        control = self.case.control
+        if solver.step % control.every == 0:
+            control.update(solver.t, -self.recorder.measured_stress(solver, control.measure))
 
-    try:
-        if case.solver == "explicit":
-            total = solver.run(record, outputs=case.outputs, every=case.output_every or None,
-                               max_steps=case.stop_after or None,
-                               on_step=servo if case.control is not None else None)
-        else:
-            total = 0
-            for control in controls:  # each segment stepped on its own (a restart enters one)
-                if solver.t < control.t_end * (1 - 1e-12):
-                    total += solver.run(control, on_step=record, log=log)
-    except (FloatingPointError, NonConvergence) as err:
-        progress.close()
-        history.write()
-        if writer is not None:
-            writer.close()
-        step = solver.step if case.solver == "explicit" else len(history.rows) + 1
-        kept = (f"last good checkpoint {last_checkpoint[0] or restart} (continue with --restart)"
-                if (last_checkpoint[0] or restart) else "no checkpoint was written yet")
-        raise RunFailure(f"the run stopped at step {step} (t = {solver.t:.6g} s): {err}; history so far in "
-                         f"{history.path}, {kept}", step, solver.t, history.path,
-                         last_checkpoint[0] or (Path(restart) if restart else None)) from err
-    progress.close()
-    if case.stop_after:  # a benchmark's part of a run: no final outputs
-        return CompactionResult(history, packing, num_dofs, radii.size, time.perf_counter() - start, total, out,
-                                model=model, solver=solver)
-    if case.checkpoint_every and len(history.rows) % case.checkpoint_every != 0:
-        write_checkpoint(solver)  # the final state (the chapter-4 reloads start from it)
-    history.write()
-    if writer is not None:
-        writer.close()
+    def run(self, max_steps: int | None = None) -> CompactionResult:
+        """Run to the end of the path (``max_steps``: stop after so many increments of this call,
+        without the final outputs: a benchmark's part of a run). A diverging or non-converging
+        run raises :class:`RunFailure` after writing its history so far; the last good
+        checkpoint stays."""
+        case, solver = self.case, self.solver
+        try:
+            total = solver.run_path(self.record, outputs=case.outputs, every=case.output_every or None,
+                                    max_steps=max_steps, on_step=self.servo if case.control is not None else None,
+                                    log=self.log)
+        except (FloatingPointError, NonConvergence) as err:
+            self._fail(err)
+        self.progress.close()
+        if max_steps is None:
+            self._finish()
+        return CompactionResult(self.history, self.model.packing, self.model.problem.V.dofmap.index_map.size_global * 3,
+                                self.model.radii.size, time.perf_counter() - self.start, total, self.out,
+                                model=self.model, solver=solver)
+
+    def _fail(self, err: Exception):
+        self.progress.close()
+        self.history.write()
+        if self.writer is not None:
+            self.writer.close()
+        solver, resume = self.solver, self.checkpoints.resume_from
+        # a non-finite state is found after its increment is counted; Newton fails before
+        step = solver.step + 1 if isinstance(err, NonConvergence) else solver.step
+        kept = f"last good checkpoint {resume} (continue with --restart)" if resume else "no checkpoint was written yet"
+        raise RunFailure(f"the run stopped at step {step} (t = {solver.t:.6g} s): {err}; history so far "
+                         f"in {self.history.path}, {kept}", step, solver.t, self.history.path,
+                         resume) from err
+
+    def _finish(self) -> None:
+        """The final checkpoint (the chapter-4 reloads start from it), the history, the figures."""
+        case, model = self.case, self.model
+        if case.checkpoint_every and len(self.history.rows) % case.checkpoint_every != 0:
+            self.write_checkpoint()
+        self.history.write()
+        if self.writer is None:
+            return
+        self.writer.close()
+        n = model.packing.num_particles
         # CLP shell copies carry no stress: show the volume's particles only
-        render_deformed(problem.u, fields.von_mises, out / "particles.png", cells=problem.material_cells,
+        render_deformed(model.problem.u, self.fields.von_mises, self.out / "particles.png",
+                        cells=model.problem.material_cells,
                         title=f"{n} lead particles, {case.loading} compaction, {case.bc}, "
-                              f"rho = {history.rows[-1][1]:.3f}", save_grid=True)
-        if comm.rank == 0:
-            plot_loading_path(history.path, out / "loading_path.png",
+                              f"rho = {self.history.column('rho')[-1]:.3f}", save_grid=True)
+        if self.comm.rank == 0:
+            plot_loading_path(self.history.path, self.out / "loading_path.png",
                               title=f"{n} particles, {case.loading} compaction, {case.bc}")
-    return CompactionResult(history, packing, num_dofs, radii.size, time.perf_counter() - start, total, out,
-                            model=model, solver=solver)
+
+
+def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print, *,
+                   restart: str | Path | None = None, progress: Progress | None = None,
+                   model: CompactionModel | None = None) -> CompactionResult:
+    """Compact the volume to ``case.target_density`` (or along its path): ``CompactionRun(...).run()``;
+    the columns of the history: :mod:`.history_recorder`."""
+    return CompactionRun(case, comm, log, restart=restart, progress=progress, model=model).run()
 
 
 #: columns added since the first checkpoints (which do not list theirs): filled with NaN on restart

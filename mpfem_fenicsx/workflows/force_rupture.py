@@ -75,9 +75,7 @@ def rupture_rows(history, t_start: float, start: np.ndarray, final: np.ndarray, 
     ``final`` (3,) the path's end stresses (MPa, compression > 0)."""
     t = history.column("time")
     keep = t > t_start * (1 + 1e-12)
-    comps = [f"{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
-    sigma = np.stack([history.column(f"sigma_schmidt_{c}")[keep] for c in comps], axis=-1).reshape(-1, 3, 3)
-    F = np.stack([history.column(f"F{c}")[keep] for c in comps], axis=-1).reshape(-1, 3, 3)
+    sigma, F = history.tensor("sigma_schmidt_")[keep], history.tensor("F")[keep]
     h = hencky_strain(F)
     mean, q = stress_invariants(-sigma)  # the invariants and W2 take tension > 0
     normal = np.diagonal(sigma, axis1=1, axis2=2)

@@ -20,19 +20,23 @@ import dolfinx
 from ..io import History
 from ..io.fields import CellFields, ParaViewWriter
 from ..io.render import render_deformed
-from ..loading import PrescribedDisplacements, Ramp, SmoothStep, component_dofs
+from ..loading import PrescribedDisplacements, component_dofs
 from ..material import LEAD, ElastoPlastic
 from ..meshes import ParticleVolumes, particle_mesh
 from ..problem import SolidProblem
-from ..solvers import ImplicitSolver, StepControl
-from ..solvers.explicit import ExplicitSettings, ExplicitSolver
+from ..solvers import StepControl, create_solver, loading_amplitude, solver_kind
+from ..solvers.explicit import ExplicitSettings
 
-SOLVERS = ("implicit", "explicit")
+
+def _log_mass_scaling(solver, log) -> None:
+    """A dynamic solver's increment and mass scaling (a static one has none)."""
+    if not solver_kind(solver.name).static:
+        log(f"explicit: dt = {solver.dt:.3g} s (stable unscaled {solver.dt_stable_unscaled:.3g} s, "
+            f"max mass scaling {solver.mass_scaling_max:.3g})")
 
 
 def _check_solver(solver: str) -> None:
-    if solver not in SOLVERS:
-        raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
+    solver_kind(solver)  # ValueError naming the solvers
 
 
 def check_uniaxial(solver: str, log_strain: float, cells: int) -> None:
@@ -90,10 +94,11 @@ def run_uniaxial(solver: str = "implicit", material: ElastoPlastic = LEAD, log_s
     length = 1.0
     mesh = dolfinx.mesh.create_box(comm, [[0, 0, 0], [length] * 3], [cells] * 3,
                                    dolfinx.mesh.CellType.hexahedron)
-    problem = SolidProblem(mesh, material, tangent=(solver == "implicit"))
+    kind = solver_kind(solver)
+    problem = SolidProblem(mesh, material, tangent=kind.tangent)
     V = problem.V
     stretch = np.exp(log_strain)
-    amplitude = Ramp(1.0) if solver == "implicit" else SmoothStep(explicit_time)
+    amplitude = loading_amplitude(solver, explicit_time)
     bcs = PrescribedDisplacements(V)
     for axis in range(3):
         bcs.add(component_dofs(V, lambda x, a=axis: np.isclose(x[a], 0.0), axis))
@@ -111,29 +116,27 @@ def run_uniaxial(solver: str = "implicit", material: ElastoPlastic = LEAD, log_s
         history.append(log_strain=np.log1p(u_end / length), true_stress_MPa=force / (lateral * length ** 2),
                        eps_p=_mean_over_points(problem, problem.material.eps_p))
 
-    start = time.perf_counter()
-    if solver == "implicit":
-        s = ImplicitSolver(problem, bcs)
-        s.run(StepControl(t_end=1.0, dt=0.01, dt_max=0.02), on_step=record)
-    else:
-        s = ExplicitSolver(problem, bcs, ExplicitSettings(t_end=explicit_time,
-                                                          target_dt=explicit_time / explicit_steps))
+    if not kind.static:  # a dynamic run's energy balance
         energy = History(out_dir / "energy.csv", ["time", "W_ext", "E_int", "E_p", "E_el", "E_kin", "E_visc"], comm)
 
-        def on_output(s):
-            record(s)
-            e = s.energies
-            energy.append(time=s.t, W_ext=e.external, E_int=e.internal, E_p=e.plastic, E_el=e.elastic,
-                          E_kin=e.kinetic, E_visc=e.viscous)
+    def on_output(s):
+        record(s)
+        if energy is not None:
+            e = s.energy_record()
+            energy.append(time=s.t, W_ext=e["W_ext"], E_int=e["E_int"], E_p=e["E_p"], E_el=e["E_el"],
+                          E_kin=e["E_c"], E_visc=e["E_visc"])
 
-        log(f"explicit: dt = {s.dt:.3g} s (stable unscaled {s.dt_stable_unscaled:.3g} s, "
-            f"max mass scaling {s.mass_scaling_max:.3g})")
-        s.run(on_output, outputs=rows)
+    start = time.perf_counter()
+    s = create_solver(solver, problem, bcs, controls=[StepControl(t_end=1.0, dt=0.01, dt_max=0.02)],
+                      settings=ExplicitSettings(t_end=explicit_time, target_dt=explicit_time / explicit_steps))
+    _log_mass_scaling(s, log)
+    s.run_path(on_output, outputs=rows)
+    if energy is not None:
         energy.write()
     wall = time.perf_counter() - start
     csv = history.write()
     data = history.array()
-    plastic_work = s.plastic_work if solver == "implicit" else s.energies.plastic
+    plastic_work = s.energy_record()["E_p"]
     return UniaxialResult(data[:, 0], data[:, 1], data[:, 2], energy, wall, csv, plastic_work)
 
 
@@ -165,9 +168,10 @@ def run_sphere_squeeze(solver: str = "implicit", material: ElastoPlastic = LEAD,
     out_dir = Path(out_dir)
     assembly = particle_mesh([[0.0, 0.0, 0.0]], [radius], comm, refinement=refinement,
                              cell_type=cell_type, tet_order=tet_order, tet_size=tet_size)
-    problem = SolidProblem(assembly.mesh, material, tangent=(solver == "implicit"), full_integration=full_integration)
+    problem = SolidProblem(assembly.mesh, material, tangent=solver_kind(solver).tangent,
+                           full_integration=full_integration)
     V = problem.V
-    amplitude = Ramp(1.0) if solver == "implicit" else SmoothStep(explicit_time)
+    amplitude = loading_amplitude(solver, explicit_time)
     travel = reduction * radius  # each cap moves by half of the total height change 2 r reduction
     tol = 1e-9 * radius
     top = component_dofs(V, lambda x: x[2] >= cap * radius - tol, 2)
@@ -199,16 +203,10 @@ def run_sphere_squeeze(solver: str = "implicit", material: ElastoPlastic = LEAD,
                        force_N=-s.reactions(top), volume_mm3=vol, volume_change=vol / v0 - 1.0)
 
     start = time.perf_counter()
-    if solver == "implicit":
-        s = ImplicitSolver(problem, bcs)
-        s.run(StepControl(t_end=1.0, dt=0.01, dt_max=0.025, dt_min=1e-5), on_step=record,
-              log=log)
-    else:
-        s = ExplicitSolver(problem, bcs, ExplicitSettings(t_end=explicit_time,
-                                                          target_dt=explicit_time / explicit_steps))
-        log(f"explicit: dt = {s.dt:.3g} s (stable unscaled {s.dt_stable_unscaled:.3g} s, "
-            f"max mass scaling {s.mass_scaling_max:.3g})")
-        s.run(record, outputs=rows)
+    s = create_solver(solver, problem, bcs, controls=[StepControl(t_end=1.0, dt=0.01, dt_max=0.025, dt_min=1e-5)],
+                      settings=ExplicitSettings(t_end=explicit_time, target_dt=explicit_time / explicit_steps))
+    _log_mass_scaling(s, log)
+    s.run_path(record, outputs=rows, log=log)
     wall = time.perf_counter() - start
     history.write()
     if writer is not None:

@@ -26,12 +26,12 @@ from mpi4py import MPI
 from ..contact import ContactLaw, ContactModel
 from ..contact.laws import default_penalty
 from ..io import History
-from ..loading import PrescribedDisplacements, SmoothStep, component_dofs
+from ..loading import PrescribedDisplacements, component_dofs
 from ..material import ElastoPlastic
 from ..meshes import particle_mesh
 from ..problem import SolidProblem
-from ..solvers import ImplicitSolver, StepControl
-from ..solvers.explicit import ExplicitSettings, ExplicitSolver
+from ..solvers import StepControl, create_solver, loading_amplitude, solver_kind
+from ..solvers.explicit import ExplicitSettings
 
 
 @dataclass(frozen=True)
@@ -75,8 +75,7 @@ def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hert
               comm: MPI.Comm = MPI.COMM_WORLD, petsc_options: dict | None = None, log=print,
               solver: str = "implicit", explicit_increments: int = 4000, explicit_time: float = 1e-3,
               rows: int = 40) -> HertzResult:
-    if solver not in ("implicit", "explicit"):
-        raise ValueError(f"solver must be implicit or explicit, got {solver!r}")
+    kind = solver_kind(solver)  # ValueError naming the solvers
     r = case.radius
     with warnings.catch_warnings():  # P1 tetrahedra: fine for this elastic, compressible case
         warnings.simplefilter("ignore")
@@ -87,7 +86,7 @@ def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hert
                                              ((0.0, 0.0, -r), 0.3 * case.core * r, case.core * r, 0.5 * r),
                                              ((0.0, 0.0, r), 0.3 * case.core * r, case.core * r, 0.5 * r)])
         material = ElastoPlastic(E=case.E, nu=case.nu, sigma_0=1e12, hardening="linear", K=0.0, H=0.0)
-        problem = SolidProblem(assembly.mesh, material, tangent=(solver == "implicit"))
+        problem = SolidProblem(assembly.mesh, material, tangent=kind.tangent)
     V = problem.V
     penalty = default_penalty(case.E, case.size_min * r, case.penalty_factor)
     law = ContactLaw(penalty=penalty, friction=0.0, gamma=0.0)
@@ -103,9 +102,9 @@ def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hert
             bcs.add(component_dofs(V, core(sign), c))
     lower = component_dofs(V, core(-1.0), 2)
     upper = component_dofs(V, core(1.0), 2)
-    amplitude = (lambda t: t) if solver == "implicit" else SmoothStep(explicit_time)
+    amplitude = loading_amplitude(solver, explicit_time)
     bcs.add(lower, lambda t: 0.5 * delta_end * amplitude(t)).add(upper, lambda t: -0.5 * delta_end * amplitude(t))
-    name = "force.csv" if solver == "implicit" else "force_explicit.csv"
+    name = "force.csv" if kind.static else f"force_{solver}.csv"
     history = History(Path(out_dir) / name, ["delta_mm", "force_N", "force_hertz_N"], comm)
     iterations = []
 
@@ -113,23 +112,20 @@ def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hert
         delta = delta_end * amplitude(s.t)
         force = -s.reactions(upper)  # the upper core pushes down: compressive force > 0
         history.append(delta_mm=delta, force_N=force, force_hertz_N=float(case.hertz_force(delta)))
-        iterations.append(s.snes.getIterationNumber() if solver == "implicit" else 0)
+        iterations.append(s.snes.getIterationNumber() if kind.static else 0)  # Newton's
         log(f"  delta/r = {delta / r:.5f}: F = {force:.4f} N, Hertz {case.hertz_force(delta):.4f} N "
             f"({100 * (force / case.hertz_force(delta) - 1):+.2f} %), {contact.count(True)} contact points, "
             f"{iterations[-1]} Newton iterations")
 
     log(f"Hertz: {V.dofmap.index_map.size_global * 3} dofs, penalty {penalty:.3g} N/mm^3")
     start = time.perf_counter()
-    if solver == "implicit":
-        s = ImplicitSolver(problem, bcs, contact=contact, petsc_options=petsc_options)
-        dt = 1.0 / case.steps
-        s.run(StepControl(t_end=1.0, dt=dt, dt_max=dt, dt_min=dt / 64), on_step=record, log=log)
-    else:
-        s = ExplicitSolver(problem, bcs, ExplicitSettings(t_end=explicit_time,
-                                                          target_dt=explicit_time / explicit_increments),
-                           contact=contact)
+    dt = 1.0 / case.steps
+    s = create_solver(solver, problem, bcs, contact=contact, petsc_options=petsc_options,
+                      controls=[StepControl(t_end=1.0, dt=dt, dt_max=dt, dt_min=dt / 64)],
+                      settings=ExplicitSettings(t_end=explicit_time, target_dt=explicit_time / explicit_increments))
+    if not kind.static:
         log(f"  explicit: dt = {s.dt:.3g} s (unscaled {s.dt_stable_unscaled:.3g} s), {explicit_increments} "
             "increments")
-        s.run(record, outputs=rows)
+    s.run_path(record, outputs=rows, log=log)
     history.write()
     return HertzResult(history, V.dofmap.index_map.size_global * 3, time.perf_counter() - start, iterations)

@@ -42,7 +42,7 @@ def checks(result) -> dict[str, np.ndarray]:
     h = result.history
     path = result.model.path
     t = h.column("time")
-    F = np.stack([h.column(f"F{i}{j}") for i in (1, 2, 3) for j in (1, 2, 3)], axis=1).reshape(-1, 3, 3)
+    F = h.tensor("F")
     F0 = np.stack([path(ti) for ti in t])
     h_lsq, h_aux = hencky_strain(F), hencky_strain(F0)
     schmidt = np.stack([h.column(f"sigma_schmidt_{i}{i}") for i in (1, 2, 3)], axis=1).mean(axis=1)

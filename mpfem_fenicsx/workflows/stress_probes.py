@@ -23,6 +23,7 @@ from mpi4py import MPI
 
 from ..boundary import boundary_kind
 from ..loading.mixed import StressControl, pressure_control
+from ..solvers import solver_kind
 from .compaction import CompactionCase, CompactionModel, run_compaction
 
 _FINAL_ONLY = 10 ** 9  # checkpoint_every that writes the final checkpoint only
@@ -49,7 +50,7 @@ class StressProbeCase:
     out_dir: str = "results/stress_probes"
 
     def __post_init__(self):
-        if not boundary_kind(self.base.bc).periodic or self.base.solver != "explicit":
+        if not boundary_kind(self.base.bc).periodic or not solver_kind(self.base.solver).stress_control:
             raise ValueError(f"base: a stress-controlled probe needs bc CLP or CLPS and the explicit solver, got "
                              f"{self.base.bc!r} / {self.base.solver!r}")
         if not 0 < self.p_probe < self.p_load:

@@ -24,7 +24,7 @@ Newton on this faceted, non-matching quarter model (history of the fixes):
 - The closest-point projection on the facets made Newton cycle (exact period 3 at approach 0.004 r,
   elastic): a penetrated node near the edge of two master facets switched between their planes,
   whose gaps differ. The projection now follows the smoothed master normal field (corner normals
-  of the last converged configuration, ``contact.search._project``): gap and normal are continuous
+  of the last converged configuration, ``contact.search.project_point``): gap and normal are continuous
   across facet edges. Elastic (sigma_y = 1e6 MPa), size_min = 0.05 (22 518 dofs): 3-4 Newton
   iterations per step, superlinear (contraction 1e-2 -> 2e-3 -> 1.5e-4), F within 0.3 % of Hertz at
   0.02 r, 50 steps in 200 s (``tests/test_two_spheres.py`` asserts a CI-sized version).

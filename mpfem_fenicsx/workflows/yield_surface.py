@@ -52,7 +52,8 @@ from mpi4py import MPI
 
 from ..boundary import boundary_kind
 from ..homogenization import first_crossing, hencky_strain, row_increments, second_order_work, uniaxial_strengths
-from ..io.history import read_csv
+from ..io.history import read_csv, tensor_from_columns
+from ..solvers import solver_kind
 from ..io.plots import plot_yield_surface
 from ..loading import reload_gradient, unload_gradient
 from ..meshes.packing import Packing
@@ -95,12 +96,11 @@ class YieldSurfaceCase:
     out_dir: str = "results/yield_surface"
 
     def __post_init__(self):
-        if self.base.solver != "explicit":
+        if solver_kind(self.base.solver).static:
             raise ValueError(f"base.solver: the loading and unload of a fan run with the explicit solver "
                              f"(implicit granular compaction is experimental), got {self.base.solver!r}; "
                              f"choose the reloads' solver with YieldSurfaceCase.solver")
-        if self.solver not in ("explicit", "implicit"):
-            raise ValueError(f"solver (of the reloads) must be explicit or implicit, got {self.solver!r}")
+        solver_kind(self.solver)  # ValueError naming the solvers
         if not 4 <= self.reload_steps <= 10000:
             raise ValueError(f"reload_steps must be in [4, 10000] implicit steps, got {self.reload_steps}")
         if not boundary_kind(self.base.bc).periodic:
@@ -222,7 +222,7 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print) -> tuple[
                         Gamma_unloaded=float(hu.column("Gamma")[-1]), t_unloaded=float(hu.column("time")[-1]),
                         increments=n_d, increments_per_strain=case.slowdown * base.increments / h_v_c, dt=dt,
                         packing=loaded.packing)
-    if case.solver == "implicit":
+    if solver_kind(case.solver).static:  # reloads from a static equilibrium
         unloaded, model = settle(case, unloaded, comm, log)
     state = {k: v for k, v in vars(unloaded).items() if k not in ("packing", "segments")}
     state["segments"] = [[d, G.tolist()] for d, G in unloaded.segments]
@@ -245,7 +245,7 @@ def settle(case: YieldSurfaceCase, unloaded: Unloaded, comm: MPI.Comm, log=print
     out = Path(case.out_dir)
     hold = (2.0 * _reload_duration(case, unloaded)[0] / case.reload_steps, np.eye(3))
     segments = (*unloaded.segments, hold)
-    settled = run_compaction(replace(case.base, solver="implicit", packing=unloaded.packing,
+    settled = run_compaction(replace(case.base, solver=case.solver, packing=unloaded.packing,
                                      out_dir=str(out / "settle"), checkpoint_every=_FINAL_ONLY, checkpoint_keep=1,
                                      visual=False, segments_after=segments,
                                      segment_steps=(1,) * len(unloaded.segments) + (2,)),
@@ -268,8 +268,8 @@ def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> Compactio
     reload = replace(case.base, packing=unloaded.packing, out_dir=str(Path(case.out_dir) / f"reload_{k:03d}"),
                      checkpoint_every=0, visual=False, segments_after=segments,
                      output_every=max(1, n_r // case.rows_per_reload))
-    if case.solver == "implicit":  # every step a history row
-        reload = replace(reload, solver="implicit", segment_steps=(1,) * (len(segments) - 1) + (case.reload_steps,))
+    if solver_kind(case.solver).static:  # every step a history row
+        reload = replace(reload, solver=case.solver, segment_steps=(1,) * (len(segments) - 1) + (case.reload_steps,))
     return reload
 
 
@@ -294,9 +294,8 @@ def fan_rows(history_csv: str | Path, phi: float, t_unloaded: float, w2_window: 
     h = read_csv(history_csv)
     rows = h["time"] >= t_unloaded * (1 - 1e-12)
     m = int(rows.sum())
-    comps = [f"{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)]
-    sigma = -np.stack([h[f"sigma{c}"][rows] for c in comps], axis=1).reshape(-1, 3, 3)  # tension > 0
-    F = np.stack([h[f"F{c}"][rows] for c in comps], axis=1).reshape(-1, 3, 3)
+    sigma = -tensor_from_columns(h, "sigma")[rows]  # tension > 0
+    F = tensor_from_columns(h, "F")[rows]
     hencky = hencky_strain(F)
     dsigma, dh = row_increments(sigma, w2_window), row_increments(hencky, w2_window)
     raw = second_order_work(np.diff(sigma, axis=0), np.diff(hencky, axis=0))
@@ -435,7 +434,7 @@ def surfaces(case: YieldSurfaceCase, unloaded: Unloaded | None = None, log=print
         state = json.loads((out / "unloaded.json").read_text())
         unloaded = Unloaded(**{**state, "segments": tuple((d, np.array(G)) for d, G in state["segments"]),
                                "packing": None})
-    window = case.w2_window if case.solver == "explicit" else 0
+    window = 0 if solver_kind(case.solver).static else case.w2_window
     fans = [fan_rows(out / f"reload_{k:03d}" / "history.csv", float(phi), unloaded.t_unloaded, window)
             for k, phi in enumerate(case.phis)]
     gammas = tuple(case.gamma_thresholds) or default_gamma_levels(unloaded.Gamma_unloaded,

@@ -1,0 +1,175 @@
+"""The compaction history: its column schema and the measurements of one row (thesis chapter 2
+and appendix C). Sign convention: reported stresses are positive in compression (sigma_m > 0 in
+compaction); strains keep their sign (h_v < 0 in compaction). Units mm, N, MPa, s, mJ.
+
+History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C):
+- time (s); rho = V_p / (V0 det F) (eq. 2.4-2.5: V_p = 4/3 pi sum r^3 of the particles' initial,
+  meshed radii; F the least-squares gradient of the VEP centroids, eq. 2.2, C.3-C.6);
+  rho_imposed (same with F0, the auxiliary-node gradient); rho_fe (finite-element particle
+  volumes / V0 det F: the faceted mesh holds less solid than the spheres, 6.5 % at 517 nodes);
+- h_v, h_d, h_tilde_d: Hencky strain invariants of F (eq. 2.3, 2.8-2.9, 4.3-4.4; natural sign,
+  h_v < 0 in compaction; Rendulic axis I = z, the die axis); nonaffine: rms distance of the
+  volume's centroids from the fitted affine motion F X + c, over the mean radius (-);
+- sigma_m, sigma_d, sigma_tilde_d: Love-Weber invariants (eq. 2.6, 2.10-2.11, 4.1-4.2; compression
+  > 0); F11..F33 (least squares), sigma11..sigma33 (Love-Weber tensor, compression > 0, counted
+  by the appendix-C rules), sigma_schmidt_11..33 (CLP/CLPS: from the auxiliary nodes' reactions,
+  the forces through the ties / couplings and the periodic images times the lattice vectors,
+  P = R / V0, sigma = P F0^T / det F0, eq. 2.14, 2.19, compression > 0; explicit: the medium's
+  forces f_int + f_bv - f_c on the copies, without the relaxation damping and inertia; empty
+  otherwise); sigma_vol_11..33, sigma_vol_m: the volume average (1/V) sum int sigma dv of the
+  Cauchy stress of the volume's particles (eq. C.7, ``SolidProblem.cell_stress_integrals``;
+  compression > 0). In static equilibrium the three stresses agree; they are independent
+  measures (contact forces and centroids; boundary reactions; the particles' stress field);
+- n_contacts: force-carrying contacts of the periodic volume (pairs with a loaded point, in
+  compression or adhesive tension; appendix-C weights: one per physical contact), Z = 2 n_contacts
+  / N the mean coordination number, rattlers the particles of the volume with fewer than 4
+  (homogenization.coordination); Gamma = S / (V0 det F) (mm^-1, eq. 4.13, S the contact
+  area of the volume, one per pair, appendix-C weights); Gamma_model: the same with S summed over
+  every contact of the model (GDH / GDF / CLPS: the copies' contacts too), still over the volume's
+  V, the reading of the thesis' footnote 4 of §4.4.1 ("each contact of the MPFEM model");
+- energies (mJ): E_p plastic work of the volume's particles (eq. 4.11; GDH / GDF / CLPS copies
+  deform too, outside the volume), E_f frictional (eq. 4.12; every modelled contact), E_d = E_p +
+  E_f (eq. 4.10, the chapter-4 iso-dissipation criterion), E_p_model and E_d_model the same over
+  the whole model (copies included; = E_p, E_d for CLP, whose copies are stiffless shells),
+  E_c kinetic (of the motion relative to the imposed flow), E_int internal work, E_el stored
+  elastic, E_contact work absorbed by contact, E_visc bulk viscosity, E_damp relaxation damping,
+  W_ext external work;
+- unbalanced: out-of-balance ratio ||P^T (f_int + f_bv - f_c)|| / ||P^T f_int|| over the free dofs
+  (ExplicitSolver.unbalanced_ratio: 0 in static equilibrium; NaN for implicit rows, whose Newton
+  tolerance bounds it); E_c_over_E_int = E_c / E_int (kinetic over internal energy, -): the two
+  quasi-static measures of an explicit row;
+- wall_time (s).
+"""
+
+from __future__ import annotations
+
+
+import numpy as np
+from mpi4py import MPI
+
+from ..boundary import boundary_kind
+from ..homogenization import (branch_vectors, contact_weights, coordination, dissipated_energy, hencky_strain,
+                              least_squares_gradient, love_weber_stress, piola_to_cauchy, relative_density,
+                              rendulic_strain, rendulic_stress, specific_contact_surface, strain_invariants,
+                              stress_invariants)
+from ..io.history import tensor_columns, tensor_values
+from ..meshes import ParticleCentroids
+
+#: the history's columns, in file order, by group
+KINEMATICS = ["time", "rho", "rho_imposed", "rho_fe", "h_v", "h_d", "h_tilde_d", "nonaffine"]
+STRESS_INVARIANTS = ["sigma_m", "sigma_d", "sigma_tilde_d"]
+TENSORS = {"F": "least-squares gradient of the centroids", "sigma": "Love-Weber stress",
+           "sigma_schmidt_": "Schmidt stress (periodic conditions)", "sigma_vol_": "volume-averaged stress"}
+CONTACTS = ["n_contacts", "Z", "rattlers", "Gamma", "Gamma_model"]
+ENERGIES = ["E_p", "E_f", "E_d", "E_p_model", "E_d_model", "E_c", "E_int", "E_el", "E_contact", "E_visc", "E_damp",
+            "W_ext"]
+QUASI_STATIC = ["unbalanced", "E_c_over_E_int"]
+COLUMNS = (KINEMATICS + STRESS_INVARIANTS + [c for prefix in TENSORS for c in tensor_columns(prefix)]
+           + ["sigma_vol_m"] + CONTACTS + ENERGIES + QUASI_STATIC + ["wall_time"])
+
+
+class HistoryRecorder:
+    """Measures one history row of a compaction model from a solver's state (the solver
+    interface: ``t``, ``macroscopic_reaction``, ``energy_record``, ``unbalanced_ratio``): the
+    centroids' kinematics, the three stress measures (Love-Weber, Schmidt, volume average), the
+    contact network and the energies. ``reference_centroids``: the volume's particle centroids at
+    t = 0 (a restart passes the checkpoint's; default: measured now)."""
+
+    def __init__(self, model, comm: MPI.Comm, reference_centroids: np.ndarray | None = None):
+        self.model, self.comm = model, comm
+        self.n = model.packing.num_particles
+        self.cell_volume0 = float(np.prod(model.packing.cell))
+        self.periodic = boundary_kind(model.case.bc).periodic  # Schmidt stress defined
+        self.mean_radius = float(np.mean(model.radii[: self.n]))
+        self.centroids = ParticleCentroids(model.assembly, model.problem.u)
+        # one memory layout: a restart reproduces the BLAS round-off
+        self.X0 = np.ascontiguousarray(self.centroids()[: self.n] if reference_centroids is None
+                                       else reference_centroids, dtype=float)
+        # the particles of the volume (originals; CLP copies are stiffless, GDH/GDF/CLPS copies lie outside)
+        problem = model.problem
+        self.volume_cells = model.assembly.cell_tags.values[: problem.num_cells] < self.n
+
+    def volume_stress_integral(self) -> np.ndarray:
+        """sum over the volume's particles of int sigma dv (N mm, (3, 3), tension > 0; eq. C.7)."""
+        local = self.model.problem.cell_stress_integrals()[self.volume_cells].sum(axis=0)
+        return self.comm.allreduce(local, op=MPI.SUM)
+
+    def schmidt_stress(self, reaction: np.ndarray, F0: np.ndarray) -> np.ndarray:
+        """Cauchy stress (MPa, tension > 0) of the auxiliary nodes' reactions (eq. 2.14, 2.19)."""
+        return piola_to_cauchy(self.model.bcs.macroscopic_force(reaction) / self.cell_volume0, F0)
+
+    def measured_stress(self, solver, measure: str) -> np.ndarray:
+        """The Cauchy stress (MPa, tension > 0) a stress servo reads: "schmidt" (the auxiliary
+        nodes' reactions, eq. 2.19) or "volume" (the volume average over the cell, eq. C.7)."""
+        F0 = self.model.path(solver.t)
+        if measure == "schmidt":
+            return self.schmidt_stress(solver.macroscopic_reaction, F0)
+        return self.volume_stress_integral() / (np.linalg.det(F0) * self.cell_volume0)
+
+    def _kinematics(self, x: np.ndarray, F0: np.ndarray) -> tuple[dict, np.ndarray]:
+        n = self.n
+        F, c = least_squares_gradient(self.X0, x[:n])
+        # rms distance of the centroids from the best affine motion, over the mean radius
+        nonaffine = float(np.sqrt(np.mean(np.sum((x[:n] - self.X0 @ F.T - c) ** 2, axis=1)))) / self.mean_radius
+        h = hencky_strain(F)
+        h_v, h_d = strain_invariants(h)
+        volume = np.linalg.det(F) * self.cell_volume0
+        solid0 = self.model.solid_volume0
+        return dict(rho=relative_density(solid0, self.cell_volume0, F),
+                    rho_imposed=relative_density(solid0, self.cell_volume0, F0),
+                    rho_fe=float(self.centroids.volumes[:n].sum()) / volume, h_v=h_v, h_d=h_d,
+                    h_tilde_d=rendulic_strain(h)[1], nonaffine=nonaffine, **tensor_values("F", F)), F
+
+    def _contacts(self, x: np.ndarray, F: np.ndarray, F0: np.ndarray) -> tuple[dict, np.ndarray]:
+        """Love-Weber over the model's contacts with the appendix-C counting weights, and the
+        contact network."""
+        model = self.model
+        pf = model.contact.pair_forces()
+        pairs = pf["pairs"]
+        image = np.rint(np.linalg.solve(F0, pf["shift"].T).T / model.packing.cell).astype(np.int64)
+        weights = contact_weights(pairs[:, 0], pairs[:, 1], model.original, model.shift, model.case.bc, image)
+        volume = np.linalg.det(F) * self.cell_volume0
+        sigma_lw = love_weber_stress(pf["force"], branch_vectors(x, pairs[:, 0], pairs[:, 1], pf["shift"]),
+                                     volume, weights)  # tension > 0
+        carrying = pf["points"] > 0  # pairs within the search distance may carry no force
+        n_contacts, mean_z, rattlers = coordination(pairs[carrying, 0], pairs[carrying, 1], model.original,
+                                                    weights[carrying], self.n)
+        return dict(n_contacts=n_contacts, Z=mean_z, rattlers=rattlers,
+                    Gamma=specific_contact_surface(pf["area"], self.cell_volume0, F, weights),
+                    Gamma_model=specific_contact_surface(pf["area"], self.cell_volume0, F)), sigma_lw
+
+    def _energies(self, solver) -> dict:
+        """The solver's energies; E_p of the volume's particles (the solver tallies the whole
+        model, copies outside the volume included), E_f of every contact, E_d = E_p + E_f."""
+        energies = solver.energy_record()
+        energies["E_p_model"] = energies["E_p"]
+        energies["E_p"] = self.model.problem.plastic_work(self.volume_cells)
+        energies["E_f"] = self.model.contact.frictional_work
+        energies["E_d"] = float(dissipated_energy(energies["E_p"], energies["E_f"]))
+        energies["E_d_model"] = float(dissipated_energy(energies["E_p_model"], energies["E_f"]))
+        return energies
+
+    def measure(self, solver, wall_time: float) -> dict[str, float]:
+        """One history row (every column of :data:`COLUMNS`) of the current state.
+        Raises FloatingPointError on a non-finite density, Love-Weber stress or plastic work."""
+        F0 = self.model.path(solver.t)
+        x = self.centroids()
+        row, F = self._kinematics(x, F0)
+        contacts, sigma_lw = self._contacts(x, F, F0)
+        # third measure, from the particles' stress field: (1/V) sum int sigma dv (eq. C.7)
+        sigma_vol = self.volume_stress_integral() / (np.linalg.det(F) * self.cell_volume0)
+        sigma_s = np.full((3, 3), np.nan)
+        if self.periodic:  # Schmidt: reactions conjugate to F0 (auxiliary nodes), eq. 2.14
+            sigma_s = self.schmidt_stress(solver.macroscopic_reaction, F0)
+        energies = self._energies(solver)
+        sigma_m, sigma_d = stress_invariants(sigma_lw)
+        if not (np.isfinite(row["rho"]) and np.isfinite(sigma_lw).all() and np.isfinite(energies["E_p_model"])):
+            raise FloatingPointError(f"non-finite state at step {solver.step} (t={solver.t:.4g} s): rho={row['rho']}, "
+                                     f"sigma_m={sigma_m}")
+        row.update(time=solver.t, sigma_m=sigma_m, sigma_d=sigma_d, sigma_tilde_d=rendulic_stress(sigma_lw)[1],
+                   **tensor_values("sigma", -sigma_lw), **tensor_values("sigma_schmidt_", -sigma_s),
+                   **tensor_values("sigma_vol_", -sigma_vol), sigma_vol_m=stress_invariants(sigma_vol)[0],
+                   **contacts, **energies, unbalanced=solver.unbalanced_ratio(),
+                   E_c_over_E_int=energies["E_c"] / energies["E_int"] if energies["E_int"] > 0 else np.nan,
+                   wall_time=wall_time)
+        return row

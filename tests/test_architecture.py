@@ -1,0 +1,79 @@
+"""The tree's rules (issue 25), checked on the source: short functions in the pipeline's
+packages, no branch on a solver's name outside the solver factory, no private attribute of
+another package read. Static checks (ast): no model is built."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "mpfem_fenicsx"
+SOLVER_NAMES = {"explicit", "implicit"}
+#: the one place a solver's name picks a class or a kind
+FACTORY = {PACKAGE / "solvers" / "factory.py", PACKAGE / "solvers" / "kinds.py"}
+
+
+def _modules(*packages):
+    for package in packages:
+        yield from sorted((PACKAGE / package).rglob("*.py"))
+
+
+def test_no_function_over_80_lines_in_workflows_and_solvers():
+    long = []
+    for path in _modules("workflows", "solvers"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno >= 80:
+                long.append(f"{path.relative_to(PACKAGE)}:{node.lineno} {node.name} "
+                            f"({node.end_lineno - node.lineno + 1} lines)")
+    assert not long, "functions over 80 lines: " + ", ".join(long)
+
+
+def _compares_solver_name(node: ast.Compare) -> bool:
+    """``x == "explicit"``, ``x != "implicit"``, ``x in ("implicit", "explicit")``..."""
+    operands = [node.left, *node.comparators]
+    for operand in operands:
+        if isinstance(operand, ast.Constant) and operand.value in SOLVER_NAMES:
+            return True
+        if isinstance(operand, (ast.Tuple, ast.List, ast.Set)) and any(
+                isinstance(e, ast.Constant) and e.value in SOLVER_NAMES for e in operand.elts):
+            return True
+    return False
+
+
+@pytest.mark.parametrize("tree", ["library", "demos"])
+def test_no_branch_on_the_solver_name_outside_the_factory(tree):
+    paths = _modules(".") if tree == "library" else sorted((PACKAGE.parent / "demos").glob("*.py"))
+    branches = []
+    for path in paths:
+        if path in FACTORY:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Compare) and _compares_solver_name(node):
+                branches.append(f"{path.name}:{node.lineno}")
+    assert not branches, "solver-name comparisons (ask solvers.solver_kind instead): " + ", ".join(branches)
+
+
+def test_no_private_attribute_of_another_package_read():
+    """``obj._name`` where obj is not ``self`` / ``cls``: allowed inside one package only when the
+    attribute is defined there (checked loosely: the name must be assigned as ``self._name`` in a
+    module of the same package)."""
+    defined: dict[Path, set[str]] = {}
+    for path in _modules("."):
+        names = defined.setdefault(path.parent, set())
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__"):
+                if isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"):
+                    names.add(node.attr)
+    reads = []
+    for path in _modules("."):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if (isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")
+                    and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls", "np"))
+                    and node.attr not in defined.get(path.parent, set())):
+                reads.append(f"{path.relative_to(PACKAGE)}:{node.lineno} .{node.attr}")
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level >= 2:
+                for alias in node.names:
+                    if alias.name.startswith("_"):
+                        reads.append(f"{path.relative_to(PACKAGE)}:{node.lineno} import {alias.name}")
+    assert not reads, "private names of another package: " + ", ".join(reads)
