@@ -22,7 +22,31 @@ particles.xdmf (ParaView: displacement, von Mises, eps_p, particle id) and parti
 mpfem_fenicsx/workflows/history_recorder.py.
 """
 
-from mpfem_fenicsx.cli.compaction import main
+from mpi4py import MPI
+
+from mpfem_fenicsx.cli.compaction import case_from_args, parser, report, run_exits
+from mpfem_fenicsx.io.progress import Progress
+from mpfem_fenicsx.workflows.compaction import CompactionRun
+
+
+def main(argv=None) -> None:
+    comm = MPI.COMM_WORLD
+    say = print if comm.rank == 0 else (lambda *a, **k: None)
+
+    # 1. The case: the options (case-file keys, checked against their ranges) -> a CompactionCase
+    args = parser("isotropic", __doc__).parse_args(argv)
+    case = case_from_args(args, "isotropic")
+
+    with run_exits():  # exit 2 on bad input found while building, 3 if the run diverges
+        # 2. The model: packing -> particle mesh -> bulk problem -> CLP constraints + contact; the
+        #    explicit solver, the history recorder and the checkpoints on it
+        run = CompactionRun(case, comm, say, restart=args.restart, progress=Progress(comm))
+        # 3. The loop: increments to the target density, a history row per output, checkpoints
+        result = run.run()
+
+    # 4. Post-processing: the end state (history.csv holds every row, particles.png the picture)
+    report(result, args, say)
+
 
 if __name__ == "__main__":
-    main("isotropic", __doc__)
+    main()

@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import argparse
-import time
+from contextlib import contextmanager
 from functools import partial
 
 from mpi4py import MPI
 
 from ..io.progress import Progress
 from ..solvers import solver_kind
-from ..workflows.compaction import CompactionCase, RunFailure, run_compaction
+from ..workflows.compaction import CompactionCase, CompactionRun, RunFailure
 from .casefile import add_schema_option
 from .exits import BAD_INPUT, RUN_FAILED, bad_input_exits, fail
 
@@ -60,24 +60,38 @@ def case_from_args(args: argparse.Namespace, loading: str) -> CompactionCase:
                               checkpoint_every=args.checkpoint_every, out_dir=args.out)
 
 
+@contextmanager
+def run_exits():
+    """Inside the block: bad input found while building the model (a packing file, an
+    unreachable density...) exits 2, a diverging run exits 3 (its history and last checkpoint
+    kept), each with one line."""
+    try:
+        yield
+    except RunFailure as err:
+        fail(RUN_FAILED, str(err))
+    except (ValueError, OSError) as err:
+        fail(BAD_INPUT, str(err))
+
+
+def report(result, args: argparse.Namespace, say=print) -> None:
+    """The end state of a compaction run and where its outputs are."""
+    h = result.history
+    say(f"done: rho = {h.column('rho')[-1]:.4f} (imposed {h.column('rho_imposed')[-1]:.4f}), "
+        f"sigma_m = {h.column('sigma_m')[-1]:.3f} MPa, sigma_d = {h.column('sigma_d')[-1]:.3f} MPa, "
+        f"{round(h.column('n_contacts')[-1])} contacts (Z {h.column('Z')[-1]:.2f}); "
+        f"{result.num_particles_model} particles in the model, {result.num_dofs} dofs, {result.increments} "
+        f"{solver_kind(args.solver).increment_word}, wall {result.wall_time:.0f} s")
+    say(f"outputs in {result.out_dir}/: history.csv, packing.txt"
+        + ("" if not args.checkpoint_every else ", checkpoints/")
+        + ("" if args.no_visual else ", particles.xdmf (ParaView), particles.png, loading_path.png"))
+
+
 def main(loading: str, doc: str, argv=None) -> None:
+    """The compaction demos' steps (``demos/isotropic.py`` spells them out)."""
     args = parser(loading, doc).parse_args(argv)
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     case = case_from_args(args, loading)
-    start = time.perf_counter()
-    try:
-        res = run_compaction(case, comm, log=say, restart=args.restart, progress=Progress(comm))
-    except RunFailure as err:  # diverged: history and last checkpoint kept
-        fail(RUN_FAILED, str(err))
-    except (ValueError, OSError) as err:  # bad input found while building (packing file, unreachable density, ...)
-        fail(BAD_INPUT, str(err))
-    h = res.history
-    say(f"done: rho = {h.column('rho')[-1]:.4f} (imposed {h.column('rho_imposed')[-1]:.4f}), "
-        f"sigma_m = {h.column('sigma_m')[-1]:.3f} MPa, sigma_d = {h.column('sigma_d')[-1]:.3f} MPa, "
-        f"{round(h.column('n_contacts')[-1])} contacts (Z {h.column('Z')[-1]:.2f}); "
-        f"{res.num_particles_model} particles in the model, "
-        f"{res.num_dofs} dofs, {res.increments} {solver_kind(args.solver).increment_word}, wall {time.perf_counter() - start:.0f} s")
-    say(f"outputs in {res.out_dir}/: history.csv, packing.txt"
-        + ("" if not args.checkpoint_every else ", checkpoints/")
-        + ("" if args.no_visual else ", particles.xdmf (ParaView), particles.png, loading_path.png"))
+    with run_exits():
+        result = CompactionRun(case, comm, say, restart=args.restart, progress=Progress(comm)).run()
+    report(result, args, say)

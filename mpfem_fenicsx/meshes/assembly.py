@@ -164,7 +164,9 @@ def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type:
     if cell_type == "tetrahedron":
         from .tetra import gmsh_spheres
 
-        return gmsh_spheres(centres, radii, comm, order=tet_order, size=tet_size, refine=tet_refine)
+        mesh, cell_tags, facet_tags = gmsh_spheres(centres, radii, comm, order=tet_order, size=tet_size,
+                                                   refine=tet_refine)
+        return ParticleAssembly(mesh, cell_tags, facet_tags, centres, radii, "tetrahedron")
     raise ValueError(f"cell_type must be 'hexahedron' or 'tetrahedron', got {cell_type!r}")
 
 

@@ -60,14 +60,12 @@ def size_from_background(gmsh, field: int) -> None:
 
 def gmsh_spheres(centres: np.ndarray, radii: np.ndarray, comm: MPI.Comm, *, order: int = 1,
                  size: float = 0.25, refine: list | None = None):
-    """Mesh each sphere with gmsh; cell tag = facet tag = particle id (0-based).
+    """Mesh each sphere with gmsh: (mesh, cell tags, facet tags), tag = particle id (0-based).
 
     ``refine``: optional list of (point (3,), size_min, distance_min, distance_max) in mm: the
     element size is size_min within distance_min of the point, growing linearly to the global
     size at distance_max (gmsh Distance + Threshold fields), e.g. around contact points.
     """
-    from .assembly import ParticleAssembly
-
     if order not in (1, 2):
         raise ValueError(f"tet_order must be 1 or 2, got {order}")
     if not 0.01 <= size <= 1.0:
@@ -98,5 +96,4 @@ def gmsh_spheres(centres: np.ndarray, radii: np.ndarray, comm: MPI.Comm, *, orde
         gmsh.model.mesh.generate(3)
         gmsh.model.mesh.setOrder(order)
 
-    mesh, cell_tags, facet_tags = gmsh_to_dolfinx("particles", build, comm)
-    return ParticleAssembly(mesh, cell_tags, facet_tags, centres, radii, "tetrahedron")
+    return gmsh_to_dolfinx("particles", build, comm)
