@@ -25,8 +25,8 @@ def tensor_values(prefix: str, tensor) -> dict[str, float]:
 
 def tensor_from_columns(columns, prefix: str) -> np.ndarray:
     """(n, 3, 3) tensors from the columns ``prefix`` + 11 ... 33 of a mapping of column arrays
-    (``read_csv``) or a :class:`History`."""
-    get = columns.column if isinstance(columns, History) else columns.__getitem__
+    (``read_csv``) or of anything with a ``column(name)`` method (a :class:`History`)."""
+    get = columns.column if hasattr(columns, "column") else columns.__getitem__
     return np.stack([np.asarray(get(c), dtype=float) for c in tensor_columns(prefix)], axis=-1).reshape(-1, 3, 3)
 
 

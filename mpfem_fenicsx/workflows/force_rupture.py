@@ -35,6 +35,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..homogenization import first_crossing, hencky_strain, row_increments, second_order_work, stress_invariants
+from ..io.history import tensor_from_columns
 from ..loading.mixed import normal_stress_path
 from .stress_probes import StressProbeCase, consolidate, run_probe
 
@@ -75,7 +76,7 @@ def rupture_rows(history, t_start: float, start: np.ndarray, final: np.ndarray, 
     ``final`` (3,) the path's end stresses (MPa, compression > 0)."""
     t = history.column("time")
     keep = t > t_start * (1 + 1e-12)
-    sigma, F = history.tensor("sigma_schmidt_")[keep], history.tensor("F")[keep]
+    sigma, F = tensor_from_columns(history, "sigma_schmidt_")[keep], tensor_from_columns(history, "F")[keep]
     h = hencky_strain(F)
     mean, q = stress_invariants(-sigma)  # the invariants and W2 take tension > 0
     normal = np.diagonal(sigma, axis1=1, axis2=2)
