@@ -20,6 +20,7 @@ sigma_vol_*: the volume average), packing.txt, loading_path.png.
 
 import argparse
 import sys
+from inspect import signature
 
 import numpy as np
 from mpi4py import MPI
@@ -46,8 +47,9 @@ def main(argv=None) -> int:
     p.add_argument("--integral-time", type=float, default=1e-4, help="PI servo's integral time (s of loading time; "
                    "0: proportional only, which lags behind the lateral stress the axial compression adds)")
     p.add_argument("--filter-time", type=float, default=1e-5, help="low-pass filter of the measured stress (s)")
-    p.add_argument("--axial-ramp", type=float, default=0.1, help="fraction of the axial phase over which the "
-                   "axial strain rate rises from zero (a sudden start jolts the lateral stresses)")
+    p.add_argument("--axial-ramp", type=float, default=signature(triaxial_control).parameters["axial_ramp"].default,
+                   help="fraction of the axial phase over which the axial strain rate rises from zero (a sudden "
+                        "start jolts the lateral stresses) (default: %(default)s)")
     add_schema_option(p, "output", "outputs", default=60)
     p.add_argument("--out", default="results/triaxial")
     args = p.parse_args(argv)

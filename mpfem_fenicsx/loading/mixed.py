@@ -311,14 +311,15 @@ def pressure_control(pressure: float, ramp: float, hold: float, rate: float, ban
 def triaxial_control(confining: float, consolidation: float, hold: float, axial_strain: float, axial_time: float,
                      rate: float, band: float, axis: int = 2, measure: str = "schmidt",
                      integral_time: float | None = None, filter_time: float = 0.0,
-                     axial_ramp: float = 0.1) -> StressControl:
+                     axial_ramp: float = 0.3) -> StressControl:
     """Triaxial compression: isotropic consolidation (the three normal stresses ramped to
     ``confining`` MPa over ``consolidation`` s, then held ``hold`` s), then axial compression
     along ``axis`` to the Hencky strain ``axial_strain`` (> 0: shortening) over ``axial_time`` s,
     the lateral normal stresses held at ``confining``. The axial strain rate rises linearly over
     the first ``axial_ramp`` fraction of ``axial_time``, then stays constant: a sudden start
-    jolts the lateral stresses (measured on the flagship: +9.6 % 3 us after a step start, before
-    the servo reacts). Shear strains stay zero.
+    jolts the lateral stresses before the servo reacts, a short ramp-in still leaves a transient
+    in its first rows (the flagship's ramp-in study: README.md, ``demos/triaxial.py``). Shear
+    strains stay zero.
     ``rate`` (1/s), ``band`` (MPa), ``measure``, ``integral_time`` and ``filter_time`` (s): the
     servo's (see :class:`StressControl`)."""
     for name, value in (("confining", confining), ("consolidation", consolidation), ("axial_strain", axial_strain),
