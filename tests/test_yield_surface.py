@@ -196,7 +196,7 @@ def test_limit_specific_surface_of_a_collapsing_fan():
     in one row) at constant stress. Levels above G0 - 0.06 are crossed at distinct stresses;
     every lower one at the collapse, on the same curve: Gamma_l is the highest grid level
     below G0 - 0.06. A fan hardening without peak or collapse has none."""
-    from mpfem_fenicsx.workflows.yield_surface import limit_specific_surface, w2_sign_changes
+    from mpfem_fenicsx.homogenization.surfaces import limit_specific_surface, w2_sign_changes
 
     G0, t = 2.5, np.linspace(0.0, 1.0, 51)
     radius = np.minimum(5.0 * t, 3.0)
