@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from mpfem_fenicsx.cli.casefile import add_schema_option
 from mpfem_fenicsx.cli.exits import bad_input_exits
 from mpfem_fenicsx.workflows.compaction import initial_packing, run_compaction
 from mpfem_fenicsx.workflows.simple_cubic import COMPONENTS, checks, simple_cubic_case
@@ -80,8 +81,8 @@ def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--loading", choices=("isotropic", "die", "both"), default="both")
     p.add_argument("--radius", type=float, default=0.1, help="sphere radius r (mm); the cell is 4 r")
-    p.add_argument("--target-density", type=float, default=0.95)
-    p.add_argument("--increments", type=int, default=4000, help="explicit increments per loading")
+    add_schema_option(p, "loading", "target_density", default=0.95)
+    add_schema_option(p, "solver", "increments", default=4000, help="per loading")
     p.add_argument("--face-copies-only", action="store_true",
                    help="the thesis' 12 face copies (no edge / corner copies)")
     p.add_argument("--no-visual", action="store_true", help="skip ParaView output and the particle PNG")

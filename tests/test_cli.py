@@ -361,3 +361,42 @@ def test_mpirun_two_ranks_run_and_restart(tiny_run, tmp_path, root):
     from mpfem_fenicsx.cli.main import main as mpfem
 
     assert mpfem(["run", str(root / TINY), "--out", str(tmp_path / "c"), "--restart", str(tmp_path / "a")]) == 2
+
+
+def _outside(allowed):
+    """Values just outside a numeric range (below its low end, above its high end)."""
+    step = 1 if allowed.kind is int else 1e-9 * max(1.0, abs(allowed.low or 0), abs(allowed.high or 0))
+    values = []
+    if allowed.low is not None:
+        values.append(allowed.low if allowed.open_low else allowed.low - step)
+    if allowed.high is not None:
+        values.append(allowed.high if allowed.open_high else allowed.high + step)
+    return values
+
+
+def test_case_file_and_case_object_refuse_the_same_values(tmp_path):
+    """A range is defined once (the CompactionCase / ElastoPlastic field): every value a case file
+    refuses as out of range, the case object refuses too, with the same words; its default passes."""
+    from dataclasses import replace
+
+    from mpfem_fenicsx.cli.casefile import CaseError, to_case
+    from mpfem_fenicsx.material import LEAD
+    from mpfem_fenicsx.workflows.compaction import CompactionCase
+
+    probed = 0
+    for key in SCHEMA:
+        if key.target is None or key.target == "out_dir" or key.kind not in (int, float):
+            continue
+        for value in _outside(key.range):
+            with pytest.raises(CaseError, match="out of range"):
+                key.check(value, "case")
+            with pytest.raises(ValueError, match=rf"{key.target.split('.')[-1]} = .* is out of range: must be "
+                                                 rf"{key.allowed()}"):
+                if key.target.startswith("material."):
+                    replace(LEAD, **{key.target[9:]: value})
+                else:
+                    CompactionCase(**{key.target: value})
+            probed += 1
+        if key.default is not None:
+            assert to_case({(key.section, key.name): key.check(key.default, "case")}, "out")
+    assert probed >= 30, probed

@@ -32,11 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from ..boundary import KINDS
-from ..loading import PROFILES
 from ..material import ElastoPlastic
-from ..meshes.cubesphere import RESOLUTIONS
-from ..solvers import SOLVERS
+from ..parameters import Range, parameter_default, parameter_range
 from ..workflows.compaction import CompactionCase
 from .exits import BAD_INPUT, fail
 
@@ -47,180 +44,156 @@ class CaseError(ValueError):
 
 @dataclass(frozen=True)
 class Key:
+    """A case-file key ``[section] name``: the values it allows (``range``, its meaning and unit
+    in ``range.doc``), its default and the CompactionCase attribute it sets (``target``;
+    ``material.<x>``: an ElastoPlastic field). A key with a target takes range and default from
+    that field's :func:`~mpfem_fenicsx.parameters.parameter` declaration (:func:`case_key`)."""
+
     section: str
     name: str
-    kind: type  # int, float, bool or str
-    default: Any
-    doc: str
-    low: float | None = None  # allowed range (inclusive unless open_low / open_high)
-    high: float | None = None
-    open_low: bool = False
-    open_high: bool = False
-    choices: tuple | None = None
-    optional: bool = False  # may be absent (no default value)
-    target: str | None = None  # CompactionCase attribute (material.<x>: ElastoPlastic field)
+    range: Range
+    default: Any = None
+    target: str | None = None
+
+    @property
+    def kind(self) -> type:
+        return self.range.kind
+
+    @property
+    def doc(self) -> str:
+        return self.range.doc
+
+    @property
+    def choices(self) -> tuple | None:
+        return self.range.choices
 
     @property
     def field(self) -> str:
         return f"[{self.section}] {self.name}"
 
     def allowed(self) -> str:
-        if self.choices:
-            return "one of " + ", ".join(repr(c) for c in self.choices)
-        parts = []
-        if self.low is not None:
-            parts.append(f"{'>' if self.open_low else '>='} {self.low:g}")
-        if self.high is not None:
-            parts.append(f"{'<' if self.open_high else '<='} {self.high:g}")
-        return " and ".join(parts) if parts else {int: "an integer", float: "a number", bool: "true or false",
-                                                    str: "a string"}[self.kind]
+        return self.range.allowed()
 
     def check(self, value: Any, where: str) -> Any:
-        kinds = {int: "an integer", float: "a number", bool: "true or false", str: "a string"}
+        """``value`` if it has the key's type and range, else CaseError naming ``where`` and the key."""
         ok_type = (isinstance(value, bool) if self.kind is bool else
                    isinstance(value, int) and not isinstance(value, bool) if self.kind is int else
                    isinstance(value, (int, float)) and not isinstance(value, bool) if self.kind is float else
                    isinstance(value, str))
         if not ok_type:
-            raise CaseError(f"{where}: {self.field} = {value!r} has the wrong type: expected {kinds[self.kind]}")
+            raise CaseError(f"{where}: {self.field} = {value!r} has the wrong type: expected {_KIND_WORDS[self.kind]}")
         if self.kind is float:
             value = float(value)
-            if value != value or value in (float("inf"), float("-inf")):
-                raise CaseError(f"{where}: {self.field} = {value!r} must be a finite number")
-        if self.choices and value not in self.choices:
-            raise CaseError(f"{where}: {self.field} = {value!r} is not allowed: must be {self.allowed()}")
-        bad_low = self.low is not None and (value <= self.low if self.open_low else value < self.low)
-        bad_high = self.high is not None and (value >= self.high if self.open_high else value > self.high)
-        if bad_low or bad_high:
-            raise CaseError(f"{where}: {self.field} = {value!r} is out of range: must be {self.allowed()} "
-                            f"[{self.doc}]")
+        why = self.range.problem(value)
+        if why is not None:
+            raise CaseError(f"{where}: {self.field} = {value!r} {why}")
         return value
 
 
-_D = CompactionCase()
-_M = ElastoPlastic()
+_KIND_WORDS = {int: "an integer", float: "a number", bool: "true or false", str: "a string"}
+
+
+def case_key(section: str, name: str, target: str) -> Key:
+    """The key setting CompactionCase.``target`` (``material.<x>``: an ElastoPlastic field):
+    range and default from the field's declaration."""
+    owner, attribute = (ElastoPlastic, target[9:]) if target.startswith("material.") else (CompactionCase, target)
+    return Key(section, name, parameter_range(owner, attribute), parameter_default(owner, attribute), target)
+
+
+def own_key(section: str, name: str, kind: type, doc: str, low: float | None = None, high: float | None = None,
+            *, open_low: bool = False, open_high: bool = False, choices: tuple | None = None,
+            default: Any = None, target: str | None = None) -> Key:
+    """A key that sets no CompactionCase field of its own (the [control] keys build the stress
+    control, [output] directory the results folder): its range here; optional without ``default``."""
+    return Key(section, name, Range(doc, kind, low, high, open_low, open_high, choices, optional=default is None),
+               default, target)
+
+
+def _material(name: str) -> Key:
+    return case_key("material", name, f"material.{name}")
+
 
 #: every key of a case file (section order = the order of the documentation)
 SCHEMA: tuple[Key, ...] = (
     # particles: thesis table 2.1 (lead)
-    Key("material", "E", float, _M.E, "Young's modulus (MPa)", 0, None, open_low=True, target="material.E"),
-    Key("material", "nu", float, _M.nu, "Poisson's ratio (-)", -1, 0.5, True, True, target="material.nu"),
-    Key("material", "sigma_0", float, _M.sigma_0, "initial yield stress (MPa)", 0, None, open_low=True,
-        target="material.sigma_0"),
-    Key("material", "hardening", str, _M.hardening, "sigma_y = sigma_0 + K eps_p^n (power, eq. 2.1) or "
-        "sigma_0 + H eps_p (linear)", choices=("power", "linear"), target="material.hardening"),
-    Key("material", "K", float, _M.K, "power-law hardening modulus (MPa)", 0, None, target="material.K"),
-    Key("material", "n", float, _M.n, "power-law hardening exponent (-)", 0, 1, open_low=True, target="material.n"),
-    Key("material", "H", float, _M.H, "linear hardening modulus (MPa)", 0, None, target="material.H"),
-    Key("material", "density", float, _M.density, "mass density (t/mm^3)", 0, None, open_low=True,
-        target="material.density"),
+    *(_material(name) for name in ("E", "nu", "sigma_0", "hardening", "K", "n", "H", "density")),
     # packing (thesis §2.2)
-    Key("packing", "particles", int, _D.particles, "particles of the generated periodic packing", 2, 5000,
-        target="particles"),
-    Key("packing", "r_min", float, _D.r_min, "smallest radius of the generated packing (mm)", 0, None,
-        open_low=True, target="r_min"),
-    Key("packing", "r_max", float, _D.r_max, "largest radius of the generated packing (mm)", 0, None,
-        open_low=True, target="r_max"),
-    Key("packing", "seed", int, _D.seed, "seed of the packing generator", 0, None, target="seed"),
-    Key("packing", "fraction", float, None, "stop the generator at this solid fraction (default: jammed, "
-        "~0.63) (-)", 0.1, 0.66, optional=True, target="packing_fraction"),
-    Key("packing", "file", str, None, "packing file instead of the generator: 'dx dy dz' then one "
-        "'x y z r' line per sphere (mm; path relative to the case file)", optional=True, target="packing_file"),
+    case_key("packing", "particles", "particles"),
+    case_key("packing", "r_min", "r_min"),
+    case_key("packing", "r_max", "r_max"),
+    case_key("packing", "seed", "seed"),
+    case_key("packing", "fraction", "packing_fraction"),
+    own_key("packing", "file", str, "packing file instead of the generator: 'dx dy dz' then one 'x y z r' line per "
+            "sphere (mm; path relative to the case file)", target="packing_file"),
     # meshing (SPEC §2)
-    Key("mesh", "resolution", str, _D.mesh, "cube-sphere particle: chapter2 = the thesis' appendix-A particle "
-        "(6x6 quadrilaterals per cube face, 561 nodes), chapter4 = its 10x10 O-grid (1 933 nodes), coarse = "
-        "4x4 with 4 shell layers (517 nodes); every one holds its sphere's volume", choices=tuple(RESOLUTIONS),
-        target="mesh"),
-    Key("mesh", "refinement", int, _D.refinement, "cube-sphere refinement: multiplies the resolution's "
-        "subdivisions (chapter2: 1 = 561 nodes per particle, 2 = 3 929)", 1, 4, target="refinement"),
-    Key("mesh", "radius_factor", float, _D.radius_factor, "radii shrunk by this factor before meshing (-)", 0.5, 1,
-        target="radius_factor"),
+    case_key("mesh", "resolution", "mesh"),
+    case_key("mesh", "refinement", "refinement"),
+    case_key("mesh", "radius_factor", "radius_factor"),
     # contact law (thesis §3.3)
-    Key("contact", "friction", float, _D.friction, "Coulomb friction coefficient mu (-)", 0, 2, target="friction"),
-    Key("contact", "gamma", float, _D.gamma, "Dupre adhesion energy (mJ/mm^2)", 0, 1, target="gamma"),
-    Key("contact", "delta_max", float, _D.delta_max, "opening at which adhesion vanishes (mm)", 0, 0.01,
-        open_low=True, target="delta_max"),
-    Key("contact", "asperity_yield", float, _D.asperity_yield, "asperity yield stress, p0 = 3 x it (MPa)", 0, None,
-        open_low=True, target="asperity_yield"),
-    Key("contact", "penalty_factor", float, _D.penalty_factor, "penalty k = factor x E / h, h the contact "
-        "element size (-)", 0, None, open_low=True, target="penalty_factor"),
+    case_key("contact", "friction", "friction"),
+    case_key("contact", "gamma", "gamma"),
+    case_key("contact", "delta_max", "delta_max"),
+    case_key("contact", "asperity_yield", "asperity_yield"),
+    case_key("contact", "penalty_factor", "penalty_factor"),
     # boundary conditions (thesis table 2.2)
-    Key("boundary", "condition", str, _D.bc, "GDH, GDF (driven particles), CLPS (simplified periodic) or CLP "
-        "(periodic)", choices=tuple(KINDS), target="bc"),
-    Key("boundary", "images", bool, None, "CLP realized by contact with periodic images (default for CLP) or, "
-        "false, by tied copies", optional=True, target="images"),
-    Key("boundary", "d_bc", float, None, "duplication distance / r_max (default: thesis table 2.3: 1.8 CLP, "
-        "2.5 others) (-)", 0, 10, open_low=True, optional=True, target="d_bc"),
+    case_key("boundary", "condition", "bc"),
+    case_key("boundary", "images", "images"),
+    case_key("boundary", "d_bc", "d_bc"),
     # loading path (thesis §2.2.3)
-    Key("loading", "path", str, _D.loading, "isotropic or die (uniaxial strain along z) compaction",
-        choices=("isotropic", "die"), target="loading"),
-    Key("loading", "target_density", float, _D.target_density, "relative density to reach, above the "
-        "packing's initial one (-)", 0, 1, True, True, target="target_density"),
-    Key("loading", "duration", float, _D.duration, "loading time, mass-scaled (s)", 0, None, open_low=True,
-        target="duration"),
-    Key("loading", "profile", str, _D.profile, "amplitude of the compaction in time: constant strain rate between "
-        "smooth ramps, or the Abaqus smooth step (peak rate mid-path)", choices=tuple(PROFILES), target="profile"),
+    case_key("loading", "path", "loading"),
+    case_key("loading", "target_density", "target_density"),
+    case_key("loading", "duration", "duration"),
+    case_key("loading", "profile", "profile"),
     # solver (SPEC §6)
-    Key("solver", "kind", str, _D.solver, "explicit (central differences, mass scaling) or implicit "
-        "(Newton; experimental for granular volumes)", choices=SOLVERS, target="solver"),
-    Key("solver", "increments", int, _D.increments, "explicit increments over the loading", 10, None,
-        target="increments"),
-    Key("solver", "steps", int, _D.steps, "implicit load steps (adaptive)", 1, None, target="steps"),
-    Key("solver", "damping", float, _D.damping, "explicit viscous damping of the particles' rigid motion relative "
-        "to the imposed flow (1/duration); it drags the particles towards the affine flow and adds a "
-        "rate-dependent stress", 0, None, target="damping"),
-    Key("solver", "local_damping", float, _D.local_damping, "explicit local non-viscous damping alpha of the "
-        "particles' rigid motion (Cundall): removes oscillations, resists no steady motion (-)", 0, 1,
-        open_high=True, target="local_damping"),
-    Key("solver", "hold", float, _D.hold, "explicit relaxation hold at the final gradient after the loading, in "
-        "units of the loading duration (rows with time > duration)", 0, 10, target="hold"),
+    case_key("solver", "kind", "solver"),
+    case_key("solver", "increments", "increments"),
+    case_key("solver", "steps", "steps"),
+    case_key("solver", "damping", "damping"),
+    case_key("solver", "local_damping", "local_damping"),
+    case_key("solver", "hold", "hold"),
     # stress-controlled paths (loading.mixed; beyond the thesis, issue 24): times in units of the
     # [loading] duration, the servo's rate in strain per duration
-    Key("control", "path", str, "none", "stress-controlled path replacing the compaction (CLP or CLPS, explicit): "
-        "pressure = isotropic pressure ramp to `pressure`, then held; triaxial = the same consolidation, then axial "
-        "compression along z at constant lateral stress; cycle = the same consolidation, unload to `unload_to`, "
-        "reload to `reload_to` (each ramp `ramp`, each hold `hold`); lode = the same consolidation, then the von "
-        "Mises stress ramped to `q_max` along `lode_angle` at constant mean stress over `shear_time`",
-        choices=("none", "pressure", "triaxial", "cycle", "lode")),
-    Key("control", "pressure", float, None, "target (pressure) or confining (triaxial) pressure (MPa, compression "
-        "> 0); required with a path", 0, 1000, open_low=True, optional=True),
-    Key("control", "ramp", float, None, "time of the pressure ramp (x duration; default 1)", 0, 100, open_low=True,
-        optional=True),
-    Key("control", "hold", float, None, "hold at the pressure after the ramp (x duration; default 0.3)", 0, 100,
-        optional=True),
-    Key("control", "axial_strain", float, None, "triaxial: axial Hencky shortening (-; default 0.1)", 0, 0.5,
-        open_low=True, optional=True),
-    Key("control", "axial_time", float, None, "triaxial: time of the axial compression (x duration; default 1)", 0,
-        100, open_low=True, optional=True),
-    Key("control", "unload_to", float, None, "cycle: pressure of the unload (MPa; required, below `pressure`)", 0,
-        1000, optional=True),
-    Key("control", "reload_to", float, None, "cycle: pressure of the reload (MPa; default `pressure`; above "
-        "`unload_to`)", 0, 1000, open_low=True, optional=True),
-    Key("control", "q_max", float, None, "lode: von Mises stress at the end of the shear (MPa; required)", 0, 1000,
-        open_low=True, optional=True),
-    Key("control", "lode_angle", float, None, "lode: Lode angle of the shear (degrees; 0 = triaxial compression "
-        "along x, 60 = triaxial extension along z; default 0)", -360, 360, optional=True),
-    Key("control", "shear_time", float, None, "lode: time of the shear ramp (x duration; default 1)", 0, 100,
-        open_low=True, optional=True),
-    Key("control", "rate", float, None, "the servo's largest strain rate (strain per duration; default 0.1)", 0, 10,
-        open_low=True, optional=True),
-    Key("control", "band", float, None, "stress error at which the servo reaches its rate (MPa; default: a "
-        "quarter of the pressure)", 0, None, open_low=True, optional=True),
-    Key("control", "integral_time", float, None, "integral time of the PI servo (x duration; default 0.1; 0: "
-        "proportional only, which lags behind a drifting stress)", 0, None, optional=True),
-    Key("control", "filter_time", float, None, "low-pass filter of the measured stress (x duration; default "
-        "0.01)", 0, None, optional=True),
-    Key("control", "measure", str, None, "the servo's stress: schmidt (auxiliary nodes' reactions, eq. 2.19; "
-        "default) or volume (the particles' volume average, eq. C.7)", choices=("schmidt", "volume"), optional=True),
+    own_key("control", "path", str, "stress-controlled path replacing the compaction (CLP or CLPS, explicit): "
+            "pressure = isotropic pressure ramp to `pressure`, then held; triaxial = the same consolidation, then "
+            "axial compression along z at constant lateral stress; cycle = the same consolidation, unload to "
+            "`unload_to`, reload to `reload_to` (each ramp `ramp`, each hold `hold`); lode = the same consolidation, "
+            "then the von Mises stress ramped to `q_max` along `lode_angle` at constant mean stress over "
+            "`shear_time`", choices=("none", "pressure", "triaxial", "cycle", "lode"), default="none"),
+    own_key("control", "pressure", float, "target (pressure) or confining (triaxial) pressure (MPa, compression "
+            "> 0); required with a path", 0, 1000, open_low=True),
+    own_key("control", "ramp", float, "time of the pressure ramp (x duration; default 1)", 0, 100, open_low=True),
+    own_key("control", "hold", float, "hold at the pressure after the ramp (x duration; default 0.3)", 0, 100),
+    own_key("control", "axial_strain", float, "triaxial: axial Hencky shortening (-; default 0.1)", 0, 0.5,
+            open_low=True),
+    own_key("control", "axial_time", float, "triaxial: time of the axial compression (x duration; default 1)", 0,
+            100, open_low=True),
+    own_key("control", "unload_to", float, "cycle: pressure of the unload (MPa; required, below `pressure`)", 0,
+            1000),
+    own_key("control", "reload_to", float, "cycle: pressure of the reload (MPa; default `pressure`; above "
+            "`unload_to`)", 0, 1000, open_low=True),
+    own_key("control", "q_max", float, "lode: von Mises stress at the end of the shear (MPa; required)", 0, 1000,
+            open_low=True),
+    own_key("control", "lode_angle", float, "lode: Lode angle of the shear (degrees; 0 = triaxial compression "
+            "along x, 60 = triaxial extension along z; default 0)", -360, 360),
+    own_key("control", "shear_time", float, "lode: time of the shear ramp (x duration; default 1)", 0, 100,
+            open_low=True),
+    own_key("control", "rate", float, "the servo's largest strain rate (strain per duration; default 0.1)", 0, 10,
+            open_low=True),
+    own_key("control", "band", float, "stress error at which the servo reaches its rate (MPa; default: a quarter "
+            "of the pressure)", 0, open_low=True),
+    own_key("control", "integral_time", float, "integral time of the PI servo (x duration; default 0.1; 0: "
+            "proportional only, which lags behind a drifting stress)", 0),
+    own_key("control", "filter_time", float, "low-pass filter of the measured stress (x duration; default 0.01)",
+            0),
+    own_key("control", "measure", str, "the servo's stress: schmidt (auxiliary nodes' reactions, eq. 2.19; "
+            "default) or volume (the particles' volume average, eq. C.7)", choices=("schmidt", "volume")),
     # outputs (SPEC §10)
-    Key("output", "directory", str, None, "results folder (default: results/<case file name>; --out "
-        "overrides)", optional=True, target="out_dir"),
-    Key("output", "outputs", int, _D.outputs, "history rows and ParaView frames", 1, 100000, target="outputs"),
-    Key("output", "visual", bool, _D.visual, "write ParaView files and PNG figures", target="visual"),
-    Key("output", "checkpoint_every", int, _D.checkpoint_every, "checkpoint every so many outputs (0: none)", 0,
-        None, target="checkpoint_every"),
-    Key("output", "checkpoint_keep", int, _D.checkpoint_keep, "newest checkpoints kept (0: all)", 0, None,
-        target="checkpoint_keep"),
+    own_key("output", "directory", str, "results folder (default: results/<case file name>; --out overrides)",
+            target="out_dir"),
+    case_key("output", "outputs", "outputs"),
+    case_key("output", "visual", "visual"),
+    case_key("output", "checkpoint_every", "checkpoint_every"),
+    case_key("output", "checkpoint_keep", "checkpoint_keep"),
 )
 
 SECTIONS = tuple(dict.fromkeys(k.section for k in SCHEMA))
@@ -355,7 +328,7 @@ def to_case(values: dict[tuple[str, str], Any], out_dir: str, where: str = "case
             kwargs["material"] = ElastoPlastic(**material)
         control = {k: v for (section, k), v in values.items() if section == "control"}
         if control.get("path", "none") != "none":
-            kwargs["control"] = stress_control(control, kwargs.get("duration", _D.duration))
+            kwargs["control"] = stress_control(control, kwargs.get("duration", parameter_default(CompactionCase, "duration")))
         return CompactionCase(**kwargs)
     except ValueError as err:  # a rule of the case classes not expressed in the schema
         raise CaseError(f"{where}: {err}") from None

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..parameters import check_parameters, parameter
+
 
 @dataclass(frozen=True)
 class ElastoPlastic:
@@ -14,30 +16,18 @@ class ElastoPlastic:
     - ``hardening="linear"``: sigma_y = sigma_0 + H * eps_p    (thesis table 3.2)
     """
 
-    E: float = 10000.0  # Young's modulus, MPa
-    nu: float = 0.435  # Poisson's ratio
-    sigma_0: float = 5.0  # initial yield stress, MPa
-    hardening: str = "power"
-    K: float = 15.5  # power-law hardening modulus, MPa
-    n: float = 0.35  # power-law hardening exponent
-    H: float = 0.0  # linear hardening modulus, MPa
-    density: float = 1e-8  # t/mm^3
+    E: float = parameter(10000.0, "Young's modulus (MPa)", low=0, open_low=True)
+    nu: float = parameter(0.435, "Poisson's ratio (-)", low=-1, high=0.5, open_low=True, open_high=True)
+    sigma_0: float = parameter(5.0, "initial yield stress (MPa)", low=0, open_low=True)
+    hardening: str = parameter("power", "sigma_y = sigma_0 + K eps_p^n (power, eq. 2.1) or sigma_0 + H eps_p "
+                               "(linear)", choices=("power", "linear"))
+    K: float = parameter(15.5, "power-law hardening modulus (MPa)", low=0)
+    n: float = parameter(0.35, "power-law hardening exponent (-)", low=0, high=1, open_low=True)
+    H: float = parameter(0.0, "linear hardening modulus (MPa)", low=0)
+    density: float = parameter(1e-8, "mass density (t/mm^3)", low=0, open_low=True)
 
     def __post_init__(self):
-        checks = [
-            ("E", self.E, self.E > 0, "> 0 MPa"),
-            ("nu", self.nu, -1.0 < self.nu < 0.5, "in (-1, 0.5)"),
-            ("sigma_0", self.sigma_0, self.sigma_0 > 0, "> 0 MPa"),
-            ("K", self.K, self.K >= 0, ">= 0 MPa"),
-            ("n", self.n, 0 < self.n <= 1, "in (0, 1]"),
-            ("H", self.H, self.H >= 0, ">= 0 MPa"),
-            ("density", self.density, self.density > 0, "> 0 t/mm^3"),
-        ]
-        for name, value, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"material.{name} = {value!r} is out of range: must be {allowed}")
-        if self.hardening not in ("power", "linear"):
-            raise ValueError(f"material.hardening = {self.hardening!r}: must be 'power' or 'linear'")
+        check_parameters(self, prefix="material.")
 
     @property
     def mu(self) -> float:

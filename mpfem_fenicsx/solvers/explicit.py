@@ -164,14 +164,14 @@ class ExplicitSolver:
         self.comm = problem.comm
         mesh = problem.mesh
 
-        wave_speed, cell_length = self._element_mass_scaling(settings)
+        self._element_mass_scaling(settings)
         self._contact_mass = None  # per owned surface node, set by _contact_mass_scaling
         self._build_mass()
 
         v = ufl.TestFunction(problem.V)
         self.velocity = dolfinx.fem.Function(problem.V, name="velocity")
         self.viscous_form = dolfinx.fem.form(forms.bulk_viscosity_work(
-            problem.u, self.velocity, v, self.density, wave_speed, cell_length,
+            problem.u, self.velocity, v, self.density, self.scaling.wave_speed, self.scaling.cell_length,
             dolfinx.fem.Constant(mesh, settings.bulk_viscosity_linear),
             dolfinx.fem.Constant(mesh, settings.bulk_viscosity_quadratic), problem.dx_vol))
 
@@ -201,16 +201,16 @@ class ExplicitSolver:
         self._H_prev = np.zeros((3, 3))  # H = F0 - I at the previous step
         self._image_force = None  # bcs.image_force() at the current step (saved with the state)
 
-    def _element_mass_scaling(self, settings: ExplicitSettings):
+    def _element_mass_scaling(self, settings: ExplicitSettings) -> None:
         """Element stable increments and element-wise mass scaling (:mod:`.mass_scaling`): sets
-        ``dt``, ``dt_stable_unscaled``, ``mass_scaling_max``, the scaled ``density``; returns the
-        cell functions of the scaled wave speed and of the element length (bulk viscosity)."""
+        ``scaling`` (with the cell functions of the scaled wave speed and of the element length
+        that the bulk viscosity reads), ``dt``, ``dt_stable_unscaled``, ``mass_scaling_max`` and
+        the scaled ``density``."""
         self.scaling, dt_e = ElementMassScaling.build(self.problem, settings)
         self.dt_stable_unscaled = self.comm.allreduce(float(dt_e.min()), op=MPI.MIN)
         self.dt = settings.target_dt if settings.target_dt is not None else self.dt_stable_unscaled
         self.mass_scaling_max = self.scaling.largest(self.comm)
         self.density = self.scaling.density
-        return self.scaling.wave_speed, self.scaling.cell_length
 
     def _build_mass(self) -> None:
         """Lumped mass (with the contact springs' mass) and its reduction."""

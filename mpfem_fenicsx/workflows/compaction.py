@@ -39,9 +39,9 @@ from ..meshes.packing import (Duplicates, Packing, assembly_particles, duplicate
                               packing_format, periodic_pair_realizations, read_packing,
                               write_packing)
 from ..problem import SolidProblem
-from ..solvers import ImplicitSolver, StepControl, solver_kind
-from ..solvers.implicit import NonConvergence
-from ..solvers.explicit import ExplicitSettings, ExplicitSolver
+from ..parameters import check_parameters, parameter
+from ..solvers import SOLVERS, NonConvergence, StepControl, create_solver, solver_kind
+from ..solvers.explicit import ExplicitSettings
 from .history_recorder import COLUMNS, HistoryRecorder
 
 
@@ -49,61 +49,77 @@ from .history_recorder import COLUMNS, HistoryRecorder
 class CompactionCase:
     """A compaction run. Radii in mm (thesis: 0.082-0.147 mm), densities relative (-)."""
 
-    particles: int = 24
-    target_density: float = 0.92
-    loading: str = "isotropic"  # or "die" (uniaxial strain along z)
-    bc: str = "CLP"
+    particles: int = parameter(24, "particles of the generated periodic packing", low=2, high=5000)
+    target_density: float = parameter(0.92, "relative density to reach, above the packing's initial one (-)",
+                                      low=0, high=1, open_low=True, open_high=True)
+    loading: str = parameter("isotropic", "isotropic or die (uniaxial strain along z) compaction",
+                             choices=("isotropic", "die"))
+    bc: str = parameter("CLP", "GDH, GDF (driven particles), CLPS (simplified periodic) or CLP (periodic)",
+                        choices=tuple(KINDS))
     #: CLP realization: True = contact with periodic images shifted by F0 (L o s), False = tied
     #: copies (thesis eq. 2.14); None = images for CLP. Images are the default: the copies exist
     #: only near half of the faces, and particles drifting out of their reach lose contacts
     #: (bench/README.md, issue 22)
-    images: bool | None = None
-    solver: str = "explicit"
-    seed: int = 1
-    packing_file: str | None = None  # plain packing file instead of the generator
+    images: bool | None = parameter(None, "CLP realized by contact with periodic images (default for CLP) or, "
+                                    "false, by tied copies", kind=bool)
+    solver: str = parameter("explicit", "explicit (central differences, mass scaling) or implicit (Newton; "
+                            "experimental for granular volumes)", choices=SOLVERS)
+    seed: int = parameter(1, "seed of the packing generator", low=0)
+    packing_file: str | None = parameter(None, "packing file instead of the generator: 'dx dy dz' then one "
+                                         "'x y z r' line per sphere (mm)", kind=str)
     packing: Packing | None = None  # or a packing object
-    r_min: float = 0.082
-    r_max: float = 0.147
-    packing_fraction: float | None = None  # generator: stop at this solid fraction (None: jammed)
-    d_bc: float | None = None  # duplication distance / r_max (None: thesis table 2.3)
+    r_min: float = parameter(0.082, "smallest radius of the generated packing (mm)", low=0, open_low=True)
+    r_max: float = parameter(0.147, "largest radius of the generated packing (mm)", low=0, open_low=True)
+    packing_fraction: float | None = parameter(None, "stop the generator at this solid fraction (default: "
+                                               "jammed, ~0.63) (-)", kind=float, low=0.1, high=0.66)
+    d_bc: float | None = parameter(None, "duplication distance / r_max (default: thesis table 2.3: 1.8 CLP, "
+                                   "2.5 others) (-)", kind=float, low=0, high=10, open_low=True)
     #: duplicate across edges and corners too (False: face copies only, e.g. the 12 copies of the
     #: ordered simple cubic cell, thesis §2.6)
     corners: bool = True
-    radius_factor: float = 0.99  # radii shrunk before meshing: no initial interpenetration
+    radius_factor: float = parameter(0.99, "radii shrunk by this factor before meshing: no initial "
+                                     "interpenetration (-)", low=0.5, high=1)
     #: named cube-sphere resolution (meshes.cubesphere.RESOLUTIONS): "chapter2" (the thesis'
     #: appendix-A particle, 6x6 quadrilaterals per cube face, 561 nodes), "chapter4" (10x10, 1 933
     #: nodes), "coarse" (4x4 and 4 shell layers, 517 nodes: the earlier default)
-    mesh: str = "chapter2"
-    refinement: int = 1
+    mesh: str = parameter("chapter2", "cube-sphere particle: chapter2 = the thesis' appendix-A particle (6x6 "
+                          "quadrilaterals per cube face, 561 nodes), chapter4 = its 10x10 O-grid (1 933 nodes), "
+                          "coarse = 4x4 with 4 shell layers (517 nodes); every one holds its sphere's volume",
+                          choices=tuple(RESOLUTIONS))
+    refinement: int = parameter(1, "cube-sphere refinement: multiplies the resolution's subdivisions (chapter2: "
+                                "1 = 561 nodes per particle, 2 = 3 929)", low=1, high=4)
     #: particle meshes hold their sphere's volume (nodes scaled by ~1 %, meshes.cubesphere); False:
     #: inscribed in the sphere (e.g. touching spheres of an ordered cell with radius_factor 1)
     exact_volume: bool = True
     #: override the resolution's hexahedra per inner-cube edge (odd: the contact points of
     #: axis-aligned neighbours fall on facet centres instead of nodes) and shell layers
-    divisions: int | None = None
-    layers: int | None = None
+    divisions: int | None = parameter(None, "hexahedra per inner-cube edge (default: the resolution's)", kind=int,
+                                      low=1, high=16)
+    layers: int | None = parameter(None, "shell layers (default: the resolution's)", kind=int, low=1, high=16)
     #: (3, 3) rotation of every particle mesh about its centre (None: cube-sphere axes along x, y,
     #: z). One generic rotation for all keeps identical particles exact translates of each other
     #: while their contact points fall inside facets, not on nodes (ordered packings)
     mesh_rotation: np.ndarray | None = None
     material: ElastoPlastic = LEAD
-    friction: float = 0.1
-    gamma: float = 0.0  # mJ/mm^2
-    delta_max: float = 5e-4  # mm
-    asperity_yield: float = 5.0  # MPa
-    penalty_factor: float = 10.0  # k = factor E / h (contact.laws.default_penalty)
-    duration: float = 1e-3  # s of (mass-scaled) loading time
+    friction: float = parameter(0.1, "Coulomb friction coefficient mu (-)", low=0, high=2)
+    gamma: float = parameter(0.0, "Dupre adhesion energy (mJ/mm^2)", low=0, high=1)
+    delta_max: float = parameter(5e-4, "opening at which adhesion vanishes (mm)", low=0, high=0.01, open_low=True)
+    asperity_yield: float = parameter(5.0, "asperity yield stress, p0 = 3 x it (MPa)", low=0, open_low=True)
+    penalty_factor: float = parameter(10.0, "penalty k = factor x E / h, h the contact element size (-)", low=0, open_low=True)
+    duration: float = parameter(1e-3, "loading time, mass-scaled (s)", low=0, open_low=True)
     #: relaxation hold at the final gradient after the compaction, in units of ``duration`` (its
     #: rows have time > duration); explicit: at the compaction's increment
-    hold: float = 0.0
+    hold: float = parameter(0.0, "explicit relaxation hold at the final gradient after the loading, in units of "
+                            "the loading duration (rows with time > duration)", low=0, high=10)
     #: amplitude of the compaction segment in time (loading.amplitude.PROFILES): "smooth-ramps",
     #: a constant Hencky strain rate between smooth ramps over the first 10 % and the last 30 % of
     #: the duration (peak rate 1.25 x the mean), or "smooth-step" (Abaqus SMOOTH STEP, peak 1.875 x
     #: the mean at mid-path, i.e. in the rearrangement range rho ~0.75-0.82)
-    profile: str = "smooth-ramps"
+    profile: str = parameter("smooth-ramps", "amplitude of the compaction in time: constant strain rate between "
+                             "smooth ramps, or the Abaqus smooth step (peak rate mid-path)", choices=tuple(PROFILES))
     #: explicit increments over the compaction (the mass-scaled increment is duration / increments);
     #: 6000 with smooth-ramps: sigma_m within 0.7 % of 12 000 on the flagship (bench/README.md)
-    increments: int = 6000
+    increments: int = parameter(6000, "explicit increments over the loading", low=10)
     #: further segments of the macroscopic path after the compaction, ((duration s, increment
     #: gradient G (3, 3)), ...): e.g. the unload F^d and a reload F^r of thesis eq. 4.7-4.9. Explicit
     #: runs keep the compaction's increment duration / increments (make durations multiples of it)
@@ -111,11 +127,15 @@ class CompactionCase:
     #: viscous damping of each particle's rigid motion relative to the imposed homogeneous flow, in
     #: units of 1 / duration (ExplicitSettings.damping; dissipation in E_damp). Off by default: it
     #: drags the particles towards the affine flow, a rate-dependent stress (bench/README.md)
-    damping: float = 0.0
+    damping: float = parameter(0.0, "explicit viscous damping of the particles' rigid motion relative to the "
+                               "imposed flow (1/duration); it drags the particles towards the affine flow and "
+                               "adds a rate-dependent stress", low=0)
     #: local non-viscous damping alpha of each particle's rigid motion (ExplicitSettings.local_damping,
     #: per body): -alpha |F_b| sign(W_b), against oscillations only, no steady drag (loading-rate
     #: study in bench/README.md)
-    local_damping: float = 0.7
+    local_damping: float = parameter(0.7, "explicit local non-viscous damping alpha of the particles' rigid "
+                                     "motion (Cundall): removes oscillations, resists no steady motion (-)",
+                                     low=0, high=1, open_high=True)
     #: carry every particle with the homogeneous flow at its centre (GranularBoundaryConditions
     #: comoving; the unknowns are the motions relative to it). False: only the constrained nodes
     #: follow F0, free particles move only when pushed (the carrier experiment of bench/README.md)
@@ -127,67 +147,36 @@ class CompactionCase:
     #: a servo on the measured stress (its ``measure``, every ``every`` explicit increments; CLP /
     #: CLPS, explicit; the control keeps its state: one run per control)
     control: object | None = None
-    steps: int = 100  # implicit: load steps (adaptive, cut back when Newton fails)
+    steps: int = parameter(100, "implicit load steps (adaptive, cut back when Newton fails)", low=1)
     #: implicit: steps of each of ``segments_after`` (missing ones: the compaction's increment
     #: duration / steps); each segment is stepped on its own, from its start to its end
     segment_steps: tuple = ()
     #: implicit: pseudo-time drag k_i = regularization E V_i / h^2 towards the last converged
     #: state (V_i nodal volume, h contact element size): holds particles before contact
     regularization: float = 0.05
-    outputs: int = 40
+    outputs: int = parameter(40, "history rows and ParaView frames", low=1, high=100000)
     #: explicit: a history row every so many increments (0: ``outputs`` rows over the whole path)
-    output_every: int = 0
+    output_every: int = parameter(0, "explicit: a history row every so many increments (0: from outputs)", low=0)
     #: write a checkpoint every so many outputs (and at the end) into out_dir/checkpoints; 0: never
-    checkpoint_every: int = 10
-    checkpoint_keep: int = 2  # newest checkpoints kept (0: all)
-    visual: bool = True
+    checkpoint_every: int = parameter(10, "checkpoint every so many outputs (0: none)", low=0)
+    checkpoint_keep: int = parameter(2, "newest checkpoints kept (0: all)", low=0)
+    visual: bool = parameter(True, "write ParaView files and PNG figures")
     out_dir: str = "results/isotropic"
 
     def __post_init__(self):
-        if self.bc not in KINDS:
-            raise ValueError(f"bc must be one of {', '.join(KINDS)}, got {self.bc!r}")
-        solver_kind(self.solver)  # ValueError naming the solvers
+        check_parameters(self)  # each field's range, from its parameter() declaration
         if self.images is True and self.bc != "CLP":
             raise ValueError(f"images=True realizes CLP only, got bc={self.bc!r}")
-        if self.loading not in ("isotropic", "die"):
-            raise ValueError(f"loading must be isotropic or die, got {self.loading!r}")
-        if self.packing_file is None and self.packing is None and not 2 <= self.particles <= 5000:
-            raise ValueError(f"particles must be in [2, 5000], got {self.particles}")
-        if not 0.0 < self.target_density < 1.0:
-            raise ValueError(f"target_density must be in (0, 1), got {self.target_density}")
-        if not 0.5 <= self.radius_factor <= 1.0:
-            raise ValueError(f"radius_factor must be in [0.5, 1], got {self.radius_factor}")
-        if self.mesh not in RESOLUTIONS:
-            raise ValueError(f"mesh must be one of {', '.join(RESOLUTIONS)}, got {self.mesh!r}")
-        if self.divisions is not None and not 1 <= self.divisions <= 16:
-            raise ValueError(f"divisions must be in [1, 16], got {self.divisions}")
-        if self.layers is not None and not 1 <= self.layers <= 16:
-            raise ValueError(f"layers must be in [1, 16], got {self.layers}")
         if self.mesh_rotation is not None:
             Q = np.asarray(self.mesh_rotation, dtype=float)
             if Q.shape != (3, 3) or not np.allclose(Q @ Q.T, np.eye(3), atol=1e-12) or np.linalg.det(Q) < 0:
                 raise ValueError("mesh_rotation must be a (3, 3) proper rotation matrix")
-        if self.profile not in PROFILES:
-            raise ValueError(f"profile must be one of {', '.join(PROFILES)}, got {self.profile!r}")
-        if not 0.0 <= self.hold <= 10.0:
-            raise ValueError(f"hold must be in [0, 10] (units of the loading duration), got {self.hold}")
-        if self.increments < 10:
-            raise ValueError(f"increments must be >= 10, got {self.increments}")
-        if self.outputs < 1:
-            raise ValueError(f"outputs must be >= 1, got {self.outputs}")
-        if self.output_every < 0:
-            raise ValueError(f"output_every must be >= 0 increments (0: from outputs), got {self.output_every}")
-        if self.checkpoint_keep < 0:
-            raise ValueError(f"checkpoint_keep must be >= 0 (0: keep all), got {self.checkpoint_keep}")
         if any(int(n) < 1 for n in self.segment_steps) or len(self.segment_steps) > len(self.segments_after):
             raise ValueError(f"segment_steps must hold >= 1 implicit steps for at most the {len(self.segments_after)} "
                              f"segments_after, got {self.segment_steps}")
-        if self.checkpoint_every < 0:
-            raise ValueError(f"checkpoint_every must be >= 0 outputs (0: no checkpoints), got {self.checkpoint_every}")
         if self.control is not None and (not boundary_kind(self.bc).periodic or not solver_kind(self.solver).stress_control):
             raise ValueError(f"control (stress-driven components) needs bc CLP or CLPS and the explicit solver, got "
                              f"bc={self.bc!r}, solver={self.solver!r}")
-
 
     @property
     def uses_images(self) -> bool:
@@ -275,6 +264,11 @@ class CompactionModel:
     def is_copy(self) -> np.ndarray:
         return np.any(self.shift != 0, axis=1)
 
+    @property
+    def num_dofs(self) -> int:
+        """Displacement dofs of the whole assembly, all ranks (3 per node)."""
+        return self.problem.V.dofmap.index_map.size_global * 3
+
     def follow(self, case: CompactionCase) -> None:
         """Reuse this model for ``case`` (same packing, mesh and contact settings): its loading
         path replaces the model's, the constraints follow it."""
@@ -350,8 +344,7 @@ def make_solver(case: CompactionCase, model: CompactionModel, log=print):
     """The solver factory: the case's solver on the model (the one place that reads its name),
     with the increments of the whole path."""
     problem, bcs, path = model.problem, model.bcs, model.path
-    num_dofs = problem.V.dofmap.index_map.size_global * 3
-    model_line = (f"model: {model.radii.size} particles, {num_dofs} dofs ({bcs.constraint.num_reduced_global} free), "
+    model_line = (f"model: {model.radii.size} particles, {model.num_dofs} dofs ({bcs.constraint.num_reduced_global} free), "
                   f"rho0 = {model.rho0:.4f}")
     if solver_kind(case.solver).static:
         log("WARNING: implicit granular runs are experimental: with the pseudo-time drag the free "
@@ -361,9 +354,10 @@ def make_solver(case: CompactionCase, model: CompactionModel, log=print):
         nodal_volume = problem.lumped_mass(1.0).x.array[: bcs.constraint.num_owned]
         # backtracking line search: frictional stick / slip switches make full Newton steps cycle
         # (an explicit state relaxed to rest stalled at 1e-1 of its residual without it)
-        solver = ImplicitSolver(problem, bcs, contact=model.contact, petsc_options={"snes_linesearch_type": "bt"},
-                                regularization=case.regularization * case.material.E * nodal_volume
-                                / model.contact_length ** 2, controls=implicit_step_controls(case, path))
+        solver = create_solver(case.solver, problem, bcs, contact=model.contact,
+                               petsc_options={"snes_linesearch_type": "bt"},
+                               regularization=case.regularization * case.material.E * nodal_volume
+                               / model.contact_length ** 2, controls=implicit_step_controls(case, path))
         log(f"{model_line} -> {case.target_density}, implicit, {solver.total_steps} steps")
         return solver
     settings = ExplicitSettings(t_end=path.duration, target_dt=case.duration / case.increments,
@@ -372,7 +366,8 @@ def make_solver(case: CompactionCase, model: CompactionModel, log=print):
     # each particle's rigid motion relative to it; a copy's nodes belong to their original
     # (tied: one material body, whose copy nodes may hold contact mass)
     node_particle = node_particles(problem.V, model.assembly.cell_tags.values[: problem.num_cells])
-    solver = ExplicitSolver(problem, bcs, settings, contact=model.contact, damped_bodies=model.original[node_particle])
+    solver = create_solver(case.solver, problem, bcs, contact=model.contact, settings=settings,
+                           damped_bodies=model.original[node_particle])
     log(f"{model_line} (finite elements {model.rho0_fe:.4f}) -> "
         f"{'stress-controlled' if case.control is not None else case.target_density}, dt = {solver.dt:.3g} s "
         f"(unscaled {solver.dt_stable_unscaled:.3g} s), {case.increments} increments")
@@ -401,7 +396,7 @@ class CompactionCheckpoints:
         directory = checkpoint_path(self.root, solver.step)
         save_checkpoint(directory, self.comm, arrays, {
             "step": solver.step, "t": solver.t, "solver": case.solver, "bc": case.bc,
-            "num_dofs": V.dofmap.index_map.size_global * 3,
+            "num_dofs": model.num_dofs,
             "centroids0": reference_centroids.tolist(), "history": history.rows, "columns": history.columns,
             "control": None if case.control is None else case.control.state_dict(),
             "F0": model.path(solver.t).tolist(), "wall_time": wall_time,
@@ -420,8 +415,7 @@ class CompactionCheckpoints:
         """Continue from a checkpoint read with ``load_checkpoint``: the control's state, the
         history rows, the solver's state (an implicit solver adopts an explicit state relaxed to
         rest). Raises CheckpointError if it was written for another model or partition."""
-        case, V = model.case, model.problem.V
-        num_dofs = V.dofmap.index_map.size_global * 3
+        case, V, num_dofs = model.case, model.problem.V, model.num_dofs
         adopt = meta["solver"] != case.solver and meta["solver"] in solver_kind(case.solver).continues
         if meta["num_dofs"] != num_dofs or (meta["solver"] != case.solver and not adopt) or meta["bc"] != case.bc:
             raise CheckpointError(f"restart: {self.restart} was written for another model ({meta['num_dofs']} dofs, "
@@ -544,7 +538,7 @@ class CompactionRun:
         self.progress.close()
         if max_steps is None:
             self._finish()
-        return CompactionResult(self.history, self.model.packing, self.model.problem.V.dofmap.index_map.size_global * 3,
+        return CompactionResult(self.history, self.model.packing, self.model.num_dofs,
                                 self.model.radii.size, time.perf_counter() - self.start, total, self.out,
                                 model=self.model, solver=solver)
 
