@@ -58,7 +58,7 @@ def main():
         template = _template(problem)
         t_tangent = median_time(lambda: (contact.evaluate(problem.u, tangent=True), contact.tangent_matrix(template)),
                            args.repeat, comm)
-        points = comm.allreduce(contact.points.size, op=MPI.SUM)
+        points = comm.allreduce(contact.evaluation.size, op=MPI.SUM)
         result = {
             "particles": n, "ranks": comm.size, "surface_nodes": int(surface.num_nodes),
             "contact_points": int(points),

@@ -42,7 +42,7 @@ def test_two_pass_treatment_is_symmetric():
     assert np.allclose(f_ab, f_ba, rtol=1e-10)
     # both passes find contact points
     m = _model(c, [1.0, 1.0])
-    bodies = m.surface.node_body[m.points.slave]
+    bodies = m.surface.node_body[m.evaluation.points.slave]
     assert set(bodies.tolist()) == {0, 1}
 
 
@@ -60,7 +60,7 @@ def test_periodic_image_contact_equals_direct_contact():
 
 def test_no_contact_when_apart():
     m = _model([[0, 0, 0], [2.5, 0, 0]], [1.0, 1.0])
-    assert m.points.size == 0
+    assert m.evaluation.size == 0
     assert np.allclose(m.body_forces(), 0.0)
 
 
@@ -119,7 +119,7 @@ def test_penetration_is_found_for_a_steep_slave_face():
     inside = np.flatnonzero((surf.node_body == 1) & (x[:, 2] < -0.01))
     # the steep face's rows at 0.04 mm from the lowest edge are among them
     assert np.any(np.abs(x[inside, 2] + 0.08 - 0.04 * s) < 1e-9)
-    pts = model.points
+    pts = model.evaluation.points
     found = {int(n): g for n, g, m in zip(pts.slave, pts.gap, pts.master_body) if m == 0}
     missing = [int(n) for n in inside if int(n) not in found]
     assert not missing, f"penetrating slab nodes without a contact point: {missing}"

@@ -115,5 +115,5 @@ def test_contact_history_survives_a_restart(tmp_path):
     for p, c in ((p1, c1), (p2, c2)):
         p.u.x.array[block_z] += 1e-4  # lift the block: adhesive softening branch, needs alpha
         c.evaluate(p.u)
-    assert np.all(c2.T1 < 0)
-    assert np.allclose(c1.T1, c2.T1, rtol=1e-12)
+    assert np.all(c2.evaluation.T1 < 0)
+    assert np.allclose(c1.evaluation.T1, c2.evaluation.T1, rtol=1e-12)

@@ -27,8 +27,9 @@ from petsc4py import PETSc
 
 import dolfinx
 
+from .guards import AdhesiveGuards
 from .kernels import contact_areas, coo_entries, lookup, point_tangents, point_weights, relative_motion
-from .laws import ADHESIVE_LOADING, OVERLAP, SEPARATED, SOFTENING, ContactLaw, evaluate_law, normal_branch
+from .laws import ContactLaw, evaluate_law
 from .search import ContactPoints, ContactSearch, corner_normals, facet_areas, surface_normals
 from .surface import ContactSurface
 
@@ -50,6 +51,32 @@ class ContactState:
         return ContactState(np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.zeros(0))
 
 
+@dataclass
+class ContactEvaluation:
+    """The contact points at one displacement (a trial state, :meth:`ContactModel.evaluate`),
+    arrays of this rank's n slave points."""
+
+    points: ContactPoints  # slave node, master body / facet, gap (mm), normal, lattice shift (mm)
+    nodes: np.ndarray  # (n, 5) surface nodes [slave, master facet vertices] (-1: unused)
+    weights: np.ndarray  # (n, 5) c_a = [1, -N_i]: a point's force on each of its nodes
+    T1: np.ndarray  # (n,) normal traction (MPa, compression > 0, adhesion < 0)
+    Tt: np.ndarray  # (n, 3) tangential traction (MPa)
+    area: np.ndarray  # (n,) slave tributary area (mm^2)
+    branch: np.ndarray  # (n,) law branch codes (laws.normal_branch / tangent branch)
+    point_force: np.ndarray  # (n, 3) force on the slave, both passes' weight included (N)
+    dissipation: float  # frictional work of this trial increment on this rank (mJ)
+
+    @property
+    def size(self) -> int:
+        return self.points.size
+
+    @staticmethod
+    def empty() -> "ContactEvaluation":
+        n0 = np.zeros(0)
+        return ContactEvaluation(ContactPoints.empty(), np.zeros((0, 5), np.int64), np.zeros((0, 5)), n0,
+                                 np.zeros((0, 3)), n0, np.zeros(0, np.int64), np.zeros((0, 3)), 0.0)
+
+
 class ContactModel:
     """Penalty / adhesive / frictional contact between the bodies tagged in ``facet_tags``."""
 
@@ -67,19 +94,11 @@ class ContactModel:
         self.trial = ContactState.empty()
         self.U_committed = np.zeros((self.surface.num_nodes, 3))
         self.shifts_committed = self.search.shifts.copy()
-        self.points: ContactPoints | None = None
+        #: the last :meth:`evaluate` (empty before the first)
+        self.evaluation = ContactEvaluation.empty()
         self._corner: np.ndarray | None = None
-        #: keys of the points whose adhesive memory an iterate of the current increment erased
-        #: (gap beyond delta_max): the erasure is irreversible within the increment
-        self._separated = np.zeros(0, np.int64)
-        #: keys of the points that an iterate of this increment moved from softening back to the
-        #: adhesive loading line or into overlap, and the branch codes of the last evaluation
-        self._returned = np.zeros(0, np.int64)
-        self._last = (np.zeros(0, np.int64), np.zeros(0, np.int64))
-        #: snap-in: keys of virgin points that an iterate of this increment moved out of overlap,
-        #: and the keys (sorted) / compressive tractions (MPa) of those armed on re-entering it
-        self._left = np.zeros(0, np.int64)
-        self._armed = (np.zeros(0, np.int64), np.zeros(0))
+        self.guards = AdhesiveGuards()  # the adhesive law's iterates within an increment
+        self._coo = (np.zeros(0, PETSc.IntType), np.zeros(0, PETSc.IntType), np.zeros(0))
         self.frictional_work = 0.0  # committed, summed over ranks, mJ
         self.search_time = 0.0  # accumulated wall time of the search (s), for benchmarks
         self._V = V
@@ -95,8 +114,8 @@ class ContactModel:
         shift) (N mm, (3, 3), summed over ranks): the work-conjugate of the shifts, i.e. what the
         copies' ties transmit in fully periodic conditions (Schmidt stress by images)."""
         local = np.zeros((3, 3))
-        if self.points is not None and self.points.size:
-            local = self.point_force.T @ self.points.shift
+        if self.evaluation.size:
+            local = self.evaluation.point_force.T @ self.evaluation.points.shift
         return self.comm.allreduce(local, op=MPI.SUM)
 
     # -- evaluation ------------------------------------------------------------------------------
@@ -110,8 +129,9 @@ class ContactModel:
             shift_id = d.argmin(axis=1)
         return (pts.slave * nb + pts.master_body) * ns + shift_id, shift_id
 
-    def evaluate(self, u: dolfinx.fem.Function, tangent: bool = False) -> None:
-        """Search, law and forces at displacement u (trial state; see :meth:`commit`)."""
+    def evaluate(self, u: dolfinx.fem.Function, tangent: bool = False) -> ContactEvaluation:
+        """Search, law and forces at displacement u (trial state; see :meth:`commit`); with
+        ``tangent`` also the contact tangent (:meth:`tangent_matrix`)."""
         s = self.surface
         U = s.gather(u)
         x = s.X + U
@@ -130,12 +150,7 @@ class ContactModel:
             pos, known = lookup(old.keys, keys)
             alpha_n[known], smax_n[known] = old.alpha[pos[known]], old.smax[pos[known]]
             tt_n[known], work_n[known] = old.tt[pos[known]], old.work[pos[known]]
-        if self._armed[0].size:  # snapped in by an earlier iterate of this increment
-            pos, known = lookup(self._armed[0], keys)
-            smax_n[known] = np.maximum(smax_n[known], self._armed[1][pos[known]])
-        if self._separated.size:  # memory erased by an earlier iterate of this increment
-            gone = np.isin(keys, self._separated)
-            alpha_n[gone], smax_n[gone] = 0.0, 0.0
+        self.guards.adjust_history(keys, alpha_n, smax_n)
 
         n = pts.size
         nodes = np.empty((n, 5), np.int64)
@@ -163,19 +178,15 @@ class ContactModel:
         adhesive = n and self.law.gamma > 0
         held = np.zeros(n, np.bool_)
         if adhesive:
-            self._track_snap_in(keys, branch, smax_n, T1)
-            held = self._track_peeling(keys, branch, smax_n)
+            held = self.guards.track(keys, branch, smax_n, T1)
         scale = PASS_WEIGHT * area
-        self.points = pts
-        self.nodes, self.weights = nodes, weights
-        self.T1, self.Tt, self.area = T1, Tt, area
-        self.branch = branch  # law branch codes (laws.law_point), for diagnostics
-        self.point_force = scale[:, None] * (T1[:, None] * pts.normal + Tt)  # N, on the slave
+        self.evaluation = ContactEvaluation(pts, nodes, weights, T1, Tt, area, branch,
+                                            scale[:, None] * (T1[:, None] * pts.normal + Tt),
+                                            float(np.sum(scale * dissipation)))
         order = np.argsort(keys)
-        self._last = (keys[order], branch[order])
+        self.guards.remember(keys[order], branch[order])
         self.trial = ContactState(keys[order], alpha[order], smax[order], Tt[order],
                                   (work_n + scale * dissipation)[order])
-        self._trial_dissipation = float(np.sum(scale * dissipation))
         if tangent:
             nn = 1 + s.vertices_per_facet
             K = np.empty((n, 3 * nn, 3 * nn))
@@ -189,72 +200,7 @@ class ContactModel:
             vals = np.empty(size)
             k = coo_entries(nodes[:, :nn], s.blocks, K, rows, cols, vals) if n else 0
             self._coo = (rows[:k], cols[:k], vals[:k])
-
-    def _track_peeling(self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray) -> np.ndarray:
-        """Snap bookkeeping of the adhesive points over the iterates of an increment; returns the
-        mask of the points whose softening slope the tangent holds at zero."""
-        held = np.zeros(keys.size, np.bool_)
-        snapped = (normal_branch(branch) == SEPARATED) & (smax_n > 0)
-        if snapped.any():
-            self._separated = np.union1d(self._separated, keys[snapped])
-        # A point that the last iterate put on the softening branch and this one sends back
-        # (gap < delta_1) is cycling: the negative softening slope, steeper than the node's
-        # own stiffness on the substrate, made Newton aim back into the contact, and the
-        # penalty sends it out again. When it re-enters softening, its tangent is held at zero
-        # slope for that update, so that it carries a point past the fold of its adhered
-        # branch beyond delta_max (memory erased, see :meth:`begin_increment`). A second
-        # return (the coupled update of a rim of such points can still cycle) snaps the
-        # point: its memory is erased for the rest of the increment, as a dynamic snap-off
-        # would. A point whose softening is stable converges on it with the exact slope
-        # (quadratic); after a kink overshoot it is held for one update only.
-        last_keys, last_branch = self._last
-        if last_keys.size:
-            pos, known = lookup(last_keys, keys)
-            was_softening = known & (normal_branch(last_branch[pos]) == SOFTENING)
-            softening = normal_branch(branch) == SOFTENING
-            back = keys[was_softening & (normal_branch(branch) <= ADHESIVE_LOADING)]  # not on to separation
-            if back.size:
-                self._separated = np.union1d(self._separated, back[np.isin(back, self._returned)])
-                self._returned = np.union1d(self._returned, back)
-            # held for the one update after it re-enters softening: if it stays there, its
-            # softening is stable and the exact slope returns (quadratic, not linear, rate)
-            reentered = known & (normal_branch(last_branch[pos]) <= ADHESIVE_LOADING) & softening
-            if reentered.any() and self._returned.size:
-                held = reentered & np.isin(keys, self._returned)
-        return held
-
-    def _track_snap_in(self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray, T1: np.ndarray) -> None:
-        """Snap-in of the adhesive law at the edge of a growing contact.
-
-        A virgin point (no memory) at the edge of a contact that grows on a soft (plastic)
-        substrate can sit at the kink gap = 0 of the unilateral law: in overlap, the penalty
-        pushes it out; out, it has no stiffness and the next iterate drives it back in (measured:
-        the wedge two-sphere loading cycled with period 3 at one ring until the increment was cut
-        to a few 1e-4 of the load). With adhesion the law has no kink there once the point has
-        touched: the adhesive loading line continues the penalty line through gap = 0. So a
-        virgin point that an iterate moves out of overlap and a later one moves back in is armed
-        for the rest of the increment with the compressive traction of that re-entry as its
-        memory sigma_max (alpha from it, or the forced alpha): it is adhered as it would be one
-        increment later, and the edge converges on a smooth law. Points whose memory an iterate
-        erased (:attr:`_separated`) are not re-armed."""
-        last_keys, last_branch = self._last
-        if not last_keys.size:
-            return
-        pos, known = lookup(last_keys, keys)
-        was_closed = known & (normal_branch(last_branch[pos]) == OVERLAP)
-        closed = normal_branch(branch) == OVERLAP
-        virgin = smax_n == 0.0
-        if self._separated.size:
-            virgin &= ~np.isin(keys, self._separated)
-        left = keys[was_closed & ~closed & virgin]
-        if left.size:
-            self._left = np.union1d(self._left, left)
-        back = known & ~was_closed & closed & virgin & np.isin(keys, self._left)
-        if back.any():
-            armed_keys = np.concatenate([self._armed[0], keys[back]])
-            armed_smax = np.concatenate([self._armed[1], T1[back]])
-            order = np.argsort(armed_keys)
-            self._armed = (armed_keys[order], armed_smax[order])
+        return self.evaluation
 
     def penetration_step_limit(self, direction: dolfinx.fem.Function) -> float:
         """Largest fraction (0, 1] of a displacement update ``direction`` that keeps every open
@@ -268,9 +214,9 @@ class ContactModel:
         its stiffness into the next iteration (a penetration-controlled step, not a change of
         the solution)."""
         lam = 1.0
-        pts = self.points
-        if pts is not None and pts.size:
-            jump = relative_motion(self.nodes, self.weights, self.surface.gather(direction))
+        pts = self.evaluation.points
+        if pts.size:
+            jump = relative_motion(self.evaluation.nodes, self.evaluation.weights, self.surface.gather(direction))
             dgap = np.einsum("pd,pd->p", jump, pts.normal)
             closed = pts.gap < 0
             depth = max(-pts.gap[closed].min(), 0.0) if closed.any() else 0.0
@@ -282,11 +228,25 @@ class ContactModel:
 
     def nodal_forces(self) -> tuple[np.ndarray, np.ndarray]:
         """Global dof indices and values of the contact forces on the bodies (N)."""
-        nodes, weights = self.nodes, self.weights
+        nodes, weights = self.evaluation.nodes, self.evaluation.weights
         used = nodes >= 0
-        f = weights[:, :, None] * self.point_force[:, None, :]  # (n, 5, 3)
+        f = weights[:, :, None] * self.evaluation.point_force[:, None, :]  # (n, 5, 3)
         dofs = self.surface.blocks[np.where(used, nodes, 0)][:, :, None] * 3 + np.arange(3)
         return dofs[used].ravel().astype(PETSc.IntType), f[used].ravel()
+
+    def nodal_stiffness(self) -> np.ndarray:
+        """Gershgorin row sums (N/mm) of the contact stiffness at the last evaluation, per
+        surface node, summed over ranks (zero before the first evaluation): the penalty k of the
+        law times each point's loaded tributary area, spread on its nodes by |c_a|."""
+        rows = np.zeros(self.surface.num_nodes)
+        ev = self.evaluation
+        if ev.size:
+            k = max(self.law.kernel_parameters()[:2])
+            used = ev.nodes >= 0
+            point = 2.0 * k * PASS_WEIGHT * ev.area  # sum_b |c_b| = 2
+            rows = np.bincount(ev.nodes[used], weights=(np.abs(ev.weights) * point[:, None])[used],
+                               minlength=self.surface.num_nodes)
+        return self.comm.allreduce(rows, op=MPI.SUM)
 
     def add_residual(self, r: PETSc.Vec) -> None:
         """r -= contact forces (r is the assembled internal-force vector)."""
@@ -333,11 +293,7 @@ class ContactModel:
         the softening slope sigma_c / (delta_max - delta_1) exceeds a surface node's stiffness the
         node snaps, and the adhered branch ends at a fold. The points held at zero softening slope
         (:meth:`evaluate`) are released too."""
-        self._separated = np.zeros(0, np.int64)
-        self._returned = np.zeros(0, np.int64)
-        self._last = (np.zeros(0, np.int64), np.zeros(0, np.int64))
-        self._left = np.zeros(0, np.int64)
-        self._armed = (np.zeros(0, np.int64), np.zeros(0))
+        self.guards.reset()
 
     def commit(self, u: dolfinx.fem.Function) -> None:
         self.state = self.trial
@@ -345,7 +301,7 @@ class ContactModel:
         self.U_committed = self.surface.gather(u)
         self._corner = None
         self.shifts_committed = self.search.shifts.copy()
-        self.frictional_work += self.comm.allreduce(self._trial_dissipation, op=MPI.SUM)
+        self.frictional_work += self.comm.allreduce(self.evaluation.dissipation, op=MPI.SUM)
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """Committed contact history of this rank's slave points, as arrays (for checkpoints):
@@ -375,7 +331,8 @@ class ContactModel:
     # -- results -------------------------------------------------------------------------------
     def count(self, compressive_only: bool = False) -> int:
         """Number of contact points carrying load (summed over ranks)."""
-        active = self.T1 > 0 if compressive_only else self.T1 != 0
+        T1 = self.evaluation.T1
+        active = T1 > 0 if compressive_only else T1 != 0
         return self.comm.allreduce(int(active.sum()), op=MPI.SUM)
 
     def pair_forces(self) -> dict[str, np.ndarray]:
@@ -386,25 +343,26 @@ class ContactModel:
         tributary areas); ``points`` (m,) number of loaded contact points. The branch vector for
         the Love-Weber stress is centroid(j) + shift - centroid(i).
         """
-        if self.points is None or self.points.size == 0:
+        ev = self.evaluation
+        if ev.size == 0:
             local = (np.zeros((0, 2), np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0))
         else:
-            loaded = self.T1 != 0.0
-            slave = self.surface.node_body[self.points.slave]
-            master = self.points.master_body
-            shift = self.points.shift
+            loaded = ev.T1 != 0.0
+            slave = self.surface.node_body[ev.points.slave]
+            master = ev.points.master_body
+            shift = ev.points.shift
             # orient every point as (i, j, shift): the pass with slave j becomes (i, j) with -shift
             flip = (slave > master) | ((slave == master) & (shift[:, 0] < 0))
             i = np.where(flip, master, slave)
             j = np.where(flip, slave, master)
             sh = np.where(flip[:, None], -shift, shift)
-            f = np.where(flip[:, None], -self.point_force, self.point_force)
+            f = np.where(flip[:, None], -ev.point_force, ev.point_force)
             key = np.round(sh, 9)
             table, inverse = np.unique(np.column_stack([i, j, key]), axis=0, return_inverse=True)
             inverse = inverse.ravel()
             force = np.zeros((table.shape[0], 3))
             np.add.at(force, inverse, f)
-            area = np.bincount(inverse, weights=PASS_WEIGHT * self.area * loaded, minlength=table.shape[0])
+            area = np.bincount(inverse, weights=PASS_WEIGHT * ev.area * loaded, minlength=table.shape[0])
             count = np.bincount(inverse, weights=loaded.astype(float), minlength=table.shape[0])
             local = (table[:, :2].astype(np.int64), table[:, 2:], force, area, count)
         parts = self.comm.allgather(local)
@@ -427,8 +385,9 @@ class ContactModel:
         """(num_bodies, num_bodies, 3): force (N) exerted by body j on body i, summed over ranks."""
         nb = self.surface.num_bodies
         out = np.zeros((nb, nb, 3))
-        if self.points is not None and self.points.size:
-            slave_body = self.surface.node_body[self.points.slave]
-            np.add.at(out, (slave_body, self.points.master_body), self.point_force)
-            np.add.at(out, (self.points.master_body, slave_body), -self.point_force)
+        ev = self.evaluation
+        if ev.size:
+            slave_body = self.surface.node_body[ev.points.slave]
+            np.add.at(out, (slave_body, ev.points.master_body), ev.point_force)
+            np.add.at(out, (ev.points.master_body, slave_body), -ev.point_force)
         return self.comm.allreduce(out, op=MPI.SUM)

@@ -47,6 +47,11 @@ class ContactPoints:
     def size(self) -> int:
         return self.slave.size
 
+    @staticmethod
+    def empty() -> "ContactPoints":
+        i0 = np.zeros(0, np.int64)
+        return ContactPoints(i0, i0, i0, np.zeros((0, 2)), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)))
+
 
 def body_boxes(x: np.ndarray, node_body: np.ndarray, num_bodies: int) -> np.ndarray:
     """(num_bodies, 2, 3) min/max corners of every body's surface nodes."""

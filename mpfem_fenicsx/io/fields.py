@@ -72,10 +72,10 @@ class ContactPressure:
     def update(self) -> None:
         values = self.function.x.array
         values[:] = 0.0
-        c = self.contact
-        if c.points is not None and c.points.size:
-            nodes = self._local[c.points.slave]
-            np.add.at(values, nodes[nodes >= 0], c.T1[nodes >= 0])
+        ev = self.contact.evaluation
+        if ev.size:
+            nodes = self._local[ev.points.slave]
+            np.add.at(values, nodes[nodes >= 0], ev.T1[nodes >= 0])
         self.function.x.scatter_forward()
 
 

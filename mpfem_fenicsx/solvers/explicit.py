@@ -49,7 +49,6 @@ import dolfinx.fem.petsc
 import ufl
 
 from .. import forms
-from ..contact.model import PASS_WEIGHT
 from ..loading import PrescribedDisplacements
 from ..problem import SolidProblem
 from .mass_scaling import ElementMassScaling
@@ -313,16 +312,7 @@ class ExplicitSolver:
     def _contact_row_sums(self, contact) -> np.ndarray:
         """Gershgorin row sums (N/mm) of the current contact stiffness at this rank's owned
         surface nodes (zero before the first evaluation)."""
-        surf = contact.surface
-        rows = np.zeros(surf.num_nodes)
-        if contact.points is not None and contact.points.size:
-            k = max(contact.law.kernel_parameters()[:2])
-            used = contact.nodes >= 0
-            point = 2.0 * k * PASS_WEIGHT * contact.area  # sum_b |c_b| = 2
-            rows = np.bincount(contact.nodes[used], weights=(np.abs(contact.weights) * point[:, None])[used],
-                               minlength=surf.num_nodes)
-        rows = self.comm.allreduce(rows, op=MPI.SUM)
-        return rows[surf.owned_nodes]
+        return contact.nodal_stiffness()[contact.surface.owned_nodes]
 
     # -- forces ------------------------------------------------------------------------------
     def _assemble(self, vec: PETSc.Vec, form) -> None:

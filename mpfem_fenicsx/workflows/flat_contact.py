@@ -81,11 +81,12 @@ def _compression(case: FlatContactCase, modulus: float, T1: float) -> float:
 def _traction(contact: ContactModel) -> tuple[float, float, float]:
     """Mean normal gap (mm), T1 (MPa) and alpha over the contact points, over all ranks."""
     comm = contact.comm
-    n = comm.allreduce(contact.points.size, op=MPI.SUM)
+    ev = contact.evaluation
+    n = comm.allreduce(ev.size, op=MPI.SUM)
     if n == 0:
         return np.nan, 0.0, 0.0
-    gap = comm.allreduce(float(contact.points.gap.sum()), op=MPI.SUM) / n
-    t1 = comm.allreduce(float(contact.T1.sum()), op=MPI.SUM) / n
+    gap = comm.allreduce(float(ev.points.gap.sum()), op=MPI.SUM) / n
+    t1 = comm.allreduce(float(ev.T1.sum()), op=MPI.SUM) / n
     alpha = comm.allreduce(float(contact.trial.alpha.sum()), op=MPI.SUM) / max(
         comm.allreduce(contact.trial.alpha.size, op=MPI.SUM), 1)
     return gap, t1, alpha
