@@ -3,6 +3,7 @@ beyond the thesis, whose loading is strain-driven only).
 
     python demos/triaxial.py                          # flagship volume: consolidation to 2 MPa, then 10 % axial
     python demos/triaxial.py --confining 5 --axial-strain 0.15 --particles 50
+    python demos/triaxial.py --restart results/triaxial  # continue a killed run (same options)
 
 Pipeline: the flagship volume (24 particles, seed 1, CLP by periodic images, explicit) -> the
 three normal stresses servo-controlled through the cell's gradient (the auxiliary nodes) on the
@@ -28,8 +29,8 @@ from mpi4py import MPI
 from mpfem_fenicsx.io.plots import plot_loading_path
 from mpfem_fenicsx.loading.mixed import triaxial_control
 from mpfem_fenicsx.cli.casefile import add_schema_option
-from mpfem_fenicsx.cli.exits import RUN_FAILED, fail
-from mpfem_fenicsx.workflows.compaction import CompactionCase, RunFailure, run_compaction
+from mpfem_fenicsx.cli.compaction import run_exits
+from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 
 
 def main(argv=None) -> int:
@@ -52,6 +53,9 @@ def main(argv=None) -> int:
                         "start jolts the lateral stresses) (default: %(default)s)")
     add_schema_option(p, "output", "outputs", default=60)
     p.add_argument("--out", default="results/triaxial")
+    p.add_argument("--restart", default=None, metavar="CHECKPOINT",
+                   help="continue a killed run from a checkpoint (directory, or its results folder: the newest "
+                        "one); give the same options as the run that wrote it")
     args = p.parse_args(argv)
     if not 0 < args.confining <= 100:
         p.error(f"--confining must be in (0, 100] MPa, got {args.confining}")
@@ -78,10 +82,8 @@ def main(argv=None) -> int:
                               increments=args.increments, outputs=args.outputs, visual=False, out_dir=args.out)
     except ValueError as err:
         p.error(str(err))
-    try:
-        result = run_compaction(case, MPI.COMM_WORLD)
-    except RunFailure as err:
-        fail(RUN_FAILED, str(err))
+    with run_exits():  # a refused checkpoint exits 2, a diverged run 3
+        result = run_compaction(case, MPI.COMM_WORLD, restart=args.restart)
     h = result.history
     if MPI.COMM_WORLD.rank == 0:
         plot_loading_path(h.path, result.out_dir / "loading_path.png",

@@ -147,6 +147,7 @@ def test_check_reads_a_dem_export_with_its_contact_overlaps(tmp_path, capsys):
     ("two_spheres", ["--gamma", "-1"], ["contact.gamma", ">= 0"]),
     ("yield_surface", ["--target-density", "1.5"], ["--target-density = 1.5 is out of range", "> 0 and < 1"]),
     ("triaxial", ["--particles", "1"], ["--particles = 1 is out of range", ">= 2 and <= 5000"]),
+    ("triaxial", ["--restart", "nowhere"], ["restart: no checkpoint in nowhere"]),
     ("deviatoric_surface", ["--increments", "ten"], ["--increments: 'ten' is not an integer"]),
 ])
 def test_demos_exit_2_on_bad_input_like_mpfem(tmp_path, root, python, demo, args, words):
