@@ -93,9 +93,10 @@ class Key:
 _KIND_WORDS = {int: "an integer", float: "a number", bool: "true or false", str: "a string"}
 
 
-def case_key(section: str, name: str, target: str) -> Key:
-    """The key setting CompactionCase.``target`` (``material.<x>``: an ElastoPlastic field):
-    range and default from the field's declaration."""
+def case_key(section: str, name: str, target: str | None = None) -> Key:
+    """The key setting CompactionCase.``target`` (default: ``name``; ``material.<x>``: an
+    ElastoPlastic field): range and default from the field's declaration."""
+    target = target or name
     owner, attribute = (ElastoPlastic, target[9:]) if target.startswith("material.") else (CompactionCase, target)
     return Key(section, name, parameter_range(owner, attribute), parameter_default(owner, attribute), target)
 
@@ -118,39 +119,39 @@ SCHEMA: tuple[Key, ...] = (
     # particles: thesis table 2.1 (lead)
     *(_material(name) for name in ("E", "nu", "sigma_0", "hardening", "K", "n", "H", "density")),
     # packing (thesis §2.2)
-    case_key("packing", "particles", "particles"),
-    case_key("packing", "r_min", "r_min"),
-    case_key("packing", "r_max", "r_max"),
-    case_key("packing", "seed", "seed"),
+    case_key("packing", "particles"),
+    case_key("packing", "r_min"),
+    case_key("packing", "r_max"),
+    case_key("packing", "seed"),
     case_key("packing", "fraction", "packing_fraction"),
     own_key("packing", "file", str, "packing file instead of the generator: 'dx dy dz' then one 'x y z r' line per "
             "sphere (mm; path relative to the case file)", target="packing_file"),
     # meshing (SPEC §2)
     case_key("mesh", "resolution", "mesh"),
-    case_key("mesh", "refinement", "refinement"),
-    case_key("mesh", "radius_factor", "radius_factor"),
+    case_key("mesh", "refinement"),
+    case_key("mesh", "radius_factor"),
     # contact law (thesis §3.3)
-    case_key("contact", "friction", "friction"),
-    case_key("contact", "gamma", "gamma"),
-    case_key("contact", "delta_max", "delta_max"),
-    case_key("contact", "asperity_yield", "asperity_yield"),
-    case_key("contact", "penalty_factor", "penalty_factor"),
+    case_key("contact", "friction"),
+    case_key("contact", "gamma"),
+    case_key("contact", "delta_max"),
+    case_key("contact", "asperity_yield"),
+    case_key("contact", "penalty_factor"),
     # boundary conditions (thesis table 2.2)
     case_key("boundary", "condition", "bc"),
-    case_key("boundary", "images", "images"),
-    case_key("boundary", "d_bc", "d_bc"),
+    case_key("boundary", "images"),
+    case_key("boundary", "d_bc"),
     # loading path (thesis §2.2.3)
     case_key("loading", "path", "loading"),
-    case_key("loading", "target_density", "target_density"),
-    case_key("loading", "duration", "duration"),
-    case_key("loading", "profile", "profile"),
+    case_key("loading", "target_density"),
+    case_key("loading", "duration"),
+    case_key("loading", "profile"),
     # solver (SPEC §6)
     case_key("solver", "kind", "solver"),
-    case_key("solver", "increments", "increments"),
-    case_key("solver", "steps", "steps"),
-    case_key("solver", "damping", "damping"),
-    case_key("solver", "local_damping", "local_damping"),
-    case_key("solver", "hold", "hold"),
+    case_key("solver", "increments"),
+    case_key("solver", "steps"),
+    case_key("solver", "damping"),
+    case_key("solver", "local_damping"),
+    case_key("solver", "hold"),
     # stress-controlled paths (loading.mixed; beyond the thesis, issue 24): times in units of the
     # [loading] duration, the servo's rate in strain per duration
     own_key("control", "path", str, "stress-controlled path replacing the compaction (CLP or CLPS, explicit): "
@@ -190,10 +191,10 @@ SCHEMA: tuple[Key, ...] = (
     # outputs (SPEC §10)
     own_key("output", "directory", str, "results folder (default: results/<case file name>; --out overrides)",
             target="out_dir"),
-    case_key("output", "outputs", "outputs"),
-    case_key("output", "visual", "visual"),
-    case_key("output", "checkpoint_every", "checkpoint_every"),
-    case_key("output", "checkpoint_keep", "checkpoint_keep"),
+    case_key("output", "outputs"),
+    case_key("output", "visual"),
+    case_key("output", "checkpoint_every"),
+    case_key("output", "checkpoint_keep"),
 )
 
 SECTIONS = tuple(dict.fromkeys(k.section for k in SCHEMA))
