@@ -20,14 +20,15 @@ import numpy as np
 from mpi4py import MPI
 
 from mpfem_fenicsx.cli.exits import bad_input_exits
+from mpfem_fenicsx.cli.options import add_parameter_option
 from mpfem_fenicsx.solvers import SOLVERS, solver_kind
 from mpfem_fenicsx.workflows.hertz import HertzCase, run_hertz
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--size-min", type=float, default=0.005, help="element size at the contact / r")
-    parser.add_argument("--steps", type=int, default=10)
+    add_parameter_option(parser, HertzCase, "size_min")
+    add_parameter_option(parser, HertzCase, "steps")
     parser.add_argument("--out", default="results/hertz")
     parser.add_argument("--solver", choices=SOLVERS, default="implicit")
     parser.add_argument("--increments", type=int, default=8000, help="explicit increments (slow loading)")

@@ -142,7 +142,7 @@ def test_check_reads_a_dem_export_with_its_contact_overlaps(tmp_path, capsys):
     ("isotropic", ["--packing", "missing.txt"], ["No such file"]),
     ("simple_cubic", ["--radius", "-1"], ["radius must be > 0 mm"]),
     ("uniaxial", ["--log-strain", "-5"], ["log_strain must be in (0, 2]"]),
-    ("hertz", ["--steps", "0"], ["steps must be >= 1"]),
+    ("hertz", ["--steps", "0"], ["--steps = 0 is out of range", ">= 1"]),
     ("sphere_squeeze", ["--reduction", "2"], ["reduction must be in (0, 0.6)"]),
     ("two_spheres", ["--gamma", "-1"], ["contact.gamma", ">= 0"]),
     ("yield_surface", ["--target-density", "1.5"], ["--target-density = 1.5 is out of range", "> 0 and < 1"]),

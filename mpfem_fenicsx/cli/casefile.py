@@ -35,7 +35,7 @@ import numpy as np
 from ..material import ElastoPlastic
 from ..parameters import Range, parameter_default, parameter_range
 from ..workflows.compaction import CompactionCase
-from .exits import BAD_INPUT, fail
+from .options import add_range_option
 
 
 class CaseError(ValueError):
@@ -216,31 +216,12 @@ def add_schema_option(parser, section: str, name: str, flag: str | None = None, 
                       help: str | None = None) -> None:
     """A command-line option of the demos from the case-file key ``[section] name``: its type,
     default, choices and help (meaning, unit, allowed range) come from :data:`SCHEMA`, and the
-    value is checked by the key like a case file's (argparse then exits 2 with one line naming
-    the option). ``flag``: the option (default ``--name`` with dashes); ``default``: another
-    default than the key's (e.g. a demo's own); ``help``: prepended to the key's meaning."""
+    value is checked by the key's range like a case file's (:mod:`.options`: exit 2, one line
+    naming the option). ``flag``: the option (default ``--name`` with dashes); ``default``:
+    another default than the key's (e.g. a demo's own); ``help``: prepended to the key's meaning."""
     key = schema_key(section, name)
-    flag = flag or "--" + name.replace("_", "-")
-
-    def value(text: str):
-        # one line and exit 2, like a refused case file (argparse's own errors print the usage too)
-        try:
-            parsed = {int: int, float: float, str: str}[key.kind](text)
-        except ValueError:
-            fail(BAD_INPUT, f"argument {flag}: {text!r} is not {'an integer' if key.kind is int else 'a number'}",
-                 parser.prog)
-        try:
-            return key.check(parsed, flag)
-        except CaseError as err:
-            fail(BAD_INPUT, f"argument {flag}: " + str(err).split(": ", 1)[1].replace(key.field, flag), parser.prog)
-
-    meaning = key.doc if help is None else f"{help}; {key.doc}"
-    allowed = "" if key.choices else f"; {key.allowed()}"
-    if key.kind is bool:
-        raise ValueError(f"[{section}] {name} is a switch: give the demo its own --{name} / --no-{name}")
-    parser.add_argument(flag, type=value, default=key.default if default == "schema" else default,
-                        choices=key.choices, metavar=None if key.choices else name.upper(),
-                        help=f"{meaning}{allowed} (default: %(default)s)")
+    add_range_option(parser, flag or "--" + name.replace("_", "-"), name, key.range,
+                     key.default if default == "schema" else default, help)
 
 
 def parse_case(data: dict, where: str = "case", base: Path | None = None) -> dict[str, Any]:

@@ -28,6 +28,7 @@ from ..contact.laws import default_penalty
 from ..io import History
 from ..loading import PrescribedDisplacements, component_dofs
 from ..material import ElastoPlastic
+from ..parameters import check_parameters, parameter
 from ..meshes import particle_mesh
 from ..problem import SolidProblem
 from ..solvers import StepControl, create_solver, loading_amplitude, solver_kind
@@ -36,27 +37,25 @@ from ..solvers.explicit import ExplicitSettings
 
 @dataclass(frozen=True)
 class HertzCase:
-    E: float = 200000.0  # MPa
-    nu: float = 0.3
-    radius: float = 1.0  # mm
-    delta_max_over_r: float = 0.005
-    steps: int = 10
-    size_min: float = 0.005  # element size at the contact (relative to r)
-    refine_radius: float = 0.06  # size_min within this distance of the contact point (relative)
-    size: float = 0.3  # element size away from the contact (relative)
-    core: float = 0.1  # rigid driving core radius (relative)
-    penalty_factor: float = 10.0  # k = factor * E / (size_min r), see contact.laws.default_penalty
+    E: float = parameter(200000.0, "Young's modulus of both spheres (MPa)", low=0, open_low=True)
+    nu: float = parameter(0.3, "Poisson's ratio (-)", low=0, high=0.5, open_high=True)
+    radius: float = parameter(1.0, "sphere radius r (mm)", low=0, open_low=True)
+    delta_max_over_r: float = parameter(0.005, "final approach of the centres / r (-)", low=0, high=0.05,
+                                        open_low=True)
+    steps: int = parameter(10, "implicit load steps", low=1)
+    size_min: float = parameter(0.005, "element size at the contact / r (-; <= size)", low=0, open_low=True)
+    #: size_min within this distance of the contact point (relative)
+    refine_radius: float = parameter(0.06, "refined zone around the contact point / r (-)", low=0, open_low=True)
+    size: float = parameter(0.3, "element size away from the contact / r (-)", low=0, high=1, open_low=True)
+    core: float = parameter(0.1, "rigid driving core radius / r (-)", low=0, high=0.5, open_low=True)
+    #: k = factor * E / (size_min r), see contact.laws.default_penalty
+    penalty_factor: float = parameter(10.0, "penalty k = factor x E / h, h the contact element size (-)", low=0,
+                                      open_low=True)
 
     def __post_init__(self):
-        if not (self.E > 0 and 0 <= self.nu < 0.5 and self.radius > 0):
-            raise ValueError(f"HertzCase: E must be > 0 MPa, nu in [0, 0.5), radius > 0 mm; got {self.E}, {self.nu}, "
-                             f"{self.radius}")
-        if not 0 < self.delta_max_over_r <= 0.05:
-            raise ValueError(f"HertzCase.delta_max_over_r must be in (0, 0.05], got {self.delta_max_over_r}")
-        if self.steps < 1:
-            raise ValueError(f"HertzCase.steps must be >= 1, got {self.steps}")
-        if not 0 < self.size_min <= self.size:
-            raise ValueError(f"HertzCase.size_min must be in (0, size = {self.size}] (relative to r), got {self.size_min}")
+        check_parameters(self, prefix="HertzCase.")
+        if self.size_min > self.size:
+            raise ValueError(f"HertzCase.size_min = {self.size_min} must be <= size = {self.size} (relative to r)")
 
     def hertz_force(self, delta):
         e_star = self.E / (2.0 * (1.0 - self.nu ** 2))
