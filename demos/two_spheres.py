@@ -30,6 +30,7 @@ import numpy as np
 from mpi4py import MPI
 
 from mpfem_fenicsx.cli.exits import bad_input_exits
+from mpfem_fenicsx.cli.options import add_parameter_option
 from mpfem_fenicsx.io import History
 from mpfem_fenicsx.workflows.two_spheres import TwoSphereCase, run_two_spheres, unloading_branch
 
@@ -45,15 +46,8 @@ def main(argv=None):
     d = DEMO_CASE
     parser.add_argument("--ratios", type=float, nargs="+", default=RATIOS, help="sigma_c / sigma_y values")
     parser.add_argument("--gamma", type=float, default=d.gamma, help="adhesion energy, mJ/mm^2")
-    parser.add_argument("--size-min", type=float, default=d.size_min, help="element size at the contact / r")
-    parser.add_argument("--grading", type=float, default=d.grading,
-                        help="refine the contact cap only: element size grows by this per unit distance from it")
-    parser.add_argument("--refine-radius", type=float, default=d.refine_radius, help="refined zone / r")
-    parser.add_argument("--model", choices=("quarter", "wedge"), default=d.model,
-                        help="3-D quarter model, or one-cell wedge (axisymmetric by cyclic symmetry)")
-    parser.add_argument("--wedge-angle", type=float, default=d.wedge_angle, help="wedge angle, degrees")
-    parser.add_argument("--load-steps", type=int, default=d.load_steps)
-    parser.add_argument("--unload-steps", type=int, default=d.unload_steps)
+    for name in ("size_min", "grading", "refine_radius", "model", "wedge_angle", "load_steps", "unload_steps"):
+        add_parameter_option(parser, TwoSphereCase, name, default=getattr(d, name))  # the demo's own defaults
     parser.add_argument("--out", default="results/two_spheres")
     parser.add_argument("--replot", action="store_true",
                         help="no simulation: summary, curves and figure from the history_<ratio>.csv in --out")

@@ -74,6 +74,7 @@ from ..io import History
 from ..constraints import CouplingRows
 from ..loading import PrescribedDisplacements, component_dofs
 from ..material import STEEL_LINEAR, ElastoPlastic
+from ..parameters import check_parameters, parameter
 from ..meshes import node_particles
 from ..meshes.sphere_pair import quarter_sphere_pair, wedge_sphere_pair
 from ..problem import SolidProblem
@@ -82,42 +83,38 @@ from ..solvers import ImplicitSolver, NonConvergence, StepControl
 
 @dataclass(frozen=True)
 class TwoSphereCase:
-    ratio: float = 1.0  # sigma_c / sigma_y
+    ratio: float = parameter(1.0, "sigma_c / sigma_y: adhesive strength over the yield stress (-)", low=0,
+                             open_low=True)
     gamma: float = 1e-3  # mJ/mm^2
     approach: float = 0.02  # maximum centre approach / r
     radius: float = 1.0
-    size_min: float = 0.03  # tetrahedron size at the contact / r (hexahedra about half)
-    refine_radius: float = 0.2  # size_min within this distance of the contact point (of the axis with grading) / r
+    size_min: float = parameter(0.03, "element size at the contact / r (tetrahedra; hexahedra about half) (-)",
+                                low=0, high=0.2, open_low=True)
+    refine_radius: float = parameter(0.2, "refined zone: size_min within this distance of the contact point (of "
+                                     "the axis with grading) / r (-)", low=0, open_low=True)
     #: None: ball refinement around the contact point; a number: size_min on the contact cap, growing
     #: by ``grading`` per unit distance from it (``meshes.sphere_pair``), for fine contact meshes
-    grading: float | None = None
+    grading: float | None = parameter(None, "refine the contact cap only: element size grows by this per unit "
+                                      "distance from it (default: a refined ball) (-)", kind=float, low=0,
+                                      open_low=True)
     core: float = 0.3
     #: "quarter" (3-D quarter, symmetry planes x = 0, y = 0) or "wedge" (a one-cell wedge of
     #: ``wedge_angle`` degrees whose second plane follows the first rotated (cyclic symmetry):
     #: the axisymmetric problem, resolved at
     #: the thesis' contact mesh size for the cost of a 2-D model; ``meshes.sphere_pair``)
-    model: str = "quarter"
-    wedge_angle: float = 2.0
+    model: str = parameter("quarter", "3-D quarter model, or one-cell wedge (axisymmetric by cyclic symmetry)",
+                           choices=("quarter", "wedge"))
+    wedge_angle: float = parameter(2.0, "wedge angle (degrees)", low=0, high=45, open_low=True)
     #: N/mm^3; default 10 E / h with h = size_min r / 2 the hexahedra's size at the contact (the
     #: thesis' 1e9 with these meshes makes Newton cut back whenever a ring of nodes enters contact)
     penalty: float | None = None
-    load_steps: int = 10
-    unload_steps: int = 40
+    load_steps: int = parameter(10, "implicit steps of the loading", low=1)
+    unload_steps: int = parameter(40, "implicit steps of the unloading (0: loading only)", low=0)
     unload_to: float = 0.016  # final centre approach / r (past separation: elastic recovery ~1.5e-3 r)
     material: ElastoPlastic = STEEL_LINEAR
 
     def __post_init__(self):
-        if self.model not in ("quarter", "wedge"):
-            raise ValueError(f"TwoSphereCase.model must be 'quarter' or 'wedge', got {self.model!r}")
-        if not self.ratio > 0:
-            raise ValueError(f"TwoSphereCase.ratio (sigma_c / sigma_y) must be > 0, got {self.ratio}")
-        if not 0 < self.size_min <= 0.2:
-            raise ValueError(f"TwoSphereCase.size_min must be in (0, 0.2] (element size / r), got {self.size_min}")
-        if not 0 < self.wedge_angle <= 45:
-            raise ValueError(f"TwoSphereCase.wedge_angle must be in (0, 45] degrees, got {self.wedge_angle}")
-        if self.load_steps < 1 or self.unload_steps < 0:
-            raise ValueError(f"TwoSphereCase.load_steps must be >= 1 and unload_steps >= 0 (0: loading only), got "
-                             f"{self.load_steps} / {self.unload_steps}")
+        check_parameters(self, prefix="TwoSphereCase.")
         self.law()  # the contact law's own ranges (gamma >= 0, ...), before any mesh
 
     @property
