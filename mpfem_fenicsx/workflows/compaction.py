@@ -105,7 +105,8 @@ class CompactionCase:
     gamma: float = parameter(0.0, "Dupre adhesion energy (mJ/mm^2)", low=0, high=1)
     delta_max: float = parameter(5e-4, "opening at which adhesion vanishes (mm)", low=0, high=0.01, open_low=True)
     asperity_yield: float = parameter(5.0, "asperity yield stress, p0 = 3 x it (MPa)", low=0, open_low=True)
-    penalty_factor: float = parameter(10.0, "penalty k = factor x E / h, h the contact element size (-)", low=0, open_low=True)
+    penalty_factor: float = parameter(10.0, "penalty k = factor x E / h, h the contact element size (-)", low=0,
+                                      open_low=True)
     duration: float = parameter(1e-3, "loading time, mass-scaled (s)", low=0, open_low=True)
     #: relaxation hold at the final gradient after the compaction, in units of ``duration`` (its
     #: rows have time > duration); explicit: at the compaction's increment
