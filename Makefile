@@ -9,10 +9,8 @@ bootstrap:
 demo: bootstrap  ## flagship demo on its embedded default case
 	$(PY) demos/isotropic.py
 
-# the test files spread over the cores (pytest-xdist; a file's tests stay together: its
-# module fixtures are built once); `pytest -n 0` runs them in one process
-test: bootstrap  ## the CI suite (one worker per core + mpirun -n 2), heavy cases excluded
-	$(PY) -m pytest -n auto --dist loadfile
+test: bootstrap  ## the CI suite (serial + mpirun -n 2), heavy cases excluded
+	$(PY) -m pytest
 
 test-all: bootstrap  ## also the heavy cases
 	$(PY) -m pytest -m ""

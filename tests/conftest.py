@@ -1,5 +1,4 @@
-"""Shared fixtures. `make test` spreads the test files over the cores (pytest-xdist, one file per
-worker at a time, so module fixtures are built once); MPI cases spawn ``mpirun -n 2``."""
+"""Shared fixtures. Tests run in-process (serial); MPI cases spawn ``mpirun -n 2``."""
 
 import sys
 from pathlib import Path
