@@ -32,6 +32,7 @@ from mpi4py import MPI
 
 from ..homogenization import first_crossing, stress_invariants
 from ..loading.mixed import lode_shear_control
+from ..parameters import parameter
 from .stress_probes import StressProbeCase, consolidate, run_probe
 
 FAN_COLUMNS = ("theta_deg", "time", "sigma_m", "q", "lode_deg", "E_d")
@@ -42,19 +43,16 @@ class DeviatoricSurfaceCase(StressProbeCase):
     """A Lode-angle fan: the consolidated state of :class:`StressProbeCase` (base, p_load,
     p_probe, ramp, hold, unload, probe, the servo's settings), then one probe per angle."""
 
-    q_max: float = 3.0  # MPa, von Mises stress at the end of a probe
+    q_max: float = parameter(3.0, "von Mises stress at the end of a probe (MPa)", low=0, high=1000, open_low=True)
     angles_deg: tuple = (0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0)
-    dissipation_threshold: float = 3e-3  # thesis §4.2.2: 0.3 %
+    dissipation_threshold: float = parameter(3e-3, "yield where E_d first exceeds E_0 (1 + this) (thesis §4.2.2: "
+                                             "0.3 %) (-)", low=0, high=1, open_low=True, open_high=True)
     out_dir: str = "results/deviatoric_surface"
 
     def __post_init__(self):
         super().__post_init__()
-        if not self.q_max > 0:
-            raise ValueError(f"q_max must be > 0 MPa, got {self.q_max}")
         if len(self.angles_deg) < 1 or any(not -360 <= a <= 360 for a in self.angles_deg):
             raise ValueError(f"angles_deg must hold angles in [-360, 360] degrees, got {self.angles_deg}")
-        if not 0 < self.dissipation_threshold < 1:
-            raise ValueError(f"dissipation_threshold must be in (0, 1), got {self.dissipation_threshold}")
 
 
 def lode_angle(sigma: np.ndarray) -> float:
@@ -64,7 +62,8 @@ def lode_angle(sigma: np.ndarray) -> float:
     # components on the deviatoric-plane axes e0 = direction(0), e90 = direction(90 deg)
     e0 = np.sqrt(2.0 / 3.0) * np.array([1.0, -0.5, -0.5])
     e90 = np.sqrt(2.0 / 3.0) * np.array([0.0, np.sqrt(3.0) / 2.0, -np.sqrt(3.0) / 2.0])
-    return float(np.degrees(np.arctan2(s @ e90, s @ e0)) % 360.0)
+    angle = float(np.degrees(np.arctan2(s @ e90, s @ e0))) % 360.0
+    return 0.0 if angle > 360.0 - 1e-9 else angle  # a rounding-level negative angle is 0, not 360
 
 
 def probe_rows(history, theta_deg: float, t_start: float) -> dict[str, np.ndarray]:
