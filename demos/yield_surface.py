@@ -26,6 +26,7 @@ from mpi4py import MPI
 
 from mpfem_fenicsx.cli.compaction import case_from_args, parser
 from mpfem_fenicsx.cli.exits import RUN_FAILED, bad_input_exits, fail
+from mpfem_fenicsx.cli.options import add_parameter_option
 from mpfem_fenicsx.workflows.compaction import RunFailure
 from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase, run_yield_surface, surfaces
 
@@ -37,17 +38,14 @@ def main(argv=None) -> None:
     p = parser("isotropic", __doc__)
     p.set_defaults(out="results/yield_surface", **DEFAULTS)
     p.add_argument("--loading", choices=("isotropic", "die"), default="isotropic", help="initial loading path")
-    p.add_argument("--nphi", type=int, default=16, help="reload directions in [0, 2 pi)")
-    p.add_argument("--unload-ratio", type=float, default=YieldSurfaceCase.unload_stress_ratio,
-                   help="unload until sigma_m = this fraction of its loaded value")
-    p.add_argument("--amplitude-factor", type=float, default=YieldSurfaceCase.amplitude_factor,
-                   help="reload amplitude A / |h_v(unload)| (thesis: 1.5)")
-    p.add_argument("--threshold", type=float, default=YieldSurfaceCase.dissipation_threshold,
-                   help="yield: relative increase of the dissipated energy (thesis: 0.003)")
+    # meaning, unit, default and range of the fan's options from YieldSurfaceCase's declarations
+    add_parameter_option(p, YieldSurfaceCase, "nphi")
+    add_parameter_option(p, YieldSurfaceCase, "unload_stress_ratio", flag="--unload-ratio")
+    add_parameter_option(p, YieldSurfaceCase, "amplitude_factor")
+    add_parameter_option(p, YieldSurfaceCase, "dissipation_threshold", flag="--threshold")
     p.add_argument("--gamma-thresholds", type=float, nargs="*", default=(),
                    help="iso-Gamma levels (1/mm; default: 0.25..1 x Gamma after the unload)")
-    p.add_argument("--reload-steps", type=int, default=YieldSurfaceCase.reload_steps,
-                   help="--solver implicit: Newton load steps per reload")
+    add_parameter_option(p, YieldSurfaceCase, "reload_steps")
     p.add_argument("--surfaces-only", action="store_true",
                    help="recompute fan.csv, surfaces.csv, uniaxial.csv and the PNG from a finished fan in --out "
                         "(e.g. with another --threshold or --gamma-thresholds)")

@@ -11,6 +11,7 @@ from mpfem_fenicsx.cli.casefile import SCHEMA, example_case, load_case
 from mpfem_fenicsx.cli.main import main
 from mpfem_fenicsx.io import read_csv
 from mpfem_fenicsx.meshes.packing import read_packing as read_packing_file
+from test_parameters import just_outside  # the values a declared range must refuse
 
 TINY = "demos/cases/tiny.toml"
 
@@ -141,14 +142,18 @@ def test_check_reads_a_dem_export_with_its_contact_overlaps(tmp_path, capsys):
 @pytest.mark.parametrize("demo, args, words", [
     ("isotropic", ["--packing", "missing.txt"], ["No such file"]),
     ("simple_cubic", ["--radius", "-1"], ["radius must be > 0 mm"]),
-    ("uniaxial", ["--log-strain", "-5"], ["log_strain must be in (0, 2]"]),
+    ("uniaxial", ["--log-strain", "-5"], ["--log-strain = -5.0 is out of range", "> 0 and <= 2"]),
     ("hertz", ["--steps", "0"], ["--steps = 0 is out of range", ">= 1"]),
-    ("sphere_squeeze", ["--reduction", "2"], ["reduction must be in (0, 0.6)"]),
+    ("sphere_squeeze", ["--reduction", "2"], ["--reduction = 2.0 is out of range", "> 0 and < 0.6"]),
     ("two_spheres", ["--gamma", "-1"], ["contact.gamma", ">= 0"]),
     ("yield_surface", ["--target-density", "1.5"], ["--target-density = 1.5 is out of range", "> 0 and < 1"]),
     ("triaxial", ["--particles", "1"], ["--particles = 1 is out of range", ">= 2 and <= 5000"]),
     ("triaxial", ["--restart", "nowhere"], ["restart: no checkpoint in nowhere"]),
     ("deviatoric_surface", ["--increments", "ten"], ["--increments: 'ten' is not an integer"]),
+    ("triaxial", ["--rate", "100"], ["--rate = 100.0 is out of range", "> 0 and <= 10", "strain per duration"]),
+    ("deviatoric_surface", ["--p-probe", "3"], ["p_probe must be in (0, p_load = 2.0)"]),
+    ("force_rupture", ["--phi-c", "2"], ["--phi-c = 2.0 is out of range", "> 0 and < 1"]),
+    ("yield_surface", ["--nphi", "2"], ["--nphi = 2 is out of range", ">= 3 and <= 720"]),
 ])
 def test_demos_exit_2_on_bad_input_like_mpfem(tmp_path, root, python, demo, args, words):
     proc = subprocess.run([python, str(root / "demos" / f"{demo}.py"), *args, "--out", str(tmp_path / "o")],
@@ -364,17 +369,6 @@ def test_mpirun_two_ranks_run_and_restart(tiny_run, tmp_path, root):
     assert mpfem(["run", str(root / TINY), "--out", str(tmp_path / "c"), "--restart", str(tmp_path / "a")]) == 2
 
 
-def _outside(allowed):
-    """Values just outside a numeric range (below its low end, above its high end)."""
-    step = 1 if allowed.kind is int else 1e-9 * max(1.0, abs(allowed.low or 0), abs(allowed.high or 0))
-    values = []
-    if allowed.low is not None:
-        values.append(allowed.low if allowed.open_low else allowed.low - step)
-    if allowed.high is not None:
-        values.append(allowed.high if allowed.open_high else allowed.high + step)
-    return values
-
-
 def test_case_file_and_case_object_refuse_the_same_values(tmp_path):
     """A range is defined once (the CompactionCase / ElastoPlastic field): every value a case file
     refuses as out of range, the case object refuses too, with the same words; its default passes."""
@@ -388,7 +382,7 @@ def test_case_file_and_case_object_refuse_the_same_values(tmp_path):
     for key in SCHEMA:
         if key.target is None or key.target == "out_dir" or key.kind not in (int, float):
             continue
-        for value in _outside(key.range):
+        for value in just_outside(key.range):
             with pytest.raises(CaseError, match="out of range"):
                 key.check(value, "case")
             with pytest.raises(ValueError, match=rf"{key.target.split('.')[-1]} = .* is out of range: must be "

@@ -355,7 +355,7 @@ def test_force_rupture_analysis(tmp_path):
         ForceRuptureCase(base=CompactionCase(bc="CLP"))
     with pytest.raises(ValueError, match="final_stress must hold 3"):
         ForceRuptureCase(base=CompactionCase(bc="CLP", gamma=1e-2), final_stress=(1.0, 2.0))
-    with pytest.raises(ValueError, match="phi_c must be in"):
+    with pytest.raises(ValueError, match="phi_c = 2.0 is out of range: must be > 0 and < 1"):
         ForceRuptureCase(base=CompactionCase(bc="CLP", gamma=1e-2), phi_c=2.0)
 
 

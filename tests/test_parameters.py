@@ -6,16 +6,27 @@ from dataclasses import fields, replace
 
 import pytest
 
+from mpfem_fenicsx.cli.casefile import SCHEMA
+from mpfem_fenicsx.loading.stress_paths import ServoSettings, StressPath
 from mpfem_fenicsx.material import ElastoPlastic
 from mpfem_fenicsx.parameters import Range, parameter_range
 from mpfem_fenicsx.workflows.compaction import CompactionCase
+from mpfem_fenicsx.workflows.deviatoric_surface import DeviatoricSurfaceCase
+from mpfem_fenicsx.workflows.foundation import SqueezeCase, UniaxialCase
+from mpfem_fenicsx.workflows.force_rupture import ForceRuptureCase
 from mpfem_fenicsx.workflows.hertz import HertzCase
+from mpfem_fenicsx.workflows.stress_probes import StressProbeCase
 from mpfem_fenicsx.workflows.two_spheres import TwoSphereCase
+from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase
 
-DECLARED = (CompactionCase, ElastoPlastic, HertzCase, TwoSphereCase)
+DECLARED = (CompactionCase, ElastoPlastic, HertzCase, TwoSphereCase, UniaxialCase, SqueezeCase, ServoSettings,
+            StressPath, StressProbeCase, DeviatoricSurfaceCase, ForceRuptureCase, YieldSurfaceCase)
+#: a valid instance of the classes whose defaults alone are not one
+VALID = {ForceRuptureCase: lambda: ForceRuptureCase(base=CompactionCase(gamma=1e-2))}
 
 
-def _just_outside(allowed: Range) -> list:
+def just_outside(allowed: Range) -> list:
+    """Values a check must refuse: just below / above the bounds, and a non-choice."""
     step = 1 if allowed.kind is int else 1e-9 * max(1.0, abs(allowed.low or 0), abs(allowed.high or 0))
     values = []
     if allowed.low is not None:
@@ -29,12 +40,12 @@ def _just_outside(allowed: Range) -> list:
 
 @pytest.mark.parametrize("cls", DECLARED, ids=lambda c: c.__name__)
 def test_every_declared_bound_is_enforced(cls):
-    default = cls()
+    default = VALID.get(cls, cls)()
     declared = [f.name for f in fields(cls) if "range" in f.metadata]
     assert len(declared) >= 5, declared
     for name in declared:
         allowed = parameter_range(cls, name)
-        for value in _just_outside(allowed):
+        for value in just_outside(allowed):
             with pytest.raises(ValueError, match=rf"{name} = .*(out of range|not allowed)"):
                 replace(default, **{name: value})
         if allowed.kind is float and allowed.low is not None:  # the bound itself, if closed, is allowed
@@ -52,3 +63,15 @@ def test_a_range_reads_in_words():
     assert r.problem(float("nan")) == "must be a finite number"
     assert Range("x", str, choices=("a", "b")).problem("c") == "is not allowed: must be one of 'a', 'b'"
     assert Range("x", float, optional=True).problem(None) is None and Range("x", float).problem(None) == "is required"
+
+
+def test_shared_parameters_are_declared_once():
+    """The stress-probe cases' consolidation times and servo are the stress path's declarations, and
+    every case-file [control] key is a StressPath field (same range, same default)."""
+    for name in ("ramp", "hold", "rate", "band", "integral_time", "filter_time", "measure"):
+        assert parameter_range(StressProbeCase, name) == parameter_range(StressPath, name), name
+    control = [key for key in SCHEMA if key.section == "control"]
+    assert len(control) >= 15
+    for key in control:
+        assert key.range == parameter_range(StressPath, key.name), key.name
+    assert parameter_range(ForceRuptureCase, "p_probe") == parameter_range(StressProbeCase, "p_probe")

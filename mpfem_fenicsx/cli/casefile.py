@@ -30,8 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
+from ..loading.stress_paths import PATH_FIELDS, StressPath
 from ..material import ElastoPlastic
 from ..parameters import Range, parameter_default, parameter_range
 from ..workflows.compaction import CompactionCase
@@ -110,6 +109,12 @@ def own_key(section: str, name: str, kind: type, doc: str, low: float | None = N
                default, target)
 
 
+def control_key(name: str) -> Key:
+    """The ``[control]`` key ``name``: a :class:`~mpfem_fenicsx.loading.stress_paths.StressPath`
+    field (range and default from its declaration); the keys together build the path."""
+    return Key("control", name, parameter_range(StressPath, name), parameter_default(StressPath, name))
+
+
 def _material(name: str) -> Key:
     return case_key("material", name, f"material.{name}")
 
@@ -154,40 +159,9 @@ SCHEMA: tuple[Key, ...] = (
     case_key("solver", "hold"),
     # stress-controlled paths (loading.mixed; beyond the thesis, issue 24): times in units of the
     # [loading] duration, the servo's rate in strain per duration
-    own_key("control", "path", str, "stress-controlled path replacing the compaction (CLP or CLPS, explicit): "
-            "pressure = isotropic pressure ramp to `pressure`, then held; triaxial = the same consolidation, then "
-            "axial compression along z at constant lateral stress; cycle = the same consolidation, unload to "
-            "`unload_to`, reload to `reload_to` (each ramp `ramp`, each hold `hold`); lode = the same consolidation, "
-            "then the von Mises stress ramped to `q_max` along `lode_angle` at constant mean stress over "
-            "`shear_time`", choices=("none", "pressure", "triaxial", "cycle", "lode"), default="none"),
-    own_key("control", "pressure", float, "target (pressure) or confining (triaxial) pressure (MPa, compression "
-            "> 0); required with a path", 0, 1000, open_low=True),
-    own_key("control", "ramp", float, "time of the pressure ramp (x duration; default 1)", 0, 100, open_low=True),
-    own_key("control", "hold", float, "hold at the pressure after the ramp (x duration; default 0.3)", 0, 100),
-    own_key("control", "axial_strain", float, "triaxial: axial Hencky shortening (-; default 0.1)", 0, 0.5,
-            open_low=True),
-    own_key("control", "axial_time", float, "triaxial: time of the axial compression (x duration; default 1)", 0,
-            100, open_low=True),
-    own_key("control", "unload_to", float, "cycle: pressure of the unload (MPa; required, below `pressure`)", 0,
-            1000),
-    own_key("control", "reload_to", float, "cycle: pressure of the reload (MPa; default `pressure`; above "
-            "`unload_to`)", 0, 1000, open_low=True),
-    own_key("control", "q_max", float, "lode: von Mises stress at the end of the shear (MPa; required)", 0, 1000,
-            open_low=True),
-    own_key("control", "lode_angle", float, "lode: Lode angle of the shear (degrees; 0 = triaxial compression "
-            "along x, 60 = triaxial extension along z; default 0)", -360, 360),
-    own_key("control", "shear_time", float, "lode: time of the shear ramp (x duration; default 1)", 0, 100,
-            open_low=True),
-    own_key("control", "rate", float, "the servo's largest strain rate (strain per duration; default 0.1)", 0, 10,
-            open_low=True),
-    own_key("control", "band", float, "stress error at which the servo reaches its rate (MPa; default: a quarter "
-            "of the pressure)", 0, open_low=True),
-    own_key("control", "integral_time", float, "integral time of the PI servo (x duration; default 0.1; 0: "
-            "proportional only, which lags behind a drifting stress)", 0),
-    own_key("control", "filter_time", float, "low-pass filter of the measured stress (x duration; default 0.01)",
-            0),
-    own_key("control", "measure", str, "the servo's stress: schmidt (auxiliary nodes' reactions, eq. 2.19; "
-            "default) or volume (the particles' volume average, eq. C.7)", choices=("schmidt", "volume")),
+    *(control_key(name) for name in ("path", "pressure", "ramp", "hold", "axial_strain", "axial_time", "axial_ramp",
+                                      "unload_to", "reload_to", "q_max", "lode_angle", "shear_time", "rate", "band",
+                                      "integral_time", "filter_time", "measure")),
     # outputs (SPEC §10)
     own_key("output", "directory", str, "results folder (default: results/<case file name>; --out overrides)",
             target="out_dir"),
@@ -256,23 +230,11 @@ def parse_case(data: dict, where: str = "case", base: Path | None = None) -> dic
     control = [k for (section, k) in values if section == "control" and k != "path"]
     if get("control", "path") == "none" and control:
         raise CaseError(f"{where}: [control] {control[0]} needs a [control] path (pressure or triaxial)")
-    if get("control", "path") != "none" and ("control", "pressure") not in values:
-        raise CaseError(f"{where}: [control] pressure is required with path = {get('control', 'path')!r} (MPa, > 0)")
-    path_keys = {"triaxial": ("axial_strain", "axial_time"), "cycle": ("unload_to", "reload_to"),
-                 "lode": ("q_max", "lode_angle", "shear_time")}
-    for owner, keys in path_keys.items():
+    for owner, keys in PATH_FIELDS.items():
         stray = [k for k in keys if k in control and get("control", "path") != owner]
         if stray:
             raise CaseError(f"{where}: [control] {stray[0]} belongs to path = {owner!r}")
-    required = {"cycle": "unload_to", "lode": "q_max"}.get(get("control", "path"))
-    if required and ("control", required) not in values:
-        raise CaseError(f"{where}: [control] {required} is required with path = {get('control', 'path')!r}")
-    if get("control", "path") == "cycle":
-        pressure, unload_to = get("control", "pressure"), get("control", "unload_to")
-        reload_to = values.get(("control", "reload_to"), pressure)
-        if not unload_to < pressure or not reload_to > unload_to:
-            raise CaseError(f"{where}: [control] unload_to must be below pressure = {pressure} MPa and reload_to "
-                            f"above it, got unload_to = {unload_to}, reload_to = {reload_to}")
+    stress_path(values, where)  # the rules between the path's keys
     if get("boundary", "images") and get("boundary", "condition") != "CLP":
         raise CaseError(f"{where}: [boundary] images = true realizes CLP only, got condition = "
                         f"{get('boundary', 'condition')!r}")
@@ -308,43 +270,21 @@ def to_case(values: dict[tuple[str, str], Any], out_dir: str, where: str = "case
     try:
         if material:
             kwargs["material"] = ElastoPlastic(**material)
-        control = {k: v for (section, k), v in values.items() if section == "control"}
-        if control.get("path", "none") != "none":
-            kwargs["control"] = stress_control(control, kwargs.get("duration", parameter_default(CompactionCase, "duration")))
+        path = stress_path(values, where)
+        if path.path != "none":
+            kwargs["control"] = path.control(kwargs.get("duration", parameter_default(CompactionCase, "duration")))
         return CompactionCase(**kwargs)
     except ValueError as err:  # a rule of the case classes not expressed in the schema
         raise CaseError(f"{where}: {err}") from None
 
 
-def stress_control(keys: dict[str, Any], duration: float):
-    """The StressControl of the [control] keys (times x ``duration`` s, rate / duration)."""
-    from ..loading.mixed import lode_direction, normal_stress_path, pressure_control, triaxial_control
-
-    pressure = keys["pressure"]
-    integral = keys.get("integral_time", 0.1)
-    servo = dict(rate=keys.get("rate", 0.1) / duration, band=keys.get("band", pressure / 4),
-                 measure=keys.get("measure", "schmidt"), filter_time=keys.get("filter_time", 0.01) * duration,
-                 integral_time=integral * duration if integral > 0 else None)
-    ramp, hold = keys.get("ramp", 1.0) * duration, keys.get("hold", 0.3) * duration
-    if keys["path"] == "pressure":
-        return pressure_control(pressure, ramp, hold, **servo)
-    if keys["path"] in ("cycle", "lode"):
-        p = np.full(3, pressure)
-        if keys["path"] == "cycle":  # load, hold, unload, hold, reload, hold
-            low, high = np.full(3, keys["unload_to"]), np.full(3, keys.get("reload_to", pressure))
-            stages = [(ramp, p), (hold, p), (ramp, low), (hold, low), (ramp, high), (hold, high)]
-        else:  # load, hold, then q ramped at constant mean stress along the Lode angle
-            theta = np.radians(keys.get("lode_angle", 0.0))
-            sheared = p + np.sqrt(2.0 / 3.0) * keys["q_max"] * lode_direction(theta)
-            stages = [(ramp, p), (hold, p), (keys.get("shear_time", 1.0) * duration, sheared)]
-        times, stresses = [0.0], [np.zeros(3)]
-        for length, stress in stages:
-            if length > 0:
-                times.append(times[-1] + length)
-                stresses.append(stress)
-        return normal_stress_path(times, stresses, **servo)
-    return triaxial_control(pressure, consolidation=ramp, hold=hold, axial_strain=keys.get("axial_strain", 0.1),
-                            axial_time=keys.get("axial_time", 1.0) * duration, **servo)
+def stress_path(values: dict[tuple[str, str], Any], where: str = "case") -> StressPath:
+    """The :class:`StressPath` of the validated ``[control]`` keys (CaseError naming the key that
+    breaks a rule between them)."""
+    try:
+        return StressPath(**{k: v for (section, k), v in values.items() if section == "control"})
+    except ValueError as err:
+        raise CaseError(f"{where}: [control] {err}") from None
 
 
 def documentation() -> str:
@@ -374,6 +314,8 @@ def example_case() -> str:
             else:
                 value = ("true" if k.default else "false") if k.kind is bool else (
                     f'"{k.default}"' if k.kind is str else repr(k.default))
-                out.append(f"{k.name + ' = ' + value:<30} # {k.doc}; {k.allowed()}")
+                # a [control] key needs a path: shown with its default, commented out
+                comment = "# " if k.section == "control" and k.name != "path" else ""
+                out.append(f"{comment + k.name + ' = ' + value:<30} # {k.doc}; {k.allowed()}")
         out.append("")
     return "\n".join(out)

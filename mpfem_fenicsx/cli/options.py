@@ -29,7 +29,7 @@ def add_range_option(parser, flag: str, name: str, allowed: Range, default: Any,
             fail(BAD_INPUT, f"argument {flag}: {flag} = {parsed!r} {why}", parser.prog)
         return parsed
 
-    meaning = allowed.doc if help is None else f"{help}; {allowed.doc}"
+    meaning = (allowed.doc if help is None else f"{help}; {allowed.doc}").replace("%", "%%")  # argparse formats help
     extent = "" if allowed.choices else f"; {allowed.allowed()}"
     parser.add_argument(flag, type=value, default=default, choices=allowed.choices,
                         metavar=None if allowed.choices else name.upper(),

@@ -37,6 +37,7 @@ from mpi4py import MPI
 from ..homogenization import first_crossing, hencky_strain, row_increments, second_order_work, stress_invariants
 from ..io.history import tensor_from_columns
 from ..loading.mixed import normal_stress_path
+from ..parameters import parameter, parameter_of
 from .stress_probes import StressProbeCase, consolidate, run_probe
 
 RUPTURE_COLUMNS = ("time", "sigma_11", "sigma_22", "sigma_33", "sigma_m", "q", "path_stress", "h_11", "h_22", "h_33",
@@ -48,11 +49,13 @@ POINT_COLUMNS = ("criterion", "time", "sigma_11", "sigma_22", "sigma_33", "sigma
 class ForceRuptureCase(StressProbeCase):
     """A stress probe to rupture from the consolidated state of :class:`StressProbeCase`."""
 
-    p_probe: float = 0.2  # MPa: the probe starts from a lightly loaded state
+    p_probe: float = parameter_of(StressProbeCase, "p_probe", default=0.2)  # the probe starts lightly loaded
     final_stress: tuple = (0.0, 0.0, -5.0)  # MPa (compression > 0): uniaxial tension along z
-    phi_c: float = 1e-3  # rupture threshold on E_c / E_d
-    w2_window: int = 5  # rows of the Savitzky-Golay derivatives of W2 (0: raw differences)
-    rows_per_probe: int = 40
+    phi_c: float = parameter(1e-3, "rupture threshold on E_c / E_d (eq. 4.14) (-)", low=0, high=1, open_low=True,
+                             open_high=True)
+    w2_window: int = parameter(5, "rows of the Savitzky-Golay derivatives of W2 (0: raw differences; else odd)",
+                               low=0, high=1001)
+    rows_per_probe: int = parameter_of(StressProbeCase, "rows_per_probe", default=40)
     out_dir: str = "results/force_rupture"
 
     def __post_init__(self):
@@ -65,8 +68,6 @@ class ForceRuptureCase(StressProbeCase):
         if np.any(final < 0) and not self.base.gamma > 0:
             raise ValueError(f"final_stress is tensile but base.gamma = {self.base.gamma}: without adhesion the "
                              f"volume carries no tension (set gamma > 0 mJ/mm^2)")
-        if not 0 < self.phi_c < 1:
-            raise ValueError(f"phi_c must be in (0, 1), got {self.phi_c}")
         if self.w2_window != 0 and not (self.w2_window >= 3 and self.w2_window % 2 == 1):
             raise ValueError(f"w2_window must be 0 or an odd number >= 3 of rows, got {self.w2_window}")
 

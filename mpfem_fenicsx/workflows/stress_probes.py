@@ -23,6 +23,8 @@ from mpi4py import MPI
 
 from ..boundary import boundary_kind
 from ..loading.mixed import StressControl, pressure_control
+from ..loading.stress_paths import ServoSettings, StressPath
+from ..parameters import parameter, parameter_of
 from ..solvers import solver_kind
 from .compaction import CompactionCase, CompactionModel, run_compaction
 
@@ -30,45 +32,35 @@ _FINAL_ONLY = 10 ** 9  # checkpoint_every that writes the final checkpoint only
 
 
 @dataclass
-class StressProbeCase:
-    """A consolidated state and the servo settings of the probes run from it. ``base``: the volume
-    (packing, mesh, material, gamma, CLP / CLPS, explicit; its ``duration`` and ``increments`` set
-    the time unit and the increment); its path is replaced."""
+class StressProbeCase(ServoSettings):
+    """A consolidated state and the servo settings of the probes run from it (the servo's fields:
+    :class:`~mpfem_fenicsx.loading.stress_paths.ServoSettings`). ``base``: the volume (packing,
+    mesh, material, gamma, CLP / CLPS, explicit; its ``duration`` and ``increments`` set the time
+    unit and the increment); its path is replaced."""
 
     base: CompactionCase = field(default_factory=CompactionCase)
-    p_load: float = 2.0  # MPa, consolidation pressure
-    p_probe: float = 1.0  # MPa, mean stress of the unloaded state where the probes start
-    ramp: float = 1.0
-    hold: float = 0.3
-    unload: float = 0.3
-    probe: float = 1.0  # duration of a probe
-    rate: float = 0.1
-    band: float | None = None  # MPa (None: p_load / 4)
-    integral_time: float | None = 0.1
-    filter_time: float = 0.01
-    rows_per_probe: int = 20
+    p_load: float = parameter(2.0, "consolidation pressure (MPa, compression > 0)", low=0, high=1000, open_low=True)
+    p_probe: float = parameter(1.0, "mean stress of the unloaded state where the probes start (MPa, below p_load)",
+                               low=0, high=1000, open_low=True)
+    ramp: float = parameter_of(StressPath, "ramp")
+    hold: float = parameter_of(StressPath, "hold")
+    unload: float = parameter(0.3, "time of the unload from p_load to p_probe (x duration)", low=0, high=100,
+                              open_low=True)
+    probe: float = parameter(1.0, "time of a probe (x duration)", low=0, high=100, open_low=True)
+    rows_per_probe: int = parameter(20, "history rows over a probe", low=2, high=10000)
     out_dir: str = "results/stress_probes"
 
     def __post_init__(self):
+        super().__post_init__()  # every declared range
         if not boundary_kind(self.base.bc).periodic or not solver_kind(self.base.solver).stress_control:
             raise ValueError(f"base: a stress-controlled probe needs bc CLP or CLPS and the explicit solver, got "
                              f"{self.base.bc!r} / {self.base.solver!r}")
-        if not 0 < self.p_probe < self.p_load:
+        if not self.p_probe < self.p_load:
             raise ValueError(f"p_probe must be in (0, p_load = {self.p_load}) MPa, got {self.p_probe}")
-        for name in ("ramp", "unload", "probe", "rate"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0 (x duration), got {getattr(self, name)}")
-        if not self.hold >= 0:
-            raise ValueError(f"hold must be >= 0 (x duration), got {self.hold}")
-        if not 2 <= self.rows_per_probe <= 10000:
-            raise ValueError(f"rows_per_probe must be in [2, 10000], got {self.rows_per_probe}")
 
     def servo(self) -> dict:
         """The servo's keyword arguments in seconds (loading.mixed.StressControl)."""
-        T = self.base.duration
-        return dict(rate=self.rate / T, band=self.band if self.band is not None else self.p_load / 4,
-                    integral_time=None if self.integral_time is None else self.integral_time * T,
-                    filter_time=self.filter_time * T)
+        return self.in_seconds(self.base.duration, self.p_load)
 
     def consolidation(self) -> StressControl:
         """Pressure up to p_load (ramp), held, down to p_probe (unload), held."""

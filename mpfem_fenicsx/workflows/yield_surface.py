@@ -55,7 +55,8 @@ from ..homogenization import first_crossing, hencky_strain, row_increments, seco
 from ..homogenization.surfaces import (default_gamma_levels, iso_gamma_point, limit_specific_surface, surface_points,
                                       w2_sign_changes)
 from ..io.history import read_csv, tensor_from_columns
-from ..solvers import solver_kind
+from ..parameters import check_parameters, parameter
+from ..solvers import SOLVERS, solver_kind
 from ..io.plots import plot_yield_surface
 from ..loading import reload_gradient, unload_gradient
 from ..meshes.packing import Packing
@@ -73,55 +74,44 @@ class YieldSurfaceCase:
     packing, increments, ...); its ``out_dir`` is ignored (stages go under ``out_dir``)."""
 
     base: CompactionCase = field(default_factory=CompactionCase)
-    nphi: int = 16
-    #: the unload stops where sigma_m = this fraction of sigma_m at the end of the loading
-    unload_stress_ratio: float = 0.05
-    amplitude_factor: float = 1.5  # A = factor |h_v^d| (thesis: 1.5)
-    dissipation_threshold: float = 3e-3  # yield: E_d >= E_0 (1 + threshold) (thesis: 0.3 %)
+    nphi: int = parameter(16, "reload directions in [0, 2 pi)", low=3, high=720)
+    unload_stress_ratio: float = parameter(0.05, "the unload stops where sigma_m is this fraction of its value at "
+                                           "the end of the loading (-)", low=0, high=1, open_high=True)
+    amplitude_factor: float = parameter(1.5, "reload amplitude A / |h_v^d| of the unload (thesis: 1.5) (-)", low=0,
+                                        high=20, open_low=True)
+    dissipation_threshold: float = parameter(3e-3, "yield: E_d >= E_0 (1 + this) (thesis §4.2.2: 0.3 %) (-)", low=0,
+                                             high=1, open_low=True, open_high=True)
     #: iso-Gamma levels (1/mm); empty: 0.25, 0.5, 0.75 and 1.0 x Gamma at the end of the unload
     gamma_thresholds: tuple = ()
-    #: explicit increments of a reload; 0: the compaction's strain rate slowed by ``slowdown``,
-    #: and at least ``min_increments`` (an elastic unload / reload is quasi-static only if it
-    #: lasts many elastic wave transits of the cell: ~10-20 increments per particle diameter)
-    reload_increments: int = 0
-    slowdown: float = 4.0
-    min_increments: int = 400
-    rows_per_reload: int = 40
-    #: explicit reloads: rows of the Savitzky-Golay derivatives of W2 (0: raw differences);
+    #: an elastic unload / reload is quasi-static only if it lasts many elastic wave transits of
+    #: the cell: ~10-20 increments per particle diameter
+    reload_increments: int = parameter(0, "explicit increments of a reload (0: the compaction's strain rate slowed "
+                                       "by `slowdown`, at least `min_increments`)", low=0)
+    slowdown: float = parameter(4.0, "reloads slower than the compaction by this factor (-)", low=0, high=1000,
+                                open_low=True)
+    min_increments: int = parameter(400, "fewest explicit increments of a reload", low=10)
+    rows_per_reload: int = parameter(40, "history rows over a reload", low=4, high=10000)
     #: implicit reloads always use raw differences (no dynamic oscillation to filter)
-    w2_window: int = 7
-    #: solver of the reloads: explicit, or implicit (Newton, quasi-static: W2 needs no filter).
+    w2_window: int = parameter(7, "explicit reloads: rows of the Savitzky-Golay derivatives of W2 (0: raw "
+                               "differences)", low=0, high=1001)
     #: The loading and the unload always run explicit; an implicit fan first relaxes the unloaded
     #: state to static equilibrium (stage "settle", out/settle) and restarts from it
-    solver: str = "explicit"
-    reload_steps: int = 40  # implicit: load steps of a reload (each one a history row)
+    solver: str = parameter("explicit", "solver of the reloads: explicit, or implicit (Newton, quasi-static: W2 "
+                            "needs no filter)", choices=SOLVERS)
+    reload_steps: int = parameter(40, "implicit: load steps of a reload (each one a history row)", low=4, high=10000)
     out_dir: str = "results/yield_surface"
 
     def __post_init__(self):
+        check_parameters(self)
         if solver_kind(self.base.solver).static:
             raise ValueError(f"base.solver: the loading and unload of a fan run with the explicit solver "
                              f"(implicit granular compaction is experimental), got {self.base.solver!r}; "
                              f"choose the reloads' solver with YieldSurfaceCase.solver")
-        solver_kind(self.solver)  # ValueError naming the solvers
-        if not 4 <= self.reload_steps <= 10000:
-            raise ValueError(f"reload_steps must be in [4, 10000] implicit steps, got {self.reload_steps}")
         if not boundary_kind(self.base.bc).periodic:
             raise ValueError(f"bc must be CLP or CLPS for a yield surface (periodic volume whose macroscopic "
                              f"gradient is imposed), got {self.base.bc!r}")
-        if not 3 <= self.nphi <= 720:
-            raise ValueError(f"nphi must be in [3, 720] reload directions, got {self.nphi}")
-        if not 0.0 <= self.unload_stress_ratio < 1.0:
-            raise ValueError(f"unload_stress_ratio must be in [0, 1), got {self.unload_stress_ratio}")
-        if not 0.0 < self.amplitude_factor <= 20.0:
-            raise ValueError(f"amplitude_factor must be in (0, 20], got {self.amplitude_factor}")
-        if not 0.0 < self.dissipation_threshold < 1.0:
-            raise ValueError(f"dissipation_threshold must be in (0, 1), got {self.dissipation_threshold}")
         if any(not g > 0 for g in self.gamma_thresholds):
             raise ValueError(f"gamma_thresholds must be > 0 (1/mm), got {self.gamma_thresholds}")
-        if self.reload_increments < 0 or not self.slowdown > 0 or self.min_increments < 10:
-            raise ValueError("reload_increments must be >= 0 (0: automatic), slowdown > 0, min_increments >= 10")
-        if not 4 <= self.rows_per_reload <= 10000:
-            raise ValueError(f"rows_per_reload must be in [4, 10000], got {self.rows_per_reload}")
 
     @property
     def phis(self) -> np.ndarray:
