@@ -15,22 +15,21 @@ from mpi4py import MPI
 
 from mpfem_fenicsx.cli.exits import bad_input_exits
 from mpfem_fenicsx.material import LEAD
-from mpfem_fenicsx.solvers import SOLVERS
-from mpfem_fenicsx.workflows.foundation import check_uniaxial, run_uniaxial
+from mpfem_fenicsx.cli.options import add_parameter_option
+from mpfem_fenicsx.workflows.foundation import UniaxialCase, run_uniaxial
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--solver", choices=SOLVERS, default="implicit")
-    parser.add_argument("--log-strain", type=float, default=0.5)
-    parser.add_argument("--cells", type=int, default=2, help="hexahedra per edge of the 1 mm cube")
+    for name in ("solver", "log_strain", "cells"):  # meaning, unit, default and range from UniaxialCase
+        add_parameter_option(parser, UniaxialCase, name)
     parser.add_argument("--out", default="results/uniaxial")
     args = parser.parse_args(argv)
     with bad_input_exits():
-        check_uniaxial(args.solver, args.log_strain, args.cells)
+        case = UniaxialCase(solver=args.solver, log_strain=args.log_strain, cells=args.cells, material=LEAD)
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
-    res = run_uniaxial(args.solver, LEAD, args.log_strain, args.cells, args.out, comm, log=say)
+    res = run_uniaxial(case, args.out, comm, log=say)
     plastic = res.eps_p > 1e-3
     dev = np.abs(res.true_stress[plastic] / LEAD.yield_stress(res.eps_p[plastic]) - 1.0).max()
     say(f"{args.solver}: {len(res.log_strain)} rows, final log strain {res.log_strain[-1]:.4f}, "

@@ -24,7 +24,8 @@ from ..loading import PrescribedDisplacements, component_dofs
 from ..material import LEAD, ElastoPlastic
 from ..meshes import ParticleVolumes, particle_mesh
 from ..problem import SolidProblem
-from ..solvers import StepControl, create_solver, loading_amplitude, solver_kind
+from ..parameters import check_parameters, parameter
+from ..solvers import SOLVERS, StepControl, create_solver, loading_amplitude, solver_kind
 from ..solvers.explicit import ExplicitSettings
 
 
@@ -35,31 +36,52 @@ def _log_mass_scaling(solver, log) -> None:
             f"max mass scaling {solver.mass_scaling_max:.3g})")
 
 
-def _check_solver(solver: str) -> None:
-    solver_kind(solver)  # ValueError naming the solvers
+@dataclass(frozen=True)
+class UniaxialCase:
+    """Homogeneous uniaxial tension of a 1 mm cube (SPEC §9 case 1), checked on construction
+    (ValueError naming the field)."""
+
+    solver: str = parameter("implicit", "implicit (Newton, adaptive steps) or explicit (central differences, mass "
+                            "scaling)", choices=SOLVERS)
+    log_strain: float = parameter(0.5, "final logarithmic strain along x (-)", low=0, high=2, open_low=True)
+    cells: int = parameter(2, "hexahedra per edge of the 1 mm cube", low=1, high=32)
+    material: ElastoPlastic = LEAD
+    explicit_time: float = parameter(4e-3, "explicit: loading time, mass-scaled (s)", low=0, open_low=True)
+    explicit_steps: int = parameter(8000, "explicit: increments over the loading", low=10)
+    rows: int = parameter(400, "explicit: history rows", low=2, high=100000)
+
+    def __post_init__(self):
+        check_parameters(self)
 
 
-def check_uniaxial(solver: str, log_strain: float, cells: int) -> None:
-    """The inputs of :func:`run_uniaxial`, checked before any mesh (ValueError naming the field)."""
-    _check_solver(solver)
-    if not 0 < log_strain <= 2:
-        raise ValueError(f"log_strain must be in (0, 2], got {log_strain}")
-    if not 1 <= cells <= 32:
-        raise ValueError(f"cells must be in [1, 32] hexahedra per edge, got {cells}")
+@dataclass(frozen=True)
+class SqueezeCase:
+    """One cube-sphere particle squeezed between two prescribed caps, checked on construction
+    (ValueError naming the field)."""
 
+    solver: str = parameter("implicit", "implicit (Newton, adaptive steps) or explicit (central differences, mass "
+                            "scaling)", choices=SOLVERS)
+    reduction: float = parameter(0.3, "height reduction of the particle (-)", low=0, high=0.6, open_low=True,
+                                 open_high=True)
+    radius: float = parameter(1.0, "particle radius (mm)", low=0, open_low=True)
+    cap: float = parameter(0.75, "nodes with |z| >= cap x radius are the prescribed caps (-)", low=0.3, high=1,
+                           open_low=True, open_high=True)
+    refinement: int = parameter(1, "cube-sphere refinement (1 = 561 nodes)", low=1, high=4)
+    material: ElastoPlastic = LEAD
+    explicit_time: float = parameter(2e-3, "explicit: loading time, mass-scaled (s)", low=0, open_low=True)
+    explicit_steps: int = parameter(6000, "explicit: increments over the loading", low=10)
+    rows: int = parameter(40, "history rows (explicit)", low=2, high=100000)
+    #: the particle's cells: "hexahedron" (cube-sphere, SRI) or "tetrahedron" (gmsh, order
+    #: ``tet_order``, size ``tet_size`` mm)
+    cell_type: str = parameter("hexahedron", "particle cells: hexahedron (cube-sphere) or tetrahedron (gmsh)",
+                               choices=("hexahedron", "tetrahedron"))
+    tet_order: int = parameter(2, "tetrahedra: polynomial order", low=1, high=2)
+    tet_size: float = parameter(0.3, "tetrahedra: element size (mm)", low=0, open_low=True)
+    full_integration: bool = False  # hexahedra without the reduced volumetric rule (they lock)
+    visual: bool = False  # ParaView series and a PNG of the deformed particle
 
-def check_sphere_squeeze(solver: str, reduction: float, refinement: int = 1, cap: float = 0.75,
-                         explicit_steps: int = 6000) -> None:
-    """The inputs of :func:`run_sphere_squeeze`, checked before any mesh (ValueError naming the field)."""
-    _check_solver(solver)
-    if not 0 < reduction < 0.6:
-        raise ValueError(f"reduction must be in (0, 0.6), got {reduction}")
-    if not 0.3 < cap < 1.0:
-        raise ValueError(f"cap must be in (0.3, 1), got {cap}")
-    if not 1 <= refinement <= 4:
-        raise ValueError(f"refinement must be in [1, 4], got {refinement}")
-    if explicit_steps < 10:
-        raise ValueError(f"explicit_steps must be >= 10, got {explicit_steps}")
+    def __post_init__(self):
+        check_parameters(self)
 
 
 def _mean_over_points(problem: SolidProblem, values: np.ndarray) -> float:
@@ -78,18 +100,17 @@ class UniaxialResult:
     plastic_work: float = 0.0  # mJ, the solver's tally of the plastic dissipation
 
 
-def run_uniaxial(solver: str = "implicit", material: ElastoPlastic = LEAD, log_strain: float = 0.5,
-                 cells: int = 2, out_dir: str | Path = "results/uniaxial", comm: MPI.Comm = MPI.COMM_WORLD,
-                 explicit_time: float = 4e-3, explicit_steps: int = 8000, rows: int = 400,
-                 log=print) -> UniaxialResult:
-    """Stretch a unit cube (1 mm, ``cells``^3 hexahedra) homogeneously to ``log_strain``.
+def run_uniaxial(case: UniaxialCase = UniaxialCase(), out_dir: str | Path = "results/uniaxial",
+                 comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> UniaxialResult:
+    """Stretch a unit cube (1 mm, ``cells``^3 hexahedra) homogeneously to ``log_strain`` (``case``).
 
     Symmetry rollers on x=0, y=0, z=0; u_x prescribed on x=1. Implicit: ramp in pseudo-time with
     adaptive steps. Explicit: smooth-step amplitude over ``explicit_time`` s with mass scaling to
     ``explicit_time / explicit_steps``. Writes ``stress_strain.csv`` (log_strain, true_stress_MPa,
     eps_p) and, for the explicit solver, ``energy.csv``.
     """
-    check_uniaxial(solver, log_strain, cells)
+    solver, material, log_strain, cells = case.solver, case.material, case.log_strain, case.cells
+    explicit_time, explicit_steps, rows = case.explicit_time, case.explicit_steps, case.rows
     out_dir = Path(out_dir)
     length = 1.0
     mesh = dolfinx.mesh.create_box(comm, [[0, 0, 0], [length] * 3], [cells] * 3,
@@ -148,12 +169,8 @@ class SqueezeResult:
     num_dofs: int
 
 
-def run_sphere_squeeze(solver: str = "implicit", material: ElastoPlastic = LEAD, reduction: float = 0.3,
-                       radius: float = 1.0, cap: float = 0.75, refinement: int = 1,
-                       out_dir: str | Path = "results/sphere_squeeze", comm: MPI.Comm = MPI.COMM_WORLD,
-                       explicit_time: float = 2e-3, explicit_steps: int = 6000, rows: int = 40,
-                       visual: bool = False, cell_type: str = "hexahedron", tet_order: int = 2,
-                       tet_size: float = 0.3, full_integration: bool = False, log=print) -> SqueezeResult:
+def run_sphere_squeeze(case: SqueezeCase = SqueezeCase(), out_dir: str | Path = "results/sphere_squeeze",
+                       comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> SqueezeResult:
     """Squeeze one cube-sphere particle between two prescribed caps to a height reduction.
 
     The caps are the nodes with |z| >= cap * radius: their u_z is prescribed (-/+ reduction *
@@ -164,12 +181,13 @@ def run_sphere_squeeze(solver: str = "implicit", material: ElastoPlastic = LEAD,
     ``visual``: ParaView series ``<solver>.xdmf`` (displacement, von Mises, eps_p) and a
     PNG of the final deformed particle coloured by von Mises stress.
     """
-    check_sphere_squeeze(solver, reduction, refinement, cap, explicit_steps)
+    solver, material, reduction, radius, cap = case.solver, case.material, case.reduction, case.radius, case.cap
+    explicit_time, explicit_steps, rows, visual = case.explicit_time, case.explicit_steps, case.rows, case.visual
     out_dir = Path(out_dir)
-    assembly = particle_mesh([[0.0, 0.0, 0.0]], [radius], comm, refinement=refinement,
-                             cell_type=cell_type, tet_order=tet_order, tet_size=tet_size)
+    assembly = particle_mesh([[0.0, 0.0, 0.0]], [radius], comm, refinement=case.refinement,
+                             cell_type=case.cell_type, tet_order=case.tet_order, tet_size=case.tet_size)
     problem = SolidProblem(assembly.mesh, material, tangent=solver_kind(solver).tangent,
-                           full_integration=full_integration)
+                           full_integration=case.full_integration)
     V = problem.V
     amplitude = loading_amplitude(solver, explicit_time)
     travel = reduction * radius  # each cap moves by half of the total height change 2 r reduction
