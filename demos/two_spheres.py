@@ -9,9 +9,9 @@ Steel spheres (E = 200000 MPa, nu = 0.3, sigma_y = 200 MPa, H = 100 MPa), r = 1 
 separated (implicit). Default model: the one-cell 2-degree wedge (axisymmetric by cyclic
 symmetry) with quadrilaterals of 0.002 r on the contact cap (--size-min 0.004: the thesis used
 0.00125 r), penalty 10 E / h = 1e9 N/mm^3 (the thesis' value), 40 load + 80 unload steps; 48 804
-dofs, 30-60 min per ratio on one core. Measured (2026-11-24): e = 4.3 / 3.2 / 1.3 / 2.0 / 4.0 %
-for sigma_c / sigma_y = 0.6 / 0.8 / 1.0 / 1.2 / 1.6 (thesis: < 5 % in [0.6, 1.6]). --model quarter runs the 3-D quarter model instead (hexahedra
-split from gmsh tetrahedra; a resolved contact there costs ~10x more).
+dofs, 30-60 min per ratio on one core (measured errors: README.md and bench/README.md, thesis:
+< 5 % in [0.6, 1.6]). --model quarter runs the 3-D quarter model instead (hexahedra split from
+gmsh tetrahedra; a resolved contact there costs ~10x more).
 
 For each ratio (delta_max = 2 gamma / sigma_c) writes results/two_spheres/history_<ratio>.csv
 (time, approach, force, contact radius, loaded points) and sigma_c_<ratio>.csv (a_over_a0,

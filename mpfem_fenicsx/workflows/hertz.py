@@ -8,9 +8,7 @@ the centres. Reference: F = 4/3 E* sqrt(R) delta^(3/2), E* = E / (2 (1 - nu^2)),
 ``solver="explicit"`` runs the same case with central differences (mass scaling to
 ``explicit_increments`` increments, smooth-step approach): slow enough, it should reproduce the
 implicit force-approach curve (issue 3 acceptance, checked by ``demos/hertz.py --solver explicit``,
-too long for CI). Measured on the CI mesh (size_min 0.01, 10 191 dofs), largest deviation from
-the implicit curve for delta >= 0.002 r: 7.9 % with 4000 increments (dynamic oscillation), 1.74 %
-with 8000 (the demo default; 1256 s on 2 cores).
+too long for CI; measured in ``bench/README.md``, "Single contacts").
 """
 
 from __future__ import annotations

@@ -20,41 +20,13 @@ eq. 3.21): e = sqrt(sum_a ((F - F_MJ) / (pi a0^2 p0))^2) on a / a0 = 0.1, ..., 0
 the thesis leaves the sampling implicit; summed over all unloading increments it grows as the
 square root of their number, reported as ``error_samples`` beside the per-sample rms).
 
-Newton on this faceted, non-matching quarter model (history of the fixes):
-- The closest-point projection on the facets made Newton cycle (exact period 3 at approach 0.004 r,
-  elastic): a penetrated node near the edge of two master facets switched between their planes,
-  whose gaps differ. The projection now follows the smoothed master normal field (corner normals
-  of the last converged configuration, ``contact.search.project_point``): gap and normal are continuous
-  across facet edges. Elastic (sigma_y = 1e6 MPa), size_min = 0.05 (22 518 dofs): 3-4 Newton
-  iterations per step, superlinear (contraction 1e-2 -> 2e-3 -> 1.5e-4), F within 0.3 % of Hertz at
-  0.02 r, 50 steps in 200 s (``tests/test_two_spheres.py`` asserts a CI-sized version).
-- With plasticity (table 3.2 steel) the rim of the growing contact cycled open / closed (period 2:
-  an open node gets no contact stiffness in the linearization and the soft plastic substrate lets
-  one Newton step drive it ~5e-4 mm into the master). The implicit solver limits the Newton step so
-  that open points do not penetrate deeper than the existing penetrations
-  (``ContactModel.penetration_step_limit``): 4 load steps to 0.008 r, 5 increments / 1 cut-back
-  instead of 17 / 5 (59 s instead of 168 s).
-- Unloading with adhesion: the adhesive softening slope ~ sigma_c^2 / (2 gamma) per unit area
-  (2.7e7 N/mm^3 at ratio 1) exceeds a surface node's own stiffness on coarse meshes (E* h / h^2,
-  h = 0.025 mm at size_min 0.05): no static state exists on the softening branch, each rim node
-  snaps off, and Newton cycled adhered <-> open (stalled at t = 1.38). Stable softening needs
-  h < E* / slope (0.005 mm at ratio 1 with the default penalty, 0.002 mm at 1.6: the thesis' mesh
-  is 0.00125 r, run with explicit dynamics). ``ContactModel`` now lets an iterate break a point
-  for good within the increment (gap beyond delta_max erases the memory until the next commit),
-  holds the softening slope of a point that returns from softening at zero, and snaps a point
-  that returns twice (``ContactModel.evaluate``): the coarse ratio-1 case unloads to full
-  separation (size_min 0.05, 22 518 dofs: 79 increments, 6 cut-backs, 726 s on a loaded machine;
-  e = 30.6 % over 32 samples, i.e. 5.4 % rms: the contact radius moves in steps of a node ring).
-- The wedge (ratio 1, 0.002 r quadrilaterals on the contact cap, 24k free dofs, 40 + 80 steps):
-  loading cycled at the edge of the growing contact, a virgin rim point in / out of overlap (the
-  kink of the unilateral law; period 3 with the plastic substrate): such points snap in
-  (``ContactModel._track_snap_in``). Unloading follows Mesarovic-Johnson down to the pull-off of
-  the last disc (a / a0 ~ 0.1): e (eq. 3.21 on the grid) = 4.3 / 3.2 / 1.3 / 2.0 / 4.0 % for
-  sigma_c / sigma_y = 0.6 / 0.8 / 1.0 / 1.2 / 1.6 (rms per sample 3.6 / 1.5 / 1.1 / 1.9 / 2.3 %); a0 = 0.1547
-  mm, F0 = 41.9 N; 32-58 min per ratio on one core (2026-11-24, cores shared by two runs).
-- Mesh: ``grading`` refines the contact cap only (size_min on the sphere surface within
-  refine_radius of the axis, growing by ``grading`` per unit distance from it), so that the contact
-  can be resolved at h = size_min / 2 = 0.01 mm (size_min 0.02, grading 0.5: 58 902 dofs).
+Newton on these faceted, non-matching models needs the contact model's guards (smoothed master
+normals, the penetration step limit, peeling and snap-in: ``contact.guards``); the history of
+those fixes and the measured errors per ratio are in ``bench/README.md`` ("Single contacts").
+
+Mesh: ``grading`` refines the contact cap only (size_min on the sphere surface within
+refine_radius of the axis, growing by ``grading`` per unit distance from it), so that the contact
+can be resolved at h = size_min / 2 = 0.01 mm (size_min 0.02, grading 0.5: 58 902 dofs).
 """
 
 from __future__ import annotations
