@@ -21,7 +21,7 @@ from mpi4py import MPI
 
 from mpfem_fenicsx.cli.exits import bad_input_exits
 from mpfem_fenicsx.cli.options import add_parameter_option
-from mpfem_fenicsx.solvers import SOLVERS, solver_kind
+from mpfem_fenicsx.solvers import solver_kind
 from mpfem_fenicsx.workflows.hertz import HertzCase, run_hertz
 
 
@@ -30,18 +30,16 @@ def main(argv=None):
     add_parameter_option(parser, HertzCase, "size_min")
     add_parameter_option(parser, HertzCase, "steps")
     parser.add_argument("--out", default="results/hertz")
-    parser.add_argument("--solver", choices=SOLVERS, default="implicit")
-    parser.add_argument("--increments", type=int, default=8000, help="explicit increments (slow loading)")
+    add_parameter_option(parser, HertzCase, "solver")
+    add_parameter_option(parser, HertzCase, "explicit_increments", flag="--increments")
     args = parser.parse_args(argv)
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     with bad_input_exits():
-        case = HertzCase(size_min=args.size_min, steps=args.steps)
-        if args.increments < 100:
-            raise ValueError(f"--increments must be >= 100, got {args.increments}")
-    if not solver_kind(args.solver).static:  # a dynamic run compared with the static one
-        res = run_hertz(case, args.out, comm, log=say, solver=args.solver, explicit_increments=args.increments,
-                        rows=40)
+        case = HertzCase(size_min=args.size_min, steps=args.steps, solver=args.solver,
+                         explicit_increments=args.increments)
+    if not solver_kind(case.solver).static:  # a dynamic run compared with the static one
+        res = run_hertz(case, args.out, comm, log=say)
         say(f"{res.num_dofs} dofs, {res.wall_time:.1f} s")
         implicit = Path(args.out) / "force.csv"
         if implicit.exists():

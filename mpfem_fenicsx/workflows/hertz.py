@@ -5,7 +5,7 @@ from gmsh, refined around the contact point. Each sphere is driven by a small ri
 nodes within ``core`` r of its centre) moving by -/+ delta/2 along z, so delta is the approach of
 the centres. Reference: F = 4/3 E* sqrt(R) delta^(3/2), E* = E / (2 (1 - nu^2)), R = r / 2.
 
-``solver="explicit"`` runs the same case with central differences (mass scaling to
+``HertzCase(solver="explicit")`` runs the same case with central differences (mass scaling to
 ``explicit_increments`` increments, smooth-step approach): slow enough, it should reproduce the
 implicit force-approach curve (issue 3 acceptance, checked by ``demos/hertz.py --solver explicit``,
 too long for CI; measured in ``bench/README.md``, "Single contacts").
@@ -29,7 +29,7 @@ from ..material import ElastoPlastic
 from ..parameters import check_parameters, parameter
 from ..meshes import particle_mesh
 from ..problem import SolidProblem
-from ..solvers import StepControl, create_solver, loading_amplitude, solver_kind
+from ..solvers import SOLVERS, StepControl, create_solver, loading_amplitude, solver_kind
 from ..solvers.explicit import ExplicitSettings
 
 
@@ -49,6 +49,12 @@ class HertzCase:
     #: k = factor * E / (size_min r), see contact.laws.default_penalty
     penalty_factor: float = parameter(10.0, "penalty k = factor x E / h, h the contact element size (-)", low=0,
                                       open_low=True)
+    solver: str = parameter("implicit", "implicit (Newton, the reference curve) or explicit (central differences, "
+                            "smooth-step approach)", choices=SOLVERS)
+    explicit_increments: int = parameter(8000, "explicit: mass-scaled increments of the approach (slow loading)",
+                                         low=100)
+    explicit_time: float = parameter(1e-3, "explicit: time of the approach, mass-scaled (s)", low=0, open_low=True)
+    rows: int = parameter(40, "explicit: history rows", low=2, high=100000)
 
     def __post_init__(self):
         check_parameters(self, prefix="HertzCase.")
@@ -69,10 +75,9 @@ class HertzResult:
 
 
 def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hertz",
-              comm: MPI.Comm = MPI.COMM_WORLD, petsc_options: dict | None = None, log=print,
-              solver: str = "implicit", explicit_increments: int = 4000, explicit_time: float = 1e-3,
-              rows: int = 40) -> HertzResult:
-    kind = solver_kind(solver)  # ValueError naming the solvers
+              comm: MPI.Comm = MPI.COMM_WORLD, petsc_options: dict | None = None, log=print) -> HertzResult:
+    solver, explicit_increments, explicit_time, rows = case.solver, case.explicit_increments, case.explicit_time, case.rows
+    kind = solver_kind(solver)
     r = case.radius
     with warnings.catch_warnings():  # P1 tetrahedra: fine for this elastic, compressible case
         warnings.simplefilter("ignore")
