@@ -210,6 +210,8 @@ def test_control_keys_build_the_stress_control(tmp_path):
     pressure = load_case(_case(tmp_path, "[control]\npath = 'pressure'\npressure = 1.0\n", "p.toml")).control
     assert pressure.duration == pytest.approx(1.3e-3)  # the defaults: those of demos/triaxial.py
     assert pressure.band == 0.25 and pressure.integral_time == pytest.approx(1e-4)
+    narrow = load_case(_case(tmp_path, "[control]\npath = 'pressure'\npressure = 1.0\nband_fraction = 0.15\n", "n.toml"))
+    assert narrow.control.band == pytest.approx(0.15)  # a band given as a fraction of the pressure
     assert pressure.filter_time == pytest.approx(1e-5) and pressure.rate == pytest.approx(100.0)
     assert np.array_equal(pressure.stress_driven(1.2e-3), np.eye(3, dtype=bool))
     cycle = load_case(_case(tmp_path, "[control]\npath = 'cycle'\npressure = 2.0\nunload_to = 0.5\nreload_to = 3.0\n"

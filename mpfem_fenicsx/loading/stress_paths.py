@@ -32,8 +32,10 @@ class ServoSettings:
 
     rate: float = parameter(0.1, "the servo's largest strain rate (strain per duration)", low=0, high=10,
                             open_low=True)
-    band: float | None = parameter(None, "stress error at which the servo reaches its rate (MPa; default: a "
-                                   "quarter of the pressure)", kind=float, low=0, open_low=True)
+    band: float | None = parameter(None, "stress error at which the servo reaches its rate (MPa; default: "
+                                   "band_fraction x the pressure)", kind=float, low=0, open_low=True)
+    band_fraction: float = parameter(0.25, "the servo's band as a fraction of the pressure where `band` is not given "
+                                     "(-)", low=0, high=1, open_low=True)
     integral_time: float = parameter(0.1, "integral time of the PI servo (x duration; 0: proportional only, which "
                                      "lags behind a drifting stress)", low=0, high=100)
     filter_time: float = parameter(0.01, "low-pass filter of the measured stress (x duration)", low=0, high=1)
@@ -45,8 +47,9 @@ class ServoSettings:
 
     def in_seconds(self, duration: float, pressure: float) -> dict:
         """The servo's keyword arguments of :class:`~.mixed.StressControl` (rate 1/s, times s) for
-        a loading ``duration`` (s); ``band`` defaults to ``pressure`` / 4 (MPa)."""
-        return dict(rate=self.rate / duration, band=self.band if self.band is not None else pressure / 4,
+        a loading ``duration`` (s); ``band`` defaults to ``band_fraction`` x ``pressure`` (MPa)."""
+        band = self.band if self.band is not None else self.band_fraction * pressure
+        return dict(rate=self.rate / duration, band=band,
                     measure=self.measure, filter_time=self.filter_time * duration,
                     integral_time=self.integral_time * duration if self.integral_time > 0 else None)
 
