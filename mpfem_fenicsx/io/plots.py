@@ -144,9 +144,10 @@ def plot_deviatoric_surface(points, png: str | Path, mean: float, title: str = "
     from ..loading.mixed import lode_direction
 
     pts = np.array([(p[2], np.radians(p[3])) for p in points]).reshape(-1, 2)
+    images = [(s, t) for s in (1, -1) for t in (0, 1, 2)]  # theta -> +-theta + 120 deg k
     fig = plt.figure(figsize=(10, 4.6))
     ax = fig.add_subplot(1, 2, 1)
-    for k, (sign, turn) in enumerate([(s, t) for s in (1, -1) for t in (0, 1, 2)]):
+    for k, (sign, turn) in enumerate(images):
         angle = sign * pts[:, 1] + turn * 2 * np.pi / 3
         ax.plot(pts[:, 0] * np.cos(angle), pts[:, 0] * np.sin(angle), "o",
                 mfc="tab:red" if k == 0 else "none", mec="tab:red", ms=6 if k == 0 else 4,
@@ -162,9 +163,13 @@ def plot_deviatoric_surface(points, png: str | Path, mean: float, title: str = "
     ax.legend(fontsize=8, loc="best")
     ax.grid(alpha=0.3)
     ax3 = fig.add_subplot(1, 2, 2, projection="3d")
-    for q, theta in pts:
-        s = mean + np.sqrt(2.0 / 3.0) * q * lode_direction(theta)
-        ax3.scatter(*s, color="tab:red")
+    ring = sorted((float((sign * theta + turn * 2 * np.pi / 3) % (2 * np.pi)), q) for q, theta in pts
+                  for sign, turn in images)  # the whole section at sigma_m = mean, closed
+    if ring:
+        section = np.array([mean + np.sqrt(2.0 / 3.0) * q * lode_direction(a) for a, q in ring + ring[:1]])
+        ax3.plot(*section.T, color="tab:red", lw=0.8, label=f"section at sigma_m = {mean:g} MPa")
+    measured = np.array([mean + np.sqrt(2.0 / 3.0) * q * lode_direction(theta) for q, theta in pts]).reshape(-1, 3)
+    ax3.scatter(*measured.T, color="tab:red", s=14)
     top = mean + (pts[:, 0].max() if pts.size else 1.0)
     ax3.plot([0, top], [0, top], [0, top], color="0.5", lw=0.8, label="hydrostatic axis")
     ax3.set_xlabel("sigma_1 (MPa)")
