@@ -74,13 +74,9 @@ def parameter(default: Any, doc: str, *, kind: type | None = None, low: float | 
 def parameter_of(cls: type, name: str, default: Any = MISSING) -> Any:
     """A dataclass field declared like ``cls.name`` (same meaning, unit and range), with the
     same default or ``default``: one declaration for a parameter two cases share."""
-    return parameter(parameter_default(cls, name) if default is MISSING else default, parameter_range(cls, name).doc,
-                     **_declaration(parameter_range(cls, name)))
-
-
-def _declaration(allowed: Range) -> dict:
-    return dict(kind=allowed.kind, low=allowed.low, high=allowed.high, open_low=allowed.open_low,
-                open_high=allowed.open_high, choices=allowed.choices)
+    a = parameter_range(cls, name)
+    return parameter(parameter_default(cls, name) if default is MISSING else default, a.doc, kind=a.kind, low=a.low,
+                     high=a.high, open_low=a.open_low, open_high=a.open_high, choices=a.choices)
 
 
 def parameter_range(cls: type, name: str) -> Range:

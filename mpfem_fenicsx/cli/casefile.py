@@ -161,8 +161,7 @@ SCHEMA: tuple[Key, ...] = (
     # [loading] duration, the servo's rate in strain per duration
     *(control_key(name) for name in ("path", "pressure", "ramp", "hold", "axial_strain", "axial_time", "axial_ramp",
                                       "unload_to", "reload_to", "q_max", "lode_angle", "shear_time", "rate", "band",
-                                      "band_fraction",
-                                      "integral_time", "filter_time", "measure")),
+                                      "band_fraction", "integral_time", "filter_time", "measure")),
     # outputs (SPEC §10)
     own_key("output", "directory", str, "results folder (default: results/<case file name>; --out overrides)",
             target="out_dir"),

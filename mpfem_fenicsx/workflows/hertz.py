@@ -76,7 +76,7 @@ class HertzResult:
 
 def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hertz",
               comm: MPI.Comm = MPI.COMM_WORLD, petsc_options: dict | None = None, log=print) -> HertzResult:
-    solver, explicit_increments, explicit_time, rows = case.solver, case.explicit_increments, case.explicit_time, case.rows
+    solver, explicit_increments, explicit_time = case.solver, case.explicit_increments, case.explicit_time
     kind = solver_kind(solver)
     r = case.radius
     with warnings.catch_warnings():  # P1 tetrahedra: fine for this elastic, compressible case
@@ -128,6 +128,6 @@ def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hert
     if not kind.static:
         log(f"  explicit: dt = {s.dt:.3g} s (unscaled {s.dt_stable_unscaled:.3g} s), {explicit_increments} "
             "increments")
-    s.run_path(record, outputs=rows, log=log)
+    s.run_path(record, outputs=case.rows, log=log)
     history.write()
     return HertzResult(history, V.dofmap.index_map.size_global * 3, time.perf_counter() - start, iterations)
