@@ -34,13 +34,13 @@ def test_report_writes_summary_and_tables(tmp_path):
     (here / "README.md").write_text(readme)
     runs = tmp_path / "runs"
     rho = np.linspace(0.6, 0.95, 8)
-    columns = ["time", "rho", "rho_imposed", "sigma_m", "sigma_schmidt_11", "sigma_schmidt_22", "sigma_schmidt_33",
+    columns = ["time", "rho", "rho_imposed", "rho_fe", "sigma_m", "sigma_schmidt_11", "sigma_schmidt_22", "sigma_schmidt_33",
                "sigma_vol_m", "h_v", "h_d"]
     for bc, scale in (("CLP", 12.6), ("CLPS", 11.0), ("GDF", 7.0)):
         (runs / f"die_{bc}").mkdir(parents=True)
         sigma = scale * ((rho - 0.6) / 0.35) ** 2
         h_v = -np.log(rho / 0.6)
-        rows = np.column_stack([rho, rho, rho, sigma, sigma, sigma, sigma, 1.03 * sigma, h_v, 0.05 * np.abs(h_v)])
+        rows = np.column_stack([rho, rho, rho, 0.97 * rho, sigma, sigma, sigma, sigma, 1.03 * sigma, h_v, 0.05 * np.abs(h_v)])
         np.savetxt(runs / f"die_{bc}" / "history.csv", rows, delimiter=",", header=",".join(columns), comments="")
         (runs / f"die_{bc}" / "done").write_text("60\n")
     rows = report.write_report(runs, here)
