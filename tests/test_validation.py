@@ -135,6 +135,7 @@ def test_die_clp_density_definition_on_a_small_volume(tmp_path):
 
 
 @pytest.mark.heavy  # three 24-particle runs with copies: pytest -m heavy -k ordering
+@pytest.mark.timeout(5400)
 def test_die_ordering_clp_clps_gdf_on_a_small_volume(tmp_path):
     """Thesis §2.7 ordering at reduced size: the periodic volume (CLP, images) is the stiffest,
     the simplified periodic one (CLPS) next, the driven copies (GDF) the softest, over the
