@@ -15,8 +15,10 @@ test: bootstrap  ## the CI suite (serial + mpirun -n 2), heavy cases excluded
 test-all: bootstrap  ## also the heavy cases
 	$(PY) -m pytest -m ""
 
+# issue-23 validation, e.g. make validate STAGES="die dbc" JOBS=1 (JOBS cases at a time, one core each)
+JOBS ?= 2
 validate: bootstrap  ## issue-23 validation: every stage's runs (hours), then validation/README.md tables
-	$(PY) validation/run.py $(STAGES)
+	$(PY) validation/run.py --jobs $(JOBS) $(STAGES)
 
 bench: bootstrap
 	$(PY) bench/material_assembly.py

@@ -147,3 +147,27 @@ def test_die_ordering_clp_clps_gdf_on_a_small_volume(tmp_path):
         rho = np.linspace(0.70, 0.80, 11)
         means[bc] = np.mean([report.at_density(h, "sigma_m", r, "rho_imposed") for r in rho])
     assert means["CLP"] > means["CLPS"] > means["GDF"], means
+
+
+def test_parallel_runs_spawn_one_single_threaded_process_per_case(tmp_path, monkeypatch):
+    """`run.py --jobs N`: every case not done runs as its own process of run.py (one numba thread,
+    its log in runs/<case>/log.txt); a done case is skipped; a failed one is reported."""
+    import run
+
+    monkeypatch.setattr(run, "RUNS", tmp_path)
+    (tmp_path / "die_CLP").mkdir()
+    (tmp_path / "die_CLP" / "done").write_text("60\n")
+    calls = []
+
+    def fake_call(command, stdout, stderr, env):
+        calls.append((command, env["NUMBA_NUM_THREADS"], stdout.name))
+        return 1 if "die_GDF" in command else 0
+
+    monkeypatch.setattr(run.subprocess, "call", fake_call)
+    said = []
+    cases = [c for c in STAGES["die"] if c.name in ("die_CLP", "die_CLPS", "die_GDF")]
+    run.run_in_parallel(cases, 2, said.append)
+    assert sorted(c[0][-1] for c in calls) == ["die_CLPS", "die_GDF"]  # die_CLP is done
+    assert all(c[0][-3:-1] == ["--no-report", "--case"] and c[1] == "1" for c in calls)
+    assert {Path(c[2]).parent.name for c in calls} == {"die_CLPS", "die_GDF"}
+    assert "die_GDF: failed (exit 1), see its log" in said and "1 of 3 cases failed" in said

@@ -5,6 +5,7 @@
     python validation/run.py --report-only  # tables, figures and summary.csv from the finished runs
     python validation/run.py --case die_CLP_faceted   # one case (several: repeat the option)
     python validation/run.py --list         # the stages, their cases and which are done
+    python validation/run.py --jobs 2 die   # two cases at a time, one core each (logs in runs/<case>/log.txt)
 
 ``make validate`` runs every stage then the report. Runs go to ``validation/runs/<case>/`` (not
 versioned; a case with a ``done`` file is not repeated, a killed one restarts from its newest
@@ -15,8 +16,11 @@ checkpoint); the report (``report.py``) rewrites ``validation/summary.csv``, the
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -51,13 +55,42 @@ def run_case(case, comm, say) -> None:
         (run_dir / "done").write_text(f"{time.perf_counter() - start:.0f}\n")
 
 
+def run_in_parallel(cases, jobs: int, say) -> None:
+    """Run ``cases`` as ``jobs`` separate processes of this script, one numba / BLAS thread each
+    (a 50-particle case keeps one core busy; two threads on one core only contend), each writing
+    its progress to RUNS/<case>/log.txt. A failed case is reported and the others go on."""
+    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+
+    def one(case) -> int:
+        if (RUNS / case.name / "done").exists():
+            say(f"{case.name}: done")
+            return 0
+        (RUNS / case.name).mkdir(parents=True, exist_ok=True)
+        say(f"{case.name}: started (log: {RUNS / case.name / 'log.txt'})")
+        with open(RUNS / case.name / "log.txt", "a") as log:
+            code = subprocess.call([sys.executable, str(Path(__file__).resolve()), "--no-report", "--case", case.name],
+                                   stdout=log, stderr=subprocess.STDOUT, env=env)
+        say(f"{case.name}: {'finished' if code == 0 else f'failed (exit {code}), see its log'}")
+        return code
+
+    with ThreadPoolExecutor(max_workers=jobs) as pool:
+        codes = list(pool.map(one, cases))
+    if any(codes):
+        say(f"{sum(c != 0 for c in codes)} of {len(cases)} cases failed")
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("stages", nargs="*", help=f"stages to run: {', '.join(STAGES)} (default: all)")
     p.add_argument("--report-only", action="store_true", help="run nothing, regenerate the report")
     p.add_argument("--case", action="append", default=[], help="run only this case (repeatable)")
     p.add_argument("--list", action="store_true", help="list the stages and their cases")
+    p.add_argument("--jobs", type=int, default=1,
+                   help="cases run at a time, each in its own process on one core (default 1: in this process)")
+    p.add_argument("--no-report", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
+    if args.jobs < 1:
+        p.error(f"--jobs must be >= 1, got {args.jobs}")
     unknown = [s for s in args.stages if s not in STAGES]
     if unknown:
         p.error(f"stage must be one of {', '.join(STAGES)}, got {', '.join(unknown)}")
@@ -66,20 +99,25 @@ def main(argv=None) -> None:
     if unknown:
         p.error(f"case must be one of {', '.join(by_name)}, got {', '.join(unknown)}")
     comm = MPI.COMM_WORLD
+    if args.jobs > 1 and comm.size > 1:
+        p.error("--jobs runs cases side by side in separate processes: use it without mpirun")
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     if args.list:
         for stage, cases in STAGES.items():
             say(f"{stage}: " + ", ".join(f"{c.name} ({'done' if (RUNS / c.name / 'done').exists() else 'to run'})"
                                          for c in cases))
         return
-    if args.case and not args.report_only:
-        for name in args.case:
-            run_case(by_name[name], comm, say)
-    elif not args.report_only:
-        for stage in args.stages or list(STAGES):
-            for case in STAGES[stage]:
+    if not args.report_only:
+        if args.case:
+            cases = [by_name[name] for name in args.case]
+        else:
+            cases = [case for stage in args.stages or list(STAGES) for case in STAGES[stage]]
+        if args.jobs > 1:
+            run_in_parallel(cases, args.jobs, say)
+        else:
+            for case in cases:
                 run_case(case, comm, say)
-    if comm.rank == 0:
+    if comm.rank == 0 and not args.no_report:
         from report import write_report
 
         write_report(RUNS, HERE)
