@@ -33,7 +33,7 @@ from ..io.progress import Progress
 from ..io.render import render_deformed
 from ..loading import PROFILES, GradientPath, compaction_gradient
 from ..material import LEAD, ElastoPlastic
-from ..meshes.cubesphere import RESOLUTIONS
+from ..meshes.cubesphere import RESOLUTIONS, unit_ball_hex
 from ..meshes import node_particles, particle_mesh, particle_volumes
 from ..meshes.packing import (Duplicates, Packing, assembly_particles, duplicate_particles, generate_packing,
                               packing_format, periodic_pair_realizations, read_packing,
@@ -307,6 +307,14 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     solid0 = solid_volume(radii[:n])  # thesis eq. 2.5, initial (meshed) radii
 
     divisions, layers = case.mesh_divisions
+    # a volume-exact particle's nodes lie outside its sphere (x1.0100 at 6x6, x1.0406 at 3x3): when
+    # that exceeds the radius reduction, neighbours touching in the packing start interpenetrating
+    outer = unit_ball_hex(divisions, layers, case.refinement, exact_volume=case.exact_volume).radius_scale
+    start_overlap = replace(packing, radii=packing.radii * case.radius_factor * outer).max_overlap()
+    if start_overlap > 0:
+        log(f"particle mesh: nodes at {outer:.4f} x the meshed radius; with radius_factor {case.radius_factor:g} the "
+            f"spheres through the nodes of touching neighbours overlap by up to {100 * start_overlap:.2g} % of the "
+            f"smaller radius (radius_factor <= {1 / outer:.4f}, more divisions or exact_volume = false avoid it)")
     # surface element edge at a cube-face centre of the smallest particle (equi-angular grid)
     h_contact = float(radii.min()) * np.pi / (2 * divisions * case.refinement)
     law = ContactLaw(penalty=default_penalty(case.material.E, h_contact, case.penalty_factor),
