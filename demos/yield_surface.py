@@ -15,7 +15,8 @@ Outputs in --out (default results/yield_surface/): fan.csv (phi, sigma_m, sigma_
 h_tilde_d, E_d, Gamma, W2 per reload output), surfaces.csv (kind, phi, sigma_m, sigma_tilde_d;
 kind = yield | gamma_<value> | w2), uniaxial.csv (uniaxial compressive / tensile strength of
 each closed surface), yield_surface.png, and load/, unload/, reload_<k>/ with their histories.
-summary.json (E_0, Gamma_l, points per surface, raw W2 sign changes per reload). --solver
+summary.json (E_0, Gamma_l, points per surface, raw W2 sign changes per reload). --resume
+continues a killed fan (finished reloads are not repeated). --solver
 implicit runs the reloads with Newton (the loading and unload stay explicit; the unloaded state
 is first relaxed to static equilibrium): W2 then needs no filter, at ~10x the cost of a reload.
 Stresses in MPa, compression > 0.
@@ -46,6 +47,9 @@ def main(argv=None) -> None:
     p.add_argument("--gamma-thresholds", type=float, nargs="*", default=(),
                    help="iso-Gamma levels (1/mm; default: 0.25..1 x Gamma after the unload)")
     add_parameter_option(p, YieldSurfaceCase, "reload_steps")
+    p.add_argument("--resume", action="store_true",
+                   help="continue a killed fan in --out (same options): the loading from its newest checkpoint, "
+                        "finished stages and reloads not repeated")
     p.add_argument("--surfaces-only", action="store_true",
                    help="recompute fan.csv, surfaces.csv, uniaxial.csv and the PNG from a finished fan in --out "
                         "(e.g. with another --threshold or --gamma-thresholds)")
@@ -64,7 +68,7 @@ def main(argv=None) -> None:
             surfaces(case, log=say)
         return
     try:
-        result = run_yield_surface(case, comm, log=say)
+        result = run_yield_surface(case, comm, log=say, resume=args.resume)
     except RunFailure as err:
         fail(RUN_FAILED, str(err))
     say(f"done in {result['wall_time']:.0f} s: {args.out}/fan.csv, surfaces.csv, uniaxial.csv, yield_surface.png")

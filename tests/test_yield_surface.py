@@ -133,6 +133,43 @@ def test_reload_restarted_with_contact_history_equals_uninterrupted_run(fan, tmp
             assert np.array_equal(a[c][ra], b[c][rb], equal_nan=True), c
 
 
+def test_killed_fan_resumes_where_it_stopped(fan, tmp_path):
+    """A fan killed after its loading (the unload and one reload lost) resumes: the loading is
+    not repeated (it continues from its final checkpoint), the unload is, and only the missing
+    reload runs again; the fan's rows are those of the uninterrupted fan."""
+    import shutil
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.io import read_csv
+    from mpfem_fenicsx.workflows.yield_surface import run_yield_surface
+
+    case, _ = fan
+    out = tmp_path / "fan"
+    shutil.copytree(case.out_dir, out)
+    for lost in ("unloaded.json", "fan.csv", "surfaces.csv", "unload", "unload_probe", "reload_002"):
+        path = out / lost
+        shutil.rmtree(path) if path.is_dir() else path.unlink()
+    messages = []
+    run_yield_surface(replace(case, out_dir=str(out)), MPI.COMM_SELF, log=messages.append, resume=True)
+    assert any("[load]" in m and "continued from" in m for m in messages)
+    assert sum("done before" in m for m in messages) == case.nphi - 1
+    a, b = read_csv(Path(case.out_dir) / "fan.csv"), read_csv(out / "fan.csv")
+    for c in a:
+        assert np.allclose(a[c], b[c], rtol=1e-9, atol=1e-12, equal_nan=True), c
+    # killed after its unload: one reload runs on the model rebuilt from the saved packing
+    shutil.rmtree(out / "reload_001")
+    (out / "fan.csv").unlink()
+    messages.clear()
+    run_yield_surface(replace(case, out_dir=str(out)), MPI.COMM_SELF, log=messages.append, resume=True)
+    assert any(m.startswith("[resume]") for m in messages)
+    assert sum("done before" in m for m in messages) == case.nphi - 1
+    b = read_csv(out / "fan.csv")
+    for c in a:
+        assert np.allclose(a[c], b[c], rtol=1e-9, atol=1e-12, equal_nan=True), c
+
+
 def test_reload_inside_does_not_yield_and_far_outside_does(fan, tmp_path):
     """Isotropic recompression (phi = 0): a reload recovering half the unload stays elastic
     (E_d below E_0 (1 + 0.3 %)); one going 6 unload amplitudes beyond yields."""

@@ -54,12 +54,13 @@ from ..boundary import boundary_kind
 from ..homogenization import first_crossing, hencky_strain, row_increments, second_order_work, uniaxial_strengths
 from ..homogenization.surfaces import (default_gamma_levels, iso_gamma_point, limit_specific_surface, surface_points,
                                       w2_sign_changes)
+from ..io.checkpoint import CheckpointError, resolve_checkpoint
 from ..io.history import read_csv, tensor_from_columns
 from ..parameters import check_parameters, parameter
 from ..solvers import SOLVERS, solver_kind
 from ..io.plots import plot_yield_surface
 from ..loading import reload_gradient, unload_gradient
-from ..meshes.packing import Packing
+from ..meshes.packing import Packing, read_packing
 from .compaction import CompactionCase, CompactionModel, build_compaction, run_compaction
 
 #: fan.csv columns (one row per reload output)
@@ -143,20 +144,43 @@ def _last_checkpoint(directory: Path) -> str:
     return str(steps[-1])
 
 
+def _newest_checkpoint(directory: Path) -> str | None:
+    """The newest complete checkpoint of a stage directory, or None."""
+    try:
+        return str(resolve_checkpoint(directory))
+    except CheckpointError:
+        return None
+
+
 def _imposed_expansion(h: dict, rho_imposed_ref: float) -> np.ndarray:
     """Imposed volumetric strain since the reference row, > 0 in expansion: ln(rho_ref / rho)."""
     return np.log(rho_imposed_ref / h["rho_imposed"])
 
 
-def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print) -> tuple[Unloaded, CompactionModel]:
+def read_unloaded(out_dir: str | Path, with_packing: bool = False) -> Unloaded:
+    """The unloaded state a finished stage 2 left in ``out_dir/unloaded.json`` (``with_packing``:
+    and the loaded volume's packing, ``load/packing.txt``, which the reloads rebuild)."""
+    out = Path(out_dir)
+    state = json.loads((out / "unloaded.json").read_text())
+    packing = read_packing(out / "load" / "packing.txt", validate=False) if with_packing else None
+    return Unloaded(**{**state, "segments": tuple((d, np.array(G)) for d, G in state["segments"]),
+                       "packing": packing})
+
+
+def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print,
+                    resume: bool = False) -> tuple[Unloaded, CompactionModel]:
     """Stages 1-2 on ``comm``; returns the unload checkpoint and E_0, and the model (reused by
-    the probe, the unload and the reloads of this rank)."""
+    the probe, the unload and the reloads of this rank). ``resume``: the loading continues from
+    its newest checkpoint in ``out/load`` if a killed run left one (it writes one every
+    ``base.checkpoint_every`` outputs, keeping the newest)."""
     base, out = case.base, Path(case.out_dir)
     dt = base.duration / base.increments
     quiet = _quiet(log)
-    log(f"[load] {base.loading} compaction to rho = {base.target_density} ({base.increments} increments)")
-    loaded = run_compaction(replace(base, out_dir=str(out / "load"), checkpoint_every=_FINAL_ONLY,
-                                    checkpoint_keep=1), comm, log)
+    restart = _newest_checkpoint(out / "load") if resume else None
+    log(f"[load] {base.loading} compaction to rho = {base.target_density} ({base.increments} increments)"
+        + (f", continued from {restart}" if restart else ""))
+    loaded = run_compaction(replace(base, out_dir=str(out / "load"), checkpoint_every=base.checkpoint_every or _FINAL_ONLY,
+                                    checkpoint_keep=1), comm, log, restart=restart)
     h = loaded.history
     model = loaded.model
     base = replace(base, packing=loaded.packing)
@@ -288,8 +312,13 @@ def fan_rows(history_csv: str | Path, phi: float, t_unloaded: float, w2_window: 
     return fan
 
 
-def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> dict:
-    """Stages 1-4; returns (on every rank) {"unloaded", "points", "uniaxial", "wall_time", "reload_wall"}."""
+def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print,
+                      resume: bool = False) -> dict:
+    """Stages 1-4; returns (on every rank) {"unloaded", "points", "uniaxial", "wall_time", "reload_wall"}.
+    ``resume``: continue a killed fan in ``case.out_dir`` (same case): stages 1-2 are skipped if
+    they finished (``unloaded.json``), else the loading continues from its newest checkpoint;
+    finished reloads (a ``done`` file in ``reload_<k>/``) are not repeated. The wall times then
+    count this run only."""
     start = time.perf_counter()
     out = Path(case.out_dir)
     alone = comm.Split(color=comm.rank, key=0)  # each rank on its own communicator
@@ -298,7 +327,11 @@ def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, l
         threads = numba.get_num_threads()
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
         try:
-            unloaded, model = load_and_unload(case, alone, log)
+            if resume and (out / "unloaded.json").exists():
+                unloaded = read_unloaded(out, with_packing=True)
+                log(f"[resume] load and unload finished: reloads from {unloaded.checkpoint}")
+            else:
+                unloaded, model = load_and_unload(case, alone, log, resume=resume)
         finally:
             numba.set_num_threads(threads)
     _sleeping_barrier(comm)
@@ -308,9 +341,14 @@ def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, l
     for k in range(comm.rank, case.nphi, comm.size):
         t0 = time.perf_counter()
         reload = reload_case(case, unloaded, k)
+        finished = Path(reload.out_dir) / "done"
+        if resume and finished.exists():
+            log(f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg: done before")
+            continue
         if model is None:  # one model per rank, reused by all its reloads
             model = build_compaction(reload, alone, quiet)
         run_compaction(reload, alone, quiet, restart=unloaded.checkpoint, model=model)
+        finished.write_text(f"{time.perf_counter() - t0:.0f}\n")
         log(f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg on rank {comm.rank}: "
             f"{time.perf_counter() - t0:.0f} s")
     _sleeping_barrier(comm)
@@ -331,9 +369,7 @@ def surfaces(case: YieldSurfaceCase, unloaded: Unloaded | None = None, log=print
     discusses the yield threshold's influence). ``unloaded``: None reads ``unloaded.json``."""
     out = Path(case.out_dir)
     if unloaded is None:
-        state = json.loads((out / "unloaded.json").read_text())
-        unloaded = Unloaded(**{**state, "segments": tuple((d, np.array(G)) for d, G in state["segments"]),
-                               "packing": None})
+        unloaded = read_unloaded(out)
     window = 0 if solver_kind(case.solver).static else case.w2_window
     fans = [fan_rows(out / f"reload_{k:03d}" / "history.csv", float(phi), unloaded.t_unloaded, window)
             for k, phi in enumerate(case.phis)]
