@@ -105,6 +105,42 @@ def hardening_case(n: float) -> Case:
                                          material=replace(LEAD, n=n)))
 
 
+@dataclass(frozen=True)
+class FanCase:
+    """A chapter-4 fan (thesis §4.2, ``workflows.yield_surface``) on the 50-particle CLP volume of
+    the other cases: compaction (``loading``) to ``rho_f`` with adhesion ``gamma``, isotropic
+    unload, ``nphi`` reloads (A = 1.5 h_v^d, eq. 4.7-4.9; the thesis drew eight, fig. 4.5). The
+    loading keeps the chapter-2 runs' mean strain rate and increment: duration and increments
+    scale with ln(rho_f / rho0) / ln(0.95 / rho0). The thesis' model is GDF (346 particles); a
+    fan needs the periodic volume, whose macroscopic gradient is imposed."""
+
+    name: str
+    loading: str
+    rho_f: float
+    gamma: float = 1e-2
+    nphi: int = 12
+
+    def yield_surface_case(self, out_dir: str):
+        import math
+
+        from mpfem_fenicsx.workflows.compaction import initial_packing
+        from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase
+
+        chapter2 = Case("chapter2", dict(loading=self.loading, bc="CLP", target_density=0.95))
+        reference = chapter2.compaction_case(out_dir)
+        _, rho0 = initial_packing(reference)
+        share = math.log(self.rho_f / rho0) / math.log(0.95 / rho0)
+        base = replace(reference, target_density=self.rho_f, gamma=self.gamma,
+                       increments=max(100, round(share * reference.increments)),
+                       duration=share * reference.duration, checkpoint_every=4)
+        return YieldSurfaceCase(base=base, nphi=self.nphi, out_dir=out_dir)
+
+
+def fan_case(loading: str, rho_f: float, gamma: float = 1e-2) -> FanCase:
+    """The fan after a ``loading`` compaction to ``rho_f`` (a row of table 4.2 with gamma 1e-2)."""
+    return FanCase(f"fan_{loading}_{rho_f:g}" + ("" if gamma == 1e-2 else f"_gamma{gamma:g}"), loading, rho_f, gamma)
+
+
 #: stage -> cases; `python validation/run.py STAGE` runs them, each stage on its own
 STAGES = {
     "die": [die_case(bc) for bc in ("CLP", "CLPS", "GDF", "GDH")] + [exact_volume_die_case()],
@@ -116,4 +152,8 @@ STAGES = {
     #: the thesis' contradictions: n 0.35 (table 2.1) / 0.36 (input file), delta_max 0.5 um
     #: (text) / 0.2 um (appendix A); we use 0.35 and 0.5 um
     "sensitivity": [hardening_case(0.36), adhesive_case("die", delta_max=2e-4)],
+    #: chapter 4: Gamma_l of table 4.2 for two isotropic rows and one die row, and the trends of
+    #: §4.3-4.5 (growth with rho_f, rotation under die loading, adhesion: sigma_m < 0 reached)
+    "fans": [fan_case("isotropic", 0.79), fan_case("isotropic", 0.87), fan_case("die", 0.82),
+             fan_case("isotropic", 0.87, gamma=0.0)],
 }

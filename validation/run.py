@@ -29,18 +29,28 @@ sys.path.insert(0, str(HERE))
 from mpi4py import MPI  # noqa: E402
 
 import mpfem_fenicsx  # noqa: E402,F401  (mpi4py before dolfinx)
-from cases import STAGES  # noqa: E402
+from cases import STAGES, FanCase  # noqa: E402
 
 RUNS = HERE / "runs"
 
 
 def run_case(case, comm, say) -> None:
-    """Run ``case`` into RUNS/<name> unless done; restart from its newest checkpoint if any."""
+    """Run ``case`` into RUNS/<name> unless done; restart from its newest checkpoint if any (a
+    fan resumes: its finished stages and reloads are kept)."""
     from mpfem_fenicsx.workflows.compaction import run_compaction
 
     run_dir = RUNS / case.name
     if (run_dir / "done").exists():
         say(f"{case.name}: done")
+        return
+    if isinstance(case, FanCase):
+        from mpfem_fenicsx.workflows.yield_surface import run_yield_surface
+
+        say(f"{case.name}: running -> {run_dir}")
+        start = time.perf_counter()
+        run_yield_surface(case.yield_surface_case(str(run_dir)), comm, log=say, resume=True)
+        if comm.rank == 0:
+            (run_dir / "done").write_text(f"{time.perf_counter() - start:.0f}\n")
         return
     from mpfem_fenicsx.io.checkpoint import CheckpointError, resolve_checkpoint
 
