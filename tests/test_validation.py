@@ -99,6 +99,61 @@ def test_gamma_rows_compare_every_definition():
     assert any(x.startswith("| die | 0.89 | 39.8 | not run yet | not run yet | not run yet") for x in lines)
 
 
+def _ellipse_fan(case, centre, a, b, angle_deg, nphi=12, compressive=3.0, tensile=1.0, gamma_l=5.0):
+    """A synthetic finished fan: yield points on an ellipse (semi-axes a > b MPa, major axis at
+    ``angle_deg`` from the sigma_m axis), sampled at uneven angles, and its summary."""
+    t = np.linspace(0, 2 * np.pi, nphi, endpoint=False) + 0.3 * np.sin(np.linspace(0, 2 * np.pi, nphi, endpoint=False))
+    q = np.radians(angle_deg)
+    x, y = a * np.cos(t), b * np.sin(t)
+    pts = np.column_stack([t, centre[0] + x * np.cos(q) - y * np.sin(q), centre[1] + x * np.sin(q) + y * np.cos(q)])
+    return {"case": case, "wall_s": 60.0, "surfaces": {"yield": pts, f"gamma_{gamma_l:.6g}": pts * [1, 1.1, 1.1]},
+            "unloaded": {"sigma_m_loaded": 5.0, "sigma_m_unloaded": 0.25, "Gamma_unloaded": 2 * gamma_l},
+            "summary": {"Gamma_limit_per_mm": gamma_l, "points": {"yield": nphi},
+                        "uniaxial_MPa": {"yield": {"compressive": compressive, "tensile": 0.5 * tensile},
+                                         f"gamma_{gamma_l:.6g}": {"compressive": 2 * compressive, "tensile": tensile}}}}
+
+
+def test_surface_axis_of_a_rotated_ellipse():
+    from cases import FanCase
+
+    case = FanCase("f", "die", 0.82)
+    for angle in (0.0, 30.0, -60.0, 89.0):
+        pts = _ellipse_fan(case, (2.0, 0.5), 3.0, 1.0, angle)["surfaces"]["yield"]
+        assert report.surface_axis_deg(pts) == pytest.approx(angle, abs=1.0)
+
+
+def test_fan_rows_and_trends_on_synthetic_fans():
+    """Gamma_l rows against table 4.2 and the four trends, shown on fans built to show them and
+    not shown on fans built not to."""
+    fans = {c.name: c for c in report.STAGES["fans"]}
+    done = {"fan_isotropic_0.79": _ellipse_fan(fans["fan_isotropic_0.79"], (1.0, 0.0), 2.0, 1.5, 0.0,
+                                                       compressive=2.0, tensile=0.8, gamma_l=17.0),
+            "fan_isotropic_0.87": _ellipse_fan(fans["fan_isotropic_0.87"], (1.5, 0.0), 3.0, 2.0, 0.0,
+                                                       compressive=3.0, tensile=1.2, gamma_l=27.0),
+            "fan_die_0.82": _ellipse_fan(fans["fan_die_0.82"], (1.5, 1.0), 3.0, 1.5, 25.0,
+                                                 compressive=2.5, tensile=1.0, gamma_l=10.0),
+            "fan_isotropic_0.87_gamma0": _ellipse_fan(fans["fan_isotropic_0.87_gamma0"], (3.5, 0.0), 3.0, 2.0, 0.0)}
+    rows, lines = report.fan_rows(done)
+    by = {r["case"]: r for r in rows}
+    assert by["fan_isotropic_0.87"]["status"] == "met" and by["fan_die_0.82"]["status"] == "not met"  # 10 vs 24.9
+    assert "fan_isotropic_0.87_gamma0" not in by  # no thesis row without adhesion
+    _, trends = report.trend_lines(done)
+    assert [line.rsplit("|", 2)[-2].strip() for line in trends[2:]] == ["shown"] * 4
+    # the same fans without the trends: no tension held, strengths falling, no rotation
+    done["fan_isotropic_0.87"] = _ellipse_fan(fans["fan_isotropic_0.87"], (3.5, 0.0), 3.0, 2.0, 0.0,
+                                                       compressive=1.5, tensile=0.5)
+    done["fan_die_0.82"] = _ellipse_fan(fans["fan_die_0.82"], (1.5, 1.0), 3.0, 1.5, 2.0,
+                                                 compressive=0.5, tensile=1.0)
+    _, trends = report.trend_lines(done)
+    assert [line.rsplit("|", 2)[-2].strip() for line in trends[2:]] == ["not shown"] * 4
+    # tension held without adhesion too: not the adhesion's effect
+    done["fan_isotropic_0.87"] = _ellipse_fan(fans["fan_isotropic_0.87"], (1.5, 0.0), 3.0, 2.0, 0.0)
+    done["fan_isotropic_0.87_gamma0"] = _ellipse_fan(fans["fan_isotropic_0.87_gamma0"], (2.5, 0.0), 3.0, 2.0, 0.0)
+    assert report.trend_lines(done)[1][2].endswith("| not shown |")
+    _, trends = report.trend_lines({})
+    assert all("not run yet" in line for line in trends[2:])
+
+
 # --- CI-sized subset of the validation runs (real compactions, not synthetic histories) ---
 
 def _die_compaction(tmp_path, name, **options):

@@ -9,12 +9,13 @@ mm^-1 (eq. 4.13). A case that has not run yet is listed as such and gives no sum
 from __future__ import annotations
 
 import csv
+import json
 import re
 from pathlib import Path
 
 import numpy as np
 
-from cases import (CLP_DRIFT_LIMIT, DBC_GRID, DBC_STABLE_WITHIN, STAGES, THESIS_STABLE_DBC, THESIS_DIE_SIGMA_M, THESIS_DIVERGENCE_HV, THESIS_GAMMA_L,
+from cases import (FanCase, CLP_DRIFT_LIMIT, DBC_GRID, DBC_STABLE_WITHIN, STAGES, THESIS_STABLE_DBC, THESIS_DIE_SIGMA_M, THESIS_DIVERGENCE_HV, THESIS_GAMMA_L,
                    THESIS_GDF_DRIFT, THESIS_NONPERIODIC_GAP, TOLERANCE)
 from mpfem_fenicsx.io.history import read_csv
 
@@ -33,14 +34,28 @@ def at_density(history: dict, column: str, rho: float, density: str = "rho") -> 
 
 
 def load_runs(runs: Path) -> dict[str, dict]:
-    """Finished runs: case name -> {"history": columns, "wall_s": seconds}."""
+    """Finished runs: case name -> {"history": columns, "wall_s": seconds} for a compaction,
+    {"case", "summary", "unloaded", "surfaces": {kind: (phi, sigma_m, sigma~_d) rows}, "wall_s"}
+    for a chapter-4 fan."""
     done = {}
     for cases in STAGES.values():
         for case in cases:
             run_dir = runs / case.name
-            if (run_dir / "done").exists():
-                done[case.name] = {"history": read_csv(run_dir / "history.csv"),
-                                   "wall_s": float((run_dir / "done").read_text().split()[0])}
+            if not (run_dir / "done").exists():
+                continue
+            wall = float((run_dir / "done").read_text().split()[0])
+            if isinstance(case, FanCase):
+                surfaces = {}
+                with open(run_dir / "surfaces.csv") as fh:
+                    for r in csv.DictReader(fh):
+                        surfaces.setdefault(r["kind"], []).append(
+                            [float(r[c]) for c in ("phi", "sigma_m", "sigma_tilde_d")])
+                done[case.name] = {"case": case, "wall_s": wall,
+                                   "summary": json.loads((run_dir / "summary.json").read_text()),
+                                   "unloaded": json.loads((run_dir / "unloaded.json").read_text()),
+                                   "surfaces": {k: np.array(v) for k, v in surfaces.items()}}
+            else:
+                done[case.name] = {"history": read_csv(run_dir / "history.csv"), "wall_s": wall}
     return done
 
 
@@ -281,6 +296,114 @@ def gamma_rows(done: dict) -> tuple[list[dict], list[str]]:
     return rows, lines
 
 
+def rupture_kind(fan: dict) -> str | None:
+    """The fan's rupture surface: the limit iso-Gamma curve Gamma_l (the thesis' choice, §4.4)
+    when the curves superpose, else Hill's W2 <= 0 (eq. 4.15); None if neither was found."""
+    g = fan["summary"]["Gamma_limit_per_mm"]
+    if g is not None and np.isfinite(g) and f"gamma_{g:.6g}" in fan["surfaces"]:
+        return f"gamma_{g:.6g}"
+    return "w2" if "w2" in fan["surfaces"] else None
+
+
+def uniaxial(fan: dict, kind: str | None, which: str) -> float:
+    """Uniaxial ``which`` (compressive / tensile) strength (MPa) of the fan's closed surface ``kind``."""
+    value = fan["summary"]["uniaxial_MPa"].get(kind, {}).get(which) if kind else None
+    return float("nan") if value is None else float(value)
+
+
+def surface_axis_deg(points: np.ndarray) -> float:
+    """Orientation of a closed surface in the (sigma_m, sigma~_d) plane: the angle (deg, from the
+    sigma_m axis, in (-90, 90]) of the major axis of its polygon (the points sorted by phi,
+    resampled uniformly along the perimeter so that dense stretches do not weigh more)."""
+    loop = np.vstack([points[np.argsort(points[:, 0]), 1:], points[np.argsort(points[:, 0])[:1], 1:]])
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(loop, axis=0), axis=1))])
+    t = np.linspace(0.0, arc[-1], 721)[:-1]
+    xy = np.column_stack([np.interp(t, arc, loop[:, 0]), np.interp(t, arc, loop[:, 1])])
+    w, v = np.linalg.eigh(np.cov(xy.T))
+    major = v[:, np.argmax(w)]
+    angle = float(np.degrees(np.arctan2(major[1], major[0])))
+    return angle - 180.0 if angle > 90.0 else angle + 180.0 if angle <= -90.0 else angle
+
+
+def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
+    """Thesis table 4.2 (Gamma_l from a fan, §4.4) and the fans' surfaces: one row per fan of
+    the fans stage. Status on Gamma_l for the fans with gamma 1e-2 at a row of the table."""
+    rows, lines = [], ["| fan | loading, rho_f, gamma (mJ/mm^2) | sigma_m loaded / unloaded (MPa) | yield points | "
+                       "Gamma unloaded (1/mm) | Gamma_l ours (1/mm) | thesis Gamma_l (table 4.2) | deviation | status | "
+                       "uniaxial compressive yield / tensile rupture (MPa) | wall |",
+                       "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for case in STAGES["fans"]:
+        fan = done.get(case.name)
+        head = f"| {case.name} | {case.loading}, {case.rho_f:g}, {case.gamma:g} |"
+        if fan is None:
+            lines.append(head + " not run yet | | | | | | | | |")
+            continue
+        summary, unloaded = fan["summary"], fan["unloaded"]
+        g_l = summary["Gamma_limit_per_mm"]
+        g_l = float("nan") if g_l is None else float(g_l)
+        thesis = THESIS_GAMMA_L[case.loading].get(case.rho_f) if case.gamma == 1e-2 else None
+        status = "- | -"
+        if thesis is not None:
+            r = row(case.name, f"Gamma_l from a fan at rho_f {case.rho_f} (mm^-1)", thesis, g_l)
+            rows.append(r)
+            status = (f"{100 * r['deviation']:+.1f} % | {r['status']}" if np.isfinite(g_l) else
+                      "- | not met: the iso-Gamma curves do not superpose within the reloads")
+        rupture = rupture_kind(fan)
+        strengths = (f"{uniaxial(fan, 'yield', 'compressive'):.3g} / {uniaxial(fan, rupture, 'tensile'):.3g} "
+                     f"({'Gamma_l' if rupture and rupture.startswith('gamma') else rupture or 'no rupture'})")
+        lines.append(f"{head} {unloaded['sigma_m_loaded']:.3f} / {unloaded['sigma_m_unloaded']:.3f} | "
+                     f"{summary['points'].get('yield', 0)}/{case.nphi} | {unloaded['Gamma_unloaded']:.2f} | "
+                     f"{g_l:.2f} | {thesis if thesis is not None else '-'} | {status} | "
+                     f"{strengths} | {fan['wall_s'] / 60:.0f} min |")
+    return rows, lines
+
+
+def trend_lines(done: dict) -> tuple[list[dict], list[str]]:
+    """The trends of thesis §4.3-4.5 read on the fans (shown / not shown, with the numbers)."""
+    fans = {c.name: done.get(c.name) for c in STAGES["fans"]}
+    lines = ["| trend (thesis) | measured on | numbers | shown |", "|---|---|---|---|"]
+
+    def add(trend, names, numbers, shown):
+        missing = [n for n in names if fans.get(n) is None]
+        lines.append(f"| {trend} | {', '.join(names)} | " + (f"not run yet: {', '.join(missing)} | |" if missing
+                                                             else f"{numbers} | {'shown' if shown else 'not shown'} |"))
+
+    a, b = "fan_isotropic_0.87", "fan_isotropic_0.87_gamma0"
+    if fans[a] and fans[b] and "yield" in fans[a]["surfaces"] and "yield" in fans[b]["surfaces"]:
+        low_a, low_b = (float(fans[n]["surfaces"]["yield"][:, 1].min()) for n in (a, b))
+        add("with gamma = 1e-2 the yield surface reaches sigma_m < 0 (§4.3.2, fig. 4.7)", [a, b],
+            f"lowest yield sigma_m {low_a:.3f} MPa with adhesion, {low_b:.3f} without", low_a < 0 <= low_b + 1e-3)
+    else:
+        add("with gamma = 1e-2 the yield surface reaches sigma_m < 0 (§4.3.2, fig. 4.7)", [a, b], "", False)
+    adhesive = [c.name for c in STAGES["fans"] if c.gamma > 0]
+    pairs = [(n, uniaxial(fans[n], "yield", "compressive"), uniaxial(fans[n], rupture_kind(fans[n]), "tensile"))
+             for n in adhesive if fans[n]]
+    add("uniaxial compressive yield > tensile rupture (§4.5)", adhesive,
+        "; ".join(f"{n}: {c:.3g} / {t:.3g} MPa" for n, c, t in pairs),
+        bool(pairs) and all(np.isfinite(c) and np.isfinite(t) and c > t for _, c, t in pairs))
+    lo, hi = "fan_isotropic_0.79", "fan_isotropic_0.87"
+    if fans[lo] and fans[hi]:
+        s = {n: (uniaxial(fans[n], "yield", "compressive"), uniaxial(fans[n], rupture_kind(fans[n]), "tensile"))
+             for n in (lo, hi)}
+        add("both grow with rho_f (§4.3.1, §4.5)", [lo, hi],
+            f"compressive {s[lo][0]:.3g} -> {s[hi][0]:.3g} MPa, tensile {s[lo][1]:.3g} -> {s[hi][1]:.3g} MPa",
+            s[hi][0] > s[lo][0] and s[hi][1] > s[lo][1])
+    else:
+        add("both grow with rho_f (§4.3.1, §4.5)", [lo, hi], "", False)
+    die, iso = "fan_die_0.82", ("fan_isotropic_0.79", "fan_isotropic_0.87")
+    closed = {n: fans[n]["surfaces"]["yield"] for n in (die, *iso)
+              if fans[n] and len(fans[n]["surfaces"].get("yield", ())) == fans[n]["case"].nphi}
+    if die in closed and any(n in closed for n in iso):
+        angles = {n: surface_axis_deg(p) for n, p in closed.items()}
+        turn = min(abs(angles[die] - angles[n]) for n in iso if n in angles)
+        add("die-loaded surfaces rotate (§4.3.1, fig. 4.7b, d)", [die, *iso],
+            "major axis from the sigma_m axis: " + ", ".join(f"{n} {a:+.1f} deg" for n, a in angles.items()),
+            turn > 5.0)
+    else:
+        add("die-loaded surfaces rotate (§4.3.1, fig. 4.7b, d)", [die, *iso], "", False)
+    return [], lines
+
+
 def _save(fig, ax, ylabel: str, title: str, path: Path) -> None:
     ax.set_xlabel("relative density (imposed by the cell)")
     ax.set_ylabel(ylabel)
@@ -292,8 +415,9 @@ def _save(fig, ax, ylabel: str, title: str, path: Path) -> None:
 
 
 def figures(done: dict, out: Path) -> None:
-    """die_sigma_m.png (the die stage, the thesis' values marked) and gamma.png (Gamma along the
-    adhesive compactions, table 4.2 marked)."""
+    """die_sigma_m.png (the die stage, the thesis' values marked), gamma.png (Gamma along the
+    adhesive compactions and the fans' Gamma_l, table 4.2 marked) and fans.png (the fans' yield and
+    rupture surfaces)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -325,9 +449,42 @@ def figures(done: dict, out: Path) -> None:
                     label=f"{loading}, GDF, every contact of the model (ours)")
         ax.plot(list(table), list(table.values()), "x", color=colour, ms=9, mew=2,
                 label=f"{loading}: Gamma_l, thesis table 4.2")
+    for case in STAGES["fans"]:
+        fan = done.get(case.name)
+        if fan is not None and case.gamma == 1e-2 and fan["summary"]["Gamma_limit_per_mm"] is not None:
+            ax.plot([case.rho_f], [fan["summary"]["Gamma_limit_per_mm"]], "o", mfc="none", ms=8,
+                    color="C0" if case.loading == "isotropic" else "C1", label=f"{case.name}: Gamma_l (ours)")
     _save(fig, ax, "specific contact surface Gamma (1/mm)", "Adhesive compaction, 50 particles",
           out / "gamma.png")
     plt.close(fig)
+
+    fans = [(case, done[case.name]) for case in STAGES["fans"] if case.name in done]
+    if fans:
+        fig, ax = plt.subplots(figsize=(6.4, 5.0))
+        reach = 0.0
+        for (case, fan), colour in zip(fans, ("C0", "C2", "C1", "C7")):
+            for kind, style, what in (("yield", "-", "yield"), (rupture_kind(fan), "--", "rupture")):
+                pts = fan["surfaces"].get(kind) if kind else None
+                if pts is None or len(pts) < 3:
+                    continue
+                loop = pts[np.argsort(pts[:, 0])]
+                loop = np.vstack([loop, loop[:1]]) if len(pts) == case.nphi else loop
+                ax.plot(loop[:, 1], loop[:, 2], style, color=colour, marker="." if what == "yield" else None,
+                        label=f"{case.loading} {case.rho_f:g}, gamma {case.gamma:g}: {what}")
+                reach = max(reach, float(np.abs(pts[:, 1:]).max()))
+        m = np.linspace(-reach / 3, reach / 3, 2)
+        ax.plot(m, 3 * m, ":", color="k", lw=0.8, label="uniaxial path, sigma~_d = 3 sigma_m")
+        ax.axvline(0.0, color="k", lw=0.5)
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_xlabel("sigma_m (MPa, compression > 0)")
+        ax.set_ylabel("sigma~_d (MPa)")
+        ax.set_title("Fans of the 50-particle CLP volume (thesis fig. 4.7, 4.18)")
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+        ax.set_aspect("equal", adjustable="datalim")
+        fig.tight_layout()
+        fig.savefig(out / "fans.png", dpi=120)
+        plt.close(fig)
 
 
 def replace_block(text: str, name: str, lines: list[str]) -> str:
@@ -343,7 +500,8 @@ def write_report(runs: Path, here: Path) -> list[dict]:
     readme = here / "README.md"
     text = readme.read_text()
     for name, build in (("die", die_rows), ("periodic", periodic_rows), ("dbc", dbc_rows), ("size", size_rows),
-                        ("stresses", stress_rows), ("gamma", gamma_rows), ("sensitivity", sensitivity_lines)):
+                        ("stresses", stress_rows), ("gamma", gamma_rows), ("fans", fan_rows), ("trends", trend_lines),
+                        ("sensitivity", sensitivity_lines)):
         r, lines = build(done)
         rows += r
         text = replace_block(text, name, lines)
