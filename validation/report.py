@@ -18,6 +18,7 @@ import numpy as np
 from cases import (FanCase, CLP_DRIFT_LIMIT, DBC_GRID, DBC_STABLE_WITHIN, STAGES, THESIS_STABLE_DBC, THESIS_DIE_SIGMA_M, THESIS_DIVERGENCE_HV, THESIS_GAMMA_L,
                    THESIS_GDF_DRIFT, THESIS_NONPERIODIC_GAP, TOLERANCE)
 from mpfem_fenicsx.io.history import read_csv
+from mpfem_fenicsx.io.plots import rendulic_frame
 
 
 def at_density(history: dict, column: str, rho: float, density: str = "rho") -> float:
@@ -467,17 +468,17 @@ def figures(done: dict, out: Path) -> None:
                 pts = fan["surfaces"].get(kind) if kind else None
                 if pts is None or len(pts) < 3:
                     continue
-                loop = pts[np.argsort(pts[:, 0])]
-                loop = np.vstack([loop, loop[:1]]) if len(pts) == case.nphi else loop
-                ax.plot(loop[:, 1], loop[:, 2], style, color=colour, marker="." if what == "yield" else None,
-                        label=f"{case.loading} {case.rho_f:g}, gamma {case.gamma:g}: {what}")
+                label = f"{case.loading} {case.rho_f:g}, gamma {case.gamma:g}: {what}"
+                if len(pts) == case.nphi:  # closed: every reload crossed
+                    loop = pts[np.argsort(pts[:, 0])]
+                    loop = np.vstack([loop, loop[:1]])
+                    ax.plot(loop[:, 1], loop[:, 2], style, color=colour, marker="." if what == "yield" else None,
+                            label=label)
+                else:  # points only: joining a partial set would draw false chords
+                    ax.plot(pts[:, 1], pts[:, 2], "o" if what == "yield" else "x", color=colour, ms=4,
+                            label=f"{label} ({len(pts)}/{case.nphi} reloads)")
                 reach = max(reach, float(np.abs(pts[:, 1:]).max()))
-        m = np.linspace(-reach / 3, reach / 3, 2)
-        ax.plot(m, 3 * m, ":", color="k", lw=0.8, label="uniaxial path, sigma~_d = 3 sigma_m")
-        ax.axvline(0.0, color="k", lw=0.5)
-        ax.axhline(0.0, color="k", lw=0.5)
-        ax.set_xlabel("sigma_m (MPa, compression > 0)")
-        ax.set_ylabel("sigma~_d (MPa)")
+        rendulic_frame(ax, reach)
         ax.set_title("Fans of the 50-particle CLP volume (thesis fig. 4.7, 4.18)")
         ax.legend(fontsize=7)
         ax.grid(alpha=0.3)

@@ -52,6 +52,17 @@ def plot_loading_path(history_csv: str | Path, png: str | Path, title: str = "")
     return _save(fig, png, title)
 
 
+def rendulic_frame(ax, reach: float) -> None:
+    """The Rendulic plane's frame on ``ax``: axes through 0, the uniaxial path sigma~_d = 3 sigma_m
+    up to |sigma_m| = ``reach`` / 3 (MPa), labels (compression > 0, axis I = z)."""
+    s = np.linspace(-reach / 3, reach / 3, 2)
+    ax.plot(s, 3 * s, ":", color="0.4", lw=1, label="uniaxial sigma~_d = 3 sigma_m")
+    ax.axhline(0.0, color="0.6", lw=0.8)
+    ax.axvline(0.0, color="0.6", lw=0.8)
+    ax.set_xlabel("sigma_m (MPa, compression > 0)")
+    ax.set_ylabel("sigma~_d = sigma_I - (sigma_II + sigma_III)/2 (MPa)")
+
+
 def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surfaces_csv: str | Path,
                        png: str | Path, title: str = "", gamma_limit: float = float("nan")) -> Path:
     """Draw a chapter-4 fan in the style of thesis fig. 4.5 / 4.7 / 4.18: (a) strain paths
@@ -106,13 +117,7 @@ def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surf
         else:
             closed = np.vstack([p, p[:1]])
             ax.plot(closed[:, 1], closed[:, 2], marker, color=colour, ms=4, lw=1.4, label=label)
-    lim = np.nanmax(np.abs(np.r_[fan["sigma_m"], path["sigma_m"]]))
-    s = np.linspace(-lim / 3, lim / 3, 2)
-    ax.plot(s, 3 * s, ":", color="0.4", lw=1, label="uniaxial sigma~_d = 3 sigma_m")
-    ax.axhline(0.0, color="0.6", lw=0.8)
-    ax.axvline(0.0, color="0.6", lw=0.8)
-    ax.set_xlabel("sigma_m (MPa, compression > 0)")
-    ax.set_ylabel("sigma~_d = sigma_I - (sigma_II + sigma_III)/2 (MPa)")
+    rendulic_frame(ax, np.nanmax(np.abs(np.r_[fan["sigma_m"], path["sigma_m"]])))
     ax.set_title("(b) Rendulic plane (axis I = z)")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     return _save(fig, png, title)
