@@ -170,6 +170,32 @@ def test_killed_fan_resumes_where_it_stopped(fan, tmp_path):
         assert np.allclose(a[c], b[c], rtol=1e-9, atol=1e-12, equal_nan=True), c
 
 
+def test_fan_of_another_amplitude_reuses_the_finished_loading(fan, tmp_path):
+    """validation/run.py's share_loading: a fan of larger reloads on the same path starts at its
+    reloads from a copy of the finished fan's unload (no loading), and its reloads go farther."""
+    import sys
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.io import read_csv
+    from mpfem_fenicsx.workflows.yield_surface import run_yield_surface
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "validation"))
+    from run import share_loading
+
+    case, _ = fan
+    out = tmp_path / "wider"
+    share_loading(Path(case.out_dir), out, lambda *a: None)
+    messages = []
+    wider = replace(case, amplitude_factor=2 * case.amplitude_factor, out_dir=str(out))
+    run_yield_surface(wider, MPI.COMM_SELF, log=messages.append, resume=True)
+    assert any(m.startswith("[resume]") for m in messages) and not any(m.startswith("[load]") for m in messages)
+    a, b = read_csv(Path(case.out_dir) / "fan.csv"), read_csv(out / "fan.csv")
+    assert b["h_v"][0] == pytest.approx(a["h_v"][0], abs=1e-12)  # the same unloaded state
+    assert np.ptp(b["h_v"]) > 1.8 * np.ptp(a["h_v"])
+
+
 def test_reload_inside_does_not_yield_and_far_outside_does(fan, tmp_path):
     """Isotropic recompression (phi = 0): a reload recovering half the unload stays elastic
     (E_d below E_0 (1 + 0.3 %)); one going 6 unload amplitudes beyond yields."""

@@ -48,6 +48,9 @@ def run_case(case, comm, say) -> None:
 
         say(f"{case.name}: running -> {run_dir}")
         start = time.perf_counter()
+        if comm.rank == 0 and case.shares_loading_with:
+            share_loading(RUNS / case.shares_loading_with, run_dir, say)
+        comm.barrier()
         run_yield_surface(case.yield_surface_case(str(run_dir)), comm, log=say, resume=True)
         if comm.rank == 0:
             (run_dir / "done").write_text(f"{time.perf_counter() - start:.0f}\n")
@@ -63,6 +66,31 @@ def run_case(case, comm, say) -> None:
     run_compaction(case.compaction_case(str(run_dir)), comm, log=say, restart=restart)
     if comm.rank == 0:
         (run_dir / "done").write_text(f"{time.perf_counter() - start:.0f}\n")
+
+
+def share_loading(source: Path, run_dir: Path, say) -> None:
+    """Start a fan from the finished load and unload of ``source`` (the same path, other reloads):
+    its packing, unload checkpoint and ``unloaded.json`` are copied (the fan then resumes at its
+    reloads). Nothing is copied if ``source`` has no unloaded state or ``run_dir`` has its own."""
+    import json
+    import shutil
+
+    if not (source / "unloaded.json").exists() or (run_dir / "unloaded.json").exists():
+        return
+    state = json.loads((source / "unloaded.json").read_text())
+    checkpoint = Path(state["checkpoint"])
+    stage = checkpoint.parent.parent.name  # <fan>/<stage>/checkpoints/stepN: unload (or settle)
+    (run_dir / "load").mkdir(parents=True, exist_ok=True)
+    shutil.copy2(source / "load" / "packing.txt", run_dir / "load" / "packing.txt")
+    for part in ("history.csv", "packing.txt"):
+        if (source / stage / part).exists():
+            (run_dir / stage).mkdir(exist_ok=True)
+            shutil.copy2(source / stage / part, run_dir / stage / part)
+    target = run_dir / stage / "checkpoints" / checkpoint.name
+    shutil.copytree(checkpoint, target, dirs_exist_ok=True)
+    state["checkpoint"] = str(target)
+    (run_dir / "unloaded.json").write_text(json.dumps(state, indent=1))
+    say(f"{run_dir.name}: load and unload shared with {source.name}")
 
 
 def run_in_parallel(cases, jobs: int, say) -> None:
