@@ -329,13 +329,13 @@ def surface_axis_deg(points: np.ndarray) -> float:
 def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
     """Thesis table 4.2 (Gamma_l from a fan, §4.4) and the fans' surfaces: one row per fan of
     the fans stage. Status on Gamma_l for the fans with gamma 1e-2 at a row of the table."""
-    rows, lines = [], ["| fan | loading, rho_f, gamma (mJ/mm^2) | sigma_m loaded / unloaded (MPa) | yield points | "
+    rows, lines = [], ["| fan | loading, rho_f, gamma (mJ/mm^2), A / h_v^d | sigma_m loaded / unloaded (MPa) | yield points | "
                        "Gamma unloaded (1/mm) | Gamma_l ours (1/mm) | thesis Gamma_l (table 4.2) | deviation | status | "
                        "uniaxial compressive yield / tensile rupture (MPa) | wall |",
                        "|---|---|---|---|---|---|---|---|---|---|---|"]
     for case in STAGES["fans"]:
         fan = done.get(case.name)
-        head = f"| {case.name} | {case.loading}, {case.rho_f:g}, {case.gamma:g} |"
+        head = f"| {case.name} | {case.loading}, {case.rho_f:g}, {case.gamma:g}, {case.amplitude_factor:g} |"
         if fan is None:
             lines.append(head + " not run yet | | | | | | | | |")
             continue
@@ -354,7 +354,7 @@ def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
                      f"({'Gamma_l' if rupture and rupture.startswith('gamma') else rupture or 'no rupture'})")
         lines.append(f"{head} {unloaded['sigma_m_loaded']:.3f} / {unloaded['sigma_m_unloaded']:.3f} | "
                      f"{summary['points'].get('yield', 0)}/{case.nphi} | {unloaded['Gamma_unloaded']:.2f} | "
-                     f"{g_l:.2f} | {thesis if thesis is not None else '-'} | {status} | "
+                     f"{f'{g_l:.2f}' if np.isfinite(g_l) else 'none'} | {thesis if thesis is not None else '-'} | {status} | "
                      f"{strengths} | {fan['wall_s'] / 60:.0f} min |")
     return rows, lines
 
@@ -376,7 +376,7 @@ def trend_lines(done: dict) -> tuple[list[dict], list[str]]:
             f"lowest yield sigma_m {low_a:.3f} MPa with adhesion, {low_b:.3f} without", low_a < 0 <= low_b + 1e-3)
     else:
         add("with gamma = 1e-2 the yield surface reaches sigma_m < 0 (§4.3.2, fig. 4.7)", [a, b], "", False)
-    adhesive = [c.name for c in STAGES["fans"] if c.gamma > 0]
+    adhesive = [c.name for c in STAGES["fans"] if c.gamma > 0 and not c.shares_loading_with]  # thesis amplitude
     pairs = [(n, uniaxial(fans[n], "yield", "compressive"), uniaxial(fans[n], rupture_kind(fans[n]), "tensile"))
              for n in adhesive if fans[n]]
     add("uniaxial compressive yield > tensile rupture (§4.5)", adhesive,
