@@ -299,9 +299,10 @@ def gamma_rows(done: dict) -> tuple[list[dict], list[str]]:
 
 def rupture_kind(fan: dict) -> str | None:
     """The fan's rupture surface: the limit iso-Gamma curve Gamma_l (the thesis' choice, §4.4)
-    when the curves superpose, else Hill's W2 <= 0 (eq. 4.15); None if neither was found."""
+    when it is closed (every reload crosses it), else Hill's W2 <= 0 (eq. 4.15); None if
+    neither was found."""
     g = fan["summary"]["Gamma_limit_per_mm"]
-    if g is not None and np.isfinite(g) and f"gamma_{g:.6g}" in fan["surfaces"]:
+    if g is not None and np.isfinite(g) and f"gamma_{g:.6g}" in fan["summary"]["uniaxial_MPa"]:
         return f"gamma_{g:.6g}"
     return "w2" if "w2" in fan["surfaces"] else None
 
@@ -349,12 +350,14 @@ def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
             rows.append(r)
             status = (f"{100 * r['deviation']:+.1f} % | {r['status']}" if np.isfinite(g_l) else
                       "- | not met: the iso-Gamma curves do not superpose within the reloads")
+        crossing = len(fan["surfaces"].get(f"gamma_{g_l:.6g}", ()))
+        g_text = f"{g_l:.2f} ({crossing}/{case.nphi} reloads cross it)" if np.isfinite(g_l) else "none"
         rupture = rupture_kind(fan)
         strengths = (f"{uniaxial(fan, 'yield', 'compressive'):.3g} / {uniaxial(fan, rupture, 'tensile'):.3g} "
                      f"({'Gamma_l' if rupture and rupture.startswith('gamma') else rupture or 'no rupture'})")
         lines.append(f"{head} {unloaded['sigma_m_loaded']:.3f} / {unloaded['sigma_m_unloaded']:.3f} | "
                      f"{summary['points'].get('yield', 0)}/{case.nphi} | {unloaded['Gamma_unloaded']:.2f} | "
-                     f"{f'{g_l:.2f}' if np.isfinite(g_l) else 'none'} | {thesis if thesis is not None else '-'} | {status} | "
+                     f"{g_text} | {thesis if thesis is not None else '-'} | {status} | "
                      f"{strengths} | {fan['wall_s'] / 60:.0f} min |")
     return rows, lines
 
