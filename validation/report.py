@@ -467,7 +467,9 @@ def figures(done: dict, out: Path) -> None:
         fig, ax = plt.subplots(figsize=(6.4, 5.0))
         reach = 0.0
         for (case, fan), colour in zip(fans, ("C0", "C2", "C1", "C7")):
-            for kind, style, what in (("yield", "-", "yield"), (rupture_kind(fan), "--", "rupture")):
+            rupture = rupture_kind(fan)
+            named = "rupture (Gamma_l)" if rupture and rupture.startswith("gamma") else f"rupture ({rupture})"
+            for kind, style, what in (("yield", "-", "yield"), (rupture, "--", named)):
                 pts = fan["surfaces"].get(kind) if kind else None
                 if pts is None or len(pts) < 3:
                     continue
