@@ -272,6 +272,13 @@ def test_limit_specific_surface_of_a_collapsing_fan():
     hardening = [{"sigma_m": 5 * t * np.cos(phi), "sigma_tilde_d": 5 * t * np.sin(phi), "Gamma": G0 - 0.1 * t}
                  for phi in np.linspace(0, 2 * np.pi, 6, endpoint=False)]  # no peak, no collapse
     assert np.isnan(limit_specific_surface(hardening, G0, scale=3.0))
+    # contacts that hold (Gamma -0.4 %) on reloads that stop (smooth step): the lowest levels are
+    # crossed together where the reloads end; that is not a collapse
+    step = 3.0 * t ** 3 * (10 - 15 * t + 6 * t ** 2)
+    holding = [{"sigma_m": step * np.cos(phi), "sigma_tilde_d": step * np.sin(phi), "Gamma": G0 - 0.01 * t}
+               for phi in np.linspace(0, 2 * np.pi, 6, endpoint=False)]
+    assert np.isfinite(limit_specific_surface(holding, G0, scale=3.0, min_collapse=0.0))
+    assert np.isnan(limit_specific_surface(holding, G0, scale=3.0))
     # raw W2: positive then negative once (quasi-static rupture) vs sign noise
     w = {"_W2_raw": np.r_[np.nan, np.linspace(1.0, -1.0, 20)], "_dh": np.ones(21)}
     assert w2_sign_changes(w) == 1

@@ -63,7 +63,7 @@ def iso_gamma_point(fan: dict[str, np.ndarray], level: float) -> tuple[float, fl
 
 
 def limit_specific_surface(fans: list[dict], gamma_unloaded: float, scale: float, tolerance: float = 0.02,
-                           levels: int = 24, min_directions: int = 3) -> float:
+                           levels: int = 24, min_directions: int = 3, min_collapse: float = 0.05) -> float:
     """Limit specific contact surface Gamma_l (1/mm, thesis §4.3 and table 4.2): the threshold
     below which the iso-Gamma curves superpose (the contacts collapse at the stress peak, so
     every lower threshold is crossed at almost the same stress; the thesis reads it off the
@@ -74,9 +74,12 @@ def limit_specific_surface(fans: list[dict], gamma_unloaded: float, scale: float
     stress); Gamma_l is the highest level from which every lower pair superposes. Crossings
     within 10 % of ``scale`` of the unloaded state are not counted (levels just below the
     unloaded value are crossed at the start of every reload, trivially together). NaN when
-    the curves never superpose (reloads too short to break the contacts)."""
+    the curves never superpose (reloads too short to break the contacts), and when no
+    ``min_directions`` reloads lose at least ``min_collapse`` of the unloaded Gamma: the lowest
+    levels of a fan whose contacts hold are crossed where the reloads stop, together but
+    without any collapse."""
     minima = np.sort([float(np.nanmin(f["Gamma"])) for f in fans])
-    if minima.size < min_directions or not minima[min_directions - 1] < gamma_unloaded:
+    if minima.size < min_directions or not minima[min_directions - 1] <= (1.0 - min_collapse) * gamma_unloaded:
         return float("nan")
     grid = np.linspace(gamma_unloaded, minima[min_directions - 1], levels + 1)[1:]
 

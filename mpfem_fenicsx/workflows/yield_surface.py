@@ -422,7 +422,8 @@ def surfaces(case: YieldSurfaceCase, unloaded: Unloaded | None = None, log=print
     for kind, (c, t) in uniaxial.items():
         log(f"[surfaces] {kind}: uniaxial compressive {c:.4g} MPa, tensile {t:.4g} MPa")
     log(f"[surfaces] limit specific contact surface Gamma_l = {gamma_limit:.5g} 1/mm" +
-        ("" if np.isfinite(gamma_limit) else " (the iso-Gamma curves do not superpose within these reloads)"))
+        ("" if np.isfinite(gamma_limit) else " (no collapse of the contacts within these reloads: Gamma falls by "
+                                             "less than 5 %, or the iso-Gamma curves do not superpose)"))
     log(f"[surfaces] raw W2 sign changes per reload ({case.solver}): median {np.median(sign_changes):.0f}, "
         f"max {max(sign_changes)}")
     plot_yield_surface(out / "unload" / "history.csv", out / "fan.csv", out / "surfaces.csv",
