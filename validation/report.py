@@ -404,14 +404,18 @@ def trend_lines(done: dict) -> tuple[list[dict], list[str]]:
     else:
         add("both grow with rho_f (§4.3.1, §4.5)", [lo, hi], "", False)
     die, iso = "fan_die_0.82", ("fan_isotropic_0.79", "fan_isotropic_0.87")
-    closed = {n: fans[n]["surfaces"]["yield"] for n in (die, *iso)
-              if fans[n] and len(fans[n]["surfaces"].get("yield", ())) == fans[n]["case"].nphi}
+    # the yield surfaces where every one is closed, else Hill's W2 surfaces (closed more often)
+    for kind in ("yield", "w2"):
+        closed = {n: fans[n]["surfaces"][kind] for n in (die, *iso)
+                  if fans[n] and len(fans[n]["surfaces"].get(kind, ())) == fans[n]["case"].nphi}
+        if die in closed and any(n in closed for n in iso):
+            break
     if die in closed and any(n in closed for n in iso):
         angles = {n: surface_axis_deg(p) for n, p in closed.items()}
         turn = min(abs(angles[die] - angles[n]) for n in iso if n in angles)
         add("die-loaded surfaces rotate (§4.3.1, fig. 4.7b, d)", [die, *iso],
-            "major axis from the sigma_m axis: " + ", ".join(f"{n} {a:+.1f} deg" for n, a in angles.items()),
-            turn > 5.0)
+            f"major axis of the {'yield' if kind == 'yield' else 'W2 rupture'} surfaces from the sigma_m axis: "
+            + ", ".join(f"{n} {a:+.1f} deg" for n, a in angles.items()), turn > 5.0)
     else:
         add("die-loaded surfaces rotate (§4.3.1, fig. 4.7b, d)", [die, *iso], "", False)
     return [], lines
