@@ -486,7 +486,8 @@ def figures(done: dict, out: Path) -> None:
                 pts = fan["surfaces"].get(kind) if kind else None
                 if pts is None or len(pts) < 3:
                     continue
-                label = f"{case.loading} {case.rho_f:g}, gamma {case.gamma:g}: {what}"
+                label = (f"{case.loading} {case.rho_f:g}, gamma {case.gamma:g}"
+                         + ("" if case.amplitude_factor == 1.5 else f", A {case.amplitude_factor:g} h_v^d") + f": {what}")
                 if len(pts) == case.nphi:  # closed: every reload crossed
                     loop = pts[np.argsort(pts[:, 0])]
                     loop = np.vstack([loop, loop[:1]])
