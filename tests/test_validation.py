@@ -154,6 +154,24 @@ def test_fan_rows_and_trends_on_synthetic_fans():
     assert all("not run yet" in line for line in trends[2:])
 
 
+def test_reload_study_reads_how_far_the_surfaces_move():
+    """A fan with slower reloads against the thesis fan sharing its loading: surfaces within 5 %
+    read as independent of the reloads, 20 % apart as moving; the reloads' rates are listed."""
+    fans = {c.name: c for c in report.STAGES["fans"]}
+    slow = "fan_isotropic_0.79_n1200"
+    assert fans[slow].shares_loading_with == "fan_isotropic_0.79" and not fans[slow].is_thesis_fan
+    done = {"fan_isotropic_0.79": _ellipse_fan(fans["fan_isotropic_0.79"], (1.0, 0.0), 2.0, 1.5, 0.0,
+                                               compressive=2.0, tensile=0.8),
+            slow: _ellipse_fan(fans[slow], (1.0, 0.0), 2.0, 1.5, 0.0, compressive=2.04, tensile=0.81)}
+    done[slow]["summary"]["reload"] = {"amplitude": 2.45e-3, "steps": 1200, "duration_s": 2e-4,
+                                       "strain_rate_per_s": 12.25}
+    line = next(x for x in report.reload_study_lines(done)[1] if x.startswith(f"| {slow} |"))
+    assert "2.45 / 1200 / 12.2 vs ?" in line and line.endswith("independent of the reloads |")
+    done[slow] = _ellipse_fan(fans[slow], (1.0, 0.0), 2.0, 1.5, 0.0, compressive=2.4, tensile=0.8)
+    line = next(x for x in report.reload_study_lines(done)[1] if x.startswith(f"| {slow} |"))
+    assert "(+20 %)" in line and line.endswith("moves by up to 20 % |")
+
+
 # --- CI-sized subset of the validation runs (real compactions, not synthetic histories) ---
 
 def _die_compaction(tmp_path, name, **options):

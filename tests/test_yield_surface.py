@@ -103,6 +103,14 @@ def test_fan_outputs_and_closed_yield_surface(fan):
     assert np.all(np.diff(angles) > 0) and angles[-1] - angles[0] < 2 * np.pi
     compressive, tensile = result["uniaxial"]["yield"]
     assert compressive > 0 and tensile > 0  # adhesion: the compact holds some tension
+    # the recorded reload discretization is the one the reloads ran (their histories' time span)
+    import json
+
+    reload = json.loads((out / "summary.json").read_text())["reload"]
+    assert reload["steps"] == case.reload_increments
+    span = read_csv(out / "reload_000" / "history.csv")["time"][-1] - u.t_unloaded
+    assert span == pytest.approx(reload["duration_s"], rel=1e-6)
+    assert reload["strain_rate_per_s"] * reload["duration_s"] == pytest.approx(case.amplitude_factor * u.h_v_unload)
 
 
 def test_reload_restarted_with_contact_history_equals_uninterrupted_run(fan, tmp_path):

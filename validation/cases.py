@@ -122,11 +122,26 @@ class FanCase:
     #: reload amplitude A / h_v^d (thesis: 1.5); a larger one carries the reloads past the
     #: stress peak until contacts break, where the iso-Gamma curves can superpose (Gamma_l)
     amplitude_factor: float = 1.5
+    #: fewest explicit increments of a reload (``YieldSurfaceCase.min_increments``); at 1.5 h_v^d
+    #: this floor sets the reload rate, a larger one slows the reloads (the rate study)
+    min_reload_increments: int = 400
+
+    @property
+    def is_thesis_fan(self) -> bool:
+        """The thesis' reloads (A = 1.5 h_v^d at the default rate), not a variant of them."""
+        return self.amplitude_factor == 1.5 and self.min_reload_increments == 400
 
     @property
     def shares_loading_with(self) -> str | None:
-        """The thesis-amplitude fan whose load and unload this one reuses (same path), or None."""
-        return None if self.amplitude_factor == 1.5 else fan_case(self.loading, self.rho_f, self.gamma).name
+        """The thesis fan whose load and unload this variant reuses (same path), or None."""
+        return None if self.is_thesis_fan else fan_case(self.loading, self.rho_f, self.gamma).name
+
+    @property
+    def reload_label(self) -> str:
+        """How the reloads differ from the thesis' ("" for a thesis fan), for legends."""
+        return ((f", A {self.amplitude_factor:g} h_v^d" if self.amplitude_factor != 1.5 else "")
+                + (f", reloads >= {self.min_reload_increments} increments" if self.min_reload_increments != 400
+                   else ""))
 
     def yield_surface_case(self, out_dir: str):
         import math
@@ -141,14 +156,18 @@ class FanCase:
         base = replace(reference, target_density=self.rho_f, gamma=self.gamma,
                        increments=max(100, round(share * reference.increments)),
                        duration=share * reference.duration, checkpoint_every=4)
-        return YieldSurfaceCase(base=base, nphi=self.nphi, amplitude_factor=self.amplitude_factor, out_dir=out_dir)
+        return YieldSurfaceCase(base=base, nphi=self.nphi, amplitude_factor=self.amplitude_factor,
+                                min_increments=self.min_reload_increments, out_dir=out_dir)
 
 
-def fan_case(loading: str, rho_f: float, gamma: float = 1e-2, amplitude_factor: float = 1.5) -> FanCase:
+def fan_case(loading: str, rho_f: float, gamma: float = 1e-2, amplitude_factor: float = 1.5,
+             min_reload_increments: int = 400) -> FanCase:
     """The fan after a ``loading`` compaction to ``rho_f`` (a row of table 4.2 with gamma 1e-2)."""
     name = (f"fan_{loading}_{rho_f:g}" + ("" if gamma == 1e-2 else f"_gamma{gamma:g}")
-            + ("" if amplitude_factor == 1.5 else f"_A{amplitude_factor:g}"))
-    return FanCase(name, loading, rho_f, gamma, amplitude_factor=amplitude_factor)
+            + ("" if amplitude_factor == 1.5 else f"_A{amplitude_factor:g}")
+            + ("" if min_reload_increments == 400 else f"_n{min_reload_increments}"))
+    return FanCase(name, loading, rho_f, gamma, amplitude_factor=amplitude_factor,
+                   min_reload_increments=min_reload_increments)
 
 
 #: stage -> cases; `python validation/run.py STAGE` runs them, each stage on its own
@@ -165,5 +184,9 @@ STAGES = {
     #: chapter 4: Gamma_l of table 4.2 for two isotropic rows and one die row, and the trends of
     #: §4.3-4.5 (growth with rho_f, rotation under die loading, adhesion: sigma_m < 0 reached)
     "fans": [fan_case("isotropic", 0.79), fan_case("isotropic", 0.87), fan_case("die", 0.82),
-             fan_case("isotropic", 0.87, gamma=0.0), fan_case("isotropic", 0.79, amplitude_factor=5.0)],
+             fan_case("isotropic", 0.87, gamma=0.0), fan_case("isotropic", 0.79, amplitude_factor=5.0),
+             # the reloads' discretization: 3x slower reloads (rate), and the die fan carried to
+             # 3 h_v^d at the thesis fan's rate (its yield surface is open at 1.5 h_v^d)
+             fan_case("isotropic", 0.79, min_reload_increments=1200),
+             fan_case("die", 0.82, amplitude_factor=3.0, min_reload_increments=800)],
 }

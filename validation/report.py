@@ -17,6 +17,7 @@ import numpy as np
 
 from cases import (FanCase, CLP_DRIFT_LIMIT, DBC_GRID, DBC_STABLE_WITHIN, STAGES, THESIS_STABLE_DBC, THESIS_DIE_SIGMA_M, THESIS_DIVERGENCE_HV, THESIS_GAMMA_L,
                    THESIS_GDF_DRIFT, THESIS_NONPERIODIC_GAP, TOLERANCE)
+from mpfem_fenicsx.homogenization.surfaces import MIN_GAMMA_COLLAPSE
 from mpfem_fenicsx.io.history import read_csv
 from mpfem_fenicsx.io.plots import rendulic_frame
 
@@ -332,13 +333,14 @@ def surface_axis_deg(points: np.ndarray) -> float:
 def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
     """Thesis table 4.2 (Gamma_l from a fan, §4.4) and the fans' surfaces: one row per fan of
     the fans stage. Status on Gamma_l for the fans with gamma 1e-2 at a row of the table."""
-    rows, lines = [], ["| fan | loading, rho_f, gamma (mJ/mm^2), A / h_v^d | sigma_m loaded / unloaded (MPa) | yield points | "
+    rows, lines = [], ["| fan | loading, rho_f, gamma (mJ/mm^2), A / h_v^d, min reload increments | sigma_m loaded / unloaded (MPa) | yield points | "
                        "Gamma unloaded (1/mm) | Gamma_l ours (1/mm) | thesis Gamma_l (table 4.2) | deviation | status | "
                        "uniaxial compressive yield / tensile rupture (MPa) | wall |",
                        "|---|---|---|---|---|---|---|---|---|---|---|"]
     for case in STAGES["fans"]:
         fan = done.get(case.name)
-        head = f"| {case.name} | {case.loading}, {case.rho_f:g}, {case.gamma:g}, {case.amplitude_factor:g} |"
+        head = (f"| {case.name} | {case.loading}, {case.rho_f:g}, {case.gamma:g}, {case.amplitude_factor:g}, "
+                f"{case.min_reload_increments} |")
         if fan is None:
             lines.append(head + " not run yet | | | | | | | | |")
             continue
@@ -353,7 +355,7 @@ def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
             drop = 100 * fan.get("gamma_drop", np.nan)
             status = (f"{100 * r['deviation']:+.1f} % | {r['status']}" if np.isfinite(g_l) else
                       f"- | not met: no contact collapse within the reloads (Gamma falls by at most {drop:.1f} %)"
-                      if not drop >= 5.0 else
+                      if not drop >= 100 * MIN_GAMMA_COLLAPSE else
                       f"- | not met: Gamma falls by up to {drop:.1f} %, gradually: the iso-Gamma curves do not "
                       f"superpose")
         crossing = len(fan["surfaces"].get(f"gamma_{g_l:.6g}", ()))
@@ -366,6 +368,41 @@ def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
                      f"{g_text} | {thesis if thesis is not None else '-'} | {status} | "
                      f"{strengths} | {fan['wall_s'] / 60:.0f} min |")
     return rows, lines
+
+
+def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
+    """Each fan with other reloads (amplitude, rate) against the thesis fan whose loading it
+    shares: the reloads' discretization and how far the surfaces move (the yield surface must not
+    depend on how far or how fast the reloads go once they are quasi-static)."""
+    lines = ["| fan | compared with | reload A (1e-3) / increments / strain rate (1/s) | yield points | "
+             "uniaxial compressive yield (MPa) | tensile rupture (MPa) | reading |", "|---|---|---|---|---|---|---|"]
+    for case in STAGES["fans"]:
+        if case.is_thesis_fan:
+            continue
+        fan, ref = done.get(case.name), done.get(case.shares_loading_with)
+        if fan is None or ref is None:
+            lines.append(f"| {case.name} | {case.shares_loading_with} | not run yet | | | | |")
+            continue
+
+        def discretization(f):
+            r = f["summary"].get("reload")
+            return "?" if r is None else f"{1e3 * r['amplitude']:.3g} / {r['steps']} / {r['strain_rate_per_s']:.3g}"
+
+        def change(kind, which):
+            ours, theirs = (uniaxial(f, kind(f), which) for f in (fan, ref))
+            return ours, theirs, ours / theirs - 1.0
+
+        yc, yt, dy = change(lambda f: "yield", "compressive")
+        rc, rt, dr = change(rupture_kind, "tensile")
+        moved = [abs(d) for d in (dy, dr) if np.isfinite(d)]
+        reading = ("both surfaces closed in one fan only" if not moved else
+                   f"moves by up to {100 * max(moved):.0f} %" if max(moved) > 0.05 else
+                   f"within {100 * max(moved):.1f} %: independent of the reloads")
+        lines.append(f"| {case.name} | {case.shares_loading_with} | {discretization(fan)} vs {discretization(ref)} | "
+                     f"{fan['summary']['points'].get('yield', 0)} vs {ref['summary']['points'].get('yield', 0)} "
+                     f"of {case.nphi} | {yc:.3g} vs {yt:.3g} ({100 * dy:+.0f} %) | {rc:.3g} vs {rt:.3g} "
+                     f"({100 * dr:+.0f} %) | {reading} |")
+    return [], lines
 
 
 def trend_lines(done: dict) -> tuple[list[dict], list[str]]:
@@ -388,7 +425,7 @@ def trend_lines(done: dict) -> tuple[list[dict], list[str]]:
         known = "; ".join(f"{n}: lowest yield sigma_m {float(fans[n]['surfaces']['yield'][:, 1].min()):.3f} MPa"
                           for n in (a, b) if fans[n] and "yield" in fans[n]["surfaces"])
         add("with gamma = 1e-2 the yield surface reaches sigma_m < 0 (§4.3.2, fig. 4.7)", [a, b], known, False)
-    adhesive = [c.name for c in STAGES["fans"] if c.gamma > 0 and not c.shares_loading_with]  # thesis amplitude
+    adhesive = [c.name for c in STAGES["fans"] if c.gamma > 0 and c.is_thesis_fan]
     pairs = [(n, uniaxial(fans[n], "yield", "compressive"), uniaxial(fans[n], rupture_kind(fans[n]), "tensile"))
              for n in adhesive if fans[n]]
     add("uniaxial compressive yield > tensile rupture (§4.5)", adhesive,
@@ -476,35 +513,48 @@ def figures(done: dict, out: Path) -> None:
     plt.close(fig)
 
     fans = [(case, done[case.name]) for case in STAGES["fans"] if case.name in done]
-    if fans:
-        fig, ax = plt.subplots(figsize=(6.4, 5.0))
-        reach = 0.0
-        for (case, fan), colour in zip(fans, ("C0", "C2", "C1", "C7")):
-            rupture = rupture_kind(fan)
-            named = "rupture (Gamma_l)" if rupture and rupture.startswith("gamma") else f"rupture ({rupture})"
-            for kind, style, what in (("yield", "-", "yield"), (rupture, "--", named)):
-                pts = fan["surfaces"].get(kind) if kind else None
-                if pts is None or len(pts) < 3:
-                    continue
-                label = (f"{case.loading} {case.rho_f:g}, gamma {case.gamma:g}"
-                         + ("" if case.amplitude_factor == 1.5 else f", A {case.amplitude_factor:g} h_v^d") + f": {what}")
-                if len(pts) == case.nphi:  # closed: every reload crossed
-                    loop = pts[np.argsort(pts[:, 0])]
-                    loop = np.vstack([loop, loop[:1]])
-                    ax.plot(loop[:, 1], loop[:, 2], style, color=colour, marker="." if what == "yield" else None,
-                            label=label)
-                else:  # points only: joining a partial set would draw false chords
-                    ax.plot(pts[:, 1], pts[:, 2], "o" if what == "yield" else "x", color=colour, ms=4,
-                            label=f"{label} ({len(pts)}/{case.nphi} reloads)")
-                reach = max(reach, float(np.abs(pts[:, 1:]).max()))
-        rendulic_frame(ax, reach)
-        ax.set_title("Fans of the 50-particle CLP volume (thesis fig. 4.7, 4.18)")
-        ax.legend(fontsize=7)
-        ax.grid(alpha=0.3)
-        ax.set_aspect("equal", adjustable="datalim")
-        fig.tight_layout()
-        fig.savefig(out / "fans.png", dpi=120)
-        plt.close(fig)
+    thesis = [(c, f) for c, f in fans if c.is_thesis_fan]
+    if thesis:
+        fan_figure(thesis, "Fans of the 50-particle CLP volume (thesis fig. 4.7, 4.18)", out / "fans.png")
+    # every variant next to the thesis fan whose loading it shares: the reloads' discretization
+    studied = [(c, f) for c, f in fans if any(v.shares_loading_with == c.name for v, _ in fans) or not c.is_thesis_fan]
+    if any(not c.is_thesis_fan for c, _ in studied):
+        fan_figure(studied, "Fans: reload amplitude and rate (same loadings)", out / "fan_reloads.png")
+
+
+def fan_figure(fans: list, title: str, path: Path) -> None:
+    """The yield and rupture surfaces of ``fans`` ((FanCase, loaded fan) pairs) in the Rendulic
+    plane: a closed loop where every reload crossed, points where some did not."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 5.0))
+    reach = 0.0
+    for i, (case, fan) in enumerate(fans):
+        colour = f"C{i % 10}"
+        rupture = rupture_kind(fan)
+        named = "rupture (Gamma_l)" if rupture and rupture.startswith("gamma") else f"rupture ({rupture})"
+        for kind, style, what in (("yield", "-", "yield"), (rupture, "--", named)):
+            pts = fan["surfaces"].get(kind) if kind else None
+            if pts is None or len(pts) < 3:
+                continue
+            label = f"{case.loading} {case.rho_f:g}, gamma {case.gamma:g}{case.reload_label}: {what}"
+            if len(pts) == case.nphi:  # closed: every reload crossed
+                loop = pts[np.argsort(pts[:, 0])]
+                loop = np.vstack([loop, loop[:1]])
+                ax.plot(loop[:, 1], loop[:, 2], style, color=colour, marker="." if what == "yield" else None,
+                        label=label)
+            else:  # points only: joining a partial set would draw false chords
+                ax.plot(pts[:, 1], pts[:, 2], "o" if what == "yield" else "x", color=colour, ms=4,
+                        label=f"{label} ({len(pts)}/{case.nphi} reloads)")
+            reach = max(reach, float(np.abs(pts[:, 1:]).max()))
+    rendulic_frame(ax, reach)
+    ax.set_title(title)
+    ax.legend(fontsize=6)
+    ax.grid(alpha=0.3)
+    ax.set_aspect("equal", adjustable="datalim")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
 
 
 def replace_block(text: str, name: str, lines: list[str]) -> str:
@@ -520,8 +570,8 @@ def write_report(runs: Path, here: Path) -> list[dict]:
     readme = here / "README.md"
     text = readme.read_text()
     for name, build in (("die", die_rows), ("periodic", periodic_rows), ("dbc", dbc_rows), ("size", size_rows),
-                        ("stresses", stress_rows), ("gamma", gamma_rows), ("fans", fan_rows), ("trends", trend_lines),
-                        ("sensitivity", sensitivity_lines)):
+                        ("stresses", stress_rows), ("gamma", gamma_rows), ("fans", fan_rows),
+                        ("reloads", reload_study_lines), ("trends", trend_lines), ("sensitivity", sensitivity_lines)):
         r, lines = build(done)
         rows += r
         text = replace_block(text, name, lines)

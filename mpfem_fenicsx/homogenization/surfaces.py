@@ -62,8 +62,13 @@ def iso_gamma_point(fan: dict[str, np.ndarray], level: float) -> tuple[float, fl
     return (float(best[1]), float(best[2])) if np.isfinite(best[1]) else None
 
 
+#: a collapse of the contacts loses at least this fraction of the unloaded Gamma (-)
+MIN_GAMMA_COLLAPSE = 0.05
+
+
 def limit_specific_surface(fans: list[dict], gamma_unloaded: float, scale: float, tolerance: float = 0.02,
-                           levels: int = 24, min_directions: int = 3, min_collapse: float = 0.05) -> float:
+                           levels: int = 24, min_directions: int = 3,
+                           min_collapse: float = MIN_GAMMA_COLLAPSE) -> float:
     """Limit specific contact surface Gamma_l (1/mm, thesis §4.3 and table 4.2): the threshold
     below which the iso-Gamma curves superpose (the contacts collapse at the stress peak, so
     every lower threshold is crossed at almost the same stress; the thesis reads it off the

@@ -32,7 +32,7 @@ Outputs in ``out_dir``: ``fan.csv`` (one row per reload output: phi, sigma_m, si
 h_v, h_tilde_d, E_d, Gamma, W2), ``surfaces.csv`` (kind, phi, sigma_m, sigma_tilde_d; kind in
 yield | gamma_<value> | w2; the limit iso-Gamma curve Gamma_l among the gamma kinds),
 ``uniaxial.csv`` (kind, compressive_MPa, tensile_MPa), ``summary.json`` (E_0, Gamma_l, points
-per surface, raw W2 sign changes per reload), ``yield_surface.png`` and the stage directories with their histories and checkpoints.
+per surface, raw W2 sign changes per reload, the reloads' discretization), ``yield_surface.png`` and the stage directories with their histories and checkpoints.
 Units mm, N, MPa, mJ; reported stresses compression > 0, strains natural sign (h_v < 0 in
 compaction).
 """
@@ -52,8 +52,8 @@ from mpi4py import MPI
 
 from ..boundary import boundary_kind
 from ..homogenization import first_crossing, hencky_strain, row_increments, second_order_work, uniaxial_strengths
-from ..homogenization.surfaces import (default_gamma_levels, iso_gamma_point, limit_specific_surface, surface_points,
-                                      w2_sign_changes)
+from ..homogenization.surfaces import (MIN_GAMMA_COLLAPSE, default_gamma_levels, iso_gamma_point,
+                                      limit_specific_surface, surface_points, w2_sign_changes)
 from ..io.checkpoint import CheckpointError, resolve_checkpoint
 from ..io.history import read_csv, tensor_from_columns
 from ..parameters import check_parameters, parameter
@@ -137,13 +137,6 @@ class Unloaded:
     packing: Packing  # the loaded volume's packing (every reload rebuilds the same model)
 
 
-def _last_checkpoint(directory: Path) -> str:
-    steps = sorted((directory / "checkpoints").glob("step*"))
-    if not steps:
-        raise RuntimeError(f"no checkpoint in {directory / 'checkpoints'}")
-    return str(steps[-1])
-
-
 def _newest_checkpoint(directory: Path) -> str | None:
     """The newest complete checkpoint of a stage directory, or None."""
     try:
@@ -188,7 +181,7 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print,
     rho_imp_c = float(h.column("rho_imposed")[-1])
     h_v_c = abs(float(h.column("h_v")[-1]))
     t_c = float(h.column("time")[-1])
-    load_checkpoint_dir = _last_checkpoint(out / "load")
+    load_checkpoint_dir = str(resolve_checkpoint(out / "load"))
     log(f"[load] rho = {h.column('rho')[-1]:.4f}, sigma_m = {sigma_m_c:.4g} MPa, h_v = {-h_v_c:.4g}; "
         f"{loaded.wall_time:.0f} s")
 
@@ -233,7 +226,7 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print,
     log(f"[unload] isotropic expansion h_v^d = {h_d:.4g} ({n_d} increments): sigma_m = "
         f"{hu.column('sigma_m')[-1]:.4g} MPa (target {target:.3g}), E_0 = {E_0:.5g} mJ, "
         f"Gamma = {hu.column('Gamma')[-1]:.4g} 1/mm")
-    unloaded = Unloaded(checkpoint=_last_checkpoint(out / "unload"), segments=segments, h_v_unload=float(h_d),
+    unloaded = Unloaded(checkpoint=str(resolve_checkpoint(out / "unload")), segments=segments, h_v_unload=float(h_d),
                         E_0=E_0, sigma_m_loaded=sigma_m_c, sigma_m_unloaded=float(hu.column("sigma_m")[-1]),
                         Gamma_unloaded=float(hu.column("Gamma")[-1]), t_unloaded=float(hu.column("time")[-1]),
                         increments=n_d, increments_per_strain=case.slowdown * base.increments / h_v_c, dt=dt,
@@ -251,6 +244,15 @@ def _reload_duration(case: YieldSurfaceCase, unloaded: Unloaded) -> tuple[float,
     A = case.amplitude_factor * unloaded.h_v_unload
     n_r = case.reload_increments or max(case.min_increments, int(math.ceil(unloaded.increments_per_strain * A)))
     return n_r * unloaded.dt, n_r
+
+
+def reload_discretization(case: YieldSurfaceCase, unloaded: Unloaded) -> dict:
+    """How every reload is discretized: amplitude A (the Hencky strain of eq. 4.8, -), duration
+    (s), increments (explicit) or load steps (implicit), and the strain rate A / duration (1/s)."""
+    duration, n_r = _reload_duration(case, unloaded)
+    A = case.amplitude_factor * unloaded.h_v_unload
+    steps = case.reload_steps if solver_kind(case.solver).static else n_r
+    return {"amplitude": A, "duration_s": duration, "steps": steps, "strain_rate_per_s": A / duration}
 
 
 def settle(case: YieldSurfaceCase, unloaded: Unloaded, comm: MPI.Comm, log=print) -> tuple[Unloaded, CompactionModel]:
@@ -271,7 +273,7 @@ def settle(case: YieldSurfaceCase, unloaded: Unloaded, comm: MPI.Comm, log=print
     log(f"[settle] implicit equilibrium of the unloaded state: sigma_m {unloaded.sigma_m_unloaded:.4g} -> "
         f"{hs.column('sigma_m')[-1]:.4g} MPa, E_d {unloaded.E_0:.5g} -> {E_0:.5g} mJ "
         f"({settled.wall_time:.0f} s)")
-    return replace(unloaded, checkpoint=_last_checkpoint(out / "settle"), segments=segments, E_0=E_0,
+    return replace(unloaded, checkpoint=str(resolve_checkpoint(out / "settle")), segments=segments, E_0=E_0,
                    sigma_m_unloaded=float(hs.column("sigma_m")[-1]), Gamma_unloaded=float(hs.column("Gamma")[-1]),
                    t_unloaded=float(hs.column("time")[-1])), settled.model
 
@@ -412,7 +414,7 @@ def surfaces(case: YieldSurfaceCase, unloaded: Unloaded | None = None, log=print
     summary = {"solver": case.solver, "E_0_mJ": unloaded.E_0, "sigma_m_unloaded_MPa": unloaded.sigma_m_unloaded,
                "Gamma_unloaded_per_mm": unloaded.Gamma_unloaded, "gamma_thresholds_per_mm": list(gammas),
                "Gamma_limit_per_mm": gamma_limit, "points": {k: len(v) for k, v in points.items()},
-               "w2_raw_sign_changes": sign_changes,
+               "w2_raw_sign_changes": sign_changes, "reload": reload_discretization(case, unloaded),
                "uniaxial_MPa": {k: {"compressive": c, "tensile": t} for k, (c, t) in uniaxial.items()}}
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
     n_yield = len(points.get("yield", []))
@@ -423,7 +425,8 @@ def surfaces(case: YieldSurfaceCase, unloaded: Unloaded | None = None, log=print
         log(f"[surfaces] {kind}: uniaxial compressive {c:.4g} MPa, tensile {t:.4g} MPa")
     log(f"[surfaces] limit specific contact surface Gamma_l = {gamma_limit:.5g} 1/mm" +
         ("" if np.isfinite(gamma_limit) else " (no collapse of the contacts within these reloads: Gamma falls by "
-                                             "less than 5 %, or the iso-Gamma curves do not superpose)"))
+                                             f"less than {100 * MIN_GAMMA_COLLAPSE:g} %, or the iso-Gamma curves do not "
+                                             "superpose)"))
     log(f"[surfaces] raw W2 sign changes per reload ({case.solver}): median {np.median(sign_changes):.0f}, "
         f"max {max(sign_changes)}")
     plot_yield_surface(out / "unload" / "history.csv", out / "fan.csv", out / "surfaces.csv",
