@@ -316,6 +316,14 @@ def uniaxial(fan: dict, kind: str | None, which: str) -> float:
     return float("nan") if value is None else float(value)
 
 
+def recompression_ratio(fan: dict) -> float:
+    """Yield sigma_m of the isotropic recompression (phi = 0) over the loaded sigma_m: 1 where
+    the reload yields where the loading stopped (the thesis chose its criterion so, §4.2.2)."""
+    pts = fan["surfaces"].get("yield")
+    first = pts[np.isclose(pts[:, 0], 0.0)] if pts is not None and len(pts) else ()
+    return float(first[0, 1]) / fan["unloaded"]["sigma_m_loaded"] if len(first) else float("nan")
+
+
 def surface_axis_deg(points: np.ndarray) -> float:
     """Orientation of a closed surface in the (sigma_m, sigma~_d) plane: the angle (deg, from the
     sigma_m axis, in (-90, 90]) of the major axis of its polygon (the points sorted by phi,
@@ -375,13 +383,14 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
     shares: the reloads' discretization and how far the surfaces move (the yield surface must not
     depend on how far or how fast the reloads go once they are quasi-static)."""
     lines = ["| fan | compared with | reload A (1e-3) / increments / strain rate (1/s) | yield points | "
-             "uniaxial compressive yield (MPa) | tensile rupture (MPa) | reading |", "|---|---|---|---|---|---|---|"]
+             "uniaxial compressive yield (MPa) | tensile rupture (MPa) | isotropic recompression yield / loaded sigma_m | "
+             "reading |", "|---|---|---|---|---|---|---|---|"]
     for case in STAGES["fans"]:
         if case.is_thesis_fan:
             continue
         fan, ref = done.get(case.name), done.get(case.shares_loading_with)
         if fan is None or ref is None:
-            lines.append(f"| {case.name} | {case.shares_loading_with} | not run yet | | | | |")
+            lines.append(f"| {case.name} | {case.shares_loading_with} | not run yet | | | | | |")
             continue
 
         def discretization(f):
@@ -401,7 +410,8 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
         lines.append(f"| {case.name} | {case.shares_loading_with} | {discretization(fan)} vs {discretization(ref)} | "
                      f"{fan['summary']['points'].get('yield', 0)} vs {ref['summary']['points'].get('yield', 0)} "
                      f"of {case.nphi} | {yc:.3g} vs {yt:.3g} ({100 * dy:+.0f} %) | {rc:.3g} vs {rt:.3g} "
-                     f"({100 * dr:+.0f} %) | {reading} |")
+                     f"({100 * dr:+.0f} %) | {recompression_ratio(fan):.3f} vs {recompression_ratio(ref):.3f} | "
+                     f"{reading} |")
     return [], lines
 
 
