@@ -225,6 +225,17 @@ def test_die_periodic_volume_is_the_stiffest_on_a_small_volume(tmp_path):
     assert means["CLP"] > 1.03 * max(means["CLPS"], means["GDF"]), means
 
 
+def test_fan_wall_time_adds_the_killed_processes(tmp_path):
+    """A resumed fan's wall time starts from what the killed process had logged (wall_s)."""
+    import run
+
+    (tmp_path / "wall_s").write_text("100.0\n")
+    said = []
+    run.FanClock(tmp_path).wrap(said.append)("[load] step 10")
+    assert said == ["[load] step 10"] and 100.0 <= float((tmp_path / "wall_s").read_text()) < 101.0
+    assert 100.0 <= run.FanClock(tmp_path).total() < 101.0
+
+
 def test_parallel_runs_spawn_one_single_threaded_process_per_case(tmp_path, monkeypatch):
     """`run.py --jobs N`: every case not done runs as its own process of run.py (one numba thread,
     its log in runs/<case>/log.txt); a done case is skipped; a failed one is reported."""

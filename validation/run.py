@@ -47,13 +47,13 @@ def run_case(case, comm, say) -> None:
         from mpfem_fenicsx.workflows.yield_surface import run_yield_surface
 
         say(f"{case.name}: running -> {run_dir}")
-        start = time.perf_counter()
         if comm.rank == 0 and case.shares_loading_with:
             share_loading(RUNS / case.shares_loading_with, run_dir, say)
         comm.barrier()
-        run_yield_surface(case.yield_surface_case(str(run_dir)), comm, log=say, resume=True)
+        clock = FanClock(run_dir)
+        run_yield_surface(case.yield_surface_case(str(run_dir)), comm, log=clock.wrap(say), resume=True)
         if comm.rank == 0:
-            (run_dir / "done").write_text(f"{time.perf_counter() - start:.0f}\n")
+            (run_dir / "done").write_text(f"{clock.total():.0f}\n")
         return
     from mpfem_fenicsx.io.checkpoint import CheckpointError, resolve_checkpoint
 
@@ -65,6 +65,28 @@ def run_case(case, comm, say) -> None:
     result = run_compaction(case.compaction_case(str(run_dir)), comm, log=say, restart=restart)
     if comm.rank == 0:  # a restarted run's wall time includes the killed runs' (up to their checkpoint)
         (run_dir / "done").write_text(f"{result.wall_time:.0f}\n")
+
+
+class FanClock:
+    """A fan's wall time over every process that worked on it: each log line records the time so
+    far in <run_dir>/wall_s, which a resumed process starts from (a killed process loses at most
+    the time since its last log line)."""
+
+    def __init__(self, run_dir: Path):
+        self.path = run_dir / "wall_s"
+        self.before = float(self.path.read_text()) if self.path.exists() else 0.0
+        self.start = time.perf_counter()
+
+    def total(self) -> float:
+        return self.before + time.perf_counter() - self.start
+
+    def wrap(self, say):
+        def timed(message):
+            if MPI.COMM_WORLD.rank == 0:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                self.path.write_text(f"{self.total():.1f}\n")
+            say(message)
+        return timed
 
 
 def share_loading(source: Path, run_dir: Path, say) -> None:
