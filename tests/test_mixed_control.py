@@ -203,8 +203,13 @@ def test_stress_controlled_run_restarts_bit_for_bit(tmp_path):
                           increments=400, outputs=4, checkpoint_every=2)
 
     a = run_compaction(case(tmp_path / "a"), MPI.COMM_SELF, log=quiet).history
-    b = run_compaction(case(tmp_path / "b"), MPI.COMM_SELF, log=quiet,
-                       restart=tmp_path / "a" / "checkpoints" / "step0000200").history
+    restarted = run_compaction(case(tmp_path / "b"), MPI.COMM_SELF, log=quiet,
+                               restart=tmp_path / "a" / "checkpoints" / "step0000200")
+    b = restarted.history
+    # the restarted run's wall time goes on from the killed run's (history rows and result)
+    import json
+    before = json.loads((tmp_path / "a" / "checkpoints" / "step0000200" / "meta.json").read_text())["wall_time"]
+    assert restarted.wall_time >= b.column("wall_time")[-1] > before
     assert a.column("sigma_schmidt_11")[-1] > 0.5  # the servo compressed the cell
     for name in ("F11", "F33", "sigma_schmidt_11", "sigma_vol_22", "rho"):
         np.testing.assert_array_equal(a.column(name), b.column(name), err_msg=name)

@@ -548,7 +548,7 @@ class CompactionRun:
         if max_steps is None:
             self._finish()
         return CompactionResult(self.history, self.model.packing, self.model.num_dofs,
-                                self.model.radii.size, time.perf_counter() - self.start, total, self.out,
+                                self.model.radii.size, self.wall_time, total, self.out,
                                 model=self.model, solver=solver)
 
     def _fail(self, err: Exception):
