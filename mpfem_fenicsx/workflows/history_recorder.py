@@ -18,8 +18,11 @@ History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C)
   forces f_int + f_bv - f_c on the copies, without the relaxation damping and inertia; empty
   otherwise); sigma_vol_11..33, sigma_vol_m: the volume average (1/V) sum int sigma dv of the
   Cauchy stress of the volume's particles (eq. C.7, ``SolidProblem.cell_stress_integrals``;
-  compression > 0). In static equilibrium the three stresses agree; they are independent
-  measures (contact forces and centroids; boundary reactions; the particles' stress field);
+  compression > 0). In static equilibrium the three stresses agree (CLP); they are independent
+  measures (contact forces and centroids; boundary reactions; the particles' stress field). CLPS:
+  the reactions also load the solid copies, which deform outside the volume, so sigma_schmidt is
+  the whole model's over V0, not the volume's (a 24-particle die volume, copies at 1.5 r_max:
+  2.7x Love-Weber where E_p_model / E_p = 2.8, bench/README.md);
 - n_contacts: force-carrying contacts of the periodic volume (pairs with a loaded point, in
   compression or adhesive tension; appendix-C weights: one per physical contact), Z = 2 n_contacts
   / N the mean coordination number, rattlers the particles of the volume with fewer than 4
