@@ -155,21 +155,40 @@ def test_fan_rows_and_trends_on_synthetic_fans():
 
 
 def test_reload_study_reads_how_far_the_surfaces_move():
-    """A fan with slower reloads against the thesis fan sharing its loading: surfaces within 5 %
-    read as independent of the reloads, 20 % apart as moving; the reloads' rates are listed."""
+    """A fan with slower reloads against the thesis fan sharing its loading: yield points within
+    5 % (direction by direction) read as independent of the reloads, 20 % further as moving; the
+    reloads' rates are listed."""
     fans = {c.name: c for c in report.STAGES["fans"]}
     slow = "fan_isotropic_0.79_n1200"
     assert fans[slow].shares_loading_with == "fan_isotropic_0.79" and not fans[slow].is_thesis_fan
-    done = {"fan_isotropic_0.79": _ellipse_fan(fans["fan_isotropic_0.79"], (1.0, 0.0), 2.0, 1.5, 0.0,
+    done = {"fan_isotropic_0.79": _ellipse_fan(fans["fan_isotropic_0.79"], (0.25, 0.0), 2.0, 1.5, 0.0,
                                                compressive=2.0, tensile=0.8),
-            slow: _ellipse_fan(fans[slow], (1.0, 0.0), 2.0, 1.5, 0.0, compressive=2.04, tensile=0.81)}
+            slow: _ellipse_fan(fans[slow], (0.25, 0.0), 2.04, 1.53, 0.0, compressive=2.04, tensile=0.81)}
     done[slow]["summary"]["reload"] = {"amplitude": 2.45e-3, "steps": 1200, "duration_s": 2e-4,
                                        "strain_rate_per_s": 12.25}
     line = next(x for x in report.reload_study_lines(done)[1] if x.startswith(f"| {slow} |"))
-    assert "2.45 / 1200 / 12.2 vs ?" in line and line.endswith("independent of the reloads |")
-    done[slow] = _ellipse_fan(fans[slow], (1.0, 0.0), 2.0, 1.5, 0.0, compressive=2.4, tensile=0.8)
+    assert "2.45 / 1200 / 12.2 vs ?" in line and "| 2.0 % (12) |" in line
+    assert line.endswith("yield within 2.0 %; w2 not compared |")
+    done[slow] = _ellipse_fan(fans[slow], (0.25, 0.0), 2.4, 1.8, 0.0, compressive=2.4, tensile=0.8)
     line = next(x for x in report.reload_study_lines(done)[1] if x.startswith(f"| {slow} |"))
-    assert "(+20 %)" in line and line.endswith("moves by up to 20 % |")
+    assert "2.4 vs 2 (+20 %)" in line and line.endswith("yield moves by up to 20 %; w2 not compared |")
+
+
+def test_open_die_yield_surface_read_on_the_same_rate_fan_that_closes_it():
+    """The die trends fall back from the thesis fan's open yield surface to the fan sharing its
+    loading that reloads further at the same strain rate, never to one at another rate."""
+    fans = {c.name: c for c in report.STAGES["fans"]}
+    wide = "fan_die_0.82_A3_n800"
+    assert fans[wide].shares_loading_with == "fan_die_0.82"
+    thesis = _ellipse_fan(fans["fan_die_0.82"], (1.5, 1.0), 3.0, 1.5, 40.0)
+    thesis["surfaces"]["yield"] = thesis["surfaces"]["yield"][:5]  # 5 of 12 reloads yield
+    done = {"fan_die_0.82": thesis, wide: _ellipse_fan(fans[wide], (1.5, 1.0), 3.0, 1.5, 40.0)}
+    for name, rate in (("fan_die_0.82", 34.5), (wide, 34.6)):
+        done[name]["summary"]["reload"] = {"strain_rate_per_s": rate}
+    by_name = {n: done.get(n) for n in fans}
+    assert report.closed_yield_fan(by_name, "fan_die_0.82") == wide
+    done[wide]["summary"]["reload"] = {"strain_rate_per_s": 69.0}  # twice as fast: not the same yield
+    assert report.closed_yield_fan({n: done.get(n) for n in fans}, "fan_die_0.82") == "fan_die_0.82"
 
 
 # --- CI-sized subset of the validation runs (real compactions, not synthetic histories) ---
