@@ -559,7 +559,10 @@ def figures(done: dict, out: Path) -> None:
     plt.close(fig)
 
     fans = [(case, done[case.name]) for case in STAGES["fans"] if case.name in done]
-    thesis = [(c, f) for c, f in fans if c.is_thesis_fan]
+    # a thesis fan whose yield surface is open is drawn by its same-rate fan that closes it
+    by_name = {c.name: done.get(c.name) for c in STAGES["fans"]}
+    shown = [closed_yield_fan(by_name, c.name) for c, _ in fans if c.is_thesis_fan]
+    thesis = [(c, f) for c, f in fans if c.name in shown]
     if thesis:
         fan_figure(thesis, "Fans of the 50-particle CLP volume (thesis fig. 4.7, 4.18)", out / "fans.png")
     # every variant next to the thesis fan whose loading it shares: the reloads' discretization
@@ -573,7 +576,7 @@ def fan_figure(fans: list, title: str, path: Path) -> None:
     plane: a closed loop where every reload crossed, points where some did not."""
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.4, 5.0))
+    fig, ax = plt.subplots(figsize=(7.0, 7.0))
     reach = 0.0
     for i, (case, fan) in enumerate(fans):
         colour = f"C{i % 10}"
@@ -595,7 +598,7 @@ def fan_figure(fans: list, title: str, path: Path) -> None:
             reach = max(reach, float(np.abs(pts[:, 1:]).max()))
     rendulic_frame(ax, reach)
     ax.set_title(title)
-    ax.legend(fontsize=6)
+    ax.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2)  # below: the surfaces stay visible
     ax.grid(alpha=0.3)
     ax.set_aspect("equal", adjustable="datalim")
     fig.tight_layout()
