@@ -50,7 +50,7 @@ def run_case(case, comm, say) -> None:
         if comm.rank == 0 and case.shares_loading_with:
             share_loading(RUNS / case.shares_loading_with, run_dir, say)
         comm.barrier()
-        clock = FanClock(run_dir)
+        clock = FanClock(run_dir, writes=comm.rank == 0)
         run_yield_surface(case.yield_surface_case(str(run_dir)), comm, log=clock.wrap(say), resume=True)
         if comm.rank == 0:
             (run_dir / "done").write_text(f"{clock.total():.0f}\n")
@@ -72,8 +72,8 @@ class FanClock:
     far in <run_dir>/wall_s, which a resumed process starts from (a killed process loses at most
     the time since its last log line)."""
 
-    def __init__(self, run_dir: Path):
-        self.path = run_dir / "wall_s"
+    def __init__(self, run_dir: Path, writes: bool = True):
+        self.path, self.writes = run_dir / "wall_s", writes  # one rank writes
         self.before = float(self.path.read_text()) if self.path.exists() else 0.0
         self.start = time.perf_counter()
 
@@ -82,7 +82,7 @@ class FanClock:
 
     def wrap(self, say):
         def timed(message):
-            if MPI.COMM_WORLD.rank == 0:
+            if self.writes:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
                 self.path.write_text(f"{self.total():.1f}\n")
             say(message)

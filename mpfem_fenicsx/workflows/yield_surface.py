@@ -239,9 +239,14 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print,
     return unloaded, model
 
 
+def _reload_amplitude(case: YieldSurfaceCase, unloaded: Unloaded) -> float:
+    """Amplitude A of every reload (eq. 4.8: a multiple of the unload's |h_v^d|, -)."""
+    return case.amplitude_factor * unloaded.h_v_unload
+
+
 def _reload_duration(case: YieldSurfaceCase, unloaded: Unloaded) -> tuple[float, int]:
     """Duration (s) and explicit increments of every reload (the same for all directions)."""
-    A = case.amplitude_factor * unloaded.h_v_unload
+    A = _reload_amplitude(case, unloaded)
     n_r = case.reload_increments or max(case.min_increments, int(math.ceil(unloaded.increments_per_strain * A)))
     return n_r * unloaded.dt, n_r
 
@@ -250,7 +255,7 @@ def reload_discretization(case: YieldSurfaceCase, unloaded: Unloaded) -> dict:
     """How every reload is discretized: amplitude A (the Hencky strain of eq. 4.8, -), duration
     (s), increments (explicit) or load steps (implicit), and the strain rate A / duration (1/s)."""
     duration, n_r = _reload_duration(case, unloaded)
-    A = case.amplitude_factor * unloaded.h_v_unload
+    A = _reload_amplitude(case, unloaded)
     steps = case.reload_steps if solver_kind(case.solver).static else n_r
     return {"amplitude": A, "duration_s": duration, "steps": steps, "strain_rate_per_s": A / duration}
 
@@ -280,9 +285,8 @@ def settle(case: YieldSurfaceCase, unloaded: Unloaded, comm: MPI.Comm, log=print
 
 def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> CompactionCase:
     """The compaction case of reload ``k`` (direction phi_k), to restart from the unload checkpoint."""
-    A = case.amplitude_factor * unloaded.h_v_unload
     duration, n_r = _reload_duration(case, unloaded)
-    segments = (*unloaded.segments, (duration, reload_gradient(float(case.phis[k]), A)))
+    segments = (*unloaded.segments, (duration, reload_gradient(float(case.phis[k]), _reload_amplitude(case, unloaded))))
     reload = replace(case.base, packing=unloaded.packing, out_dir=str(Path(case.out_dir) / f"reload_{k:03d}"),
                      checkpoint_every=0, visual=False, segments_after=segments,
                      output_every=max(1, n_r // case.rows_per_reload))
