@@ -167,7 +167,7 @@ def test_reload_study_reads_how_far_the_surfaces_move():
     done[slow]["summary"]["reload"] = {"amplitude": 2.45e-3, "steps": 1200, "duration_s": 2e-4,
                                        "strain_rate_per_s": 12.25}
     line = next(x for x in report.reload_study_lines(done)[1] if x.startswith(f"| {slow} |"))
-    assert "2.45 / 1200 / 12.2 vs ?" in line and "| 2.0 % (12) |" in line
+    assert "2.45 / 1200 / 12.2 / smooth-step vs ?" in line and "| 2.0 % (12) |" in line
     assert line.endswith("yield within 2.0 %; w2 not compared |")
     done[slow] = _ellipse_fan(fans[slow], (0.25, 0.0), 2.4, 1.8, 0.0, compressive=2.4, tensile=0.8)
     line = next(x for x in report.reload_study_lines(done)[1] if x.startswith(f"| {slow} |"))
@@ -176,7 +176,8 @@ def test_reload_study_reads_how_far_the_surfaces_move():
 
 def test_open_die_yield_surface_read_on_the_same_rate_fan_that_closes_it():
     """The die trends fall back from the thesis fan's open yield surface to the fan sharing its
-    loading that reloads further at the same strain rate, never to one at another rate."""
+    loading that reloads further at the same strain rate and profile, never to one at another
+    rate or profile."""
     fans = {c.name: c for c in report.STAGES["fans"]}
     wide = "fan_die_0.82_A3_n800"
     assert fans[wide].shares_loading_with == "fan_die_0.82"
@@ -187,6 +188,9 @@ def test_open_die_yield_surface_read_on_the_same_rate_fan_that_closes_it():
         done[name]["summary"]["reload"] = {"strain_rate_per_s": rate}
     by_name = {n: done.get(n) for n in fans}
     assert report.closed_yield_fan(by_name, "fan_die_0.82") == wide
+    done[wide]["summary"]["reload"]["profile"] = "smooth-ramps"  # same mean rate, another history of it
+    assert report.closed_yield_fan({n: done.get(n) for n in fans}, "fan_die_0.82") == "fan_die_0.82"
+    done[wide]["summary"]["reload"]["profile"] = "smooth-step"
     done[wide]["summary"]["reload"] = {"strain_rate_per_s": 69.0}  # twice as fast: not the same yield
     assert report.closed_yield_fan({n: done.get(n) for n in fans}, "fan_die_0.82") == "fan_die_0.82"
 

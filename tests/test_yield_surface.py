@@ -227,6 +227,36 @@ def test_reload_inside_does_not_yield_and_far_outside_does(fan, tmp_path):
     assert E_d[0.5] < threshold < E_d[6.0], (E_d, threshold)
 
 
+def test_reload_profile_sets_the_reload_strain_in_time(fan, tmp_path):
+    """A reload's imposed strain follows its profile in time (smooth step: the thesis'; smooth
+    ramps: a constant rate over most of it), from the same unloaded state to the same end."""
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.loading import PROFILES
+    from mpfem_fenicsx.workflows.compaction import build_compaction, run_compaction
+    from mpfem_fenicsx.workflows.yield_surface import reload_case, reload_discretization
+
+    case, result = fan
+    u = result["unloaded"]
+    model, ends = None, []
+    for profile in ("smooth-step", "smooth-ramps"):
+        variant = replace(case, reload_profile=profile)
+        assert reload_discretization(variant, u)["profile"] == profile
+        rc = replace_out(reload_case(variant, u, 0), tmp_path / profile)
+        model = model or build_compaction(rc, MPI.COMM_SELF, lambda *a: None)
+        h = run_compaction(rc, MPI.COMM_SELF, lambda *a: None, restart=u.checkpoint, model=model).history
+        t, h_v = h.column("time"), h.column("h_v")
+        start = np.flatnonzero(np.isclose(t, u.t_unloaded, rtol=1e-9))[-1]
+        t, h_v = t[start:], h_v[start:]
+        fraction = (h_v - h_v[0]) / (h_v[-1] - h_v[0])
+        amplitude = PROFILES[profile](t[-1], t[0])
+        assert fraction == pytest.approx([amplitude(x) for x in t], abs=1e-6), profile
+        ends.append(h_v[-1])
+    assert ends[0] == pytest.approx(ends[1], rel=1e-9)
+
+
 def replace_out(case, out):
     from dataclasses import replace
 

@@ -125,11 +125,16 @@ class FanCase:
     #: fewest explicit increments of a reload (``YieldSurfaceCase.min_increments``); at 1.5 h_v^d
     #: this floor sets the reload rate, a larger one slows the reloads (the rate study)
     min_reload_increments: int = 400
+    #: amplitude of the reloads in time (``YieldSurfaceCase.reload_profile``): the thesis' smooth
+    #: step, or "smooth-ramps" (a constant rate over most of the reload: no point read while the
+    #: reload decelerates)
+    reload_profile: str = "smooth-step"
 
     @property
     def is_thesis_fan(self) -> bool:
-        """The thesis' reloads (A = 1.5 h_v^d at the default rate), not a variant of them."""
-        return self.amplitude_factor == 1.5 and self.min_reload_increments == 400
+        """The thesis' reloads (A = 1.5 h_v^d at the default rate, smooth step), not a variant of them."""
+        return (self.amplitude_factor == 1.5 and self.min_reload_increments == 400
+                and self.reload_profile == "smooth-step")
 
     @property
     def shares_loading_with(self) -> str | None:
@@ -141,7 +146,8 @@ class FanCase:
         """How the reloads differ from the thesis' ("" for a thesis fan), for legends."""
         return ((f", A {self.amplitude_factor:g} h_v^d" if self.amplitude_factor != 1.5 else "")
                 + (f", reloads >= {self.min_reload_increments} increments" if self.min_reload_increments != 400
-                   else ""))
+                   else "")
+                + (f", {self.reload_profile} reloads" if self.reload_profile != "smooth-step" else ""))
 
     def yield_surface_case(self, out_dir: str):
         import math
@@ -157,17 +163,19 @@ class FanCase:
                        increments=max(100, round(share * reference.increments)),
                        duration=share * reference.duration, checkpoint_every=4)
         return YieldSurfaceCase(base=base, nphi=self.nphi, amplitude_factor=self.amplitude_factor,
-                                min_increments=self.min_reload_increments, out_dir=out_dir)
+                                min_increments=self.min_reload_increments, reload_profile=self.reload_profile,
+                                out_dir=out_dir)
 
 
 def fan_case(loading: str, rho_f: float, gamma: float = 1e-2, amplitude_factor: float = 1.5,
-             min_reload_increments: int = 400) -> FanCase:
+             min_reload_increments: int = 400, reload_profile: str = "smooth-step") -> FanCase:
     """The fan after a ``loading`` compaction to ``rho_f`` (a row of table 4.2 with gamma 1e-2)."""
     name = (f"fan_{loading}_{rho_f:g}" + ("" if gamma == 1e-2 else f"_gamma{gamma:g}")
             + ("" if amplitude_factor == 1.5 else f"_A{amplitude_factor:g}")
-            + ("" if min_reload_increments == 400 else f"_n{min_reload_increments}"))
+            + ("" if min_reload_increments == 400 else f"_n{min_reload_increments}")
+            + ("" if reload_profile == "smooth-step" else f"_{reload_profile.removeprefix('smooth-')}"))
     return FanCase(name, loading, rho_f, gamma, amplitude_factor=amplitude_factor,
-                   min_reload_increments=min_reload_increments)
+                   min_reload_increments=min_reload_increments, reload_profile=reload_profile)
 
 
 #: stage -> cases; `python validation/run.py STAGE` runs them, each stage on its own
@@ -188,5 +196,8 @@ STAGES = {
              # the reloads' discretization: 3x slower reloads (rate), and the die fan carried to
              # 3 h_v^d at the thesis fan's rate (its yield surface is open at 1.5 h_v^d)
              fan_case("isotropic", 0.79, min_reload_increments=1200),
-             fan_case("die", 0.82, amplitude_factor=3.0, min_reload_increments=800)],
+             fan_case("die", 0.82, amplitude_factor=3.0, min_reload_increments=800),
+             # the reloads' profile: a constant strain rate (W2 not read in the smooth step's
+             # deceleration), at the thesis fan's duration
+             fan_case("isotropic", 0.79, reload_profile="smooth-ramps")],
 }

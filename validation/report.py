@@ -341,14 +341,14 @@ def surface_axis_deg(points: np.ndarray) -> float:
 def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
     """Thesis table 4.2 (Gamma_l from a fan, §4.4) and the fans' surfaces: one row per fan of
     the fans stage. Status on Gamma_l for the fans with gamma 1e-2 at a row of the table."""
-    rows, lines = [], ["| fan | loading, rho_f, gamma (mJ/mm^2), A / h_v^d, min reload increments | sigma_m loaded / unloaded (MPa) | yield points | "
+    rows, lines = [], ["| fan | loading, rho_f, gamma (mJ/mm^2), A / h_v^d, min reload increments, reload profile | sigma_m loaded / unloaded (MPa) | yield points | "
                        "Gamma unloaded (1/mm) | Gamma_l ours (1/mm) | thesis Gamma_l (table 4.2) | deviation | status | "
                        "uniaxial compressive yield / tensile rupture (MPa) | wall |",
                        "|---|---|---|---|---|---|---|---|---|---|---|"]
     for case in STAGES["fans"]:
         fan = done.get(case.name)
         head = (f"| {case.name} | {case.loading}, {case.rho_f:g}, {case.gamma:g}, {case.amplitude_factor:g}, "
-                f"{case.min_reload_increments} |")
+                f"{case.min_reload_increments}, {case.reload_profile} |")
         if fan is None:
             lines.append(head + " not run yet | | | | | | | | |")
             continue
@@ -399,7 +399,7 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
     shares: the reloads' discretization and how far the surfaces move (a threshold surface must
     not depend on how far or how fast the reloads go once they are quasi-static), point by point
     in the directions where both fans cross it."""
-    lines = ["| fan | compared with | reload A (1e-3) / increments / strain rate (1/s) | yield points | "
+    lines = ["| fan | compared with | reload A (1e-3) / increments / mean strain rate (1/s) / profile | yield points | "
              "yield: largest shift (common directions) | W2: largest shift (common directions) | "
              "uniaxial compressive yield (MPa) | tensile rupture (MPa) | isotropic recompression yield / loaded "
              "sigma_m | reading |", "|---|---|---|---|---|---|---|---|---|---|"]
@@ -413,7 +413,8 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
 
         def discretization(f):
             r = f["summary"].get("reload")
-            return "?" if r is None else f"{1e3 * r['amplitude']:.3g} / {r['steps']} / {r['strain_rate_per_s']:.3g}"
+            return "?" if r is None else (f"{1e3 * r['amplitude']:.3g} / {r['steps']} / {r['strain_rate_per_s']:.3g}"
+                                          f" / {r.get('profile', 'smooth-step')}")
 
         def change(kind, which):
             ours, theirs = (uniaxial(f, kind(f), which) for f in (fan, ref))
@@ -435,19 +436,23 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
 
 def closed_yield_fan(fans: dict, name: str) -> str:
     """``name``, or, if its yield surface is open, the fan sharing its loading with reloads at the
-    same strain rate (within 1 %) but further (a larger A) whose yield surface is closed: the
+    same strain rate (within 1 %) and profile but further (a larger A) whose yield surface is closed: the
     yield points do not depend on A at a given rate (the reload study), more reach them."""
     def closed(n):
         return fans.get(n) is not None and len(fans[n]["surfaces"].get("yield", ())) == fans[n]["case"].nphi
 
-    def rate(n):
-        return (fans[n]["summary"].get("reload") or {}).get("strain_rate_per_s", np.nan)
+    def reloads(n):  # the recorded mean strain rate and profile of the reloads
+        r = fans[n]["summary"].get("reload") or {}
+        return r.get("strain_rate_per_s", np.nan), r.get("profile", "smooth-step")
 
     if closed(name) or fans.get(name) is None:
         return name
+    rate, profile = reloads(name)
     for case in STAGES["fans"]:
-        if case.shares_loading_with == name and closed(case.name) and abs(rate(case.name) / rate(name) - 1) < 0.01:
-            return case.name
+        if case.shares_loading_with == name and closed(case.name):
+            other_rate, other_profile = reloads(case.name)
+            if abs(other_rate / rate - 1) < 0.01 and other_profile == profile:
+                return case.name
     return name
 
 

@@ -125,6 +125,9 @@ class CompactionCase:
     #: gradient G (3, 3)), ...): e.g. the unload F^d and a reload F^r of thesis eq. 4.7-4.9. Explicit
     #: runs keep the compaction's increment duration / increments (make durations multiples of it)
     segments_after: tuple = ()
+    #: amplitude in time of each of ``segments_after`` (loading.amplitude.PROFILES; missing ones:
+    #: "smooth-step"), e.g. a chapter-4 reload at a constant strain rate ("smooth-ramps")
+    segment_profiles: tuple = ()
     #: viscous damping of each particle's rigid motion relative to the imposed homogeneous flow, in
     #: units of 1 / duration (ExplicitSettings.damping; dissipation in E_damp). Off by default: it
     #: drags the particles towards the affine flow, a rate-dependent stress (bench/README.md)
@@ -175,6 +178,9 @@ class CompactionCase:
         if any(int(n) < 1 for n in self.segment_steps) or len(self.segment_steps) > len(self.segments_after):
             raise ValueError(f"segment_steps must hold >= 1 implicit steps for at most the {len(self.segments_after)} "
                              f"segments_after, got {self.segment_steps}")
+        if len(self.segment_profiles) > len(self.segments_after) or any(p not in PROFILES for p in self.segment_profiles):
+            raise ValueError(f"segment_profiles must name one of {', '.join(PROFILES)} for at most the "
+                             f"{len(self.segments_after)} segments_after, got {self.segment_profiles}")
         if self.control is not None and (not boundary_kind(self.bc).periodic or not solver_kind(self.solver).stress_control):
             raise ValueError(f"control (stress-driven components) needs bc CLP or CLPS and the explicit solver, got "
                              f"bc={self.bc!r}, solver={self.solver!r}")
@@ -284,7 +290,8 @@ def loading_path(case: CompactionCase, rho0: float) -> GradientPath:
         return case.control
     hold = [(case.hold * case.duration, np.eye(3))] if case.hold > 0 else []
     return GradientPath([(case.duration, compaction_gradient(case.loading, rho0, case.target_density)),
-                         *hold, *case.segments_after], profiles=(case.profile,))
+                         *hold, *case.segments_after],
+                        profiles=(case.profile, *("smooth-step" for _ in hold), *case.segment_profiles))
 
 
 def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> CompactionModel:

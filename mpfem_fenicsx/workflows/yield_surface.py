@@ -12,7 +12,8 @@ Stages (data flow: compaction -> unload -> checkpoint -> fan of reloads -> surfa
    h_v = A cos phi, h~_d = A sin phi (compression > 0), A = ``amplitude_factor`` h_v^d
    (eq. 4.8-4.9), each restarted from the unload checkpoint **with the contact history kept**
    (alpha, sigma_max, stick anchors, W_f: unlike Abaqus in the thesis, no spurious dissipation
-   at the restart). Reloads are independent: under ``mpirun -n P`` each rank runs every P-th
+   at the restart), each following ``reload_profile`` in time (the thesis' smooth step, or a
+   constant strain rate between smooth ramps). Reloads are independent: under ``mpirun -n P`` each rank runs every P-th
    direction on its own communicator (the load and unload run on rank 0 alone, since a
    checkpoint restarts on the number of ranks that wrote it);
 4. **surfaces** (rank 0): yield where E_d first reaches E_0 (1 + ``dissipation_threshold``)
@@ -59,7 +60,7 @@ from ..io.history import read_csv, tensor_from_columns
 from ..parameters import check_parameters, parameter
 from ..solvers import SOLVERS, solver_kind
 from ..io.plots import plot_yield_surface
-from ..loading import reload_gradient, unload_gradient
+from ..loading import PROFILES, reload_gradient, unload_gradient
 from ..meshes.packing import Packing, read_packing
 from .compaction import CompactionCase, CompactionModel, build_compaction, run_compaction
 
@@ -91,6 +92,11 @@ class YieldSurfaceCase:
     slowdown: float = parameter(4.0, "reloads slower than the compaction by this factor (-)", low=0, high=1000,
                                 open_low=True)
     min_increments: int = parameter(400, "fewest explicit increments of a reload", low=10)
+    #: the thesis' reloads follow Abaqus' smooth step (rate 1.875 x the mean at mid-path, zero at
+    #: the end: points read late in a reload are read while it decelerates); "smooth-ramps" holds a
+    #: constant rate (1.25 x the mean) from 10 % to 70 % of the reload's time
+    reload_profile: str = parameter("smooth-step", "amplitude of every reload in time (loading.amplitude.PROFILES)",
+                                    choices=tuple(PROFILES))
     rows_per_reload: int = parameter(40, "history rows over a reload", low=4, high=10000)
     #: implicit reloads always use raw differences (no dynamic oscillation to filter)
     w2_window: int = parameter(7, "explicit reloads: rows of the Savitzky-Golay derivatives of W2 (0: raw "
@@ -253,11 +259,13 @@ def _reload_duration(case: YieldSurfaceCase, unloaded: Unloaded) -> tuple[float,
 
 def reload_discretization(case: YieldSurfaceCase, unloaded: Unloaded) -> dict:
     """How every reload is discretized: amplitude A (the Hencky strain of eq. 4.8, -), duration
-    (s), increments (explicit) or load steps (implicit), and the strain rate A / duration (1/s)."""
+    (s), increments (explicit) or load steps (implicit), the mean strain rate A / duration (1/s)
+    and the amplitude's profile in time."""
     duration, n_r = _reload_duration(case, unloaded)
     A = _reload_amplitude(case, unloaded)
     steps = case.reload_steps if solver_kind(case.solver).static else n_r
-    return {"amplitude": A, "duration_s": duration, "steps": steps, "strain_rate_per_s": A / duration}
+    return {"amplitude": A, "duration_s": duration, "steps": steps, "strain_rate_per_s": A / duration,
+            "profile": case.reload_profile}
 
 
 def settle(case: YieldSurfaceCase, unloaded: Unloaded, comm: MPI.Comm, log=print) -> tuple[Unloaded, CompactionModel]:
@@ -289,6 +297,7 @@ def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> Compactio
     segments = (*unloaded.segments, (duration, reload_gradient(float(case.phis[k]), _reload_amplitude(case, unloaded))))
     reload = replace(case.base, packing=unloaded.packing, out_dir=str(Path(case.out_dir) / f"reload_{k:03d}"),
                      checkpoint_every=0, visual=False, segments_after=segments,
+                     segment_profiles=(*("smooth-step" for _ in unloaded.segments), case.reload_profile),
                      output_every=max(1, n_r // case.rows_per_reload))
     if solver_kind(case.solver).static:  # every step a history row
         reload = replace(reload, solver=case.solver, segment_steps=(1,) * (len(segments) - 1) + (case.reload_steps,))
