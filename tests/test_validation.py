@@ -88,15 +88,19 @@ def test_gamma_rows_compare_every_definition():
     rho = np.linspace(0.6, 0.95, 36)
     gdf = {"rho_imposed": rho, "Gamma": 10 * (rho - 0.6), "Gamma_model": 46.8 * (rho - 0.6) / 0.35}
     clp = {"rho_imposed": rho, "Gamma": 9 * (rho - 0.6)}
+    dry = {"rho_imposed": rho, "Gamma": 5 * (rho - 0.6), "Gamma_model": 30 * (rho - 0.6)}
     rows, lines = report.gamma_rows({"isotropic_GDF_gamma1e-2": {"history": gdf},
-                                     "isotropic_CLP_gamma1e-2": {"history": clp}})
+                                     "isotropic_CLP_gamma1e-2": {"history": clp},
+                                     "isotropic_GDF": {"history": dry}})
     by = {(r["case"], r["quantity"]): r for r in rows}
     model = by[("isotropic_GDF_gamma1e-2", "Gamma_model at rho_f 0.95 (mm^-1)")]
     assert model["ours"] == pytest.approx(46.8) and model["status"] == "met"
     assert by[("isotropic_CLP_gamma1e-2", "Gamma at rho_f 0.95 (mm^-1)")]["status"] == "not met"
     line = next(x for x in lines if x.startswith("| isotropic | 0.95 |"))
-    assert line.endswith("| +0.0 % | met |") and "3.15 | 3.50 | 46.80" in line
-    assert any(x.startswith("| die | 0.89 | 39.8 | not run yet | not run yet | not run yet") for x in lines)
+    assert line.endswith("| +0.0 % | met | 10.50 |") and "3.15 | 3.50 | 46.80" in line
+    assert not any(r["case"] == "isotropic_GDF" for r in rows)  # the no-adhesion run is shown, not compared
+    assert any(x.startswith("| die | 0.89 | 39.8 | not run yet | not run yet | not run yet") and
+               x.endswith("| not run yet |") for x in lines)
 
 
 def _ellipse_fan(case, centre, a, b, angle_deg, nphi=12, compressive=3.0, tensile=1.0, gamma_l=5.0):

@@ -275,12 +275,16 @@ def gamma_rows(done: dict) -> tuple[list[dict], list[str]]:
     """Thesis table 4.2: the specific contact surface Gamma (eq. 4.13) reached by the compactions
     with gamma = 1e-2 at each rho_f, against the limit threshold Gamma_l: the CLP volume's Gamma,
     and the thesis' own GDF model with S summed over the volume only (Gamma) or over every contact
-    of the model (Gamma_model, its footnote 4 of §4.4.1). Status on the GDF model's Gamma_model."""
+    of the model (Gamma_model, its footnote 4 of §4.4.1). Status on the GDF model's Gamma_model.
+    For reference, not compared: Gamma_model of the chapter-2 GDF run (no adhesion), which isolates
+    the definition of S from the adhesion."""
     rows, lines = [], ["| loading | rho_f | thesis Gamma_l (table 4.2) | CLP: Gamma | GDF: Gamma (volume) | "
-                       "GDF: Gamma_model (every contact) | deviation (Gamma_model) | status |",
-                       "|---|---|---|---|---|---|---|---|"]
+                       "GDF: Gamma_model (every contact) | deviation (Gamma_model) | status | "
+                       "GDF without adhesion: Gamma_model |",
+                       "|---|---|---|---|---|---|---|---|---|"]
     for loading, table in THESIS_GAMMA_L.items():
         clp, gdf = done.get(f"{loading}_CLP_gamma1e-2"), done.get(f"{loading}_GDF_gamma1e-2")
+        dry = done.get(f"{loading}_GDF")  # the chapter-2 run, gamma = 0
         for rho_f, thesis in table.items():
             cells = []
             for name, run, column in ((f"{loading}_CLP_gamma1e-2", clp, "Gamma"),
@@ -295,8 +299,11 @@ def gamma_rows(done: dict) -> tuple[list[dict], list[str]]:
                 rows.append(row(name, f"{column} at rho_f {rho_f} (mm^-1)", thesis, value))
             text = ["not run yet" if v is None else f"{v:.2f}" for v in cells]
             last = rows[-1] if cells[2] is not None else None
+            dry_text = "not run yet" if dry is None else \
+                f"{at_density(dry['history'], 'Gamma_model', rho_f, 'rho_imposed'):.2f}"
             lines.append(f"| {loading} | {rho_f} | {thesis} | {' | '.join(text)} | "
-                         + (f"{100 * last['deviation']:+.1f} % | {last['status']} |" if last else " | |"))
+                         + (f"{100 * last['deviation']:+.1f} % | {last['status']} |" if last else " | |")
+                         + f" {dry_text} |")
     return rows, lines
 
 
