@@ -142,6 +142,18 @@ class FanCase:
         return None if self.is_thesis_fan else fan_case(self.loading, self.rho_f, self.gamma).name
 
     @property
+    def compared_with(self) -> str | None:
+        """The fan of the stage whose reloads differ from this one's in the fewest respects: the
+        same reloads at the default rate (400 increments) if the stage has it, else the thesis fan
+        whose loading this variant shares (None for a thesis fan)."""
+        if self.is_thesis_fan:
+            return None
+        faster = fan_case(self.loading, self.rho_f, self.gamma, self.amplitude_factor, 400, self.reload_profile)
+        if self.min_reload_increments != 400 and any(c.name == faster.name for c in STAGES["fans"]):
+            return faster.name
+        return self.shares_loading_with
+
+    @property
     def reload_label(self) -> str:
         """How the reloads differ from the thesis' ("" for a thesis fan), for legends."""
         return ((f", A {self.amplitude_factor:g} h_v^d" if self.amplitude_factor != 1.5 else "")
@@ -198,6 +210,7 @@ STAGES = {
              fan_case("isotropic", 0.79, min_reload_increments=1200),
              fan_case("die", 0.82, amplitude_factor=3.0, min_reload_increments=800),
              # the reloads' profile: a constant strain rate (W2 not read in the smooth step's
-             # deceleration), at the thesis fan's duration
-             fan_case("isotropic", 0.79, reload_profile="smooth-ramps")],
+             # deceleration), at the thesis fan's duration and 3x slower
+             fan_case("isotropic", 0.79, reload_profile="smooth-ramps"),
+             fan_case("isotropic", 0.79, min_reload_increments=1200, reload_profile="smooth-ramps")],
 }

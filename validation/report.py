@@ -299,8 +299,8 @@ def gamma_rows(done: dict) -> tuple[list[dict], list[str]]:
                 rows.append(row(name, f"{column} at rho_f {rho_f} (mm^-1)", thesis, value))
             text = ["not run yet" if v is None else f"{v:.2f}" for v in cells]
             last = rows[-1] if cells[2] is not None else None
-            dry_text = "not run yet" if dry is None else \
-                f"{at_density(dry['history'], 'Gamma_model', rho_f, 'rho_imposed'):.2f}"
+            dry_text = ("not run yet" if dry is None else "not recorded" if "Gamma_model" not in dry["history"]
+                        else f"{at_density(dry['history'], 'Gamma_model', rho_f, 'rho_imposed'):.2f}")
             lines.append(f"| {loading} | {rho_f} | {thesis} | {' | '.join(text)} | "
                          + (f"{100 * last['deviation']:+.1f} % | {last['status']} |" if last else " | |")
                          + f" {dry_text} |")
@@ -402,8 +402,8 @@ def surface_shift(fan: dict, ref: dict, kind: str) -> tuple[float, int]:
 
 
 def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
-    """Each fan with other reloads (amplitude, rate) against the thesis fan whose loading it
-    shares: the reloads' discretization and how far the surfaces move (a threshold surface must
+    """Each fan with other reloads (amplitude, rate, profile) against the fan whose reloads differ
+    from its own in the fewest respects (``FanCase.compared_with``): the reloads' discretization and how far the surfaces move (a threshold surface must
     not depend on how far or how fast the reloads go once they are quasi-static), point by point
     in the directions where both fans cross it."""
     lines = ["| fan | compared with | reload A (1e-3) / increments / mean strain rate (1/s) / profile | yield points | "
@@ -413,9 +413,9 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
     for case in STAGES["fans"]:
         if case.is_thesis_fan:
             continue
-        fan, ref = done.get(case.name), done.get(case.shares_loading_with)
+        fan, ref = done.get(case.name), done.get(case.compared_with)
         if fan is None or ref is None:
-            lines.append(f"| {case.name} | {case.shares_loading_with} | not run yet | | | | | | | |")
+            lines.append(f"| {case.name} | {case.compared_with} | not run yet | | | | | | | |")
             continue
 
         def discretization(f):
@@ -432,7 +432,7 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
         reading = "; ".join(
             f"{kind} {'not compared' if not n else f'within {100 * x:.1f} %' if x <= 0.05 else f'moves by up to {100 * x:.0f} %'}"
             for kind, (x, n) in shifts.items())
-        lines.append(f"| {case.name} | {case.shares_loading_with} | {discretization(fan)} vs {discretization(ref)} | "
+        lines.append(f"| {case.name} | {case.compared_with} | {discretization(fan)} vs {discretization(ref)} | "
                      f"{fan['summary']['points'].get('yield', 0)} vs {ref['summary']['points'].get('yield', 0)} "
                      f"of {case.nphi} | "
                      + " | ".join(f"{100 * x:.1f} % ({n})" if n else "-" for x, n in shifts.values())
