@@ -166,10 +166,15 @@ def test_reload_study_reads_how_far_the_surfaces_move():
     slow = "fan_isotropic_0.79_n1200"
     assert fans[slow].shares_loading_with == "fan_isotropic_0.79" and not fans[slow].is_thesis_fan
     # each variant against the fan differing from it in one respect where the stage has one
-    assert [fans[n].compared_with for n in (slow, "fan_isotropic_0.79_ramps", "fan_isotropic_0.79_n1200_ramps",
+    assert [fans[n].compared_with for n in (slow, "fan_isotropic_0.79_ramps", "fan_isotropic_0.79_A3_n800_ramps",
                                             "fan_die_0.82_A3_n800", "fan_isotropic_0.79")] == \
         ["fan_isotropic_0.79", "fan_isotropic_0.79", "fan_isotropic_0.79_ramps", "fan_die_0.82", None]
-    assert fans["fan_isotropic_0.79_n1200_ramps"].shares_loading_with == "fan_isotropic_0.79"
+    assert fans["fan_isotropic_0.79_A3_n800_ramps"].shares_loading_with == "fan_isotropic_0.79"
+    # a reference is a fan of the stage that shares the loading
+    for case in fans.values():
+        assert case.compared_with is None or fans[case.compared_with].shares_loading_with in (None, case.shares_loading_with)
+        assert case.compared_with is None or (fans[case.compared_with].loading, fans[case.compared_with].rho_f,
+                                              fans[case.compared_with].gamma) == (case.loading, case.rho_f, case.gamma)
     done = {"fan_isotropic_0.79": _ellipse_fan(fans["fan_isotropic_0.79"], (0.25, 0.0), 2.0, 1.5, 0.0,
                                                compressive=2.0, tensile=0.8),
             slow: _ellipse_fan(fans[slow], (0.25, 0.0), 2.04, 1.53, 0.0, compressive=2.04, tensile=0.81)}

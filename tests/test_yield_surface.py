@@ -349,22 +349,39 @@ def test_explicit_unload_state_continued_implicitly(fan, tmp_path):
     assert meta["solver"] == "implicit"
     assert after["solver/contact/alpha"].max() == pytest.approx(before["solver/contact/alpha"].max(), rel=1e-6)
     assert len(settled.segments) == len(u.segments) + 1
+    # the settled state is marked as such and survives its unloaded.json (a resumed implicit fan
+    # settles an explicit fan's unload once, not again)
+    from mpfem_fenicsx.workflows.yield_surface import read_unloaded, write_unloaded
+
+    assert settled.settled and not u.settled
+    write_unloaded(tmp_path, settled)
+    back = read_unloaded(tmp_path)
+    assert back.settled and back.checkpoint == settled.checkpoint and back.E_0 == settled.E_0
 
 
 @pytest.mark.heavy  # ~8 min (4 implicit reloads of 20 Newton steps): pytest -m heavy
 def test_implicit_fan_needs_no_w2_filter(fan, tmp_path):
-    """The fan of the fixture with implicit reloads: closed yield polygon near the explicit one
-    (within 25 % of its size: the explicit 200-increment reloads lag dynamically), and raw W2
-    changes sign at most once per reload (the explicit raw W2 flips several times)."""
+    """The fan of the fixture with implicit reloads, resumed from its explicit load and unload
+    (settled first): closed yield polygon near the explicit one (within 25 % of its size: the
+    explicit 200-increment reloads lag dynamically), and raw W2 changes sign at most once per
+    reload (the explicit raw W2 flips several times)."""
+    import sys
     from dataclasses import replace
 
     from mpi4py import MPI
 
-    from mpfem_fenicsx.workflows.yield_surface import run_yield_surface
+    from mpfem_fenicsx.workflows.yield_surface import read_unloaded, run_yield_surface
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "validation"))
+    from run import share_loading
 
     case, result = fan
+    share_loading(Path(case.out_dir), tmp_path, lambda *a: None)
     implicit = replace(case, solver="implicit", reload_steps=20, out_dir=str(tmp_path))
-    res = run_yield_surface(implicit, MPI.COMM_SELF, log=lambda *a: None)
+    messages = []
+    res = run_yield_surface(implicit, MPI.COMM_SELF, log=messages.append, resume=True)
+    assert any(m.startswith("[settle]") for m in messages) and not any(m.startswith("[load]") for m in messages)
+    assert read_unloaded(tmp_path).settled
     assert max(res["w2_raw_sign_changes"]) <= 1 < max(result["w2_raw_sign_changes"])
     pi, pe = np.array(res["points"]["yield"]), np.array(result["points"]["yield"])
     assert pi.shape == pe.shape == (case.nphi, 3)

@@ -141,6 +141,7 @@ class Unloaded:
     increments_per_strain: float  # the compaction's increments per unit |h_v|, x slowdown
     dt: float  # the compaction's increment (s)
     packing: Packing  # the loaded volume's packing (every reload rebuilds the same model)
+    settled: bool = False  # the checkpoint is the implicit settle's static equilibrium (implicit fans)
 
 
 def _newest_checkpoint(directory: Path) -> str | None:
@@ -239,10 +240,15 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print,
                         packing=loaded.packing)
     if solver_kind(case.solver).static:  # reloads from a static equilibrium
         unloaded, model = settle(case, unloaded, comm, log)
+    write_unloaded(out, unloaded)
+    return unloaded, model
+
+
+def write_unloaded(out_dir: str | Path, unloaded: Unloaded) -> None:
+    """``out_dir/unloaded.json``, which ``read_unloaded`` reads back (the packing stays in load/)."""
     state = {k: v for k, v in vars(unloaded).items() if k not in ("packing", "segments")}
     state["segments"] = [[d, G.tolist()] for d, G in unloaded.segments]
-    (out / "unloaded.json").write_text(json.dumps(state, indent=1))
-    return unloaded, model
+    (Path(out_dir) / "unloaded.json").write_text(json.dumps(state, indent=1))
 
 
 def _reload_amplitude(case: YieldSurfaceCase, unloaded: Unloaded) -> float:
@@ -276,19 +282,19 @@ def settle(case: YieldSurfaceCase, unloaded: Unloaded, comm: MPI.Comm, log=print
     out = Path(case.out_dir)
     hold = (2.0 * _reload_duration(case, unloaded)[0] / case.reload_steps, np.eye(3))
     segments = (*unloaded.segments, hold)
-    settled = run_compaction(replace(case.base, solver=case.solver, packing=unloaded.packing,
-                                     out_dir=str(out / "settle"), checkpoint_every=_FINAL_ONLY, checkpoint_keep=1,
-                                     visual=False, segments_after=segments,
-                                     segment_steps=(1,) * len(unloaded.segments) + (2,)),
-                             comm, _quiet(log), restart=unloaded.checkpoint)
-    hs = settled.history
+    held = run_compaction(replace(case.base, solver=case.solver, packing=unloaded.packing,
+                                  out_dir=str(out / "settle"), checkpoint_every=_FINAL_ONLY, checkpoint_keep=1,
+                                  visual=False, segments_after=segments,
+                                  segment_steps=(1,) * len(unloaded.segments) + (2,)),
+                          comm, _quiet(log), restart=unloaded.checkpoint)
+    hs = held.history
     E_0 = float(hs.column("E_d")[-1])
     log(f"[settle] implicit equilibrium of the unloaded state: sigma_m {unloaded.sigma_m_unloaded:.4g} -> "
         f"{hs.column('sigma_m')[-1]:.4g} MPa, E_d {unloaded.E_0:.5g} -> {E_0:.5g} mJ "
-        f"({settled.wall_time:.0f} s)")
+        f"({held.wall_time:.0f} s)")
     return replace(unloaded, checkpoint=str(resolve_checkpoint(out / "settle")), segments=segments, E_0=E_0,
                    sigma_m_unloaded=float(hs.column("sigma_m")[-1]), Gamma_unloaded=float(hs.column("Gamma")[-1]),
-                   t_unloaded=float(hs.column("time")[-1])), settled.model
+                   t_unloaded=float(hs.column("time")[-1]), settled=True), held.model
 
 
 def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> CompactionCase:
@@ -345,6 +351,9 @@ def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, l
             if resume and (out / "unloaded.json").exists():
                 unloaded = read_unloaded(out, with_packing=True)
                 log(f"[resume] load and unload finished: reloads from {unloaded.checkpoint}")
+                if solver_kind(case.solver).static and not unloaded.settled:  # an explicit fan's unload
+                    unloaded, model = settle(case, unloaded, alone, log)
+                    write_unloaded(out, unloaded)
             else:
                 unloaded, model = load_and_unload(case, alone, log, resume=resume)
         finally:
