@@ -47,6 +47,7 @@ def main(argv=None) -> None:
     p.add_argument("--gamma-thresholds", type=float, nargs="*", default=(),
                    help="iso-Gamma levels (1/mm; default: 0.25..1 x Gamma after the unload)")
     add_parameter_option(p, YieldSurfaceCase, "reload_steps")
+    add_parameter_option(p, YieldSurfaceCase, "reload_profile")
     p.add_argument("--resume", action="store_true",
                    help="continue a killed fan in --out (same options): the loading from its newest checkpoint, "
                         "finished stages and reloads not repeated")
@@ -61,7 +62,8 @@ def main(argv=None) -> None:
     base = case_from_args(args, args.loading)
     with bad_input_exits():
         case = YieldSurfaceCase(base=base, solver=reload_solver, reload_steps=args.reload_steps, nphi=args.nphi, unload_stress_ratio=args.unload_ratio,
-                                amplitude_factor=args.amplitude_factor, dissipation_threshold=args.threshold,
+                                amplitude_factor=args.amplitude_factor, reload_profile=args.reload_profile,
+                                dissipation_threshold=args.threshold,
                                 gamma_thresholds=tuple(args.gamma_thresholds), out_dir=args.out)
     if args.surfaces_only:
         if comm.rank == 0:

@@ -154,6 +154,8 @@ def test_check_reads_a_dem_export_with_its_contact_overlaps(tmp_path, capsys):
     ("deviatoric_surface", ["--p-probe", "3"], ["p_probe must be in (0, p_load = 2.0)"]),
     ("force_rupture", ["--phi-c", "2"], ["--phi-c = 2.0 is out of range", "> 0 and < 1"]),
     ("yield_surface", ["--nphi", "2"], ["--nphi = 2 is out of range", ">= 3 and <= 720"]),
+    ("yield_surface", ["--reload-profile", "linear"], ["--reload-profile = 'linear' is not allowed",
+                                                       "'smooth-step', 'smooth-ramps'"]),
 ])
 def test_demos_exit_2_on_bad_input_like_mpfem(tmp_path, root, python, demo, args, words):
     proc = subprocess.run([python, str(root / "demos" / f"{demo}.py"), *args, "--out", str(tmp_path / "o")],
