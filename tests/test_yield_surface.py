@@ -359,12 +359,12 @@ def test_explicit_unload_state_continued_implicitly(fan, tmp_path):
     assert back.settled and back.checkpoint == settled.checkpoint and back.E_0 == settled.E_0
 
 
-@pytest.mark.heavy  # ~8 min (4 implicit reloads of 20 Newton steps): pytest -m heavy
-def test_implicit_fan_needs_no_w2_filter(fan, tmp_path):
-    """The fan of the fixture with implicit reloads, resumed from its explicit load and unload
-    (settled first): closed yield polygon near the explicit one (within 25 % of its size: the
-    explicit 200-increment reloads lag dynamically), and raw W2 changes sign at most once per
-    reload (the explicit raw W2 flips several times)."""
+def test_implicit_fan_resumed_from_an_explicit_unload_settles_it_once(fan, tmp_path):
+    """An implicit fan sharing an explicit fan's load and unload (validation: same path, other
+    reloads) first settles that unload by Newton, then reloads from the settled state; the mark
+    survives in its unloaded.json. The reloads are taken as finished (the explicit ones copied,
+    each with its ``done``) so that only the resume branch runs."""
+    import shutil
     import sys
     from dataclasses import replace
 
@@ -375,13 +375,38 @@ def test_implicit_fan_needs_no_w2_filter(fan, tmp_path):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "validation"))
     from run import share_loading
 
-    case, result = fan
+    case, _ = fan
     share_loading(Path(case.out_dir), tmp_path, lambda *a: None)
+    for k in range(case.nphi):
+        shutil.copytree(Path(case.out_dir) / f"reload_{k:03d}", tmp_path / f"reload_{k:03d}")
+        (tmp_path / f"reload_{k:03d}" / "done").write_text("1\n")
+    assert not read_unloaded(tmp_path).settled
     implicit = replace(case, solver="implicit", reload_steps=20, out_dir=str(tmp_path))
     messages = []
-    res = run_yield_surface(implicit, MPI.COMM_SELF, log=messages.append, resume=True)
-    assert any(m.startswith("[settle]") for m in messages) and not any(m.startswith("[load]") for m in messages)
-    assert read_unloaded(tmp_path).settled
+    run_yield_surface(implicit, MPI.COMM_SELF, log=messages.append, resume=True)
+    assert sum(m.startswith("[settle]") for m in messages) == 1
+    assert not any(m.startswith("[load]") for m in messages)
+    settled = read_unloaded(tmp_path)
+    assert settled.settled and "settle" in settled.checkpoint
+    messages.clear()
+    run_yield_surface(implicit, MPI.COMM_SELF, log=messages.append, resume=True)
+    assert not any(m.startswith("[settle]") for m in messages)  # once
+
+
+@pytest.mark.heavy  # ~8 min (4 implicit reloads of 20 Newton steps): pytest -m heavy
+def test_implicit_fan_needs_no_w2_filter(fan, tmp_path):
+    """The fan of the fixture with implicit reloads: closed yield polygon near the explicit one
+    (within 25 % of its size: the explicit 200-increment reloads lag dynamically), and raw W2
+    changes sign at most once per reload (the explicit raw W2 flips several times)."""
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.workflows.yield_surface import run_yield_surface
+
+    case, result = fan
+    implicit = replace(case, solver="implicit", reload_steps=20, out_dir=str(tmp_path))
+    res = run_yield_surface(implicit, MPI.COMM_SELF, log=lambda *a: None)
     assert max(res["w2_raw_sign_changes"]) <= 1 < max(result["w2_raw_sign_changes"])
     pi, pe = np.array(res["points"]["yield"]), np.array(result["points"]["yield"])
     assert pi.shape == pe.shape == (case.nphi, 3)
