@@ -13,9 +13,9 @@ Stages (data flow: compaction -> unload -> checkpoint -> fan of reloads -> surfa
    (eq. 4.8-4.9), each restarted from the unload checkpoint **with the contact history kept**
    (alpha, sigma_max, stick anchors, W_f: unlike Abaqus in the thesis, no spurious dissipation
    at the restart), each following ``reload_profile`` in time (the thesis' smooth step, or a
-   constant strain rate between smooth ramps). Reloads are independent: under ``mpirun -n P`` each rank runs every P-th
-   direction on its own communicator (the load and unload run on rank 0 alone, since a
-   checkpoint restarts on the number of ranks that wrote it);
+   constant strain rate between smooth ramps). Reloads are independent: under ``mpirun -n P``
+   each rank runs every P-th direction on its own communicator (the load and unload run on
+   rank 0 alone, since a checkpoint restarts on the number of ranks that wrote it);
 4. **surfaces** (rank 0): yield where E_d first reaches E_0 (1 + ``dissipation_threshold``)
    (iso-dissipation, §4.2.2); iso-Gamma points where the specific contact surface crosses each
    threshold for the last time (§4.3, "le seuil le plus tardif"); Hill's rupture where the
