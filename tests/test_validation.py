@@ -165,7 +165,7 @@ def test_reload_study_reads_how_far_the_surfaces_move():
     fans = {c.name: c for c in report.STAGES["fans"]}
     slow = "fan_isotropic_0.79_n1200"
     assert fans[slow].shares_loading_with == "fan_isotropic_0.79" and not fans[slow].is_thesis_fan
-    # each variant against the fan differing from it in one respect where the stage has one
+    # each variant against its reference if it names one, else the thesis fan sharing its loading
     assert [fans[n].compared_with for n in (slow, "fan_isotropic_0.79_ramps", "fan_isotropic_0.79_A3_n800_ramps",
                                             "fan_die_0.82_A3_n800", "fan_isotropic_0.79")] == \
         ["fan_isotropic_0.79", "fan_isotropic_0.79", "fan_isotropic_0.79_ramps", "fan_die_0.82", None]

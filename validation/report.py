@@ -402,10 +402,11 @@ def surface_shift(fan: dict, ref: dict, kind: str) -> tuple[float, int]:
 
 
 def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
-    """Each fan with other reloads (amplitude, rate, profile) against the fan whose reloads differ
-    from its own in the fewest respects (``FanCase.compared_with``): the reloads' discretization and how far the surfaces move (a threshold surface must
-    not depend on how far or how fast the reloads go once they are quasi-static), point by point
-    in the directions where both fans cross it."""
+    """Each fan with other reloads (amplitude, rate, profile) against the fan it is compared with
+    (``FanCase.compared_with``: its reference, else the thesis fan whose loading it shares): the
+    reloads' discretization and how far the surfaces move (a threshold surface must not depend on
+    how far or how fast the reloads go once they are quasi-static), point by point in the
+    directions where both fans cross it."""
     lines = ["| fan | compared with | reload A (1e-3) / increments / mean strain rate (1/s) / profile | yield points | "
              "yield: largest shift (common directions) | W2: largest shift (common directions) | "
              "uniaxial compressive yield (MPa) | tensile rupture (MPa) | isotropic recompression yield / loaded "
@@ -443,8 +444,8 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
 
 def closed_yield_fan(fans: dict, name: str) -> str:
     """``name``, or, if its yield surface is open, the fan sharing its loading with reloads at the
-    same strain rate (within 1 %) and profile but further (a larger A) whose yield surface is closed: the
-    yield points do not depend on A at a given rate (the reload study), more reach them."""
+    same strain rate (within 1 %) and profile but further (a larger A) whose yield surface is
+    closed: the yield points do not depend on A at a given rate (the reload study), more reach them."""
     def closed(n):
         return fans.get(n) is not None and len(fans[n]["surfaces"].get("yield", ())) == fans[n]["case"].nphi
 
