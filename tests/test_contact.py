@@ -87,6 +87,7 @@ def test_pair_forces_and_centroids():
     for (i, j), f in zip(pairs["pairs"], pairs["force"]):
         assert np.allclose(f, bodies[i, j], rtol=1e-10)
     assert np.all(pairs["area"] > 0) and np.all(pairs["points"] > 0)
+    assert np.array_equal(pairs["area_closed"], pairs["area"])  # no adhesion: every loaded point compressive
     centroids = ParticleCentroids(a, prob.u)()
     assert np.allclose(centroids, centres, atol=1e-12)
     branch = centroids[1] - centroids[0]

@@ -113,6 +113,23 @@ def test_fan_outputs_and_closed_yield_surface(fan):
     assert reload["strain_rate_per_s"] * reload["duration_s"] == pytest.approx(case.amplitude_factor * u.h_v_unload)
 
 
+def test_unload_keeps_the_adhesive_contact_surface_and_opens_its_closed_part(fan):
+    """Gamma counts every loaded contact point, the adhesive ones in tension too; Gamma_closed
+    only the compressive (closed) ones. Unloading the adhesive compact leaves its contacts held
+    (Gamma nearly unchanged) while their compressive part shrinks, as the thesis' S does during
+    its unloads (fig. 4.11)."""
+    from mpfem_fenicsx.io import read_csv
+
+    case, result = fan
+    load = read_csv(Path(case.out_dir) / "load" / "history.csv")
+    unload = read_csv(Path(case.out_dir) / "unload" / "history.csv")
+    rows = unload["time"] >= load["time"][-1]
+    gamma, closed = unload["Gamma"][rows], unload["Gamma_closed"][rows]
+    assert np.all(closed <= gamma * (1 + 1e-12)) and closed[0] > 0
+    assert gamma[-1] > 0.95 * gamma[0]
+    assert closed[-1] < 0.9 * closed[0]
+
+
 def test_reload_restarted_with_contact_history_equals_uninterrupted_run(fan, tmp_path):
     """The fan's reload (load -> checkpoint -> unload -> checkpoint -> restart on a reused model)
     steps exactly as one uninterrupted run of the same path: identical history rows."""

@@ -340,12 +340,15 @@ class ContactModel:
         ``pairs`` (m, 2) body ids (i, j) with i < j or a non-zero shift; ``shift`` (m, 3) lattice
         vector of j's image (mm); ``force`` (m, 3) force exerted by j (its image) on i (N);
         ``area`` (m,) contact area carried by the pair (mm^2, mean of both passes' loaded
-        tributary areas); ``points`` (m,) number of loaded contact points. The branch vector for
+        tributary areas: compressive and adhesive points); ``area_closed`` (m,) the same over its
+        compressive points only (T1 > 0: the overlapping, closed part of the contact);
+        ``points`` (m,) number of loaded contact points. The branch vector for
         the Love-Weber stress is centroid(j) + shift - centroid(i).
         """
         ev = self.evaluation
         if ev.size == 0:
-            local = (np.zeros((0, 2), np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0))
+            local = (np.zeros((0, 2), np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0),
+                     np.zeros(0))
         else:
             loaded = ev.T1 != 0.0
             slave = self.surface.node_body[ev.points.slave]
@@ -363,14 +366,15 @@ class ContactModel:
             force = np.zeros((table.shape[0], 3))
             np.add.at(force, inverse, f)
             area = np.bincount(inverse, weights=PASS_WEIGHT * ev.area * loaded, minlength=table.shape[0])
+            closed = np.bincount(inverse, weights=PASS_WEIGHT * ev.area * (ev.T1 > 0.0), minlength=table.shape[0])
             count = np.bincount(inverse, weights=loaded.astype(float), minlength=table.shape[0])
-            local = (table[:, :2].astype(np.int64), table[:, 2:], force, area, count)
+            local = (table[:, :2].astype(np.int64), table[:, 2:], force, area, count, closed)
         parts = self.comm.allgather(local)
         pairs = np.concatenate([p[0] for p in parts])
         shifts = np.concatenate([p[1] for p in parts])
         if pairs.shape[0] == 0:
             return {"pairs": pairs, "shift": shifts, "force": np.zeros((0, 3)), "area": np.zeros(0),
-                    "points": np.zeros(0)}
+                    "area_closed": np.zeros(0), "points": np.zeros(0)}
         table, inverse = np.unique(np.column_stack([pairs, shifts]), axis=0, return_inverse=True)
         inverse = inverse.ravel()
         m = table.shape[0]
@@ -378,8 +382,9 @@ class ContactModel:
         np.add.at(force, inverse, np.concatenate([p[2] for p in parts]))
         area = np.bincount(inverse, weights=np.concatenate([p[3] for p in parts]), minlength=m)
         count = np.bincount(inverse, weights=np.concatenate([p[4] for p in parts]), minlength=m)
+        closed = np.bincount(inverse, weights=np.concatenate([p[5] for p in parts]), minlength=m)
         return {"pairs": table[:, :2].astype(np.int64), "shift": table[:, 2:], "force": force,
-                "area": area, "points": count}
+                "area": area, "area_closed": closed, "points": count}
 
     def body_forces(self) -> np.ndarray:
         """(num_bodies, num_bodies, 3): force (N) exerted by body j on body i, summed over ranks."""

@@ -600,7 +600,7 @@ def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=pr
 
 
 #: columns added since the first checkpoints (which do not list theirs): filled with NaN on restart
-_COLUMNS_ADDED = ("Gamma_model",)
+_COLUMNS_ADDED = ("Gamma_model", "Gamma_closed")
 
 
 def _history_rows(meta: dict, columns: list[str]) -> list[list[float]]:

@@ -30,6 +30,10 @@ History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C)
   area of the volume, one per pair, appendix-C weights); Gamma_model: the same with S summed over
   every contact of the model (GDH / GDF / CLPS: the copies' contacts too), still over the volume's
   V, the reading of the thesis' footnote 4 of §4.4.1 ("each contact of the MPFEM model");
+  Gamma_closed: Gamma over the compressive (overlapping, closed) contact points only, without the
+  adhesive points in tension (Abaqus' CAREA counts the closed part of a contact; unloading an
+  adhesive compact leaves Gamma nearly unchanged and lowers Gamma_closed, as the thesis' fig. 4.11
+  lowers its S);
 - energies (mJ): E_p plastic work of the volume's particles (eq. 4.11; GDH / GDF / CLPS copies
   deform too, outside the volume), E_f frictional (eq. 4.12; every modelled contact), E_d = E_p +
   E_f (eq. 4.10, the chapter-4 iso-dissipation criterion), E_p_model and E_d_model the same over
@@ -63,7 +67,7 @@ KINEMATICS = ["time", "rho", "rho_imposed", "rho_fe", "h_v", "h_d", "h_tilde_d",
 STRESS_INVARIANTS = ["sigma_m", "sigma_d", "sigma_tilde_d"]
 TENSORS = {"F": "least-squares gradient of the centroids", "sigma": "Love-Weber stress",
            "sigma_schmidt_": "Schmidt stress (periodic conditions)", "sigma_vol_": "volume-averaged stress"}
-CONTACTS = ["n_contacts", "Z", "rattlers", "Gamma", "Gamma_model"]
+CONTACTS = ["n_contacts", "Z", "rattlers", "Gamma", "Gamma_model", "Gamma_closed"]
 ENERGIES = ["E_p", "E_f", "E_d", "E_p_model", "E_d_model", "E_c", "E_int", "E_el", "E_contact", "E_visc", "E_damp",
             "W_ext"]
 QUASI_STATIC = ["unbalanced", "E_c_over_E_int"]
@@ -139,7 +143,8 @@ class HistoryRecorder:
                                                     weights[carrying], self.n)
         return dict(n_contacts=n_contacts, Z=mean_z, rattlers=rattlers,
                     Gamma=specific_contact_surface(pf["area"], self.cell_volume0, F, weights),
-                    Gamma_model=specific_contact_surface(pf["area"], self.cell_volume0, F)), sigma_lw
+                    Gamma_model=specific_contact_surface(pf["area"], self.cell_volume0, F),
+                    Gamma_closed=specific_contact_surface(pf["area_closed"], self.cell_volume0, F, weights)), sigma_lw
 
     def _energies(self, solver) -> dict:
         """The solver's energies; E_p of the volume's particles (the solver tallies the whole
