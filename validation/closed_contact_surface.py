@@ -6,9 +6,10 @@ the closed part of a contact).
     python validation/closed_contact_surface.py fan_isotropic_0.79 /tmp/fan_closed [RUN_DIR]
 
 Measures both at the end of the fan's loading and of its unload (the checkpoints in RUN_DIR,
-default ``validation/runs/<fan>/``, where the fan ran: they are not versioned), then reruns the fan's reloads from its unload in ``out`` (its load,
-unload and ``unloaded.json`` copied; a fan of runs before the ``Gamma_closed`` column) and prints,
-per reload direction, the range of each measure and the iso-``Gamma_closed`` points.
+default ``validation/runs/<fan>/``, where the fan ran: they are not versioned), then reruns the
+fan's reloads from its unload in ``out`` (its load, unload and ``unloaded.json`` copied; a fan of
+runs before the ``Gamma_closed`` column) and prints, per reload direction, the range of each
+measure and the iso-``Gamma_closed`` points.
 """
 
 from __future__ import annotations
@@ -25,7 +26,6 @@ from mpi4py import MPI  # noqa: E402
 
 import mpfem_fenicsx  # noqa: E402,F401  (mpi4py before dolfinx)
 from cases import STAGES  # noqa: E402
-from mpfem_fenicsx.contact.model import PASS_WEIGHT  # noqa: E402
 from mpfem_fenicsx.homogenization.surfaces import iso_gamma_point  # noqa: E402
 from mpfem_fenicsx.io import read_csv  # noqa: E402
 from mpfem_fenicsx.workflows.compaction import CompactionRun  # noqa: E402
@@ -47,17 +47,17 @@ def measured_at_checkpoints(fan, run_dir: Path) -> float:
         result = CompactionRun(case, MPI.COMM_SELF, log=lambda *a, **k: None, restart=checkpoint,
                                model=model).run(max_steps=1)
         model = result.model
-        ev = model.contact.evaluation  # CLP by images: every contact point belongs to the volume
+        pairs = model.contact.pair_forces()  # CLP by images: every contact belongs to the volume
         volume = np.linalg.det(model.path(result.solver.t)) * np.prod(model.packing.cell)
-        area = PASS_WEIGHT * ev.area
-        every, closed = area[ev.T1 != 0].sum() / volume, area[ev.T1 > 0].sum() / volume
+        every, closed = pairs["area"].sum() / volume, pairs["area_closed"].sum() / volume
         print(f"end of the {stage}: Gamma {every:.3f}, Gamma_closed {closed:.3f} 1/mm")
     return float(closed)
 
 
 def main(name: str, out: str, run_dir: str | None = None) -> None:
     fan = {c.name: c for c in STAGES["fans"]}[name]
-    if fan.yield_surface_case(out).base.bc != "CLP":
+    case = fan.yield_surface_case(out)
+    if case.base.bc != "CLP":
         raise SystemExit("closed_contact_surface: CLP fans only (every contact point belongs to the volume)")
     run_dir, out = Path(run_dir) if run_dir else RUNS / name, Path(out)
     closed0 = measured_at_checkpoints(fan, run_dir)
@@ -66,10 +66,10 @@ def main(name: str, out: str, run_dir: str | None = None) -> None:
         if not (out / part).exists():
             shutil.copytree(run_dir / part, out / part)
     shutil.copy(run_dir / "unloaded.json", out / "unloaded.json")
-    run_yield_surface(fan.yield_surface_case(str(out)), MPI.COMM_SELF, log=lambda *a: None, resume=True)
+    run_yield_surface(case, MPI.COMM_SELF, log=lambda *a: None, resume=True)
     unloaded = read_unloaded(out)
     fans = []
-    for k, phi in enumerate(fan.yield_surface_case(str(out)).phis):
+    for k, phi in enumerate(case.phis):
         history = out / f"reload_{k:03d}" / "history.csv"
         rows = fan_rows(history, float(phi), unloaded.t_unloaded)
         h = read_csv(history)

@@ -80,7 +80,8 @@ class YieldSurfaceCase:
     base: CompactionCase = field(default_factory=CompactionCase)
     nphi: int = parameter(16, "reload directions in [0, 2 pi)", low=3, high=720)
     unload_stress_ratio: float = parameter(0.05, "the unload's expansion is read on a probe where sigma_m is this "
-                                           "fraction of its value at the end of the loading (-)", low=0, high=1, open_high=True)
+                                           "fraction of its value at the end of the loading (-)", low=0, high=1,
+                                           open_high=True)
     amplitude_factor: float = parameter(1.5, "reload amplitude A / |h_v^d| of the unload (thesis: 1.5) (-)", low=0,
                                         high=20, open_low=True)
     dissipation_threshold: float = parameter(3e-3, "yield: E_d >= E_0 (1 + this) (thesis §4.2.2: 0.3 %) (-)", low=0,
