@@ -57,7 +57,8 @@ def test_report_writes_summary_and_tables(tmp_path):
     text = (here / "README.md").read_text()
     assert "| CLP | 12.6 | 12.60 |" in text and "| GDH | (none) | not run yet" in text
     assert "not run yet" in text  # the gamma stage
-    assert (here / "figures" / "die_sigma_m.png").stat().st_size > 1000
+    for figure in ("die_sigma_m", "periodic", "dbc", "size", "stress_measures", "gamma"):
+        assert (here / "figures" / f"{figure}.png").stat().st_size > 1000, figure
 
 
 def test_stages_name_every_thesis_condition():

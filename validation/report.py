@@ -528,9 +528,10 @@ def _save(fig, ax, ylabel: str, title: str, path: Path) -> None:
 
 
 def figures(done: dict, out: Path) -> None:
-    """die_sigma_m.png (the die stage, the thesis' values marked), gamma.png (Gamma along the
-    adhesive compactions and the fans' Gamma_l, table 4.2 marked) and fans.png (the fans' yield and
-    rupture surfaces)."""
+    """die_sigma_m.png (the die stage, the thesis' values marked), periodic.png, dbc.png, size.png,
+    stress_measures.png (the other chapter-2 items), gamma.png (Gamma along the adhesive
+    compactions and the fans' Gamma_l, table 4.2 marked) and fans.png (the fans' yield and rupture
+    surfaces)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -571,6 +572,11 @@ def figures(done: dict, out: Path) -> None:
           out / "gamma.png")
     plt.close(fig)
 
+    periodic_figure(done, out / "periodic.png")
+    dbc_figure(done, out / "dbc.png")
+    size_figure(done, out / "size.png")
+    stress_figure(done, out / "stress_measures.png")
+
     fans = [(case, done[case.name]) for case in STAGES["fans"] if case.name in done]
     # a thesis fan whose yield surface is open is drawn by its same-rate fan that closes it
     by_name = {c.name: done.get(c.name) for c in STAGES["fans"]}
@@ -582,6 +588,154 @@ def figures(done: dict, out: Path) -> None:
     studied = [(c, f) for c, f in fans if any(v.shares_loading_with == c.name for v, _ in fans) or not c.is_thesis_fan]
     if any(not c.is_thesis_fan for c, _ in studied):
         fan_figure(studied, "Fans: reload amplitude and rate (same loadings)", out / "fan_reloads.png")
+
+
+def _not_run(ax, what: str) -> None:
+    ax.text(0.5, 0.5, f"{what}: not run yet", ha="center", va="center", transform=ax.transAxes, color="0.4")
+
+
+def periodic_figure(done: dict, path: Path) -> None:
+    """Thesis fig. 2.24-2.25 and 2.8a: sigma_m against the volume's logarithmic volumetric strain
+    h_v per condition (the h_v past which the thesis' CLP rises above the non-periodic curves
+    marked), and the isotropic deviatoric drift h_d / |h_v| (the thesis' GDF band shaded)."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
+    for ax, loading in zip(axes, ("isotropic", "die")):
+        drawn = False
+        for bc, colour in zip(("CLP", "CLPS", "GDF", "GDH"), ("C0", "C1", "C2", "C3")):
+            run = done.get(f"{loading}_{bc}")
+            if run is not None:
+                ax.plot(run["history"]["h_v"], run["history"]["sigma_m"], color=colour, label=f"{bc} (ours)")
+                drawn = True
+        ax.axvline(THESIS_DIVERGENCE_HV[loading], ls=":", color="k",
+                   label=f"thesis: CLP above the others past h_v {THESIS_DIVERGENCE_HV[loading]}")
+        if not drawn:
+            _not_run(ax, loading)
+        ax.invert_xaxis()
+        ax.set_xlabel("h_v (volume, log volumetric strain)")
+        ax.set_ylabel("sigma_m (MPa, Love-Weber)")
+        ax.set_title(f"{loading} compaction, 50 particles")
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+    ax = axes[2]
+    ax.axhspan(*THESIS_GDF_DRIFT, color="C2", alpha=0.15, label="thesis GDF, isotropic (fig. 2.8a)")
+    ax.axhline(CLP_DRIFT_LIMIT, ls=":", color="C0", label="CLP limit used here")
+    drawn = False
+    for bc, colour in zip(("CLP", "CLPS", "GDF", "GDH"), ("C0", "C1", "C2", "C3")):
+        run = done.get(f"isotropic_{bc}")
+        if run is not None:
+            h = run["history"]
+            loaded = h["h_v"] < -0.02  # the ratio is noise at the first increments
+            ax.plot(h["h_v"][loaded], h["h_d"][loaded] / np.abs(h["h_v"][loaded]), color=colour, label=f"{bc} (ours)")
+            drawn = True
+    if not drawn:
+        _not_run(ax, "isotropic")
+    ax.invert_xaxis()
+    ax.set_xlabel("h_v (volume)")
+    ax.set_ylabel("h_d / |h_v|")
+    ax.set_title("deviatoric drift under isotropic loading")
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def dbc_figure(done: dict, path: Path) -> None:
+    """Thesis §2.5, table 2.3: the die compaction's sigma_m(rho_imposed) per duplication distance
+    d_bc, one panel per condition (the die stage is the 2.5 r_max run of CLPS and GDF)."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(DBC_GRID), figsize=(13, 4.2), sharey=True)
+    for ax, (bc, grid) in zip(axes, DBC_GRID.items()):
+        runs = {d: done.get(f"dbc_{bc}_{d:g}") for d in grid}
+        if bc != "CLP":
+            runs[2.5] = done.get(f"die_{bc}")
+        else:
+            runs["images"] = done.get("die_CLP")
+        shades = plt.cm.viridis(np.linspace(0.0, 0.85, len(runs)))
+        drawn = False
+        for (d, run), colour in zip(runs.items(), shades):
+            if run is None:
+                continue
+            label = "periodic images (no d_bc)" if d == "images" else f"d_bc {d:g} r_max"
+            ax.plot(run["history"]["rho_imposed"], run["history"]["sigma_m"], color=colour,
+                    ls="--" if d == "images" else "-", label=label)
+            drawn = True
+        if not drawn:
+            _not_run(ax, bc)
+        ax.set_xlabel("relative density (imposed by the cell)")
+        ax.set_title(f"die {bc}: thesis stable from {THESIS_STABLE_DBC[bc]} r_max")
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("sigma_m (MPa, Love-Weber)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def size_figure(done: dict, path: Path) -> None:
+    """Thesis §2.8, fig. 2.26: GDF under isotropic loading with 50 and 150 particles against the
+    50-particle CLP curve: sigma_m(rho) and the deviatoric stress sigma_d(rho)."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
+    runs = (("isotropic_GDF", "GDF, 50 particles", "C2", "-"), ("size_GDF_150", "GDF, 150 particles", "C2", "--"),
+            ("isotropic_CLP", "CLP, 50 particles", "C0", "-"))
+    for ax, column, ylabel in zip(axes, ("sigma_m", "sigma_d"), ("sigma_m (MPa)", "sigma_d (MPa)")):
+        for name, label, colour, style in runs:
+            run = done.get(name)
+            if run is not None:
+                ax.plot(run["history"]["rho"], run["history"][column], style, color=colour, label=label)
+            else:
+                ax.plot([], [], style, color=colour, label=f"{label}: not run yet")
+        ax.set_xlabel("relative density (volume's centroids)")
+        ax.set_ylabel(ylabel)
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+    axes[0].set_title("Size effect, isotropic compaction (thesis fig. 2.26)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def stress_figure(done: dict, path: Path) -> None:
+    """Thesis fig. 2.21: the three independent stress measures (Love-Weber eq. C.11, Schmidt
+    eq. 2.19, the volume average eq. C.7) along the CLP compactions, and their gaps to Love-Weber
+    over the loaded rows (sigma_m > 1 MPa)."""
+    import matplotlib.pyplot as plt
+
+    names = ("die_CLP", "isotropic_CLP_gamma1e-2")
+    fig, axes = plt.subplots(2, len(names), figsize=(10, 6.4), sharex="col",
+                             gridspec_kw={"height_ratios": (2, 1)})
+    for col, name in enumerate(names):
+        top, bottom = axes[0, col], axes[1, col]
+        run = done.get(name)
+        if run is None:
+            _not_run(top, name)
+        else:
+            h = run["history"]
+            rho, lw = h["rho_imposed"], h["sigma_m"]
+            schmidt = (h["sigma_schmidt_11"] + h["sigma_schmidt_22"] + h["sigma_schmidt_33"]) / 3
+            top.plot(rho, lw, color="C0", label="Love-Weber (eq. C.11)")
+            top.plot(rho, schmidt, "--", color="C1", label="Schmidt (eq. 2.19)")
+            top.plot(rho, h["sigma_vol_m"], ":", color="C2", label="volume average (eq. C.7)")
+            loaded = lw > 1.0
+            bottom.plot(rho[loaded], 100 * (schmidt[loaded] / lw[loaded] - 1), "--", color="C1")
+            bottom.plot(rho[loaded], 100 * (h["sigma_vol_m"][loaded] / lw[loaded] - 1), ":", color="C2")
+            bottom.axhspan(-2, 2, color="0.85", label="within 2 %")
+            bottom.legend(fontsize=7)
+        top.set_title(f"{name} (thesis fig. 2.21)")
+        top.set_ylabel("sigma_m (MPa)")
+        top.legend(fontsize=7)
+        top.grid(alpha=0.3)
+        bottom.set_xlabel("relative density (imposed by the cell)")
+        bottom.set_ylabel("gap to Love-Weber (%)")
+        bottom.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
 
 
 def fan_figure(fans: list, title: str, path: Path) -> None:
