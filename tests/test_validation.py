@@ -35,12 +35,13 @@ def test_report_writes_summary_and_tables(tmp_path):
     runs = tmp_path / "runs"
     rho = np.linspace(0.6, 0.95, 8)
     columns = ["time", "rho", "rho_imposed", "rho_fe", "sigma_m", "sigma_schmidt_11", "sigma_schmidt_22", "sigma_schmidt_33",
-               "sigma_vol_m", "h_v", "h_d"]
-    for bc, scale in (("CLP", 12.6), ("CLPS", 11.0), ("GDF", 7.0)):
+               "sigma_vol_m", "h_v", "h_d", "unbalanced"]
+    for bc, scale in (("CLP", 12.6), ("CLPS", 11.0), ("GDF", 7.0), ("CLPS_n12000", 11.5)):
         (runs / f"die_{bc}").mkdir(parents=True)
         sigma = scale * ((rho - 0.6) / 0.35) ** 2
         h_v = -np.log(rho / 0.6)
-        rows = np.column_stack([rho, rho, rho, 0.97 * rho, sigma, sigma, sigma, sigma, 1.03 * sigma, h_v, 0.05 * np.abs(h_v)])
+        rows = np.column_stack([rho, rho, rho, 0.97 * rho, sigma, sigma, sigma, sigma, 1.03 * sigma, h_v, 0.05 * np.abs(h_v),
+                                0.01 + 0 * rho])
         np.savetxt(runs / f"die_{bc}" / "history.csv", rows, delimiter=",", header=",".join(columns), comments="")
         (runs / f"die_{bc}" / "done").write_text("60\n")
     rows = report.write_report(runs, here)
@@ -48,6 +49,8 @@ def test_report_writes_summary_and_tables(tmp_path):
     assert by_case[("die_CLP", "sigma_m at rho 0.95 (MPa)")]["status"] == "met"
     assert by_case[("die_GDF", "sigma_m at rho 0.95 (MPa)")]["status"] == "not met"  # 7.0 vs 9.7
     assert by_case[("die", "ordering CLP > CLPS > GDF")]["status"] == "met"
+    slow = by_case[("die_CLPS_n12000", "sigma_m at rho 0.95 (MPa), 12000 increments")]  # the increments stage
+    assert slow["ours"] == pytest.approx(11.5) and slow["status"] == "met"
     assert by_case[("die_CLP", "sigma_m Schmidt / Love-Weber, end")]["status"] == "met"
     assert by_case[("die_CLP", "sigma_m volume average / Love-Weber, end")]["status"] == "not met"  # 3 % > 2 %
     gap = by_case[("die_GDF", "sigma_m below CLP at the end (fraction)")]
@@ -56,6 +59,8 @@ def test_report_writes_summary_and_tables(tmp_path):
     assert summary[0] == "case,quantity,thesis,ours,deviation,status" and len(summary) == 1 + len(rows)
     text = (here / "README.md").read_text()
     assert "| CLP | 12.6 | 12.60 |" in text and "| GDH | (none) | not run yet" in text
+    assert "| CLPS | 12000 | 8.45 / 10.28 | 11.50 (0.950) | 11.50 | 0.01 | +1.8 % | met |" in text
+    assert "| GDF | 12000 | not run yet" in text
     assert "not run yet" in text  # the gamma stage
     for figure in ("die_sigma_m", "periodic", "dbc", "size", "stress_measures", "gamma"):
         assert (here / "figures" / f"{figure}.png").stat().st_size > 1000, figure

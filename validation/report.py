@@ -104,6 +104,35 @@ def die_rows(done: dict) -> tuple[list[dict], list[str]]:
     return rows, lines
 
 
+def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
+    """The die stage's increments: each condition run with more explicit increments over the same
+    duration (``cases.slow_die_case``) next to its 6000-increment die run, along the ramp
+    (rho_imposed 0.90, 0.93), at its peak and at the end; the slower run's end is compared with
+    the thesis (§2.7) like the die stage's."""
+    rows, lines = [], ["| condition | increments | sigma_m at rho_imposed 0.90 / 0.93 (MPa) | peak (MPa, at rho_imposed) "
+                       "| end (MPa) | unbalanced at the end | deviation from the thesis | status | wall |",
+                       "|---|---|---|---|---|---|---|---|---|"]
+    for case in STAGES["increments"]:
+        bc, increments = case.options["bc"], case.options["increments"]
+        for name, n in ((f"die_{bc}", 6000), (case.name, increments)):
+            run = done.get(name)
+            if run is None:
+                lines.append(f"| {bc} | {n} | not run yet | | | | | | |")
+                continue
+            h = run["history"]
+            end = at_density(h, "sigma_m", 0.95, "rho_imposed")
+            k = int(np.argmax(h["sigma_m"]))
+            r = row(name, "sigma_m at rho 0.95 (MPa)" + ("" if n == 6000 else f", {n} increments"),
+                    THESIS_DIE_SIGMA_M[bc], end)
+            if n != 6000:  # the 6000-increment row is the die stage's
+                rows.append(r)
+            lines.append(f"| {bc} | {n} | {at_density(h, 'sigma_m', 0.90, 'rho_imposed'):.2f} / "
+                         f"{at_density(h, 'sigma_m', 0.93, 'rho_imposed'):.2f} | {h['sigma_m'][k]:.2f} "
+                         f"({h['rho_imposed'][k]:.3f}) | {end:.2f} | {h['unbalanced'][-1]:.2f} | "
+                         f"{100 * r['deviation']:+.1f} % | {r['status']} | {run['wall_s'] / 60:.0f} min |")
+    return rows, lines
+
+
 def divergence_hv(periodic: dict, other: dict) -> float:
     """h_v (< 0) past which the periodic curve sigma_m(h_v) stays above the other one: the last
     sign change of their difference on the periodic run's rows (NaN if it never rises above)."""
@@ -785,7 +814,7 @@ def write_report(runs: Path, here: Path) -> list[dict]:
     rows = []
     readme = here / "README.md"
     text = readme.read_text()
-    for name, build in (("die", die_rows), ("periodic", periodic_rows), ("dbc", dbc_rows), ("size", size_rows),
+    for name, build in (("die", die_rows), ("increments", increments_rows), ("periodic", periodic_rows), ("dbc", dbc_rows), ("size", size_rows),
                         ("stresses", stress_rows), ("gamma", gamma_rows), ("fans", fan_rows),
                         ("reloads", reload_study_lines), ("trends", trend_lines), ("sensitivity", sensitivity_lines)):
         r, lines = build(done)
