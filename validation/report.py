@@ -572,6 +572,11 @@ def figures(done: dict, out: Path) -> None:
         run = done.get(f"die_{bc}")
         if run is not None:
             ax.plot(run["history"]["rho_imposed"], run["history"]["sigma_m"], color=colour, label=f"{bc} (ours)")
+        for case in STAGES["increments"]:  # the same run with more increments
+            slow = done.get(case.name)
+            if case.options["bc"] == bc and slow is not None:
+                ax.plot(slow["history"]["rho_imposed"], slow["history"]["sigma_m"], ":", color=colour,
+                        label=f"{bc}, {case.options['increments']} increments (ours)")
         if bc in THESIS_DIE_SIGMA_M:
             ax.plot([0.95], [THESIS_DIE_SIGMA_M[bc]], "x", color=colour, ms=9, mew=2, label=f"{bc} thesis §2.7")
     if "die_CLP_exact_volume" in done:
