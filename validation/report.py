@@ -109,7 +109,8 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
     duration (``cases.slow_die_case``) next to its 6000-increment die run, along the ramp
     (rho_imposed 0.90, 0.93), at its peak and at the end; the slower run's end is compared with
     the thesis (§2.7) like the die stage's."""
-    rows, lines = [], ["| condition | increments | sigma_m at rho_imposed 0.90 / 0.93 (MPa) | peak (MPa, at rho_imposed) "
+    rows, lines = [], ["| condition | increments | sigma_m at rho_imposed 0.90 / 0.93 (MPa) | "
+                       "peak (MPa, at rho_imposed) "
                        "| end (MPa) | unbalanced at the end | deviation from the thesis | status | wall |",
                        "|---|---|---|---|---|---|---|---|---|"]
     for case in STAGES["increments"]:
@@ -546,14 +547,31 @@ def trend_lines(done: dict) -> tuple[list[dict], list[str]]:
     return [], lines
 
 
-def _save(fig, ax, ylabel: str, title: str, path: Path) -> None:
-    ax.set_xlabel("relative density (imposed by the cell)")
-    ax.set_ylabel(ylabel)
-    ax.set_title(title)
-    ax.legend(fontsize=8)
+RHO_IMPOSED_LABEL = "relative density (imposed by the cell)"
+
+
+def _axis(ax, xlabel: str | None = None, ylabel: str | None = None, title: str | None = None,
+          legend: float | None = 7) -> None:
+    """Label, legend (font size; None: no legend) and grid of one panel."""
+    for set_text, text in ((ax.set_xlabel, xlabel), (ax.set_ylabel, ylabel), (ax.set_title, title)):
+        if text is not None:
+            set_text(text)
+    if legend is not None:
+        ax.legend(fontsize=legend)
     ax.grid(alpha=0.3)
+
+
+def _write(fig, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _save(fig, ax, ylabel: str, title: str, path: Path) -> None:
+    _axis(ax, RHO_IMPOSED_LABEL, ylabel, title, legend=8)
+    _write(fig, path)
 
 
 def figures(done: dict, out: Path) -> None:
@@ -583,7 +601,6 @@ def figures(done: dict, out: Path) -> None:
         h = done["die_CLP_exact_volume"]["history"]
         ax.plot(h["rho_imposed"], h["sigma_m"], "--", color="C0", label="CLP, particles holding their sphere's volume")
     _save(fig, ax, "sigma_m (MPa, Love-Weber)", "Die compaction, 50 lead particles", out / "die_sigma_m.png")
-    plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(6, 4.2))
     for (loading, table), colour in zip(THESIS_GAMMA_L.items(), ("C0", "C1")):
@@ -604,7 +621,6 @@ def figures(done: dict, out: Path) -> None:
                     color="C0" if case.loading == "isotropic" else "C1", label=f"{case.name}: Gamma_l (ours)")
     _save(fig, ax, "specific contact surface Gamma (1/mm)", "Adhesive compaction, 50 particles",
           out / "gamma.png")
-    plt.close(fig)
 
     periodic_figure(done, out / "periodic.png")
     dbc_figure(done, out / "dbc.png")
@@ -647,11 +663,8 @@ def periodic_figure(done: dict, path: Path) -> None:
         if not drawn:
             _not_run(ax, loading)
         ax.invert_xaxis()
-        ax.set_xlabel("h_v (volume, log volumetric strain)")
-        ax.set_ylabel("sigma_m (MPa, Love-Weber)")
-        ax.set_title(f"{loading} compaction, 50 particles")
-        ax.legend(fontsize=7)
-        ax.grid(alpha=0.3)
+        _axis(ax, "h_v (volume, log volumetric strain)", "sigma_m (MPa, Love-Weber)",
+              f"{loading} compaction, 50 particles")
     ax = axes[2]
     ax.axhspan(*THESIS_GDF_DRIFT, color="C2", alpha=0.15, label="thesis GDF, isotropic (fig. 2.8a)")
     ax.axhline(CLP_DRIFT_LIMIT, ls=":", color="C0", label="CLP limit used here")
@@ -666,14 +679,8 @@ def periodic_figure(done: dict, path: Path) -> None:
     if not drawn:
         _not_run(ax, "isotropic")
     ax.invert_xaxis()
-    ax.set_xlabel("h_v (volume)")
-    ax.set_ylabel("h_d / |h_v|")
-    ax.set_title("deviatoric drift under isotropic loading")
-    ax.legend(fontsize=7)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _axis(ax, "h_v (volume)", "h_d / |h_v|", "deviatoric drift under isotropic loading")
+    _write(fig, path)
 
 
 def dbc_figure(done: dict, path: Path) -> None:
@@ -699,14 +706,9 @@ def dbc_figure(done: dict, path: Path) -> None:
             drawn = True
         if not drawn:
             _not_run(ax, bc)
-        ax.set_xlabel("relative density (imposed by the cell)")
-        ax.set_title(f"die {bc}: thesis stable from {THESIS_STABLE_DBC[bc]} r_max")
-        ax.legend(fontsize=7)
-        ax.grid(alpha=0.3)
+        _axis(ax, RHO_IMPOSED_LABEL, title=f"die {bc}: thesis stable from {THESIS_STABLE_DBC[bc]} r_max")
     axes[0].set_ylabel("sigma_m (MPa, Love-Weber)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _write(fig, path)
 
 
 def size_figure(done: dict, path: Path) -> None:
@@ -724,14 +726,9 @@ def size_figure(done: dict, path: Path) -> None:
                 ax.plot(run["history"]["rho"], run["history"][column], style, color=colour, label=label)
             else:
                 ax.plot([], [], style, color=colour, label=f"{label}: not run yet")
-        ax.set_xlabel("relative density (volume's centroids)")
-        ax.set_ylabel(ylabel)
-        ax.legend(fontsize=7)
-        ax.grid(alpha=0.3)
+        _axis(ax, "relative density (volume's centroids)", ylabel)
     axes[0].set_title("Size effect, isotropic compaction (thesis fig. 2.26)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _write(fig, path)
 
 
 def stress_figure(done: dict, path: Path) -> None:
@@ -759,17 +756,9 @@ def stress_figure(done: dict, path: Path) -> None:
             bottom.plot(rho[loaded], 100 * (schmidt[loaded] / lw[loaded] - 1), "--", color="C1")
             bottom.plot(rho[loaded], 100 * (h["sigma_vol_m"][loaded] / lw[loaded] - 1), ":", color="C2")
             bottom.axhspan(-2, 2, color="0.85", label="within 2 %")
-            bottom.legend(fontsize=7)
-        top.set_title(f"{name} (thesis fig. 2.21)")
-        top.set_ylabel("sigma_m (MPa)")
-        top.legend(fontsize=7)
-        top.grid(alpha=0.3)
-        bottom.set_xlabel("relative density (imposed by the cell)")
-        bottom.set_ylabel("gap to Love-Weber (%)")
-        bottom.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+        _axis(top, ylabel="sigma_m (MPa)", title=f"{name} (thesis fig. 2.21)")
+        _axis(bottom, RHO_IMPOSED_LABEL, "gap to Love-Weber (%)", legend=7 if run is not None else None)
+    _write(fig, path)
 
 
 def fan_figure(fans: list, title: str, path: Path) -> None:
@@ -802,9 +791,7 @@ def fan_figure(fans: list, title: str, path: Path) -> None:
     ax.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2)  # below: the surfaces stay visible
     ax.grid(alpha=0.3)
     ax.set_aspect("equal", adjustable="datalim")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _write(fig, path)
 
 
 def replace_block(text: str, name: str, lines: list[str]) -> str:
@@ -819,7 +806,8 @@ def write_report(runs: Path, here: Path) -> list[dict]:
     rows = []
     readme = here / "README.md"
     text = readme.read_text()
-    for name, build in (("die", die_rows), ("increments", increments_rows), ("periodic", periodic_rows), ("dbc", dbc_rows), ("size", size_rows),
+    for name, build in (("die", die_rows), ("increments", increments_rows), ("periodic", periodic_rows),
+                        ("dbc", dbc_rows), ("size", size_rows),
                         ("stresses", stress_rows), ("gamma", gamma_rows), ("fans", fan_rows),
                         ("reloads", reload_study_lines), ("trends", trend_lines), ("sensitivity", sensitivity_lines)):
         r, lines = build(done)
