@@ -35,13 +35,13 @@ def test_report_writes_summary_and_tables(tmp_path):
     runs = tmp_path / "runs"
     rho = np.linspace(0.6, 0.95, 8)
     columns = ["time", "rho", "rho_imposed", "rho_fe", "sigma_m", "sigma_schmidt_11", "sigma_schmidt_22", "sigma_schmidt_33",
-               "sigma_vol_m", "h_v", "h_d", "unbalanced"]
+               "sigma_vol_m", "h_v", "h_d", "unbalanced", "W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp"]
     for bc, scale in (("CLP", 12.6), ("CLPS", 11.0), ("GDF", 7.0), ("CLPS_n12000", 11.5)):
         (runs / f"die_{bc}").mkdir(parents=True)
         sigma = scale * ((rho - 0.6) / 0.35) ** 2
         h_v = -np.log(rho / 0.6)
         rows = np.column_stack([rho, rho, rho, 0.97 * rho, sigma, sigma, sigma, sigma, 1.03 * sigma, h_v, 0.05 * np.abs(h_v),
-                                0.01 + 0 * rho])
+                                0.01 + 0 * rho, sigma, 1.1 * sigma, 0 * rho, 0 * rho, 0 * rho, 0.1 * sigma])
         np.savetxt(runs / f"die_{bc}" / "history.csv", rows, delimiter=",", header=",".join(columns), comments="")
         (runs / f"die_{bc}" / "done").write_text("60\n")
     rows = report.write_report(runs, here)
@@ -59,7 +59,7 @@ def test_report_writes_summary_and_tables(tmp_path):
     assert summary[0] == "case,quantity,thesis,ours,deviation,status" and len(summary) == 1 + len(rows)
     text = (here / "README.md").read_text()
     assert "| CLP | 12.6 | 12.60 |" in text and "| GDH | (none) | not run yet" in text
-    assert "| CLPS | 12000 | 8.45 / 10.28 | 11.50 (0.950) | 11.50 | 0.01 | +1.8 % | met |" in text
+    assert "| CLPS | 12000 | 8.45 / 10.28 | 11.50 (0.950) | 11.50 | 0.01 | 20 % | +1.8 % | met |" in text
     assert "| GDF | 12000 | not run yet" in text
     assert "not run yet" in text  # the gamma stage
     for figure in ("die_sigma_m", "periodic", "dbc", "size", "stress_measures", "gamma"):
