@@ -9,7 +9,7 @@ from mpi4py import MPI
 from mpfem_fenicsx.constraints.granular import cubic_weights
 from mpfem_fenicsx.meshes import node_particles
 from mpfem_fenicsx.meshes.packing import Packing, simple_cubic_packing
-from mpfem_fenicsx.workflows.compaction import CompactionCase, build_compaction, run_compaction
+from mpfem_fenicsx.workflows.compaction import CompactionCase, build_compaction, damped_bodies, run_compaction
 
 
 
@@ -109,6 +109,18 @@ def test_constraints_hold_after_compaction(tmp_path, bc):
         assert np.all(ratio >= 1.0 - 1e-12) and np.all(ratio <= 2.0 + 1e-12)
     else:
         assert ratio.max() > 1.5
+
+
+def test_damping_leaves_the_driven_reference_points_alone():
+    """The explicit damping relaxes the rigid motion of the bodies that are free to move: a
+    periodic copy moves with its original (one body), a particle whose reference point F0 drives
+    (GDF copies, every GDH particle) is not damped: grouped with the volume particle it copies,
+    its drive's forces would tie that free particle to the imposed flow."""
+    original = np.array([0, 1, 2, 0, 0, 2])  # three particles, then three copies
+    assert damped_bodies("CLP", original).tolist() == [0, 1, 2, 0, 0, 2]
+    assert damped_bodies("CLPS", original).tolist() == [0, 1, 2, 0, 0, 2]
+    assert damped_bodies("GDF", original).tolist() == [0, 1, 2, -1, -1, -1]
+    assert damped_bodies("GDH", original).tolist() == [-1] * 6
 
 
 @pytest.mark.parametrize("bc", ["CLP", "CLPS"])

@@ -150,7 +150,8 @@ class ExplicitSolver:
         """``damped_bodies``: body id of every owned node: the damping then acts on each body's
         mean (rigid) peculiar velocity only, c m_node (w_b - <w>), <.> the mass average, so that
         rearrangements are relaxed while the bodies' deformation is not resisted and momentum is
-        conserved (default: node by node). Its forces have a first moment sum f_b (x) x_b: a
+        conserved (default: node by node); id -1: a node left undamped (a body whose rigid motion
+        is imposed). Its forces have a first moment sum f_b (x) x_b: a
         viscous stress that the full :attr:`reaction` sees and the Love-Weber contact sum does
         not, hence :attr:`static_reaction` for the Schmidt stress (measurements: bench/README.md,
         "Damping, inertia and the Schmidt stress")."""
@@ -355,16 +356,23 @@ class ExplicitSolver:
             mass = sums[:, 0]
             v_body = sums[:, 1:4] / np.where(mass > 0, mass, 1.0)[:, None]
             # remove the mean: the damping conserves momentum and ignores rigid translations
-            v_body -= (mass @ v_body) / mass.sum()
-            v = v_body[self.damped_bodies]
+            if mass.sum() > 0:
+                v_body -= (mass @ v_body) / mass.sum()
+            v = self._on_nodes(v_body)
         self.f_damp.array_w[:n] = (self.settings.damping * m[:, None] * v).ravel()
 
     def _body_sums(self, values: np.ndarray) -> np.ndarray:
         """(num_bodies, k) sums over ranks of per-node ``values`` (owned nodes, (n_nodes, k)) by damped body."""
         nb = self._num_damped
-        sums = np.stack([np.bincount(self.damped_bodies, weights=values[:, j], minlength=nb)
+        bodies = np.where(self.damped_bodies >= 0, self.damped_bodies, nb)  # undamped nodes: one dropped bin
+        sums = np.stack([np.bincount(bodies, weights=values[:, j], minlength=nb + 1)[:nb]
                          for j in range(values.shape[1])], axis=1)
         return self.comm.allreduce(sums, op=MPI.SUM)
+
+    def _on_nodes(self, per_body: np.ndarray) -> np.ndarray:
+        """(n_nodes, k) rows of a per-body array at every owned node (zero on undamped nodes)."""
+        padded = np.vstack([per_body, np.zeros((1, per_body.shape[1]))])
+        return padded[np.where(self.damped_bodies >= 0, self.damped_bodies, per_body.shape[0])]
 
     def _local_damping_force(self, force: PETSc.Vec) -> None:
         """Local non-viscous damping (ExplicitSettings.local_damping = alpha), added to ``force``,
@@ -384,9 +392,10 @@ class ExplicitSolver:
                                                     m[:, None] * self._v_half_prev.reshape(-1, 3)]))
             mass, push, momentum = sums[:, 0], sums[:, 1:4], sums[:, 4:7]
             d_body = -alpha * np.abs(push) * np.sign(momentum)  # driving-force convention
-            d_body -= mass[:, None] * (d_body.sum(axis=0) / mass.sum())
+            if mass.sum() > 0:  # none when every body's motion is imposed (GDH)
+                d_body -= mass[:, None] * (d_body.sum(axis=0) / mass.sum())
             per_mass = d_body / np.where(mass > 0, mass, 1.0)[:, None]
-            lifted = -(m[:, None] * per_mass[self.damped_bodies]).ravel()  # force convention
+            lifted = -(m[:, None] * self._on_nodes(per_mass)).ravel()  # force convention
             with self.timings("constraints"):
                 self._f_local.array_w[:n] = lifted
                 d = self.a_red  # scratch: overwritten by the acceleration right after

@@ -378,16 +378,24 @@ def make_solver(case: CompactionCase, model: CompactionModel, log=print):
         return solver
     settings = ExplicitSettings(t_end=path.duration, target_dt=case.duration / case.increments,
                                 damping=case.damping / case.duration, local_damping=case.local_damping)
-    # every particle is carried by the imposed flow (comoving constraints): the damping relaxes
-    # each particle's rigid motion relative to it; a copy's nodes belong to their original
-    # (tied: one material body, whose copy nodes may hold contact mass)
     node_particle = node_particles(problem.V, model.assembly.cell_tags.values[: problem.num_cells])
     solver = create_solver(case.solver, problem, bcs, contact=model.contact, settings=settings,
-                           damped_bodies=model.original[node_particle])
+                           damped_bodies=damped_bodies(case.bc, model.original)[node_particle])
     log(f"{model_line} (finite elements {model.rho0_fe:.4f}) -> "
         f"{'stress-controlled' if case.control is not None else case.target_density}, dt = {solver.dt:.3g} s "
         f"(unscaled {solver.dt_stable_unscaled:.3g} s), {case.increments} increments")
     return solver
+
+
+def damped_bodies(bc: str, original: np.ndarray) -> np.ndarray:
+    """The body of each assembly particle whose rigid motion relative to the imposed flow the
+    explicit damping relaxes: its original's index (a periodic copy, tied or coupled, moves with
+    its original: one body), or -1 where F0 drives the particle's reference point (the copies of
+    GDF, every particle of GDH): that motion is imposed, and damping it with the volume would tie
+    the free particles to the imposed flow through their driven copies' forces."""
+    driven = {"all": np.ones(original.size, bool), "copies": original != np.arange(original.size),
+              "none": np.zeros(original.size, bool)}[boundary_kind(bc).driven]
+    return np.where(driven, -1, original)
 
 
 class CompactionCheckpoints:
