@@ -76,6 +76,11 @@ def carrier_share(history: dict) -> np.ndarray:
         return carrier / h["W_ext"]
 
 
+def schmidt_mean(history: dict) -> np.ndarray:
+    """Per row, the mean of the Schmidt stress (eq. 2.19, MPa, compression > 0)."""
+    return (history["sigma_schmidt_11"] + history["sigma_schmidt_22"] + history["sigma_schmidt_33"]) / 3
+
+
 def row(case, quantity, thesis, ours, *, tolerance=TOLERANCE) -> dict:
     deviation = ours / thesis - 1.0
     status = "met" if np.isfinite(deviation) and abs(deviation) <= tolerance else "not met"
@@ -303,7 +308,7 @@ def stress_rows(done: dict) -> tuple[list[dict], list[str]]:
             lines.append(f"| {name} | not run yet | | | |")
             continue
         h = run["history"]
-        schmidt = (h["sigma_schmidt_11"] + h["sigma_schmidt_22"] + h["sigma_schmidt_33"]) / 3
+        schmidt = schmidt_mean(h)
         lw, vol = h["sigma_m"], h["sigma_vol_m"]
         loaded = lw > 1.0
         gap_s = float(np.abs(schmidt[loaded] / lw[loaded] - 1).max())
@@ -564,6 +569,8 @@ def trend_lines(done: dict) -> tuple[list[dict], list[str]]:
 
 
 RHO_IMPOSED_LABEL = "relative density (imposed by the cell)"
+#: one colour per boundary condition in every figure
+CONDITION_COLOURS = {"CLP": "C0", "CLPS": "C1", "GDF": "C2", "GDH": "C3"}
 
 
 def _axis(ax, xlabel: str | None = None, ylabel: str | None = None, title: str | None = None,
@@ -602,7 +609,7 @@ def figures(done: dict, out: Path) -> None:
 
     out.mkdir(exist_ok=True)
     fig, ax = plt.subplots(figsize=(6, 4.2))
-    for bc, colour in zip(("CLP", "CLPS", "GDF", "GDH"), ("C0", "C1", "C2", "C3")):
+    for bc, colour in CONDITION_COLOURS.items():
         run = done.get(f"die_{bc}")
         if run is not None:
             ax.plot(run["history"]["rho_imposed"], run["history"]["sigma_m"], color=colour, label=f"{bc} (ours)")
@@ -669,7 +676,7 @@ def periodic_figure(done: dict, path: Path) -> None:
     fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
     for ax, loading in zip(axes, ("isotropic", "die")):
         drawn = False
-        for bc, colour in zip(("CLP", "CLPS", "GDF", "GDH"), ("C0", "C1", "C2", "C3")):
+        for bc, colour in CONDITION_COLOURS.items():
             run = done.get(f"{loading}_{bc}")
             if run is not None:
                 ax.plot(run["history"]["h_v"], run["history"]["sigma_m"], color=colour, label=f"{bc} (ours)")
@@ -685,7 +692,7 @@ def periodic_figure(done: dict, path: Path) -> None:
     ax.axhspan(*THESIS_GDF_DRIFT, color="C2", alpha=0.15, label="thesis GDF, isotropic (fig. 2.8a)")
     ax.axhline(CLP_DRIFT_LIMIT, ls=":", color="C0", label="CLP limit used here")
     drawn = False
-    for bc, colour in zip(("CLP", "CLPS", "GDF", "GDH"), ("C0", "C1", "C2", "C3")):
+    for bc, colour in CONDITION_COLOURS.items():
         run = done.get(f"isotropic_{bc}")
         if run is not None:
             h = run["history"]
@@ -764,7 +771,7 @@ def stress_figure(done: dict, path: Path) -> None:
         else:
             h = run["history"]
             rho, lw = h["rho_imposed"], h["sigma_m"]
-            schmidt = (h["sigma_schmidt_11"] + h["sigma_schmidt_22"] + h["sigma_schmidt_33"]) / 3
+            schmidt = schmidt_mean(h)
             top.plot(rho, lw, color="C0", label="Love-Weber (eq. C.11)")
             top.plot(rho, schmidt, "--", color="C1", label="Schmidt (eq. 2.19)")
             top.plot(rho, h["sigma_vol_m"], ":", color="C2", label="volume average (eq. C.7)")
@@ -773,7 +780,7 @@ def stress_figure(done: dict, path: Path) -> None:
             bottom.plot(rho[loaded], 100 * (h["sigma_vol_m"][loaded] / lw[loaded] - 1), ":", color="C2")
             bottom.axhspan(-2, 2, color="0.85", label="within 2 %")
         _axis(top, ylabel="sigma_m (MPa)", title=f"{name} (thesis fig. 2.21)")
-        _axis(bottom, RHO_IMPOSED_LABEL, "gap to Love-Weber (%)", legend=7 if run is not None else None)
+        _axis(bottom, RHO_IMPOSED_LABEL, "gap to Love-Weber (%)")
     _write(fig, path)
 
 

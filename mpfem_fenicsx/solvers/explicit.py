@@ -182,6 +182,8 @@ class ExplicitSolver:
         self._f_local = problem.create_vector()  # local damping lifted to the full dofs
         if self.damped_bodies is not None:
             self._num_damped = self.comm.allreduce(int(self.damped_bodies.max(initial=-1)) + 1, op=MPI.MAX)
+            # undamped nodes (-1) point past the last body: a bin dropped from the sums, a zero row when lifted
+            self._body_index = np.where(self.damped_bodies >= 0, self.damped_bodies, self._num_damped)
         self._force = problem.create_vector()  # their sum, reused every step
         self.x = self.constraint.create_reduced_vector()
         self.v_red = self.x.duplicate()
@@ -364,15 +366,13 @@ class ExplicitSolver:
     def _body_sums(self, values: np.ndarray) -> np.ndarray:
         """(num_bodies, k) sums over ranks of per-node ``values`` (owned nodes, (n_nodes, k)) by damped body."""
         nb = self._num_damped
-        bodies = np.where(self.damped_bodies >= 0, self.damped_bodies, nb)  # undamped nodes: one dropped bin
-        sums = np.stack([np.bincount(bodies, weights=values[:, j], minlength=nb + 1)[:nb]
+        sums = np.stack([np.bincount(self._body_index, weights=values[:, j], minlength=nb + 1)[:nb]
                          for j in range(values.shape[1])], axis=1)
         return self.comm.allreduce(sums, op=MPI.SUM)
 
     def _on_nodes(self, per_body: np.ndarray) -> np.ndarray:
         """(n_nodes, k) rows of a per-body array at every owned node (zero on undamped nodes)."""
-        padded = np.vstack([per_body, np.zeros((1, per_body.shape[1]))])
-        return padded[np.where(self.damped_bodies >= 0, self.damped_bodies, per_body.shape[0])]
+        return np.vstack([per_body, np.zeros((1, per_body.shape[1]))])[self._body_index]
 
     def _local_damping_force(self, force: PETSc.Vec) -> None:
         """Local non-viscous damping (ExplicitSettings.local_damping = alpha), added to ``force``,
