@@ -10,6 +10,7 @@ from mpfem_fenicsx.constraints.granular import cubic_weights
 from mpfem_fenicsx.meshes import node_particles
 from mpfem_fenicsx.meshes.packing import Packing, simple_cubic_packing
 from mpfem_fenicsx.workflows.compaction import CompactionCase, build_compaction, damped_bodies, run_compaction
+from mpfem_fenicsx.workflows.history_recorder import carrier_share
 
 
 
@@ -129,18 +130,19 @@ def test_gdf_volume_takes_its_work_through_the_boundary(tmp_path):
     points (W_ext), not through the comoving carrier (the damping and peculiar inertia through the
     imposed flow's offsets, the rest of the explicit energy balance). Measured (2026-11-26, 1600
     increments): at most 6.3 % of W_ext through the carrier, 3.9 % at the end; 14-20 % with the
-    copies damped together with the volume particles they copy (before commit 9953b9e)."""
+    copies damped together with the volume particles they copy (before commit 9953b9e). At 1600
+    increments the run's own quasi-static check still fails on its balance at rest (0.15): this
+    test reads the carrier only."""
     from mpfem_fenicsx.meshes.packing import generate_packing
 
     case = CompactionCase(packing=generate_packing(16, 0.12, 0.147, seed=3), loading="die", bc="GDF", d_bc=1.0,
                           target_density=0.75, increments=1600, outputs=10, divisions=3, exact_volume=False,
                           visual=False, checkpoint_every=0, out_dir=str(tmp_path))
     h = run_compaction(case, MPI.COMM_SELF, log=quiet).history
-    e = {k: h.column(k) for k in ("W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp")}
-    carrier = e["E_int"] + e["E_visc"] + e["E_contact"] + e["E_c"] + e["E_damp"] - e["W_ext"]
+    share = carrier_share({k: h.column(k) for k in ("W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp")})
     loaded = h.column("sigma_m") > 0.3
     assert loaded.sum() >= 5
-    assert np.abs(carrier[loaded] / e["W_ext"][loaded]).max() < 0.1
+    assert np.abs(share[loaded]).max() < 0.1
 
 
 @pytest.mark.parametrize("bc", ["CLP", "CLPS"])

@@ -19,6 +19,7 @@ from cases import (FanCase, CLP_DRIFT_LIMIT, DBC_GRID, DBC_STABLE_WITHIN, STAGES
                    THESIS_GDF_DRIFT, THESIS_NONPERIODIC_GAP, TOLERANCE)
 from mpfem_fenicsx.homogenization.surfaces import MIN_GAMMA_COLLAPSE
 from mpfem_fenicsx.io.history import read_csv
+from mpfem_fenicsx.workflows.history_recorder import carrier_share
 from mpfem_fenicsx.io.plots import rendulic_frame
 
 
@@ -61,19 +62,6 @@ def load_runs(runs: Path) -> dict[str, dict]:
             else:
                 done[case.name] = {"history": read_csv(run_dir / "history.csv"), "wall_s": wall}
     return done
-
-
-def carrier_share(history: dict) -> np.ndarray:
-    """Per row, the share of the work done on the model that entered it through the comoving
-    carrier rather than through the boundary: E_carrier / W_ext with E_carrier = E_int + E_visc +
-    E_contact + E_c + E_damp - W_ext, the explicit solver's exact discrete energy balance
-    (``solvers.explicit``): the work of the relaxation damping and of the peculiar inertia through
-    the imposed flow's offsets. About 0 on a quasi-static path (CLP: ~1 %); > 0 where the damping
-    or the inertia drive the particles along the imposed flow."""
-    h = history
-    carrier = h["E_int"] + h["E_visc"] + h["E_contact"] + h["E_c"] + h["E_damp"] - h["W_ext"]
-    with np.errstate(divide="ignore", invalid="ignore"):  # W_ext = 0 before the first contact
-        return carrier / h["W_ext"]
 
 
 def schmidt_mean(history: dict) -> np.ndarray:

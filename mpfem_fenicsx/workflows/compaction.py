@@ -42,7 +42,7 @@ from ..problem import SolidProblem
 from ..parameters import check_parameters, parameter
 from ..solvers import SOLVERS, NonConvergence, StepControl, create_solver, solver_kind
 from ..solvers.explicit import ExplicitSettings
-from .history_recorder import COLUMNS, HistoryRecorder
+from .history_recorder import COLUMNS, HistoryRecorder, QuasiStaticCheck, quasi_static_check
 
 
 @dataclass
@@ -217,6 +217,8 @@ class CompactionResult:
     out_dir: Path
     model: CompactionModel | None = None  # what the run was made of (packing -> ... -> contact)
     solver: object | None = None  # the solver at the end of the run (its state, energies, timings)
+    #: explicit runs: the energy balance's and the balance's verdict on the loading rate (also logged)
+    quasi_static: QuasiStaticCheck | None = None
 
 
 def initial_packing(case: CompactionCase, log=None) -> tuple[Packing, float]:
@@ -560,11 +562,24 @@ class CompactionRun:
         except (FloatingPointError, NonConvergence) as err:
             self._fail(err)
         self.progress.close()
+        check = None
         if max_steps is None:
             self._finish()
+            check = self.quasi_static_check()
         return CompactionResult(self.history, self.model.packing, self.model.num_dofs,
                                 self.model.radii.size, self.wall_time, total, self.out,
-                                model=self.model, solver=solver)
+                                model=self.model, solver=solver, quasi_static=check)
+
+    def quasi_static_check(self) -> QuasiStaticCheck | None:
+        """Explicit runs: the quasi-static check of the history so far (:func:`quasi_static_check`;
+        a strain path ends at rest, a stress-controlled one need not), logged in one line."""
+        if solver_kind(self.case.solver).static or not self.history.rows:
+            return None
+        columns = {c: self.history.column(c) for c in ("W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp",
+                                                       "unbalanced")}
+        check = quasi_static_check(columns, at_rest=self.case.control is None)
+        self.log(check.summary(self.solver.total_steps))
+        return check
 
     def _fail(self, err: Exception):
         self.progress.close()
