@@ -19,7 +19,7 @@ from cases import (FanCase, CLP_DRIFT_LIMIT, DBC_GRID, DBC_STABLE_WITHIN, STAGES
                    THESIS_GDF_DRIFT, THESIS_NONPERIODIC_GAP, TOLERANCE)
 from mpfem_fenicsx.homogenization.surfaces import MIN_GAMMA_COLLAPSE
 from mpfem_fenicsx.io.history import read_csv
-from mpfem_fenicsx.workflows.history_recorder import carrier_share
+from mpfem_fenicsx.workflows.history_recorder import carrier_share, quasi_static_check
 from mpfem_fenicsx.io.plots import rendulic_frame
 
 
@@ -64,6 +64,15 @@ def load_runs(runs: Path) -> dict[str, dict]:
     return done
 
 
+def quasi_static_cell(history: dict) -> str:
+    """The run's quasi-static check (``history_recorder.quasi_static_check``, the verdict each
+    explicit run logs at its end): passed / failed (share of the work through the carrier / out of
+    balance at rest)."""
+    check = quasi_static_check(history)
+    return (f"{'passed' if check.passed else 'failed'} ({100 * check.carrier_share:.0f} % / "
+            f"{check.unbalanced_at_rest:.2g})")
+
+
 def schmidt_mean(history: dict) -> np.ndarray:
     """Per row, the mean of the Schmidt stress (eq. 2.19, MPa, compression > 0)."""
     return (history["sigma_schmidt_11"] + history["sigma_schmidt_22"] + history["sigma_schmidt_33"]) / 3
@@ -81,8 +90,9 @@ def die_rows(done: dict) -> tuple[list[dict], list[str]]:
     CLP on particles holding their sphere's volume."""
     rows, lines = [], ["| condition | thesis sigma_m at rho 0.95 (§2.7) | ours at rho_imposed 0.95 (end) | "
                        "rho (centroids, end) | solid fraction of the meshes (end) | deviation | status | "
-                       "work through the carrier / W_ext (end) | wall |",
-                       "|---|---|---|---|---|---|---|---|---|"]
+                       "work through the carrier / W_ext (end) | quasi-static check (carrier / out of "
+                       "balance at rest; limits 10 % / 0.05) | wall |",
+                       "|---|---|---|---|---|---|---|---|---|---|"]
     ours = {}
     conditions = [(f"die_{bc}", bc, bc) for bc in ("CLP", "CLPS", "GDF", "GDH")]
     conditions.append(("die_CLP_exact_volume", "CLP, particles holding their sphere's volume", "CLP"))
@@ -90,7 +100,7 @@ def die_rows(done: dict) -> tuple[list[dict], list[str]]:
         run = done.get(name)
         thesis = THESIS_DIE_SIGMA_M.get(bc, "(none)")
         if run is None:
-            lines.append(f"| {label} | {thesis} | not run yet | | | | | | |")
+            lines.append(f"| {label} | {thesis} | not run yet | | | | | | | |")
             continue
         h = run["history"]
         ours[name] = at_density(h, "sigma_m", 0.95, "rho_imposed")
@@ -103,7 +113,8 @@ def die_rows(done: dict) -> tuple[list[dict], list[str]]:
             cells += f" {100 * r['deviation']:+.1f} % | {r['status']} |"
         else:
             cells += " | |"
-        lines.append(cells + f" {100 * carrier_share(h)[-1]:.0f} % | {run['wall_s'] / 60:.0f} min |")
+        lines.append(cells + f" {100 * carrier_share(h)[-1]:.0f} % | {quasi_static_cell(h)} | "
+                             f"{run['wall_s'] / 60:.0f} min |")
     if all(f"die_{bc}" in ours for bc in ("CLP", "CLPS", "GDF")):
         ordered = ours["die_CLP"] > ours["die_CLPS"] > ours["die_GDF"]
         rows.append(dict(case="die", quantity="ordering CLP > CLPS > GDF", thesis=1.0, ours=float(ordered),
@@ -119,14 +130,14 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
     rows, lines = [], ["| condition | increments | sigma_m at rho_imposed 0.90 / 0.93 (MPa) | "
                        "peak (MPa, at rho_imposed) "
                        "| end (MPa) | unbalanced at the end | work through the carrier / W_ext (end) | "
-                       "deviation from the thesis | status | wall |",
-                       "|---|---|---|---|---|---|---|---|---|---|"]
+                       "quasi-static check | deviation from the thesis | status | wall |",
+                       "|---|---|---|---|---|---|---|---|---|---|---|"]
     for case in STAGES["increments"]:
         bc, increments = case.options["bc"], case.options["increments"]
         for name, n in ((f"die_{bc}", 6000), (case.name, increments)):
             run = done.get(name)
             if run is None:
-                lines.append(f"| {bc} | {n} | not run yet | | | | | | | |")
+                lines.append(f"| {bc} | {n} | not run yet | | | | | | | | |")
                 continue
             h = run["history"]
             end = at_density(h, "sigma_m", 0.95, "rho_imposed")
@@ -138,7 +149,7 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
             lines.append(f"| {bc} | {n} | {at_density(h, 'sigma_m', 0.90, 'rho_imposed'):.2f} / "
                          f"{at_density(h, 'sigma_m', 0.93, 'rho_imposed'):.2f} | {h['sigma_m'][k]:.2f} "
                          f"({h['rho_imposed'][k]:.3f}) | {end:.2f} | {h['unbalanced'][-1]:.2f} | "
-                         f"{100 * carrier_share(h)[-1]:.0f} % | "
+                         f"{100 * carrier_share(h)[-1]:.0f} % | {quasi_static_cell(h)} | "
                          f"{100 * r['deviation']:+.1f} % | {r['status']} | {run['wall_s'] / 60:.0f} min |")
     return rows, lines
 
