@@ -117,7 +117,7 @@ class QuasiStaticCheck:
 
     def summary(self, increments: int) -> str:
         """One line for the run's log."""
-        found = (f"{100 * self.carrier_share:.0f} % of the work through the comoving carrier "
+        found = (f"{100 * self.carrier_share:.1f} % of the work through the comoving carrier "
                  f"(limit {100 * CARRIER_SHARE_LIMIT:.0f} %)")
         if np.isfinite(self.unbalanced_at_rest):
             found += f", out of balance {self.unbalanced_at_rest:.2g} at rest (limit {UNBALANCED_AT_REST_LIMIT:g})"
