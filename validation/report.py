@@ -19,8 +19,8 @@ from cases import (FanCase, CLP_DRIFT_LIMIT, DBC_GRID, DBC_STABLE_WITHIN, STAGES
                    THESIS_GDF_DRIFT, THESIS_NONPERIODIC_GAP, TOLERANCE)
 from mpfem_fenicsx.homogenization.surfaces import MIN_GAMMA_COLLAPSE
 from mpfem_fenicsx.io.history import read_csv
-from mpfem_fenicsx.workflows.history_recorder import carrier_share, quasi_static_check
 from mpfem_fenicsx.io.plots import rendulic_frame
+from mpfem_fenicsx.workflows.history_recorder import carrier_share, quasi_static_check
 
 
 def at_density(history: dict, column: str, rho: float, density: str = "rho") -> float:

@@ -42,7 +42,8 @@ from ..problem import SolidProblem
 from ..parameters import check_parameters, parameter
 from ..solvers import SOLVERS, NonConvergence, StepControl, create_solver, solver_kind
 from ..solvers.explicit import ExplicitSettings
-from .history_recorder import COLUMNS, HistoryRecorder, QuasiStaticCheck, quasi_static_check
+from .history_recorder import (COLUMNS, QUASI_STATIC_CHECK_COLUMNS, HistoryRecorder, QuasiStaticCheck,
+                               quasi_static_check)
 
 
 @dataclass
@@ -575,8 +576,7 @@ class CompactionRun:
         a strain path ends at rest, a stress-controlled one need not), logged in one line."""
         if solver_kind(self.case.solver).static or not self.history.rows:
             return None
-        columns = {c: self.history.column(c) for c in ("W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp",
-                                                       "unbalanced")}
+        columns = {c: self.history.column(c) for c in QUASI_STATIC_CHECK_COLUMNS}
         check = quasi_static_check(columns, at_rest=self.case.control is None)
         self.log(check.summary(self.solver.total_steps))
         return check

@@ -90,6 +90,8 @@ COLUMNS = (KINEMATICS + STRESS_INVARIANTS + [c for prefix in TENSORS for c in te
 #: 0.18 without damping); validation/README.md, the energy balance.
 CARRIER_SHARE_LIMIT = 0.1
 UNBALANCED_AT_REST_LIMIT = 0.05
+#: the history columns the check reads (the energy balance's and the out-of-balance ratio)
+QUASI_STATIC_CHECK_COLUMNS = ("W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp", "unbalanced")
 
 
 def carrier_share(history) -> np.ndarray:
