@@ -231,21 +231,27 @@ def _die_compaction(tmp_path, name, **options):
     return {name: history.column(name) for name in history.columns}
 
 
+def _band_mean(history, column, lo, hi, density):
+    """Mean of ``column`` over ``density`` in [lo, hi] (17 interpolated points): a 24-particle
+    curve jumps by +-7 % from row to row as contacts form, a band averages those jumps out."""
+    return float(np.mean([report.at_density(history, column, rho, density) for rho in np.linspace(lo, hi, 17)]))
+
+
 def test_die_clp_density_definition_on_a_small_volume(tmp_path):
     """The die CLP row's explanation (validation/README.md), at CI size: the thesis' faceted
     particle (inscribed, here 6.5 % less solid than its sphere) and the library's exact-volume one
     are the same physics at equal solid fraction of the meshes (rho_fe), while at equal rho counted
     from the spheres (eq. 2.4-2.5) the exact-volume volume is far stiffer. Two independent meshes,
-    CLP by images, 1500 increments. Measured (2026-11-25): at rho_fe 0.70 / 0.75 sigma_m 2.749 /
-    4.258 MPa (exact) vs 2.797 / 4.304 (faceted), +1.7 / +1.1 %; at rho 0.75, 4.26 vs 2.80 MPa
-    (+52 %)."""
+    CLP by images, 1500 increments. Compared as the mean sigma_m over rho_fe 0.68-0.76 (the
+    constant-rate middle of the smooth ramps): at single densities the faceted / exact ratio swings
+    by +-7 % as contacts form (validation/README.md, CI-sized subset). Measured 2026-11-26: band
+    mean 3.430 (faceted) vs 3.402 MPa (exact), +0.8 %; at rho 0.75, 2.94 MPa faceted (exact ~4.3)."""
     exact = _die_compaction(tmp_path, "exact", bc="CLP", increments=1500)
     faceted = _die_compaction(tmp_path, "faceted", bc="CLP", increments=1500, exact_volume=False)
     assert faceted["rho_fe"][0] < 0.95 * exact["rho_fe"][0]  # the inscribed particle holds less solid
-    for rho_fe in (0.70, 0.75):  # the constant-rate middle of the smooth ramps
-        a = report.at_density(exact, "sigma_m", rho_fe, "rho_fe")
-        b = report.at_density(faceted, "sigma_m", rho_fe, "rho_fe")
-        assert b == pytest.approx(a, rel=0.05), rho_fe
+    a = _band_mean(exact, "sigma_m", 0.68, 0.76, "rho_fe")
+    b = _band_mean(faceted, "sigma_m", 0.68, 0.76, "rho_fe")
+    assert b == pytest.approx(a, rel=0.05)
     a = report.at_density(exact, "sigma_m", 0.75, "rho_imposed")
     b = report.at_density(faceted, "sigma_m", 0.75, "rho_imposed")
     assert a > 1.3 * b
