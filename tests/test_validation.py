@@ -36,14 +36,15 @@ def test_report_writes_summary_and_tables(tmp_path):
     rho = np.linspace(0.6, 0.95, 8)
     columns = ["time", "rho", "rho_imposed", "rho_fe", "sigma_m", "sigma_schmidt_11", "sigma_schmidt_22", "sigma_schmidt_33",
                "sigma_vol_m", "h_v", "h_d", "unbalanced", "W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp"]
-    for bc, scale in (("CLP", 12.6), ("CLPS", 11.0), ("GDF", 7.0), ("CLPS_n12000", 11.5)):
-        (runs / f"die_{bc}").mkdir(parents=True)
+    for name, scale in (("die_CLP", 12.6), ("die_CLPS", 11.0), ("die_GDF", 7.0), ("die_CLPS_n12000", 11.5),
+                        ("dbc_CLPS_1", 7.0), ("dbc_CLPS_1_n12000", 9.0)):
+        (runs / name).mkdir(parents=True)
         sigma = scale * ((rho - 0.6) / 0.35) ** 2
         h_v = -np.log(rho / 0.6)
         rows = np.column_stack([rho, rho, rho, 0.97 * rho, sigma, sigma, sigma, sigma, 1.03 * sigma, h_v, 0.05 * np.abs(h_v),
                                 0.01 + 0 * rho, sigma, 1.1 * sigma, 0 * rho, 0 * rho, 0 * rho, 0.1 * sigma])
-        np.savetxt(runs / f"die_{bc}" / "history.csv", rows, delimiter=",", header=",".join(columns), comments="")
-        (runs / f"die_{bc}" / "done").write_text("60\n")
+        np.savetxt(runs / name / "history.csv", rows, delimiter=",", header=",".join(columns), comments="")
+        (runs / name / "done").write_text("60\n")
     rows = report.write_report(runs, here)
     by_case = {(r["case"], r["quantity"]): r for r in rows}
     assert by_case[("die_CLP", "sigma_m at rho 0.95 (MPa)")]["status"] == "met"
@@ -62,6 +63,10 @@ def test_report_writes_summary_and_tables(tmp_path):
     # its carrier takes 20 % of W_ext: the quasi-static check fails, whatever the thesis deviation
     assert "| CLPS | 12000 | 8.45 / 10.28 | 11.50 (0.950) | 11.50 | 0.01 | 20 % | failed (20 % / 0.01) | +1.8 % | met |" in text
     assert "| GDF | 12000 | not run yet" in text
+    # the same question at another d_bc: in the table, not compared with the thesis' 2.5 r_max value
+    assert "| CLPS at d_bc 1 r_max | 12000 | 6.61 / 8.04 | 9.00 (0.950) | 9.00 |" in text
+    assert "| (other d_bc) | | 1 min |" in text
+    assert not any(case.startswith("dbc_CLPS_1_n") for case, _ in by_case)
     assert "not run yet" in text  # the gamma stage
     for figure in ("die_sigma_m", "periodic", "dbc", "size", "stress_measures", "gamma"):
         assert (here / "figures" / f"{figure}.png").stat().st_size > 1000, figure
