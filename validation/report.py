@@ -710,7 +710,8 @@ def periodic_figure(done: dict, path: Path) -> None:
 
 def dbc_figure(done: dict, path: Path) -> None:
     """Thesis §2.5, table 2.3: the die compaction's sigma_m(rho_imposed) per duplication distance
-    d_bc, one panel per condition (the die stage is the 2.5 r_max run of CLPS and GDF)."""
+    d_bc, one panel per condition (the die stage is the 2.5 r_max run of CLPS and GDF); the
+    increments stage's slower runs dotted beside the run they repeat."""
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, len(DBC_GRID), figsize=(13, 4.2), sharey=True)
@@ -729,6 +730,11 @@ def dbc_figure(done: dict, path: Path) -> None:
             ax.plot(run["history"]["rho_imposed"], run["history"]["sigma_m"], color=colour,
                     ls="--" if d == "images" else "-", label=label)
             drawn = True
+            for case in STAGES["increments"]:  # the same d_bc with more increments, dotted
+                slow = done.get(case.name)
+                if slow is not None and case.options["bc"] == bc and case.options.get("d_bc", 2.5) == d:
+                    ax.plot(slow["history"]["rho_imposed"], slow["history"]["sigma_m"], ":", color=colour,
+                            label=f"{label}, {case.options['increments']} increments")
         if not drawn:
             _not_run(ax, bc)
         _axis(ax, RHO_IMPOSED_LABEL, title=f"die {bc}: thesis stable from {THESIS_STABLE_DBC[bc]} r_max")
