@@ -41,10 +41,19 @@ TOLERANCE = 0.15
 
 @dataclass(frozen=True)
 class Case:
-    """One compaction run: ``name`` (its run directory) and the ``CompactionCase`` options."""
+    """One compaction run: ``name`` (its run directory) and the ``CompactionCase`` options;
+    ``repeats``: the run this one repeats with more increments (``slow_die_case``), else None."""
 
     name: str
     options: dict = field(default_factory=dict)
+    repeats: str | None = None
+
+    @property
+    def d_bc(self) -> float:
+        """Duplication distance / r_max: the case's, else its condition's (thesis table 2.3)."""
+        from mpfem_fenicsx.boundary import boundary_kind
+
+        return self.options.get("d_bc", boundary_kind(self.options["bc"]).default_d_bc)
 
     def compaction_case(self, out_dir: str):
         from mpfem_fenicsx.workflows.compaction import CompactionCase
@@ -63,14 +72,10 @@ def slow_die_case(bc: str, increments: int, d_bc: float | None = None) -> Case:
     """The die compaction of ``die_case(bc)`` (or of ``dbc_case(bc, d_bc)``) with ``increments``
     explicit increments over the same duration: the mass-scaled increment shrinks as 1 / increments
     and the scaled masses as its square (less inertia, the same path). Whether the die stage's 6000
-    increments converge its curve and end value; ``reference_name`` is the 6000-increment run."""
+    increments converge its curve and end value; ``repeats`` names the 6000-increment run."""
     reference = die_case(bc) if d_bc is None else dbc_case(bc, d_bc)
-    return Case(f"{reference.name}_n{increments}", {**reference.options, "increments": increments})
-
-
-def reference_name(slow: Case) -> str:
-    """The 6000-increment run a ``slow_die_case`` repeats (its name without ``_n<increments>``)."""
-    return slow.name.rsplit("_n", 1)[0]
+    return Case(f"{reference.name}_n{increments}", {**reference.options, "increments": increments},
+                repeats=reference.name)
 
 
 def exact_volume_die_case() -> Case:

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cases import (FanCase, CLP_DRIFT_LIMIT, reference_name, DBC_GRID, DBC_STABLE_WITHIN, STAGES, THESIS_STABLE_DBC, THESIS_DIE_SIGMA_M, THESIS_DIVERGENCE_HV, THESIS_GAMMA_L,
-                   THESIS_GDF_DRIFT, THESIS_NONPERIODIC_GAP, TOLERANCE)
+from cases import (FanCase, CLP_DRIFT_LIMIT, DBC_GRID, DBC_STABLE_WITHIN, STAGES, THESIS_STABLE_DBC, THESIS_DIE_SIGMA_M,
+                   THESIS_DIVERGENCE_HV, THESIS_GAMMA_L, THESIS_GDF_DRIFT, die_case, THESIS_NONPERIODIC_GAP, TOLERANCE)
 from mpfem_fenicsx.homogenization.surfaces import MIN_GAMMA_COLLAPSE
 from mpfem_fenicsx.io.history import read_csv
 from mpfem_fenicsx.io.plots import rendulic_frame
@@ -133,9 +133,10 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
                        "quasi-static check | deviation from the thesis | status | wall |",
                        "|---|---|---|---|---|---|---|---|---|---|---|"]
     for case in STAGES["increments"]:
-        bc, increments, d_bc = case.options["bc"], case.options["increments"], case.options.get("d_bc")
-        condition = bc if d_bc is None else f"{bc} at d_bc {d_bc:g} r_max"
-        for name, n in ((reference_name(case), 6000), (case.name, increments)):
+        bc, increments = case.options["bc"], case.options["increments"]
+        compared = "d_bc" not in case.options  # the thesis' value is at its d_bc (table 2.3)
+        condition = bc if compared else f"{bc} at d_bc {case.d_bc:g} r_max"
+        for name, n in ((case.repeats, 6000), (case.name, increments)):
             run = done.get(name)
             if run is None:
                 lines.append(f"| {condition} | {n} | not run yet | | | | | | | | |")
@@ -145,7 +146,6 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
             k = int(np.argmax(h["sigma_m"]))
             r = row(name, "sigma_m at rho 0.95 (MPa)" + ("" if n == 6000 else f", {n} increments"),
                     THESIS_DIE_SIGMA_M[bc], end)
-            compared = d_bc is None  # the thesis' value is at its d_bc
             if n != 6000 and compared:  # the 6000-increment row is the die stage's
                 rows.append(r)
             deviation = f"{100 * r['deviation']:+.1f} % | {r['status']}" if compared else "(other d_bc) |"
@@ -236,8 +236,8 @@ def dbc_rows(done: dict) -> tuple[list[dict], list[str]]:
                        "status |", "|---|---|---|---|---|"]
     for bc, grid in DBC_GRID.items():
         runs = {d: done.get(f"dbc_{bc}_{d:g}") for d in grid}
-        if bc != "CLP" and done.get(f"die_{bc}") is not None:  # the die stage is the d_bc = 2.5 run
-            runs[2.5] = done[f"die_{bc}"]
+        if bc != "CLP":  # the die stage's run is the one at the condition's own d_bc (2.5 r_max)
+            runs[die_case(bc).d_bc] = done.get(die_case(bc).name)
         finished = {d: r["history"]["sigma_m"][-1] for d, r in sorted(runs.items()) if r is not None}
         cells = ", ".join(f"{d:g}: {finished[d]:.2f}" if d in finished else f"{d:g}: not run yet" for d in sorted(runs))
         if len(finished) < len(runs):
@@ -718,7 +718,7 @@ def dbc_figure(done: dict, path: Path) -> None:
     for ax, (bc, grid) in zip(axes, DBC_GRID.items()):
         runs = {d: done.get(f"dbc_{bc}_{d:g}") for d in grid}
         if bc != "CLP":
-            runs[2.5] = done.get(f"die_{bc}")
+            runs[die_case(bc).d_bc] = done.get(die_case(bc).name)
         else:
             runs["images"] = done.get("die_CLP")
         shades = plt.cm.viridis(np.linspace(0.0, 0.85, len(runs)))
@@ -732,7 +732,7 @@ def dbc_figure(done: dict, path: Path) -> None:
             drawn = True
             for case in STAGES["increments"]:  # the same d_bc with more increments, dotted
                 slow = done.get(case.name)
-                if slow is not None and case.options["bc"] == bc and case.options.get("d_bc", 2.5) == d:
+                if slow is not None and case.options["bc"] == bc and case.d_bc == d:
                     ax.plot(slow["history"]["rho_imposed"], slow["history"]["sigma_m"], ":", color=colour,
                             label=f"{label}, {case.options['increments']} increments")
         if not drawn:
