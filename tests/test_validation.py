@@ -91,6 +91,11 @@ def test_stable_dbc_is_where_the_tail_settles():
     assert report.stable_dbc([1.0, 1.5, 2.0, 2.5], [11.2, 11.25, 11.1, 11.3]) == 1.0
     assert report.stable_dbc([1.2, 1.5, 1.8, 2.1], [10.0, 11.0, 12.0, 12.6]) == 2.1  # still moving
     assert np.isnan(report.stable_dbc([2.5], [9.7]))
+    # whole curves: the same end but 13 % apart along the ramp (CLPS 1.5 / 2.5 at rho_imposed 0.93)
+    ramp_and_end = [[5.60, 7.81, 8.77, 9.0], [5.90, 8.40, 10.0, 9.05], [5.92, 8.50, 10.10, 9.1]]
+    assert report.stable_dbc([1.5, 2.0, 2.5], ramp_and_end) == 2.0
+    # an end left out (NaN: not quasi-static) does not decide
+    assert report.stable_dbc([1.5, 2.0, 2.5], [[8.7, np.nan], [8.75, 6.0], [8.74, np.nan]]) == 1.5
 
 
 
