@@ -734,7 +734,8 @@ def periodic_figure(done: dict, path: Path) -> None:
 def dbc_figure(done: dict, path: Path) -> None:
     """Thesis §2.5, table 2.3: the die compaction's sigma_m(rho_imposed) per duplication distance
     d_bc, one panel per condition (the die stage is the 2.5 r_max run of CLPS and GDF); the
-    increments stage's slower runs dotted beside the run they repeat."""
+    increments stage's slower runs dotted beside the run they repeat; grey lines where the table
+    reads the curves."""
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, len(DBC_GRID), figsize=(13, 4.2), sharey=True)
@@ -760,6 +761,8 @@ def dbc_figure(done: dict, path: Path) -> None:
                             label=f"{label}, {case.options['increments']} increments")
         if not drawn:
             _not_run(ax, bc)
+        for rho in DBC_READ_AT:  # where the table reads the curves (and at their end)
+            ax.axvline(rho, color="0.8", lw=0.8, zorder=0)
         _axis(ax, RHO_IMPOSED_LABEL, title=f"die {bc}: thesis stable from {THESIS_STABLE_DBC[bc]} r_max")
     axes[0].set_ylabel("sigma_m (MPa, Love-Weber)")
     _write(fig, path)
