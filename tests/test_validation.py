@@ -317,3 +317,23 @@ def test_parallel_runs_spawn_one_single_threaded_process_per_case(tmp_path, monk
     assert all(c[0][-3:-1] == ["--no-report", "--case"] and c[1] == "1" for c in calls)
     assert {Path(c[2]).parent.name for c in calls} == {"die_CLPS", "die_GDF"}
     assert "die_GDF: failed (exit 1), see its log" in said and "1 of 3 cases failed" in said
+
+
+def test_list_tells_where_a_killed_run_resumes(tmp_path, monkeypatch):
+    """`run.py --list`: done, to run, or the step of the newest complete checkpoint."""
+    import json
+
+    import run
+    from cases import CASES
+
+    monkeypatch.setattr(run, "RUNS", tmp_path)
+    (tmp_path / "die_CLP").mkdir()
+    (tmp_path / "die_CLP" / "done").write_text("60\n")
+    for step in (300, 600):
+        checkpoint = tmp_path / "die_CLPS_n12000" / "checkpoints" / f"step{step:07d}"
+        checkpoint.mkdir(parents=True)
+        (checkpoint / "meta.json").write_text(json.dumps({"step": step}))
+    (tmp_path / "die_CLPS_n12000" / "checkpoints" / "step0000900").mkdir()  # killed while writing it
+    assert run.run_state(CASES["die_CLP"]) == "done"
+    assert run.run_state(CASES["die_GDF"]) == "to run"
+    assert run.run_state(CASES["die_CLPS_n12000"]) == "resumes at step 600 of 12000"

@@ -42,6 +42,11 @@ DBC_READ_AT = (0.85, 0.90, 0.93)
 TOLERANCE = 0.15
 
 
+#: the chapter-2 set-up every case starts from (its options override these)
+CHAPTER2_SETUP = dict(particles=50, seed=1, increments=6000, outputs=40, visual=False, checkpoint_every=2,
+                      exact_volume=False)
+
+
 @dataclass(frozen=True)
 class Case:
     """One compaction run: ``name`` (its run directory) and the ``CompactionCase`` options;
@@ -58,12 +63,15 @@ class Case:
 
         return self.options.get("d_bc", boundary_kind(self.options["bc"]).default_d_bc)
 
+    @property
+    def increments(self) -> int:
+        """Explicit increments of the run."""
+        return self.options.get("increments", CHAPTER2_SETUP["increments"])
+
     def compaction_case(self, out_dir: str):
         from mpfem_fenicsx.workflows.compaction import CompactionCase
 
-        base = dict(particles=50, seed=1, increments=6000, outputs=40, visual=False, checkpoint_every=2,
-                    exact_volume=False)
-        return CompactionCase(**{**base, **self.options}, out_dir=out_dir)
+        return CompactionCase(**{**CHAPTER2_SETUP, **self.options}, out_dir=out_dir)
 
 
 def die_case(bc: str) -> Case:
@@ -238,3 +246,5 @@ STAGES = {
              fan_case("isotropic", 0.79, amplitude_factor=3.0, min_reload_increments=800, reload_profile="smooth-ramps",
                       reference="fan_isotropic_0.79_ramps")],
 }
+#: every case of every stage by name
+CASES = {case.name: case for cases in STAGES.values() for case in cases}

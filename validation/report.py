@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cases import (FanCase, CLP_DRIFT_LIMIT, DBC_GRID, DBC_READ_AT, DBC_STABLE_WITHIN, STAGES, THESIS_STABLE_DBC, THESIS_DIE_SIGMA_M,
+from cases import (CASES, FanCase, CLP_DRIFT_LIMIT, DBC_GRID, DBC_READ_AT, DBC_STABLE_WITHIN, STAGES, THESIS_STABLE_DBC, THESIS_DIE_SIGMA_M,
                    THESIS_DIVERGENCE_HV, THESIS_GAMMA_L, THESIS_GDF_DRIFT, die_case, THESIS_NONPERIODIC_GAP, TOLERANCE)
 from mpfem_fenicsx.homogenization.surfaces import MIN_GAMMA_COLLAPSE
 from mpfem_fenicsx.io.history import read_csv
@@ -133,10 +133,10 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
                        "quasi-static check | deviation from the thesis | status | wall |",
                        "|---|---|---|---|---|---|---|---|---|---|---|"]
     for case in STAGES["increments"]:
-        bc, increments = case.options["bc"], case.options["increments"]
+        bc, repeated = case.options["bc"], CASES[case.repeats]
         compared = "d_bc" not in case.options  # the thesis' value is at its d_bc (table 2.3)
         condition = bc if compared else f"{bc} at d_bc {case.d_bc:g} r_max"
-        for name, n in ((case.repeats, 6000), (case.name, increments)):
+        for name, n in ((repeated.name, repeated.increments), (case.name, case.increments)):
             run = done.get(name)
             if run is None:
                 lines.append(f"| {condition} | {n} | not run yet | | | | | | | | |")
@@ -144,9 +144,9 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
             h = run["history"]
             end = at_density(h, "sigma_m", 0.95, "rho_imposed")
             k = int(np.argmax(h["sigma_m"]))
-            r = row(name, "sigma_m at rho 0.95 (MPa)" + ("" if n == 6000 else f", {n} increments"),
+            r = row(name, "sigma_m at rho 0.95 (MPa)" + ("" if name == repeated.name else f", {n} increments"),
                     THESIS_DIE_SIGMA_M[bc], end)
-            if n != 6000 and compared:  # the 6000-increment row is the die stage's
+            if name == case.name and compared:  # the repeated run's row is the die stage's
                 rows.append(r)
             deviation = f"{100 * r['deviation']:+.1f} % | {r['status']}" if compared else "(other d_bc) |"
             lines.append(f"| {condition} | {n} | {at_density(h, 'sigma_m', 0.90, 'rho_imposed'):.2f} / "

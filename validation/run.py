@@ -29,7 +29,7 @@ sys.path.insert(0, str(HERE))
 from mpi4py import MPI  # noqa: E402
 
 import mpfem_fenicsx  # noqa: E402,F401  (mpi4py before dolfinx)
-from cases import STAGES, FanCase  # noqa: E402
+from cases import CASES, STAGES, FanCase  # noqa: E402
 
 RUNS = HERE / "runs"
 
@@ -65,6 +65,22 @@ def run_case(case, comm, say) -> None:
     result = run_compaction(case.compaction_case(str(run_dir)), comm, log=say, restart=restart)
     if comm.rank == 0:  # a restarted run's wall time includes the killed runs' (up to their checkpoint)
         (run_dir / "done").write_text(f"{result.wall_time:.0f}\n")
+
+
+def run_state(case) -> str:
+    """"done", "to run", or where a killed compaction resumes ("resumes at step N of M")."""
+    run_dir = RUNS / case.name
+    if (run_dir / "done").exists():
+        return "done"
+    if isinstance(case, FanCase):
+        return "to run" if not run_dir.exists() else "started: resumes"
+    from mpfem_fenicsx.io.checkpoint import CheckpointError, read_meta, resolve_checkpoint
+
+    try:
+        step = read_meta(resolve_checkpoint(run_dir))["step"]
+    except CheckpointError:
+        return "to run"
+    return f"resumes at step {step} of {case.increments}"
 
 
 class FanClock:
@@ -153,22 +169,20 @@ def main(argv=None) -> None:
     unknown = [s for s in args.stages if s not in STAGES]
     if unknown:
         p.error(f"stage must be one of {', '.join(STAGES)}, got {', '.join(unknown)}")
-    by_name = {c.name: c for cases in STAGES.values() for c in cases}
-    unknown = [c for c in args.case if c not in by_name]
+    unknown = [c for c in args.case if c not in CASES]
     if unknown:
-        p.error(f"case must be one of {', '.join(by_name)}, got {', '.join(unknown)}")
+        p.error(f"case must be one of {', '.join(CASES)}, got {', '.join(unknown)}")
     comm = MPI.COMM_WORLD
     if args.jobs > 1 and comm.size > 1:
         p.error("--jobs runs cases side by side in separate processes: use it without mpirun")
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     if args.list:
         for stage, cases in STAGES.items():
-            say(f"{stage}: " + ", ".join(f"{c.name} ({'done' if (RUNS / c.name / 'done').exists() else 'to run'})"
-                                         for c in cases))
+            say(f"{stage}: " + ", ".join(f"{c.name} ({run_state(c)})" for c in cases))
         return
     if not args.report_only:
         if args.case:
-            cases = [by_name[name] for name in args.case]
+            cases = [CASES[name] for name in args.case]
         else:
             cases = [case for stage in args.stages or list(STAGES) for case in STAGES[stage]]
         if args.jobs > 1:
