@@ -4,7 +4,7 @@
     python validation/run.py die gamma      # several stages
     python validation/run.py --report-only  # tables, figures and summary.csv from the finished runs
     python validation/run.py --case die_CLP_faceted   # one case (several: repeat the option)
-    python validation/run.py --list         # the stages, their cases and which are done
+    python validation/run.py --list         # the stages, their cases: done, to run or where they resume
     python validation/run.py --jobs 2 die   # two cases at a time, one core each (logs in runs/<case>/log.txt)
 
 ``make validate`` runs every stage then the report. Runs go to ``validation/runs/<case>/`` (not
