@@ -270,7 +270,8 @@ def dbc_rows(done: dict) -> tuple[list[dict], list[str]]:
         ok = ours <= THESIS_STABLE_DBC[bc]
         rows.append(dict(case=f"dbc_{bc}", quantity="stable d_bc / r_max", thesis=THESIS_STABLE_DBC[bc], ours=ours,
                          deviation=ours / THESIS_STABLE_DBC[bc] - 1, status="met" if ok else "not met"))
-        lines.append(f"| {bc} | {cells} | {ours:g} | {THESIS_STABLE_DBC[bc]} | {'met' if ok else 'not met'} |")
+        said = f"{ours:g}" if ours < max(finished) else f"{ours:g} (the largest run: not shown stable)"
+        lines.append(f"| {bc} | {cells} | {said} | {THESIS_STABLE_DBC[bc]} | {'met' if ok else 'not met'} |")
     return rows, lines
 
 
