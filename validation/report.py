@@ -15,8 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from cases import (CASES, FanCase, CLP_DRIFT_LIMIT, DBC_GRID, DBC_READ_AT, DBC_STABLE_WITHIN, STAGES, THESIS_STABLE_DBC, THESIS_DIE_SIGMA_M,
-                   THESIS_DIVERGENCE_HV, THESIS_GAMMA_L, THESIS_GDF_DRIFT, die_case, THESIS_NONPERIODIC_GAP, TOLERANCE)
+from cases import (CASES, CLP_DRIFT_LIMIT, DBC_GRID, DBC_READ_AT, DBC_STABLE_WITHIN, STAGES, THESIS_DIE_SIGMA_M,
+                   THESIS_DIVERGENCE_HV, THESIS_GAMMA_L, THESIS_GDF_DRIFT, THESIS_NONPERIODIC_GAP, THESIS_STABLE_DBC,
+                   TOLERANCE, FanCase, die_case)
 from mpfem_fenicsx.homogenization.surfaces import MIN_GAMMA_COLLAPSE
 from mpfem_fenicsx.io.history import read_csv
 from mpfem_fenicsx.io.plots import rendulic_frame
@@ -241,6 +242,15 @@ def dbc_readings(history: dict) -> np.ndarray:
     return np.array([at_density(history, "sigma_m", rho, "rho_imposed") for rho in DBC_READ_AT] + [end])
 
 
+def dbc_runs(done: dict, bc: str) -> dict:
+    """d_bc / r_max -> finished run (or None) of a condition's d_bc study: the ``dbc`` stage's
+    runs and, for the conditions with copies at the thesis' d_bc, the die stage's run (2.5 r_max)."""
+    runs = {d: done.get(f"dbc_{bc}_{d:g}") for d in DBC_GRID[bc]}
+    if bc != "CLP":  # CLP's die run is by periodic images: no d_bc
+        runs[die_case(bc).d_bc] = done.get(die_case(bc).name)
+    return runs
+
+
 def dbc_rows(done: dict) -> tuple[list[dict], list[str]]:
     """Thesis table 2.3: d_bc / r_max from which die compaction results are stable (every larger
     d_bc's sigma_m within 2 % of the largest's along the ramp and at a quasi-static end):
@@ -249,10 +259,8 @@ def dbc_rows(done: dict) -> tuple[list[dict], list[str]]:
     rows, lines = [], [f"| condition | sigma_m (MPa) at rho_imposed {reads} / end, per d_bc / r_max (end in "
                        "brackets: not quasi-static, left out) | stable from (ours) | thesis table 2.3 | status |",
                        "|---|---|---|---|---|"]
-    for bc, grid in DBC_GRID.items():
-        runs = {d: done.get(f"dbc_{bc}_{d:g}") for d in grid}
-        if bc != "CLP":  # the die stage's run is the one at the condition's own d_bc (2.5 r_max)
-            runs[die_case(bc).d_bc] = done.get(die_case(bc).name)
+    for bc in DBC_GRID:
+        runs = dbc_runs(done, bc)
         finished = {d: dbc_readings(r["history"]) for d, r in sorted(runs.items()) if r is not None}
 
         def cell(d):
@@ -740,12 +748,10 @@ def dbc_figure(done: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, len(DBC_GRID), figsize=(13, 4.2), sharey=True)
-    for ax, (bc, grid) in zip(axes, DBC_GRID.items()):
-        runs = {d: done.get(f"dbc_{bc}_{d:g}") for d in grid}
-        if bc != "CLP":
-            runs[die_case(bc).d_bc] = done.get(die_case(bc).name)
-        else:
-            runs["images"] = done.get("die_CLP")
+    for ax, bc in zip(axes, DBC_GRID):
+        runs = dbc_runs(done, bc)
+        if bc == "CLP":
+            runs["images"] = done.get(die_case(bc).name)
         shades = plt.cm.viridis(np.linspace(0.0, 0.85, len(runs)))
         drawn = False
         for (d, run), colour in zip(runs.items(), shades):
@@ -759,7 +765,7 @@ def dbc_figure(done: dict, path: Path) -> None:
                 slow = done.get(case.name)
                 if slow is not None and case.options["bc"] == bc and case.d_bc == d:
                     ax.plot(slow["history"]["rho_imposed"], slow["history"]["sigma_m"], ":", color=colour,
-                            label=f"{label}, {case.options['increments']} increments")
+                            label=f"{label}, {case.increments} increments")
         if not drawn:
             _not_run(ax, bc)
         for rho in DBC_READ_AT:  # where the table reads the curves (and at their end)
