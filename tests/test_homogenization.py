@@ -15,6 +15,7 @@ from mpfem_fenicsx.homogenization import (
     copy_centroids,
     first_crossing,
     hencky_strain,
+    gradient_fit_noise_hd,
     least_squares_gradient,
     love_weber_stress,
     piola_to_cauchy,
@@ -58,6 +59,26 @@ def test_least_squares_recovers_affine_motion():
     Fr, cr = least_squares_gradient(X, xs, weights=rng.uniform(0.5, 2.0, 25))
     assert Fr.shape == (4, 3, 3) and np.allclose(Fr, Fs, atol=1e-12, rtol=0)
     assert np.allclose(cr, cs, atol=1e-12, rtol=0)
+
+
+def test_fit_noise_hd_matches_sampled_fits():
+    """The closed-form noise floor of h_d (first order, residual variance from the fit's own
+    residuals) against 4000 least-squares fits of scattered centroids on an isotropic path, on a
+    cubic and an elongated cloud: the mean h_d^2 agree within 4 %."""
+    rng = np.random.default_rng(3)
+    for extent in ([0.82, 0.82, 0.82], [1.6, 0.8, 0.5]):
+        X = rng.uniform(0.0, 1.0, (50, 3)) * extent
+        F = 0.86 * np.eye(3)
+        x = X @ F.T + 0.005 * rng.standard_normal((4000, 50, 3))
+        Fs, cs = least_squares_gradient(X, x)
+        residual = x - np.einsum("tij,nj->tni", Fs, X) - cs[:, None, :]
+        rms = np.sqrt(np.mean(np.sum(residual ** 2, axis=2), axis=1))
+        h_v, h_d = strain_invariants(hencky_strain(Fs))
+        predicted = gradient_fit_noise_hd(X, rms, h_v)
+        assert predicted.shape == (4000,)
+        assert np.mean(h_d ** 2) / np.mean(predicted ** 2) == pytest.approx(1.0, abs=0.04)
+    with pytest.raises(ValueError, match="residual_rms"):
+        gradient_fit_noise_hd(X, -1.0)
 
 
 def test_least_squares_matches_thesis_normal_equations():

@@ -86,6 +86,35 @@ def test_divergence_is_the_last_crossing():
     assert np.isnan(report.divergence_hv(other, periodic))  # ends below: never rises above
 
 
+def test_isotropic_drift_is_read_above_the_centroid_fit_noise():
+    """An isotropic CLP run whose h_d is the centroid fit's noise has no drift (met); the same
+    non-affine scatter with a real drift of 5 % of |h_v| on top reads 5 % (not met, > 3 %); a GDF
+    run drifting 7 % above its noise meets the thesis' 6-9 %."""
+    from mpfem_fenicsx.meshes.packing import Packing
+
+    rng = np.random.default_rng(0)
+    packing = Packing(cell=[1.0, 1.0, 1.0], centres=rng.uniform(0.0, 1.0, (50, 3)), radii=np.full(50, 0.1))
+    rho = np.linspace(0.6, 0.95, 15)
+    h_v = -np.log(rho / 0.6)
+    nonaffine = 0.5 * np.abs(h_v)  # scatter growing with the strain, in mean radii
+    history = {"rho_imposed": rho, "h_v": h_v, "nonaffine": nonaffine, "sigma_m": 20 * np.abs(h_v)}
+    noise = report.drift_noise({"history": history, "packing": packing})
+    assert np.all(noise[1:] > 0) and np.isnan(report.drift_noise({"history": history, "packing": None})).all()
+
+    def drift_row(bc, h_d):
+        run = {"history": dict(history, h_d=h_d), "packing": packing}
+        rows, lines = report.periodic_rows({f"isotropic_{bc}": run, "isotropic_CLP": run if bc == "CLP" else
+                                            {"history": dict(history, h_d=noise), "packing": packing}})
+        return next(r for r in rows if r["case"] == f"isotropic_{bc}" and "h_d" in r["quantity"])
+
+    assert drift_row("CLP", noise)["ours"] == pytest.approx(0.0, abs=1e-12)
+    assert drift_row("CLP", noise)["status"] == "met"
+    drifting = np.sqrt(noise ** 2 + (0.05 * h_v) ** 2)
+    assert drift_row("CLP", drifting)["ours"] == pytest.approx(0.05) and drift_row("CLP", drifting)["status"] == "not met"
+    gdf = drift_row("GDF", np.sqrt(noise ** 2 + (0.07 * h_v) ** 2))
+    assert gdf["ours"] == pytest.approx(0.07) and gdf["status"] == "met"
+
+
 def test_stable_dbc_is_where_the_tail_settles():
     assert report.stable_dbc([1.5, 2.0, 2.5], [8.0, 9.6, 9.7]) == 2.0
     assert report.stable_dbc([1.0, 1.5, 2.0, 2.5], [11.2, 11.25, 11.1, 11.3]) == 1.0

@@ -29,6 +29,8 @@ THESIS_NONPERIODIC_GAP = 0.20
 #: conditions, "environ 6 à 9 %"; the issue's expectation for CLP: about 0
 THESIS_GDF_DRIFT = (0.06, 0.09)
 CLP_DRIFT_LIMIT = 0.03
+#: imposed densities where the report reads h_d against the centroid fit's noise (isotropic)
+DRIFT_READ_AT = (0.80, 0.90)
 #: thesis table 2.3 / §2.5 (die loading, 50 particles): d_bc / r_max from which the results are
 #: stable; CLP is studied with tied copies (periodic images do not depend on d_bc)
 THESIS_STABLE_DBC = {"GDF": 2.0, "CLP": 1.8, "CLPS": 1.5}

@@ -101,6 +101,42 @@ def least_squares_gradient(X, x, weights=None, rtol: float = 1e-10):
     return F, c
 
 
+def gradient_fit_noise_hd(X, residual_rms, h_v=0.0):
+    """Root-mean-square deviatoric strain h_d (eq. 2.9) that the least-squares gradient
+    (app. C.1) reads from the centroids' non-affine scatter alone, on a volumetric path.
+
+    If the centroids scatter about an affine motion, x_a = F X_a + c + e_a with e_a independent
+    and isotropic (variance s^2 per component), the fitted F is off by dF = sum_a e_a dX_a^T M^-1
+    (M = sum_a dX_a dX_a^T, dX = X - mean X): each row of dF has covariance s^2 M^-1. To first
+    order, with F = lambda I (lambda = exp(h_v / 3)), dh = sym(dF) / lambda and
+    E[h_d^2] = 2/3 E[dev sym dF : dev sym dF] / lambda^2 = 10/9 s^2 tr(M^-1) / lambda^2.
+    s^2 is read from the fit's own residuals: N rms^2 / (3 (N - 4)) (4 fitted parameters per
+    component). A measured h_d of this size is the fit's noise, not a deviatoric strain of the
+    volume; spatially correlated scatter makes the true noise larger than this estimate.
+
+    Args:
+        X: (N, 3) reference centroids (mm), N >= 5.
+        residual_rms: rms distance (mm) of the current centroids from the fitted affine motion,
+            sqrt(mean_a |x_a - F X_a - c|^2); a scalar or an array (e.g. one per output time).
+        h_v: the fit's volumetric strain ln det F (< 0 in compaction), broadcast with residual_rms.
+
+    Returns:
+        the rms h_d of the noise (dimensionless), shaped like residual_rms.
+    """
+    X = np.asarray(X, dtype=float)
+    if X.ndim != 2 or X.shape[1] != 3 or X.shape[0] < 5:
+        raise ValueError(f"X must have shape (N, 3) with N >= 5, got {X.shape}")
+    residual_rms = np.asarray(residual_rms, dtype=float)
+    if np.any(residual_rms < 0):
+        raise ValueError("residual_rms must be non-negative (a distance in mm)")
+    n = X.shape[0]
+    dX = X - X.mean(axis=0)
+    trace_inverse = np.trace(np.linalg.inv(dX.T @ dX))
+    variance = n * residual_rms ** 2 / (3.0 * (n - 4))
+    stretch = np.exp(np.asarray(h_v, dtype=float) / 3.0)
+    return np.sqrt(10.0 / 9.0 * variance * trace_inverse) / stretch
+
+
 # -- Hencky strain and invariants ---------------------------------------------------------------
 def hencky_strain(F) -> np.ndarray:
     """Left Hencky (logarithmic) strain h = 1/2 ln(F F^T) (thesis eq. 2.3; eq. 2.18 with F = I + grad u).
