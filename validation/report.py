@@ -905,18 +905,52 @@ def replace_block(text: str, name: str, lines: list[str]) -> str:
     return pattern.sub(lambda m: m.group(1) + "\n".join(lines) + "\n" + m.group(2), text)
 
 
+#: the report's tables in the issue's order: README block, what it compares, the stages its runs
+#: come from (the overview counts their cases), the function that builds it
+TABLES = (("die", "Die compaction, sigma_m at rho 0.95 (§2.7)", ("die",), die_rows),
+          ("increments", "Die stage's increments (the explicit runs' rate)", ("increments",), increments_rows),
+          ("periodic", "Isotropic and die: periodic vs non-periodic, deviatoric drift (§2.4, §2.7)",
+           ("isotropic",), periodic_rows),
+          ("dbc", "Duplication distance d_bc (§2.5, table 2.3)", ("dbc",), dbc_rows),
+          ("size", "Size effect, 50 vs 150 particles (§2.8)", ("size",), size_rows),
+          ("stresses", "Stress measures: Love-Weber, Schmidt, volume average (fig. 2.21)", (), stress_rows),
+          ("gamma", "Specific contact surface against table 4.2", ("gamma",), gamma_rows),
+          ("fans", "Gamma_l from fans (table 4.2)", ("fans",), fan_rows),
+          ("reloads", "The fans' reload rate, amplitude and profile", (), reload_study_lines),
+          ("trends", "Trends of §4.3-4.5", (), trend_lines),
+          ("sensitivity", "The thesis' contradictions (n, delta_max)", ("sensitivity",), sensitivity_lines))
+
+
+def overview_lines(done: dict, tables: dict[str, tuple[list[dict], list[str]]]) -> list[str]:
+    """One line per table (``tables``: name -> its summary rows and lines): its compared numbers met
+    / total (the trends: shown / total) and its stages' runs finished / planned with their wall
+    time (hours, as measured on shared cores)."""
+    lines = ["| item | compared numbers met | runs finished (wall, h) | not run yet |", "|---|---|---|---|"]
+    for name, title, stages, _ in TABLES:
+        rows, table = tables[name]
+        shown = [line for line in table[2:] if line.endswith(("| shown |", "| not shown |"))]  # past the header
+        met = (f"{sum(r['status'] == 'met' for r in rows)} of {len(rows)}" if rows else
+               f"{sum(line.endswith('| shown |') for line in shown)} of {len(shown)} shown" if shown else "(none)")
+        cases = [case.name for stage in stages for case in STAGES[stage]]
+        finished = [c for c in cases if c in done]
+        wall = sum(done[c]["wall_s"] for c in finished) / 3600.0
+        runs = f"{len(finished)} of {len(cases)} ({wall:.1f})" if cases else "(read on other runs)"
+        missing = ", ".join(f"`{c}`" for c in cases if c not in done)
+        lines.append(f"| {title} | {met} | {runs} | {missing} |")
+    return lines
+
+
 def write_report(runs: Path, here: Path) -> list[dict]:
     done = load_runs(runs)
-    rows = []
+    rows, tables = [], {}
     readme = here / "README.md"
     text = readme.read_text()
-    for name, build in (("die", die_rows), ("increments", increments_rows), ("periodic", periodic_rows),
-                        ("dbc", dbc_rows), ("size", size_rows),
-                        ("stresses", stress_rows), ("gamma", gamma_rows), ("fans", fan_rows),
-                        ("reloads", reload_study_lines), ("trends", trend_lines), ("sensitivity", sensitivity_lines)):
+    for name, _, _, build in TABLES:
         r, lines = build(done)
         rows += r
+        tables[name] = (r, lines)
         text = replace_block(text, name, lines)
+    text = replace_block(text, "overview", overview_lines(done, tables))
     readme.write_text(text)
     with open(here / "summary.csv", "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=["case", "quantity", "thesis", "ours", "deviation", "status"])
