@@ -118,6 +118,36 @@ def test_isotropic_drift_is_read_above_the_centroid_fit_noise():
     assert gdf["ours"] == pytest.approx(0.07) and gdf["status"] == "met"
 
 
+def test_size_effect_on_h_d_is_read_above_the_fit_noise():
+    """With 3x the particles the centroid fit's noise falls by ~sqrt(3): a raw h_d that is only
+    that noise falls with N too, but its drift above the noise does not (not met); a real drift
+    that halves does (met)."""
+    from mpfem_fenicsx.meshes.packing import Packing
+
+    rng = np.random.default_rng(1)
+    rho = np.linspace(0.6, 0.95, 15)
+    h_v = -np.log(rho / 0.6)
+    runs = {}
+    for name, n in (("isotropic_GDF", 50), ("size_GDF_150", 150), ("isotropic_CLP", 50)):
+        packing = Packing(cell=np.full(3, (n / 50) ** (1 / 3)), centres=rng.uniform(0.0, (n / 50) ** (1 / 3), (n, 3)),
+                          radii=np.full(n, 0.1))
+        history = {"rho": rho, "rho_imposed": rho, "h_v": h_v, "nonaffine": 0.5 * np.abs(h_v),
+                   "sigma_m": 20 * np.abs(h_v), "sigma_d": 0 * rho + 0.1 * n ** -0.5}
+        runs[name] = {"history": history, "packing": packing}
+        runs[name]["noise"] = report.drift_noise(runs[name])
+
+    def falls(drift_50, drift_150):
+        for name, drift in (("isotropic_GDF", drift_50), ("size_GDF_150", drift_150), ("isotropic_CLP", drift_50)):
+            run = runs[name]
+            run["history"]["h_d"] = np.sqrt(run["noise"] ** 2 + (drift * h_v) ** 2)
+        rows, _ = report.size_rows(runs)
+        return next(r for r in rows if "h_d" in r["quantity"])["status"]
+
+    assert runs["size_GDF_150"]["noise"][-1] < 0.7 * runs["isotropic_GDF"]["noise"][-1]
+    assert falls(0.0, 0.0) == "not met"  # the raw h_d falls with the noise; no drift to fall
+    assert falls(0.02, 0.01) == "met"
+
+
 def test_stable_dbc_is_where_the_tail_settles():
     assert report.stable_dbc([1.5, 2.0, 2.5], [8.0, 9.6, 9.7]) == 2.0
     assert report.stable_dbc([1.0, 1.5, 2.0, 2.5], [11.2, 11.25, 11.1, 11.3]) == 1.0
