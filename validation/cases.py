@@ -97,9 +97,20 @@ def exact_volume_die_case() -> Case:
     return Case("die_CLP_exact_volume", dict(loading="die", bc="CLP", target_density=0.95, exact_volume=True))
 
 
+#: explicit increments of the isotropic CLPS run: at the chapter-2 set-up's 6000 every die CLPS
+#: run (1.0, 1.5, 2.5 r_max) loses 30-42 % of its stress where the ramp decelerates and fails its
+#: quasi-static check; with 12 000 the same model at 1.0 r_max holds its peak (-3.5 %, check
+#: passed: the increments stage, validation/README.md)
+ISOTROPIC_CLPS_INCREMENTS = 12000
+
+
 def isotropic_case(bc: str) -> Case:
-    """Isotropic compaction to rho_f = 0.95 (thesis §2.7, fig. 2.24a-b, 2.25a)."""
-    return Case(f"isotropic_{bc}", dict(loading="isotropic", bc=bc, target_density=0.95))
+    """Isotropic compaction to rho_f = 0.95 (thesis §2.7, fig. 2.24a-b, 2.25a); CLPS with
+    ``ISOTROPIC_CLPS_INCREMENTS`` increments over the same duration."""
+    options = dict(loading="isotropic", bc=bc, target_density=0.95)
+    if bc == "CLPS":
+        options["increments"] = ISOTROPIC_CLPS_INCREMENTS
+    return Case(f"isotropic_{bc}", options)
 
 
 def dbc_case(bc: str, d_bc: float) -> Case:
