@@ -67,6 +67,9 @@ def test_report_writes_summary_and_tables(tmp_path):
     assert "| CLPS at d_bc 1 r_max | 12000 | 6.61 / 8.04 | 9.00 (0.950) | 9.00 |" in text
     assert "| (other d_bc) | | 1 min |" in text
     assert not any(case.startswith("dbc_CLPS_1_n") for case, _ in by_case)
+    # d_bc: a verdict on the two finished CLPS runs (1.0 and the die stage's 2.5), naming the missing ones
+    assert by_case[("dbc_CLPS", "stable d_bc / r_max")]["ours"] == 2.5
+    assert "| 2.5 (the largest run: not shown stable), 1.5 / 2 r_max not run yet | 1.5 | not met |" in text
     assert "not run yet" in text  # the gamma stage
     # the overview: per table its compared numbers met and its stages' runs (60 s each)
     assert "| Die compaction, sigma_m at rho 0.95 (§2.7) | 3 of 4 | 3 of 5 (0.1) | `die_GDH`, `die_CLP_exact_volume` |" in text
