@@ -35,14 +35,16 @@ def test_report_writes_summary_and_tables(tmp_path):
     runs = tmp_path / "runs"
     rho = np.linspace(0.6, 0.95, 8)
     columns = ["time", "rho", "rho_imposed", "rho_fe", "sigma_m", "sigma_schmidt_11", "sigma_schmidt_22", "sigma_schmidt_33",
-               "sigma_vol_m", "h_v", "h_d", "unbalanced", "W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp"]
+               "sigma_vol_m", "h_v", "h_d", "unbalanced", "W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp",
+               "sigma_d"]
     for name, scale in (("die_CLP", 12.6), ("die_CLPS", 11.0), ("die_GDF", 7.0), ("die_CLPS_n12000", 11.5),
                         ("dbc_CLPS_1", 7.0), ("dbc_CLPS_1_n12000", 9.0)):
         (runs / name).mkdir(parents=True)
         sigma = scale * ((rho - 0.6) / 0.35) ** 2
         h_v = -np.log(rho / 0.6)
         rows = np.column_stack([rho, rho, rho, 0.97 * rho, sigma, sigma, sigma, sigma, 1.03 * sigma, h_v, 0.05 * np.abs(h_v),
-                                0.01 + 0 * rho, sigma, 1.1 * sigma, 0 * rho, 0 * rho, 0 * rho, 0.1 * sigma])
+                                0.01 + 0 * rho, sigma, 1.1 * sigma, 0 * rho, 0 * rho, 0 * rho, 0.1 * sigma,
+                                (0.6 if name == "die_GDF" else 0.4) * sigma])
         np.savetxt(runs / name / "history.csv", rows, delimiter=",", header=",".join(columns), comments="")
         (runs / name / "done").write_text("60\n")
     rows = report.write_report(runs, here)
@@ -54,6 +56,10 @@ def test_report_writes_summary_and_tables(tmp_path):
     assert slow["ours"] == pytest.approx(11.5) and slow["status"] == "met"
     assert by_case[("die_CLP", "sigma_m Schmidt / Love-Weber, end")]["status"] == "met"
     assert by_case[("die_CLP", "sigma_m volume average / Love-Weber, end")]["status"] == "not met"  # 3 % > 2 %
+    # stress paths at equal pressure: GDF's sigma_d 1.5x CLP's is not "alike" (thesis fig. 2.24d)
+    path = by_case[("die_GDF", "sigma_d / CLP's at equal sigma_m (thesis: alike)")]
+    assert path["ours"] == pytest.approx(1.5) and path["status"] == "not met"
+    assert by_case[("die_CLPS", "sigma_d / CLP's at equal sigma_m (thesis: alike)")]["status"] == "met"
     gap = by_case[("die_GDF", "sigma_m below CLP at the end (fraction)")]
     assert gap["ours"] == pytest.approx(1 - 7.0 / 12.6) and gap["status"] == "not met"  # 44 % > 20 %
     summary = (here / "summary.csv").read_text().splitlines()
@@ -109,8 +115,7 @@ def test_isotropic_drift_is_read_above_the_centroid_fit_noise():
 
     def drift_row(bc, h_d):
         run = {"history": dict(history, h_d=h_d), "packing": packing}
-        rows, lines = report.periodic_rows({f"isotropic_{bc}": run, "isotropic_CLP": run if bc == "CLP" else
-                                            {"history": dict(history, h_d=noise), "packing": packing}})
+        rows, lines = report.drift_rows({f"isotropic_{bc}": run})
         return next(r for r in rows if r["case"] == f"isotropic_{bc}" and "h_d" in r["quantity"])
 
     assert drift_row("CLP", noise)["ours"] == pytest.approx(0.0, abs=1e-12)

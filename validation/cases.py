@@ -25,6 +25,10 @@ THESIS_GAMMA_L = {
 #: (CLP) rise above the non-periodic ones (GDF, GDH); the gap stays below 20 %
 THESIS_DIVERGENCE_HV = {"isotropic": -0.17, "die": -0.11}
 THESIS_NONPERIODIC_GAP = 0.20
+#: thesis §2.7 (fig. 2.24b, d): the stress paths sigma_d(sigma_m) of the conditions are alike, except
+#: GDH under die loading, whose deviatoric stress is higher at the same pressure; read at these
+#: sigma_m (MPa) as the mean ratio to CLP's ("alike": within TOLERANCE; GDH: above it)
+PATH_READ_AT = (2.0, 4.0, 6.0, 8.0)
 #: thesis §2.4 (fig. 2.8a): h_d / |h_v| of an isotropic compaction with duplicated-particle
 #: conditions, "environ 6 à 9 %"; the issue's expectation for CLP: about 0
 THESIS_GDF_DRIFT = (0.06, 0.09)
