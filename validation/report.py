@@ -779,10 +779,11 @@ def periodic_figure(done: dict, path: Path) -> None:
     """Thesis fig. 2.24-2.25 and 2.8a: sigma_m against the volume's logarithmic volumetric strain
     h_v per condition (the h_v past which the thesis' CLP rises above the non-periodic curves
     marked), and the isotropic deviatoric drift h_d / |h_v| (the thesis' GDF band shaded) with the
-    noise the centroid fit reads from the non-affine motion (dashed)."""
+    noise the centroid fit reads from the non-affine motion (dashed); the die stress paths
+    sigma_d(sigma_m) (fig. 2.24d), grey where the table reads them."""
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
+    fig, axes = plt.subplots(1, 4, figsize=(17, 4.2))
     for ax, loading in zip(axes, ("isotropic", "die")):
         drawn = False
         for bc, colour in CONDITION_COLOURS.items():
@@ -814,6 +815,18 @@ def periodic_figure(done: dict, path: Path) -> None:
         _not_run(ax, "isotropic")
     ax.invert_xaxis()
     _axis(ax, "h_v (volume)", "h_d / |h_v|", "deviatoric drift under isotropic loading")
+    ax = axes[3]
+    drawn = False
+    for bc, colour in CONDITION_COLOURS.items():
+        run = done.get(f"die_{bc}")
+        if run is not None:
+            ax.plot(run["history"]["sigma_m"], run["history"]["sigma_d"], color=colour, label=f"{bc} (ours)")
+            drawn = True
+    for level in PATH_READ_AT:
+        ax.axvline(level, color="0.8", lw=0.8, zorder=0)
+    if not drawn:
+        _not_run(ax, "die")
+    _axis(ax, "sigma_m (MPa)", "sigma_d (MPa)", "die stress paths (thesis fig. 2.24d)")
     _write(fig, path)
 
 
