@@ -376,6 +376,31 @@ def test_explicit_unload_state_continued_implicitly(fan, tmp_path):
     assert back.settled and back.checkpoint == settled.checkpoint and back.E_0 == settled.E_0
 
 
+def test_settle_cut_backs_shorten_the_pseudo_time_step(fan, tmp_path, monkeypatch):
+    """A hold at a fixed gradient poses the same Newton problem at any increment unless the
+    drag is viscous: with a Newton budget of 5 iterations the settle's first increment fails, and
+    its cut-backs converge only because each one stiffens the drag (dt0 / dt). Seen failing with
+    a drag independent of dt (every cut-back down to dt_min failed, 2026-11-27)."""
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    import mpfem_fenicsx.solvers.implicit as implicit
+    from mpfem_fenicsx.io import read_csv
+    from mpfem_fenicsx.workflows.yield_surface import settle
+
+    case, result = fan
+    u = result["unloaded"]
+    monkeypatch.setitem(implicit.DEFAULT_OPTIONS, "snes_max_it", 5)
+    settled, _ = settle(replace(case, solver="implicit", reload_steps=20, out_dir=str(tmp_path)), u, MPI.COMM_SELF,
+                        log=lambda *a: None)
+    # the budget does force cut-backs: the hold's two increments became more (a row each)
+    time = read_csv(tmp_path / "settle" / "history.csv")["time"]
+    assert np.count_nonzero(time > u.t_unloaded * (1 + 1e-9)) > 2
+    assert settled.E_0 == pytest.approx(u.E_0, rel=1e-4)
+    assert abs(settled.sigma_m_unloaded) < abs(u.sigma_m_unloaded)
+
+
 def test_implicit_fan_resumed_from_an_explicit_unload_settles_it_once(fan, tmp_path):
     """An implicit fan sharing an explicit fan's load and unload (validation: same path, other
     reloads) first settles that unload by Newton, then reloads from the settled state; the mark

@@ -84,7 +84,11 @@ class ImplicitSolver:
         r_i += k_i (w_i - w_i,n) towards the last converged state (w = u - g, the motion relative
         to the moving offsets, e.g. a comoving homogeneous flow): it makes free-floating bodies
         (particles before contact) solvable and vanishes as the state stops changing; its work
-        is accumulated in :attr:`regularization_work` (mJ) and must stay small."""
+        is accumulated in :attr:`regularization_work` (mJ) and must stay small. The drag is
+        viscous, c (w_i - w_i,n) / dt with c = k_i dt0 (dt0 the step control's increment): a cut
+        increment dt < dt0 stiffens it by dt0 / dt (:attr:`drag_scale`), so that a cut-back
+        shortens the pseudo-time step even where the boundary does not move (a hold at a fixed
+        gradient, whose every retry would otherwise pose the same Newton problem)."""
         if problem.jacobian_forms is None:
             raise ValueError("the implicit solver needs SolidProblem(..., tangent=True)")
         self.problem = problem
@@ -106,6 +110,9 @@ class ImplicitSolver:
         self.dt_next = None  # increment to try next (kept for restarts)
         self.regularization = None
         self.regularization_work = 0.0
+        #: factor of the drag's stiffness in the increment being solved: dt0 / dt on a cut
+        #: increment, 1 on a full one (and in the tangent kept between increments)
+        self.drag_scale = 1.0
         self.step_limits: list[float] = []  # contact step fractions applied (diagnostics)
         #: plastic dissipation of the converged increments (mJ), accumulated before each commit
         #: (after it the material's trial increment is the converged state's: zero)
@@ -163,7 +170,8 @@ class ImplicitSolver:
         t2 = time.perf_counter()
         if self.regularization is not None:
             n = self.constraint.num_owned
-            self.r_full.array_w[:n] += self.regularization.array_r * (self._peculiar() - self._w_converged)
+            drag = self.drag_scale * self.regularization.array_r
+            self.r_full.array_w[:n] += drag * (self._peculiar() - self._w_converged)
         if self.contact is not None:
             self.contact.evaluate(self.problem.u, tangent=True)
             self.contact.add_residual(self.r_full)
@@ -188,7 +196,7 @@ class ImplicitSolver:
         """Assemble K (and K_total = K + K_contact); True when the sparsity pattern changed."""
         self.problem.assemble_jacobian(self.K)
         if self.regularization is not None:
-            self.K.axpy(1.0, self._regularization_matrix, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+            self.K.axpy(self.drag_scale, self._regularization_matrix, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
         if self.contact is None:
             return False
         K_c = self.contact.tangent_matrix(self.K)
@@ -409,6 +417,8 @@ class ImplicitSolver:
         steps = 0
         self.x.copy(self.x_old)
         while self.t < control.t_end * (1 - 1e-12):
+            # a viscous drag: stiffer on a cut increment (not on a sliver landing on a stop)
+            self.drag_scale = max(1.0, control.dt / dt)
             stop = control.next_stop(self.t)
             dt = min(dt, stop - self.t)
             # land on the stop instead of leaving a sliver of an increment before it
@@ -434,12 +444,13 @@ class ImplicitSolver:
             if self.regularization is not None:
                 dw = self._peculiar() - self._w_converged
                 self.regularization_work += self.comm.allreduce(
-                    float(np.sum(self.regularization.array_r * dw * dw)))
+                    float(self.drag_scale * np.sum(self.regularization.array_r * dw * dw)))
                 self._w_converged[:] = self._peculiar()
             self.t = t_new
             self.step += 1
             steps += 1
             self.x.copy(self.x_old)
+            self.drag_scale = 1.0  # the tangent kept between increments, as a restart builds it
             self._refresh_tangent()  # as a restart from here would (restarts are exact)
             if its <= control.easy_iterations:
                 dt = min(dt * control.grow, control.dt_max)
