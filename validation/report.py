@@ -16,9 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from cases import (CASES, CLP_DRIFT_LIMIT, DBC_GRID, DBC_READ_AT, DBC_STABLE_WITHIN, DRIFT_READ_AT, PATH_READ_AT,
-                   STAGES,
-                   THESIS_DIE_SIGMA_M, THESIS_DIVERGENCE_HV, THESIS_GAMMA_L, THESIS_GDF_DRIFT, THESIS_NONPERIODIC_GAP,
-                   THESIS_STABLE_DBC, TOLERANCE, FanCase, die_case)
+                   STAGES, THESIS_DIE_SIGMA_M, THESIS_DIVERGENCE_HV, THESIS_GAMMA_L, THESIS_GDF_DRIFT,
+                   THESIS_NONPERIODIC_GAP, THESIS_STABLE_DBC, TOLERANCE, FanCase, die_case)
 from mpfem_fenicsx.homogenization import gradient_fit_noise_hd
 from mpfem_fenicsx.homogenization.surfaces import MIN_GAMMA_COLLAPSE
 from mpfem_fenicsx.io.history import read_csv
@@ -86,9 +85,16 @@ def schmidt_mean(history: dict) -> np.ndarray:
 
 
 def row(case, quantity, thesis, ours, *, tolerance=TOLERANCE) -> dict:
+    """A summary row met when ours is within ``tolerance`` of the thesis' number."""
     deviation = ours / thesis - 1.0
     status = "met" if np.isfinite(deviation) and abs(deviation) <= tolerance else "not met"
     return dict(case=case, quantity=quantity, thesis=thesis, ours=ours, deviation=deviation, status=status)
+
+
+def judged_row(case, quantity, thesis, ours, met: bool, deviation=float("nan")) -> dict:
+    """A summary row whose status another rule decided (a band, an ordering, a trend)."""
+    return dict(case=case, quantity=quantity, thesis=thesis, ours=ours, deviation=deviation,
+                status="met" if met else "not met")
 
 
 def die_rows(done: dict) -> tuple[list[dict], list[str]]:
@@ -124,8 +130,8 @@ def die_rows(done: dict) -> tuple[list[dict], list[str]]:
                              f"{run['wall_s'] / 60:.0f} min |")
     if all(f"die_{bc}" in ours for bc in ("CLP", "CLPS", "GDF")):
         ordered = ours["die_CLP"] > ours["die_CLPS"] > ours["die_GDF"]
-        rows.append(dict(case="die", quantity="ordering CLP > CLPS > GDF", thesis=1.0, ours=float(ordered),
-                         deviation=0.0 if ordered else float("nan"), status="met" if ordered else "not met"))
+        rows.append(judged_row("die", "ordering CLP > CLPS > GDF", 1.0, float(ordered), ordered,
+                               deviation=0.0 if ordered else float("nan")))
     return rows, lines
 
 
@@ -227,9 +233,8 @@ def periodic_rows(done: dict) -> tuple[list[dict], list[str]]:
             if bc in ("GDF", "GDH") and clp is not None:
                 gap = 1.0 - h["sigma_m"][-1] / clp["history"]["sigma_m"][-1]
                 ok = 0.0 <= gap < THESIS_NONPERIODIC_GAP
-                rows.append(dict(case=f"{loading}_{bc}", quantity="sigma_m below CLP at the end (fraction)",
-                                 thesis=THESIS_NONPERIODIC_GAP, ours=float(gap), deviation=float("nan"),
-                                 status="met" if ok else "not met"))
+                rows.append(judged_row(f"{loading}_{bc}", "sigma_m below CLP at the end (fraction)",
+                                       THESIS_NONPERIODIC_GAP, float(gap), ok))
                 crossing = divergence_hv(clp["history"], h)
                 r = row(f"{loading}_{bc}", "h_v where CLP rises above it", THESIS_DIVERGENCE_HV[loading], crossing)
                 rows.append(r)
@@ -239,9 +244,9 @@ def periodic_rows(done: dict) -> tuple[list[dict], list[str]]:
                 ratio = path_ratio(h, clp["history"])
                 higher = bc == "GDH"  # the thesis' exception; the others alike
                 ok = ratio > 1.0 + TOLERANCE if higher else abs(ratio - 1.0) <= TOLERANCE
-                rows.append(dict(case=f"{loading}_{bc}", quantity="sigma_d / CLP's at equal sigma_m "
-                                 + ("(thesis: higher)" if higher else "(thesis: alike)"), thesis=1.0, ours=ratio,
-                                 deviation=ratio - 1.0, status="met" if ok else "not met"))
+                rows.append(judged_row(f"{loading}_{bc}", "sigma_d / CLP's at equal sigma_m "
+                                       + ("(thesis: higher)" if higher else "(thesis: alike)"), 1.0, ratio, ok,
+                                       deviation=ratio - 1.0))
                 cells[2] = f"{ratio:.3f} ({'higher' if higher else 'alike'})"
                 status.append("met" if ok else "not met")
             verdict = ("met" if all(s == "met" for s in status) else "not met") if status else ""
@@ -272,9 +277,8 @@ def drift_rows(done: dict) -> tuple[list[dict], list[str]]:
         if bc in ("GDF", "CLP"):
             lo, hi = THESIS_GDF_DRIFT if bc == "GDF" else (0.0, CLP_DRIFT_LIMIT)
             ok = lo <= above <= hi
-            rows.append(dict(case=f"isotropic_{bc}", quantity="h_d / abs(h_v) at the end, above the centroid "
-                             "fit's noise", thesis=0.5 * (lo + hi), ours=above, deviation=float("nan"),
-                             status="met" if ok else "not met"))
+            rows.append(judged_row(f"isotropic_{bc}", "h_d / abs(h_v) at the end, above the centroid fit's noise",
+                                   0.5 * (lo + hi), above, ok))
             thesis, verdict = f" ({lo:g}-{hi:g})", "met" if ok else "not met"
         lines.append(f"| {bc} | {h['h_d'][-1] / abs(h['h_v'][-1]):.4f} | {noise[-1] / abs(h['h_v'][-1]):.4f} | "
                      f"{above:.4f}{thesis} | " + " / ".join(f"{r:.1f}" for r in ratios + [float(ratio[-1])])
@@ -343,8 +347,8 @@ def dbc_rows(done: dict) -> tuple[list[dict], list[str]]:
             continue
         ours = stable_dbc(list(finished), list(finished.values()))
         ok = ours <= THESIS_STABLE_DBC[bc]
-        rows.append(dict(case=f"dbc_{bc}", quantity="stable d_bc / r_max", thesis=THESIS_STABLE_DBC[bc], ours=ours,
-                         deviation=ours / THESIS_STABLE_DBC[bc] - 1, status="met" if ok else "not met"))
+        rows.append(judged_row(f"dbc_{bc}", "stable d_bc / r_max", THESIS_STABLE_DBC[bc], ours, ok,
+                               deviation=ours / THESIS_STABLE_DBC[bc] - 1))
         said = f"{ours:g}" if ours < max(finished) else f"{ours:g} (the largest run: not shown stable)"
         missing = [f"{d:g}" for d in sorted(runs) if d not in finished]
         if missing:  # a verdict on the finished runs, to be read again when the others land
@@ -379,8 +383,7 @@ def size_rows(done: dict) -> tuple[list[dict], list[str]]:
         for k, quantity in enumerate(("end sigma_d falls with N", "end h_d above the centroid fit's noise falls with N",
                                       "gap to CLP at rho 0.90 falls with N")):
             ok = large[k] < small[k]
-            rows.append(dict(case="size_GDF", quantity=quantity, thesis=1.0, ours=float(ok),
-                             deviation=0.0 if ok else float("nan"), status="met" if ok else "not met"))
+            rows.append(judged_row("size_GDF", quantity, 1.0, float(ok), ok, deviation=0.0 if ok else float("nan")))
     return rows, lines
 
 
