@@ -1,11 +1,19 @@
 """Shared fixtures. Tests run in-process (serial); MPI cases spawn ``mpirun -n 2``."""
 
+import os
 import sys
 from pathlib import Path
 
 import pytest
 
-import mpfem_fenicsx  # noqa: F401  (imports dolfinx_solver first)
+# `make test` runs the serial tests on one pytest-xdist worker per core: give each worker its
+# share of the cores for the numba kernels before mpfem_fenicsx imports numba (2 workers x 2
+# threads on 2 cores oversubscribe). Subprocesses the tests spawn inherit it.
+_workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+if _workers > 1 and "NUMBA_NUM_THREADS" not in os.environ:
+    os.environ["NUMBA_NUM_THREADS"] = str(max(1, len(os.sched_getaffinity(0)) // _workers))
+
+import mpfem_fenicsx  # noqa: E402, F401  (imports dolfinx_solver first)
 
 ROOT = Path(__file__).resolve().parents[1]
 
