@@ -10,10 +10,11 @@ demo: bootstrap  ## flagship demo on its embedded default case
 	$(PY) demos/isotropic.py
 
 # the serial tests on TEST_WORKERS pytest-xdist workers (one file per worker at a time: the
-# module fixtures are built once), then the mpirun -n 2 tests alone (ranks must not share cores)
+# module fixtures are built once; heaviest files first, tests/conftest.py), then the mpirun -n 2
+# tests alone (their ranks must not share the cores)
 TEST_WORKERS ?= auto
 test: bootstrap  ## the CI suite (serial + mpirun -n 2), heavy cases excluded
-	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadfile -m "not heavy and not mpi"
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder -m "not heavy and not mpi"
 	$(PY) -m pytest -m "mpi and not heavy"
 
 test-all: bootstrap  ## also the heavy cases
