@@ -337,7 +337,7 @@ def test_die_clp_density_definition_on_a_small_volume(tmp_path):
     assert a > 1.3 * b
 
 
-@pytest.mark.heavy  # three 24-particle runs with copies, ~32 min beside two other runs: pytest -m heavy -k ordering
+@pytest.mark.heavy  # three 24-particle runs with copies, ~32 min beside two other runs: pytest -m heavy -k stiffest
 @pytest.mark.timeout(5400)
 def test_die_periodic_volume_is_the_stiffest_on_a_small_volume(tmp_path):
     """Thesis §2.7 at reduced size: over the constant-rate part of a die compaction (mean sigma_m
