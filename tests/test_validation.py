@@ -337,7 +337,7 @@ def test_die_clp_density_definition_on_a_small_volume(tmp_path):
     assert a > 1.3 * b
 
 
-@pytest.mark.heavy  # three 24-particle runs with copies, ~32 min beside two other runs: pytest -m heavy -k stiffest
+@pytest.mark.heavy  # three 24-particle runs with copies, ~32 min beside other runs: pytest -m heavy -k stiffest -rP
 @pytest.mark.timeout(5400)
 def test_die_periodic_volume_is_the_stiffest_on_a_small_volume(tmp_path):
     """Thesis §2.7 at reduced size: over the constant-rate part of a die compaction (mean sigma_m
@@ -351,6 +351,7 @@ def test_die_periodic_volume_is_the_stiffest_on_a_small_volume(tmp_path):
     for bc, d_bc in (("CLP", None), ("CLPS", 1.5), ("GDF", 2.0)):
         h = _die_compaction(tmp_path, bc, bc=bc, d_bc=d_bc, increments=3000)
         means[bc] = _band_mean(h, "sigma_m", 0.70, 0.80, "rho_imposed", points=11)
+    print("mean sigma_m over rho 0.70-0.80 (MPa):", means)  # shown with pytest -rP
     assert means["CLP"] > 1.03 * max(means["CLPS"], means["GDF"]), means
 
 
