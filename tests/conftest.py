@@ -1,4 +1,5 @@
-"""Shared fixtures. Tests run in-process (serial); MPI cases spawn ``mpirun -n 2``."""
+"""Shared fixtures and the suite's scheduling. Tests run in-process (in `make test`: one
+pytest-xdist worker per core); MPI cases spawn ``mpirun -n 2``."""
 
 import os
 import sys
@@ -29,17 +30,15 @@ def python() -> str:
 
 
 # `make test` hands whole files to its workers (their module fixtures are built once), in
-# collection order: a heavy file handed out last leaves the other core idle for minutes (the
-# suite's first xdist run, 2026-11-27: 1438 s, one worker idle for the last ~8 min). Hand out
-# the heaviest first (longest-processing-time order; wall on one numba thread, bench/README.md).
+# collection order: a heavy file handed out last leaves the other core idle for minutes. Hand out
+# the heaviest first (longest-processing-time order; measured runs: bench/README.md, CI table).
 HEAVIEST_FILES_FIRST = ("test_two_spheres", "test_yield_surface", "test_simple_cubic", "test_quasi_static",
                         "test_mixed_control", "test_granular", "test_validation", "test_sphere_squeeze",
                         "test_hertz", "test_cli")
 
 
 # The 900 s timeout (pyproject.toml) guards the CI suite; a heavy case runs by hand, often on
-# one thread beside other work, and gets an hour unless it sets its own (the implicit fan, ~8 min
-# on 2 threads alone, hit 900 s on one thread beside a validation run).
+# one thread beside other work, and gets an hour unless it sets its own.
 HEAVY_TIMEOUT_S = 3600
 
 
