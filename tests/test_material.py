@@ -28,6 +28,30 @@ def test_eigen_solver_handles_repeated_eigenvalues():
         assert np.allclose(Q.T @ Q, np.eye(3), atol=1e-13)
 
 
+def test_eigen_solver_keeps_the_deviator_of_near_identity_tensors():
+    """b_e near 1 (small elastic strains) with two principal values equal or nearly so, as under
+    die loading: the deviatoric part of ln(b_e) / 2, which sets the stress, must come out to
+    round-off of its own size, not of b_e's (LAPACK's eigh as the reference)."""
+    rng = np.random.default_rng(1)
+    worst = 0.0
+    for gap in (1e-2, 1e-6, 1e-10, 1e-14, 0.0):
+        for sign in (1.0, -1.0):
+            for _ in range(50):
+                R, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+                x = rng.uniform(0.8, 1.2) * np.array([1.0, 1.0 + gap * 1e-3, 1.0 + sign * 1e-3])
+                a = R @ np.diag(x) @ R.T
+                w = np.empty(3)
+                Q = np.empty((3, 3))
+                eig_sym3(a.copy(), w, Q)
+                log_strain = Q @ np.diag(0.5 * np.log(w)) @ Q.T
+                w_ref, Q_ref = np.linalg.eigh(a)
+                reference = Q_ref @ np.diag(0.5 * np.log(w_ref)) @ Q_ref.T
+                dev = reference - np.trace(reference) / 3.0 * np.eye(3)
+                worst = max(worst, np.linalg.norm(log_strain - reference) / np.linalg.norm(dev))
+                assert np.allclose(Q.T @ Q, np.eye(3), atol=1e-14)
+    assert worst < 1e-9, worst
+
+
 def test_elastic_response_is_hencky():
     """Below yield: tau = K ln J I + 2 mu dev(ln V) for a stretch F = diag(l1, l2, l3)."""
     mat = ElastoPlastic(sigma_0=1e9)
