@@ -64,13 +64,21 @@ def body_boxes(x: np.ndarray, node_body: np.ndarray, num_bodies: int) -> np.ndar
     return boxes
 
 
+@numba.njit(cache=True)
+def _sphere_radii(x, node_body, spheres):
+    for i in range(x.shape[0]):
+        b = node_body[i]
+        r = np.sqrt((x[i, 0] - spheres[b, 0]) ** 2 + (x[i, 1] - spheres[b, 1]) ** 2 + (x[i, 2] - spheres[b, 2]) ** 2)
+        spheres[b, 3] = max(spheres[b, 3], r)
+
+
 def body_spheres(x: np.ndarray, node_body: np.ndarray, num_bodies: int, boxes: np.ndarray) -> np.ndarray:
     """(num_bodies, 4): centre (the box centre) and radius of a sphere holding every surface node
     of each body (a tighter filter than the box for round particles)."""
-    centre = 0.5 * (boxes[:, 0] + boxes[:, 1])
-    radius = np.zeros(num_bodies)
-    np.maximum.at(radius, node_body, np.linalg.norm(x - centre[node_body], axis=1))
-    return np.concatenate([centre, radius[:, None]], axis=1)
+    spheres = np.zeros((num_bodies, 4))
+    spheres[:, :3] = 0.5 * (boxes[:, 0] + boxes[:, 1])
+    _sphere_radii(x, node_body, spheres)
+    return spheres
 
 
 def candidate_pairs(boxes: np.ndarray, distance: float, shifts: np.ndarray | None = None,
@@ -231,6 +239,36 @@ def project_point(p, x, f, nv, cn, res):
     res[7] = 1.0 if inside else 0.0
 
 
+@numba.njit(cache=True, inline="always")
+def _near_master(x, s, sh, mb, body_box, body_sphere, distance, p):
+    """Slave node s, moved to the master's unshifted frame (written to p), lies within the
+    search distance of master mb's box and of its bounding sphere (much tighter for a particle)."""
+    for d in range(3):
+        p[d] = x[s, d] - sh[d]
+    for d in range(3):
+        if p[d] < body_box[mb, 0, d] - distance or p[d] > body_box[mb, 1, d] + distance:
+            return False
+    r2 = 0.0
+    for d in range(3):
+        r2 += (p[d] - body_sphere[mb, d]) ** 2
+    reach = body_sphere[mb, 3] + distance
+    return r2 <= reach * reach
+
+
+@numba.njit(parallel=True, cache=True)
+def _near_counts(x, body_box, body_sphere, slave_ptr, slave_nodes, pairs, pair_shift, distance, counts):
+    """counts[k]: slave nodes of pair k near its master (``_near_master``), the narrow phase's
+    candidates; sizing the outputs by them (not by every slave node of every pair, ~100x more)
+    keeps the search's memory small."""
+    for k in numba.prange(pairs.shape[0]):
+        p = np.empty(3)
+        n = 0
+        for i in range(slave_ptr[pairs[k, 0]], slave_ptr[pairs[k, 0] + 1]):
+            if _near_master(x, slave_nodes[i], pair_shift[k], pairs[k, 1], body_box, body_sphere, distance, p):
+                n += 1
+        counts[k] = n
+
+
 @numba.njit(parallel=True, cache=True)
 def _narrow_phase(x, facets, nv, corner, facet_box, facet_normal, node_normal, body_box, body_sphere, body_facet_ptr,
                   body_facets, slave_ptr,
@@ -247,20 +285,8 @@ def _narrow_phase(x, facets, nv, corner, facet_box, facet_normal, node_normal, b
         pos = offsets[k]
         for i in range(slave_ptr[sb], slave_ptr[sb + 1]):
             s = slave_nodes[i]
-            out_valid[pos] = False
-            for d in range(3):  # slave point in the master's unshifted frame
-                p[d] = x[s, d] - sh[d]
-            outside = False
-            for d in range(3):
-                if p[d] < body_box[mb, 0, d] - distance or p[d] > body_box[mb, 1, d] + distance:
-                    outside = True
-            if not outside:  # and inside the master's bounding sphere (much tighter for a particle)
-                r2 = 0.0
-                for d in range(3):
-                    r2 += (p[d] - body_sphere[mb, d]) ** 2
-                reach = body_sphere[mb, 3] + distance
-                outside = r2 > reach * reach
-            if not outside:
+            if _near_master(x, s, sh, mb, body_box, body_sphere, distance, p):
+                out_valid[pos] = False
                 best_score = np.inf
                 found = False
                 for j in range(body_facet_ptr[mb], body_facet_ptr[mb + 1]):
@@ -298,16 +324,32 @@ def _narrow_phase(x, facets, nv, corner, facet_box, facet_normal, node_normal, b
                     out_normal[pos, 2] = best[5]
                     for d in range(3):
                         out_shift[pos, d] = sh[d]
-            pos += 1
+                pos += 1
+
+
+@numba.njit(cache=True)
+def _area_vectors_into(x, facets, nv, out):
+    a = np.empty(3)
+    b = np.empty(3)
+    for f in range(facets.shape[0]):
+        for d in range(3):
+            if nv == 4:
+                a[d] = x[facets[f, 3], d] - x[facets[f, 0], d]
+                b[d] = x[facets[f, 2], d] - x[facets[f, 1], d]
+            else:
+                a[d] = x[facets[f, 1], d] - x[facets[f, 0], d]
+                b[d] = x[facets[f, 2], d] - x[facets[f, 0], d]
+        out[f, 0] = 0.5 * (a[1] * b[2] - a[2] * b[1])
+        out[f, 1] = 0.5 * (a[2] * b[0] - a[0] * b[2])
+        out[f, 2] = 0.5 * (a[0] * b[1] - a[1] * b[0])
 
 
 def _area_vectors(x: np.ndarray, facets: np.ndarray, nv: int) -> np.ndarray:
     """Outward area vectors of the facets (mm^2): 1/2 d1 x d2 with the diagonals of a quad
     (lexicographic order: (x3 - x0) x (x2 - x1)), exact for planar facets."""
-    f = facets[:, :nv]
-    if nv == 4:
-        return 0.5 * np.cross(x[f[:, 3]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 1]])
-    return 0.5 * np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])
+    out = np.empty((facets.shape[0], 3))
+    _area_vectors_into(x, facets, nv, out)
+    return out
 
 
 def facet_areas(x: np.ndarray, facets: np.ndarray, nv: int) -> np.ndarray:
@@ -315,16 +357,34 @@ def facet_areas(x: np.ndarray, facets: np.ndarray, nv: int) -> np.ndarray:
     return np.linalg.norm(_area_vectors(x, facets, nv), axis=1)
 
 
+@numba.njit(cache=True, error_model="numpy")
+def _surface_normals(x, facets, nv, facet_n, node_n):
+    """``surface_normals`` in one pass (called every increment): the area vectors of
+    ``_area_vectors``, summed onto the nodes facet by facet, then normalized (numpy's error
+    model: a degenerate facet gets a nan normal, as with numpy arrays, instead of an exception)."""
+    _area_vectors_into(x, facets, nv, facet_n)
+    node_n[:] = 0.0
+    for f in range(facets.shape[0]):
+        for v in range(nv):
+            for d in range(3):
+                node_n[facets[f, v], d] += facet_n[f, d]
+    for f in range(facets.shape[0]):
+        norm = np.sqrt(facet_n[f, 0] ** 2 + facet_n[f, 1] ** 2 + facet_n[f, 2] ** 2)
+        for d in range(3):
+            facet_n[f, d] /= norm
+    for i in range(node_n.shape[0]):
+        norm = np.sqrt(node_n[i, 0] ** 2 + node_n[i, 1] ** 2 + node_n[i, 2] ** 2)
+        if norm > 0.0:
+            for d in range(3):
+                node_n[i, d] /= norm
+
+
 def surface_normals(x: np.ndarray, facets: np.ndarray, nv: int) -> tuple[np.ndarray, np.ndarray]:
     """Unit outward normals of the facets (at their centre) and of the nodes (area-weighted)."""
-    f = facets[:, :nv]
-    n = _area_vectors(x, facets, nv)
-    node = np.zeros((x.shape[0], 3))
-    for d in range(3):
-        node[:, d] = np.bincount(f.ravel(), weights=np.repeat(n[:, d], nv), minlength=x.shape[0])
-    facet_n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    norm = np.linalg.norm(node, axis=1, keepdims=True)
-    return facet_n, node / np.where(norm > 0, norm, 1.0)
+    facet_n = np.empty((facets.shape[0], 3))
+    node_n = np.empty((x.shape[0], 3))
+    _surface_normals(x, facets, nv, facet_n, node_n)
+    return facet_n, node_n
 
 
 @numba.njit(parallel=True, cache=True)
@@ -408,7 +468,10 @@ class ContactSearch:
         s = self.surface
         boxes = body_boxes(x, s.node_body, s.num_bodies)
         pairs, shift_index = candidate_pairs(boxes, self.distance, self.shifts, self.allowed)
-        counts = self.slave_ptr[pairs[:, 0] + 1] - self.slave_ptr[pairs[:, 0]]
+        pair_shift = self.shifts[shift_index]
+        spheres = body_spheres(x, s.node_body, s.num_bodies, boxes)
+        counts = np.empty(len(pairs), np.int64)
+        _near_counts(x, boxes, spheres, self.slave_ptr, self.slave_nodes, pairs, pair_shift, self.distance, counts)
         offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         n = int(offsets[-1])
         out_slave = np.zeros(n, np.int64)
@@ -424,11 +487,10 @@ class ContactSearch:
             facet_normal, node_normal = surface_normals(x, s.facets, s.vertices_per_facet)
             if corner is None:
                 corner = corner_normals(x, s)
-            spheres = body_spheres(x, s.node_body, s.num_bodies, boxes)
             _narrow_phase(x, s.facets, s.vertices_per_facet, corner, facet_box, facet_normal, node_normal, boxes, spheres,
                           self.body_facet_ptr,
                           self.body_facets, self.slave_ptr, self.slave_nodes, pairs,
-                          self.shifts[shift_index], self.distance, offsets, out_slave, out_master,
+                          pair_shift, self.distance, offsets, out_slave, out_master,
                           out_facet, out_xi, out_gap, out_normal, out_shift, valid)
         return ContactPoints(out_slave[valid], out_master[valid], out_facet[valid], out_xi[valid],
                              out_gap[valid], out_normal[valid], out_shift[valid])
