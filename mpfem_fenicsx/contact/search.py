@@ -112,49 +112,51 @@ def candidate_pairs(boxes: np.ndarray, distance: float, shifts: np.ndarray | Non
 
 
 @numba.njit(cache=True, inline="always")
-def _facet_point(x, f, nv, xi, eta, out_p, out_dxi, out_deta):
-    """Point and tangents of facet f (rows of x) at (xi, eta)."""
+def _corner_point(x, i0, i1, i2, i3, nv, xi, eta):
+    """Point (px, py, pz) and tangents d/dxi (ax, ay, az), d/deta (bx, by, bz) at (xi, eta) of the
+    bilinear quadrilateral (nv = 4, lexicographic corners) or linear triangle (nv = 3, i3 unused)
+    with corners the rows i0..i3 of x; scalars, no arrays (called in every projection's Newton
+    loop)."""
     if nv == 4:
         n0 = (1 - xi) * (1 - eta)
         n1 = xi * (1 - eta)
         n2 = (1 - xi) * eta
         n3 = xi * eta
-        for d in range(3):
-            x0, x1, x2, x3 = x[f[0], d], x[f[1], d], x[f[2], d], x[f[3], d]
-            out_p[d] = n0 * x0 + n1 * x1 + n2 * x2 + n3 * x3
-            out_dxi[d] = (1 - eta) * (x1 - x0) + eta * (x3 - x2)
-            out_deta[d] = (1 - xi) * (x2 - x0) + xi * (x3 - x1)
+        px = n0 * x[i0, 0] + n1 * x[i1, 0] + n2 * x[i2, 0] + n3 * x[i3, 0]
+        py = n0 * x[i0, 1] + n1 * x[i1, 1] + n2 * x[i2, 1] + n3 * x[i3, 1]
+        pz = n0 * x[i0, 2] + n1 * x[i1, 2] + n2 * x[i2, 2] + n3 * x[i3, 2]
+        ax = (1 - eta) * (x[i1, 0] - x[i0, 0]) + eta * (x[i3, 0] - x[i2, 0])
+        ay = (1 - eta) * (x[i1, 1] - x[i0, 1]) + eta * (x[i3, 1] - x[i2, 1])
+        az = (1 - eta) * (x[i1, 2] - x[i0, 2]) + eta * (x[i3, 2] - x[i2, 2])
+        bx = (1 - xi) * (x[i2, 0] - x[i0, 0]) + xi * (x[i3, 0] - x[i1, 0])
+        by = (1 - xi) * (x[i2, 1] - x[i0, 1]) + xi * (x[i3, 1] - x[i1, 1])
+        bz = (1 - xi) * (x[i2, 2] - x[i0, 2]) + xi * (x[i3, 2] - x[i1, 2])
     else:
-        for d in range(3):
-            x0, x1, x2 = x[f[0], d], x[f[1], d], x[f[2], d]
-            out_p[d] = (1 - xi - eta) * x0 + xi * x1 + eta * x2
-            out_dxi[d] = x1 - x0
-            out_deta[d] = x2 - x0
+        px = (1 - xi - eta) * x[i0, 0] + xi * x[i1, 0] + eta * x[i2, 0]
+        py = (1 - xi - eta) * x[i0, 1] + xi * x[i1, 1] + eta * x[i2, 1]
+        pz = (1 - xi - eta) * x[i0, 2] + xi * x[i1, 2] + eta * x[i2, 2]
+        ax = x[i1, 0] - x[i0, 0]
+        ay = x[i1, 1] - x[i0, 1]
+        az = x[i1, 2] - x[i0, 2]
+        bx = x[i2, 0] - x[i0, 0]
+        by = x[i2, 1] - x[i0, 1]
+        bz = x[i2, 2] - x[i0, 2]
+    return px, py, pz, ax, ay, az, bx, by, bz
 
 
-@numba.njit(cache=True)
-def _solve3(a, b):
+@numba.njit(cache=True, inline="always")
+def _solve3(a00, a01, a02, a10, a11, a12, a20, a21, a22, b0, b1, b2):
     """Solution of the 3x3 system a y = b (Cramer); zeros if singular."""
-    c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
-    c01 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
-    c02 = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
-    det = a[0, 0] * c00 + a[0, 1] * c01 + a[0, 2] * c02
-    y = np.zeros(3)
+    c00 = a11 * a22 - a12 * a21
+    c01 = a12 * a20 - a10 * a22
+    c02 = a10 * a21 - a11 * a20
+    det = a00 * c00 + a01 * c01 + a02 * c02
     if det == 0.0:
-        return y
-    inv = np.empty((3, 3))
-    inv[0, 0] = c00
-    inv[1, 0] = c01
-    inv[2, 0] = c02
-    inv[0, 1] = a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2]
-    inv[1, 1] = a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]
-    inv[2, 1] = a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1]
-    inv[0, 2] = a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]
-    inv[1, 2] = a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]
-    inv[2, 2] = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
-    for i in range(3):
-        y[i] = (inv[i, 0] * b[0] + inv[i, 1] * b[1] + inv[i, 2] * b[2]) / det
-    return y
+        return 0.0, 0.0, 0.0
+    y0 = (c00 * b0 + (a02 * a21 - a01 * a22) * b1 + (a01 * a12 - a02 * a11) * b2) / det
+    y1 = (c01 * b0 + (a00 * a22 - a02 * a20) * b1 + (a02 * a10 - a00 * a12) * b2) / det
+    y2 = (c02 * b0 + (a01 * a20 - a00 * a21) * b1 + (a00 * a11 - a01 * a10) * b2) / det
+    return y0, y1, y2
 
 
 @numba.njit(cache=True)
@@ -173,35 +175,26 @@ def project_point(p, x, f, nv, cn, res):
     when the ray leaves it), normal gap (mm, < 0 = overlap), unit normal m / |m|, distance from
     p to the facet point, and 1 if the ray hits the facet.
     """
+    i0, i1, i2 = f[0], f[1], f[2]
+    i3 = f[3] if nv == 4 else f[0]
     xi = 1.0 / 3.0 if nv == 3 else 0.5
     eta = xi
-    q = np.empty(3)
-    a = np.empty(3)
-    b = np.empty(3)
-    m = np.empty(3)
-    ma = np.empty(3)
-    mb = np.empty(3)
-    jac = np.empty((3, 3))
-    rhs = np.empty(3)
-    corners = np.arange(4)
-    _facet_point(x, f, nv, xi, eta, q, a, b)
-    _facet_point(cn, corners, nv, xi, eta, m, ma, mb)
-    mm = m[0] * m[0] + m[1] * m[1] + m[2] * m[2]
-    t = ((p[0] - q[0]) * m[0] + (p[1] - q[1]) * m[1] + (p[2] - q[2]) * m[2]) / mm
+    qx, qy, qz, ax, ay, az, bx, by, bz = _corner_point(x, i0, i1, i2, i3, nv, xi, eta)
+    mx, my, mz, max_, may, maz, mbx, mby, mbz = _corner_point(cn, 0, 1, 2, 3, nv, xi, eta)
+    mm = mx * mx + my * my + mz * mz
+    t = ((p[0] - qx) * mx + (p[1] - qy) * my + (p[2] - qz) * mz) / mm
     converged = False
     for _it in range(20):
-        for d in range(3):
-            rhs[d] = p[d] - q[d] - t * m[d]
-            jac[d, 0] = a[d] + t * ma[d]
-            jac[d, 1] = b[d] + t * mb[d]
-            jac[d, 2] = m[d]
-        step = _solve3(jac, rhs)
-        xi += step[0]
-        eta += step[1]
-        t += step[2]
-        _facet_point(x, f, nv, xi, eta, q, a, b)
-        _facet_point(cn, corners, nv, xi, eta, m, ma, mb)
-        if abs(step[0]) + abs(step[1]) < 1e-12:
+        s0, s1, s2 = _solve3(ax + t * max_, bx + t * mbx, mx,
+                             ay + t * may, by + t * mby, my,
+                             az + t * maz, bz + t * mbz, mz,
+                             p[0] - qx - t * mx, p[1] - qy - t * my, p[2] - qz - t * mz)
+        xi += s0
+        eta += s1
+        t += s2
+        qx, qy, qz, ax, ay, az, bx, by, bz = _corner_point(x, i0, i1, i2, i3, nv, xi, eta)
+        mx, my, mz, max_, may, maz, mbx, mby, mbz = _corner_point(cn, 0, 1, 2, 3, nv, xi, eta)
+        if abs(s0) + abs(s1) < 1e-12:
             converged = True
             break
         if abs(xi) + abs(eta) > 10.0:  # no ray through p near this facet
@@ -221,14 +214,14 @@ def project_point(p, x, f, nv, cn, res):
         if s > 1.0:
             xi /= s
             eta /= s
-    _facet_point(x, f, nv, xi, eta, q, a, b)
-    _facet_point(cn, corners, nv, xi, eta, m, ma, mb)
-    norm = np.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
-    nx = m[0] / norm
-    ny = m[1] / norm
-    nz = m[2] / norm
-    gap = (p[0] - q[0]) * nx + (p[1] - q[1]) * ny + (p[2] - q[2]) * nz
-    dist = np.sqrt((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2)
+    qx, qy, qz, ax, ay, az, bx, by, bz = _corner_point(x, i0, i1, i2, i3, nv, xi, eta)
+    mx, my, mz, max_, may, maz, mbx, mby, mbz = _corner_point(cn, 0, 1, 2, 3, nv, xi, eta)
+    norm = np.sqrt(mx * mx + my * my + mz * mz)
+    nx = mx / norm
+    ny = my / norm
+    nz = mz / norm
+    gap = (p[0] - qx) * nx + (p[1] - qy) * ny + (p[2] - qz) * nz
+    dist = np.sqrt((p[0] - qx) ** 2 + (p[1] - qy) ** 2 + (p[2] - qz) ** 2)
     res[0] = xi
     res[1] = eta
     res[2] = gap
