@@ -106,6 +106,14 @@ def eig_sym3(a, w, Q):
     d00 = a[0, 0] - q
     d11 = a[1, 1] - q
     d22 = a[2, 2] - q
+    # re-centred: when the deviator is at the rounding level of a (b_e = 1 to 1e-16), a - q is
+    # not traceless to its own precision, and the formula's largest or smallest root may then be
+    # a double eigenvalue of it (B - beta I of rank 1: no cross product, a division by zero)
+    shift = (d00 + d11 + d22) / 3.0
+    q += shift
+    d00 -= shift
+    d11 -= shift
+    d22 -= shift
     d01 = 0.5 * (a[0, 1] + a[1, 0])
     d02 = 0.5 * (a[0, 2] + a[2, 0])
     d12 = 0.5 * (a[1, 2] + a[2, 1])
