@@ -112,7 +112,7 @@ def candidate_pairs(boxes: np.ndarray, distance: float, shifts: np.ndarray | Non
 
 
 @numba.njit(cache=True, inline="always")
-def _corner_point(x, i0, i1, i2, i3, nv, xi, eta):
+def _facet_point(x, i0, i1, i2, i3, nv, xi, eta):
     """Point (px, py, pz) and tangents d/dxi (ax, ay, az), d/deta (bx, by, bz) at (xi, eta) of the
     bilinear quadrilateral (nv = 4, lexicographic corners) or linear triangle (nv = 3, i3 unused)
     with corners the rows i0..i3 of x; scalars, no arrays (called in every projection's Newton
@@ -179,8 +179,8 @@ def project_point(p, x, f, nv, cn, res):
     i3 = f[3] if nv == 4 else f[0]
     xi = 1.0 / 3.0 if nv == 3 else 0.5
     eta = xi
-    qx, qy, qz, ax, ay, az, bx, by, bz = _corner_point(x, i0, i1, i2, i3, nv, xi, eta)
-    mx, my, mz, max_, may, maz, mbx, mby, mbz = _corner_point(cn, 0, 1, 2, 3, nv, xi, eta)
+    qx, qy, qz, ax, ay, az, bx, by, bz = _facet_point(x, i0, i1, i2, i3, nv, xi, eta)
+    mx, my, mz, max_, may, maz, mbx, mby, mbz = _facet_point(cn, 0, 1, 2, 3, nv, xi, eta)
     mm = mx * mx + my * my + mz * mz
     t = ((p[0] - qx) * mx + (p[1] - qy) * my + (p[2] - qz) * mz) / mm
     converged = False
@@ -192,8 +192,8 @@ def project_point(p, x, f, nv, cn, res):
         xi += s0
         eta += s1
         t += s2
-        qx, qy, qz, ax, ay, az, bx, by, bz = _corner_point(x, i0, i1, i2, i3, nv, xi, eta)
-        mx, my, mz, max_, may, maz, mbx, mby, mbz = _corner_point(cn, 0, 1, 2, 3, nv, xi, eta)
+        qx, qy, qz, ax, ay, az, bx, by, bz = _facet_point(x, i0, i1, i2, i3, nv, xi, eta)
+        mx, my, mz, max_, may, maz, mbx, mby, mbz = _facet_point(cn, 0, 1, 2, 3, nv, xi, eta)
         if abs(s0) + abs(s1) < 1e-12:
             converged = True
             break
@@ -214,8 +214,8 @@ def project_point(p, x, f, nv, cn, res):
         if s > 1.0:
             xi /= s
             eta /= s
-    qx, qy, qz, ax, ay, az, bx, by, bz = _corner_point(x, i0, i1, i2, i3, nv, xi, eta)
-    mx, my, mz, max_, may, maz, mbx, mby, mbz = _corner_point(cn, 0, 1, 2, 3, nv, xi, eta)
+    qx, qy, qz, ax, ay, az, bx, by, bz = _facet_point(x, i0, i1, i2, i3, nv, xi, eta)
+    mx, my, mz, max_, may, maz, mbx, mby, mbz = _facet_point(cn, 0, 1, 2, 3, nv, xi, eta)
     norm = np.sqrt(mx * mx + my * my + mz * mz)
     nx = mx / norm
     ny = my / norm

@@ -99,8 +99,8 @@ def eig_sym3(a, w, Q):
     rotation, which stays accurate when they are equal or nearly so (the approach of Eberly 2014,
     "A robust eigensolver for 3x3 symmetric matrices"). Working on the scaled deviator keeps the
     relative accuracy of the deviatoric part when a is close to a multiple of the identity (an
-    elastic left Cauchy-Green tensor near 1 at small elastic strains). 3-4x faster than cyclic
-    Jacobi sweeps to round-off and at least as accurate (bench/README.md, the material kernel).
+    elastic left Cauchy-Green tensor near 1 at small elastic strains). It replaced cyclic Jacobi
+    sweeps: faster and at least as accurate (bench/README.md, the material kernel).
     """
     q = (a[0, 0] + a[1, 1] + a[2, 2]) / 3.0
     d00 = a[0, 0] - q
