@@ -77,6 +77,62 @@ def test_eigen_solver_on_tensors_within_rounding_of_the_identity():
         assert np.abs(Q.T @ Q - np.eye(3)).max() < 1e-14
 
 
+def _updates_by_both_paths(material, F, cp_inv=None, eps_p=None):
+    """The stress update of the explicit solver (no tangent: the series path near b_e = 1) and of
+    the implicit one (tangent: eigen-decomposition), from the same state."""
+    results = []
+    for tangent in (False, True):
+        m = HenckyJ2(material, len(F))
+        if cp_inv is not None:
+            m.load_state({"cp_inv": cp_inv, "eps_p": eps_p})
+        m.update(F, tangent=tangent)
+        results.append({"P_dev": m.P_dev.copy(), "tau": m.tau.copy(), "cp_inv": m.cp_inv_trial.copy(),
+                        "eps_p": m.eps_p_trial.copy(), "dissipation": m.dissipation.copy(), "psi": m.psi.copy()})
+    return results
+
+
+def _largest_relative_gap(a, b):
+    return max(np.abs(a[k] - b[k]).max() / max(np.abs(b[k]).max(), 1e-300) for k in a)
+
+
+def test_series_update_equals_the_eigen_update_along_plastic_flow():
+    """Two realizations of the same return mapping: the series path (1/2 ln b_e by artanh, exp by
+    Taylor, tensor form) against principal axes (closed-form eigen-decomposition), after plastic
+    history, on elastic and plastic trial states, within round-off of the outputs."""
+    rng = np.random.default_rng(7)
+    n = 400
+    m = HenckyJ2(LEAD, n)
+    F0 = _random_F(rng, n, 0.05)
+    m.update(F0)
+    m.commit()
+    F = F0 + 0.003 * rng.standard_normal((n, 3, 3))
+    F[: n // 4] = F0[: n // 4] + 1e-5 * rng.standard_normal((n // 4, 3, 3))  # elastic unloading
+    series, eigen = _updates_by_both_paths(LEAD, F, m.cp_inv.copy(), m.eps_p.copy())
+    plastic = series["eps_p"] > m.eps_p
+    assert 0.2 * n < plastic.sum() < 0.9 * n
+    assert _largest_relative_gap(series, eigen) < 1e-12
+
+
+def test_series_update_to_the_edge_of_its_radius():
+    """Elastic strains up to the series' radius |b_e - 1| = 0.1 (far beyond a metal's, e.g. an
+    elastomer-like material): the truncated series still give the principal-axes stress to
+    round-off; beyond the radius the kernel takes the eigen-decomposition."""
+    from mpfem_fenicsx.material.hencky_j2 import SERIES_RADIUS
+
+    rng = np.random.default_rng(8)
+    material = ElastoPlastic(E=10.0, sigma_0=1e3)  # elastic throughout
+    F = []
+    for radius in np.linspace(0.02, 1.3 * SERIES_RADIUS, 200):
+        R, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+        d = rng.standard_normal(3)
+        b = R @ np.diag(1.0 + radius * d / np.linalg.norm(d)) @ R.T  # |b - 1| = radius
+        w, V = np.linalg.eigh(b)
+        F.append(V @ np.diag(np.sqrt(w)) @ V.T)
+    series, eigen = _updates_by_both_paths(material, np.array(F))
+    assert np.all(series["eps_p"] == 0.0)
+    assert _largest_relative_gap(series, eigen) < 1e-12
+
+
 def test_elastic_response_is_hencky():
     """Below yield: tau = K ln J I + 2 mu dev(ln V) for a stretch F = diag(l1, l2, l3)."""
     mat = ElastoPlastic(sigma_0=1e9)

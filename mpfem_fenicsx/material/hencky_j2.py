@@ -19,9 +19,15 @@ depends on J and is left to the UFL form (integrated with one point per hexahedr
 P_dev = dev(tau) F^-T and its consistent tangent A_dev = dP_dev/dF (Simo 1992, eigen-projection
 derivative with the stable divided difference (ln x_A - ln x_B)/(x_A - x_B)).
 
-Eigen-decompositions are closed-form (``eig_sym3``: accurate for repeated eigenvalues, no
-iterations, no LAPACK call per point). Everything runs in one ``numba.prange`` loop over
-quadrature points.
+Two realizations of the same update. With the tangent (implicit solver), in principal axes:
+the eigen-decomposition is closed-form (``eig_sym3``: accurate for repeated eigenvalues, no
+iterations, no LAPACK call per point). Without it (explicit solver) and while |b_e^trial - 1|
+<= ``SERIES_RADIUS`` (elastic strains up to ~5 %, i.e. always for a metal), in tensor form: the
+radial return is coaxial, so eps^trial = 1/2 ln b_e^trial by the artanh series and
+b_e = exp(2 eps_e) by the Taylor series, each cut at a truncation error of 1e-17, and an elastic
+point keeps its C_p^-1 as it is; no eigenvectors, logarithms or exponentials per principal value.
+The two agree to round-off (tests/test_material.py). Everything runs in one ``numba.prange``
+loop over quadrature points.
 """
 
 from __future__ import annotations
@@ -30,22 +36,6 @@ import numba
 import numpy as np
 
 _SQRT_3_2 = np.sqrt(1.5)
-
-
-@numba.njit(cache=True, inline="always")
-def _yield_stress(p, s0, modulus, exponent, law):
-    if law == 0:
-        return s0 + modulus * p ** exponent if p > 0.0 else s0
-    return s0 + modulus * p
-
-
-@numba.njit(cache=True, inline="always")
-def _plastic_work(p, dgamma, s0, modulus, exponent, law):
-    """Exact plastic work of the increment, int_p^(p + dgamma) sigma_y dp (MPa = mJ/mm^3): the
-    rectangle sigma_y(p + dgamma) dgamma overestimates it where the power law is steep."""
-    if law == 0:
-        return s0 * dgamma + modulus / (exponent + 1.0) * ((p + dgamma) ** (exponent + 1.0) - p ** (exponent + 1.0))
-    return (s0 + modulus * (p + 0.5 * dgamma)) * dgamma
 
 
 @numba.njit(cache=True, inline="always")
@@ -229,6 +219,200 @@ def inverse3(F, Finv):
     return det
 
 
+@numba.njit(cache=True, inline="always")
+def _hardening_power(p, exponent, law):
+    """p^n of the power law (0 at p = 0), the one power its yield stress, slope and plastic work
+    share; unused (1) for linear hardening."""
+    if law == 0:
+        return p ** exponent if p > 0.0 else 0.0
+    return 1.0
+
+
+@numba.njit(cache=True, inline="always")
+def _yield_and_slope(p, power, s0, modulus, exponent, law):
+    """sigma_y(p) and d sigma_y / d eps_p (MPa) from p^n = ``power`` (eq. 2.1); the slope is
+    infinite at p = 0 for the power law."""
+    if law == 0:
+        if p <= 0.0:
+            return s0, np.inf
+        return s0 + modulus * power, modulus * exponent * power / p
+    return s0 + modulus * p, modulus
+
+
+@numba.njit(cache=True, inline="always")
+def _plastic_multiplier(q_tr, p_n, three_mu, s0, modulus, exponent, law):
+    """Radial return of the trial von Mises stress q_tr (MPa) at eps_p = p_n: the increment of
+    eps_p, whether the trial state is plastic, and the exact plastic work of the increment,
+    int_p_n^(p_n + dgamma) sigma_y dp (MPa = mJ/mm^3; the rectangle overestimates it where the
+    power law is steep). dgamma is the root of q_tr - 3 mu dgamma - sigma_y(p_n + dgamma) = 0,
+    by a Newton kept inside its bracket (robust where the slope is infinite at eps_p = 0)."""
+    if q_tr <= s0:  # below the initial yield stress: elastic whatever the hardening
+        return 0.0, False, 0.0
+    power_n = _hardening_power(p_n, exponent, law)
+    sy_n, slope = _yield_and_slope(p_n, power_n, s0, modulus, exponent, law)
+    if not q_tr - sy_n > 1e-12 * sy_n:
+        return 0.0, False, 0.0
+    lo = 0.0
+    hi = (q_tr - s0) / three_mu
+    dgamma = (q_tr - sy_n) / (three_mu + slope) if np.isfinite(slope) else 0.5 * hi
+    for _it in range(200):
+        p = p_n + dgamma
+        sy, slope = _yield_and_slope(p, _hardening_power(p, exponent, law), s0, modulus, exponent, law)
+        r = q_tr - three_mu * dgamma - sy
+        if abs(r) <= 1e-13 * q_tr:
+            break
+        if r > 0.0:
+            lo = dgamma
+        else:
+            hi = dgamma
+        if hi - lo <= 1e-16 * hi:
+            break
+        trial = dgamma + r / (three_mu + slope)
+        if not (lo < trial < hi):
+            trial = 0.5 * (lo + hi)
+        dgamma = trial
+    if law == 0:
+        p = p_n + dgamma
+        work = s0 * dgamma + modulus / (exponent + 1.0) * (p * _hardening_power(p, exponent, law) - p_n * power_n)
+    else:
+        work = (s0 + modulus * (p_n + 0.5 * dgamma)) * dgamma
+    return dgamma, True, work
+
+
+# Symmetric 3 x 3 matrices as 6-tuples (xx, yy, zz, xy, xz, yz). ``_sym_mul`` is the product of
+# two matrices that commute (functions of the same tensor), whose product is symmetric.
+@numba.njit(cache=True, inline="always")
+def _sym_mul(a, b):
+    return (a[0] * b[0] + a[3] * b[3] + a[4] * b[4],
+            a[3] * b[3] + a[1] * b[1] + a[5] * b[5],
+            a[4] * b[4] + a[5] * b[5] + a[2] * b[2],
+            a[0] * b[3] + a[3] * b[1] + a[4] * b[5],
+            a[0] * b[4] + a[3] * b[5] + a[4] * b[2],
+            a[3] * b[4] + a[1] * b[5] + a[5] * b[2])
+
+
+@numba.njit(cache=True, inline="always")
+def _sym_norm2(a):
+    """Squared Frobenius norm."""
+    return a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + 2.0 * (a[3] * a[3] + a[4] * a[4] + a[5] * a[5])
+
+
+@numba.njit(cache=True, inline="always")
+def _sym_axpi(alpha, a, c):
+    """alpha a + c 1."""
+    return (alpha * a[0] + c, alpha * a[1] + c, alpha * a[2] + c, alpha * a[3], alpha * a[4], alpha * a[5])
+
+
+#: series path of the kernel for |b_e - 1| up to this (Frobenius): elastic log strains to ~5 %
+SERIES_RADIUS = 0.1
+_SERIES_TOLERANCE = 1e-17  # truncation error of the series, absolute on the log strain
+
+
+@numba.njit(cache=True, inline="always")
+def _half_log_near_identity(b):
+    """1/2 ln b of a symmetric positive b with |b - 1| <= SERIES_RADIUS: with
+    y = (b - 1)(b + 1)^-1 (eigenvalues (x - 1)/(x + 1), |y| <= 0.053),
+    1/2 ln b = artanh y = y (1 + y^2/3 + y^4/5 + ...), cut where the next term is below
+    _SERIES_TOLERANCE (the Frobenius norm bounds every |y|)."""
+    x = (b[0] - 1.0, b[1] - 1.0, b[2] - 1.0, b[3], b[4], b[5])
+    # (2 + x)^-1 by cofactors
+    s0, s1, s2 = x[0] + 2.0, x[1] + 2.0, x[2] + 2.0
+    c0 = s1 * s2 - x[5] * x[5]
+    c1 = s0 * s2 - x[4] * x[4]
+    c2 = s0 * s1 - x[3] * x[3]
+    c3 = x[4] * x[5] - x[3] * s2
+    c4 = x[3] * x[5] - x[4] * s1
+    c5 = x[3] * x[4] - s0 * x[5]
+    inv_det = 1.0 / (s0 * c0 + x[3] * c3 + x[4] * c4)
+    y = _sym_mul(x, (c0 * inv_det, c1 * inv_det, c2 * inv_det, c3 * inv_det, c4 * inv_det, c5 * inv_det))
+    z = _sym_mul(y, y)
+    r2 = _sym_norm2(y)
+    # the series' terms y^(2k+1)/(2k+1) from k = 1; keep them while r^(2k+1) > tolerance
+    last = 0
+    power = np.sqrt(r2)
+    while last < 12 and power * r2 > _SERIES_TOLERANCE:
+        power *= r2
+        last += 1
+    poly = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    poly = _sym_axpi(0.0, poly, 1.0 / (2 * last + 1))
+    for k in range(last - 1, -1, -1):  # Horner in z
+        poly = _sym_axpi(1.0, _sym_mul(z, poly), 1.0 / (2 * k + 1))
+    return _sym_mul(y, poly)
+
+
+@numba.njit(cache=True, inline="always")
+def _exp_near_zero(a):
+    """exp(a) of a small symmetric a (|a| <= ~0.2) by its Taylor series, cut where the next
+    term's bound |a|^(k+1)/(k+1)! is below _SERIES_TOLERANCE."""
+    r = np.sqrt(_sym_norm2(a))
+    last = 1
+    bound = r
+    while last < 20 and bound * r / (last + 1) > _SERIES_TOLERANCE:
+        last += 1
+        bound *= r / last
+    poly = (1.0, 1.0, 1.0, 0.0, 0.0, 0.0)
+    for k in range(last, 0, -1):  # 1 + a/1 (1 + a/2 (1 + ... (1 + a/last)))
+        poly = _sym_axpi(1.0 / k, _sym_mul(a, poly), 1.0)
+    return poly
+
+
+@numba.njit(cache=True, inline="always")
+def _update_point_by_series(qp, b, Finv, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law,
+                            P_dev, cp_inv_new, eps_p_new, tau, dissipation, psi, M1, M2, M3, C):
+    """The stress update of one point without eigen-decomposition, for b_e^trial = ``b`` within
+    SERIES_RADIUS of 1 (every elastic strain of a metal): the same radial return in tensor form,
+    eps^trial = 1/2 ln b by the artanh series, b_e = exp(2 eps_e) by the Taylor series (exact to
+    _SERIES_TOLERANCE), an elastic point keeps C_p^-1 as it is. No tangent."""
+    three_mu = 3.0 * mu
+    eps = _half_log_near_identity(b)
+    vol = eps[0] + eps[1] + eps[2]
+    dev = _sym_axpi(1.0, eps, -vol / 3.0)
+    norm_s = 2.0 * mu * np.sqrt(_sym_norm2(dev))
+    q_tr = _SQRT_3_2 * norm_s
+    p_n = eps_p_n[qp]
+    dgamma, plastic, work = _plastic_multiplier(q_tr, p_n, three_mu, s0, modulus, exponent, law)
+    beta = 1.0 - three_mu * dgamma / q_tr if plastic else 1.0
+    if plastic:
+        # dev eps_e = beta dev eps^trial, tr eps_e = tr eps^trial: b_e = e^(2 vol / 3) exp(2 beta dev)
+        e = _exp_near_zero(_sym_axpi(2.0 * beta, dev, 0.0))
+        scale = np.exp(2.0 * vol / 3.0)
+        M1[0, 0] = scale * e[0]
+        M1[1, 1] = scale * e[1]
+        M1[2, 2] = scale * e[2]
+        M1[0, 1] = M1[1, 0] = scale * e[3]
+        M1[0, 2] = M1[2, 0] = scale * e[4]
+        M1[1, 2] = M1[2, 1] = scale * e[5]
+        _mul_abt(M1, Finv, M3)  # C_p^-1 new = F^-1 b_e F^-T
+        _mul_ab(Finv, M3, C)
+        cp_inv_new[qp, 0] = C[0, 0]
+        cp_inv_new[qp, 1] = C[1, 1]
+        cp_inv_new[qp, 2] = C[2, 2]
+        cp_inv_new[qp, 3] = 0.5 * (C[0, 1] + C[1, 0])
+        cp_inv_new[qp, 4] = 0.5 * (C[0, 2] + C[2, 0])
+        cp_inv_new[qp, 5] = 0.5 * (C[1, 2] + C[2, 1])
+    else:
+        for k in range(6):  # b_e = b_e^trial: C_p^-1 unchanged
+            cp_inv_new[qp, k] = cp_inv_n[qp, k]
+    eps_p_new[qp] = p_n + dgamma
+    s = _sym_axpi(2.0 * mu * beta, dev, 0.0)  # dev tau
+    pressure = bulk * vol
+    tau[qp, 0] = s[0] + pressure
+    tau[qp, 1] = s[1] + pressure
+    tau[qp, 2] = s[2] + pressure
+    tau[qp, 3] = s[3]
+    tau[qp, 4] = s[4]
+    tau[qp, 5] = s[5]
+    dissipation[qp] = work
+    psi[qp] = mu * beta * beta * _sym_norm2(dev)
+    M2[0, 0] = s[0]
+    M2[1, 1] = s[1]
+    M2[2, 2] = s[2]
+    M2[0, 1] = M2[1, 0] = s[3]
+    M2[0, 2] = M2[2, 0] = s[4]
+    M2[1, 2] = M2[2, 1] = s[5]
+    _mul_abt(M2, Finv, P_dev[qp])  # P_dev = dev(tau) F^-T
+
+
 _CHUNK = 512  # points per parallel chunk: scratch arrays are allocated once per chunk
 
 
@@ -249,6 +433,12 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
         C[1, 2] = C[2, 1] = c[5]
         _mul_abt(C, f, M1)  # b_e^trial = f C f^T
         _mul_ab(f, M1, be)
+        b = (be[0, 0], be[1, 1], be[2, 2], 0.5 * (be[0, 1] + be[1, 0]), 0.5 * (be[0, 2] + be[2, 0]),
+             0.5 * (be[1, 2] + be[2, 1]))
+        if not want_tangent and _sym_norm2(_sym_axpi(1.0, b, -1.0)) <= SERIES_RADIUS * SERIES_RADIUS:
+            _update_point_by_series(qp, b, Finv, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law,
+                                    P_dev, cp_inv_new, eps_p_new, tau, dissipation, psi, M1, M2, M3, C)
+            continue
         eig_sym3(be, x, Q)
 
         vol = 0.0
@@ -262,30 +452,8 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
         norm_s = np.sqrt(norm2)
         q_tr = _SQRT_3_2 * norm_s
         p_n = eps_p_n[qp]
-        sy_n = _yield_stress(p_n, s0, modulus, exponent, law)
 
-        dgamma = 0.0
-        plastic = q_tr - sy_n > 1e-12 * sy_n
-        if plastic:
-            lo = 0.0
-            hi = (q_tr - s0) / three_mu
-            slope = _hardening_slope(p_n, modulus, exponent, law)
-            dgamma = (q_tr - sy_n) / (three_mu + slope) if np.isfinite(slope) else 0.5 * hi
-            for _it in range(200):
-                r = q_tr - three_mu * dgamma - _yield_stress(p_n + dgamma, s0, modulus, exponent, law)
-                if abs(r) <= 1e-13 * q_tr:
-                    break
-                if r > 0.0:
-                    lo = dgamma
-                else:
-                    hi = dgamma
-                if hi - lo <= 1e-16 * hi:
-                    break
-                dr = -three_mu - _hardening_slope(p_n + dgamma, modulus, exponent, law)
-                trial = dgamma - r / dr
-                if not (lo < trial < hi):
-                    trial = 0.5 * (lo + hi)
-                dgamma = trial
+        dgamma, plastic, work = _plastic_multiplier(q_tr, p_n, three_mu, s0, modulus, exponent, law)
         beta = 1.0 - three_mu * dgamma / q_tr if plastic else 1.0
 
         # updated elastic logarithmic strain, plastic state and energies
@@ -319,7 +487,7 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
         tau[qp, 3] = M2[0, 1]
         tau[qp, 4] = M2[0, 2]
         tau[qp, 5] = M2[1, 2]
-        dissipation[qp] = _plastic_work(p_n, dgamma, s0, modulus, exponent, law)
+        dissipation[qp] = work
         tr_e = eps_e[0] + eps_e[1] + eps_e[2]
         dev2 = 0.0
         for A in range(3):
