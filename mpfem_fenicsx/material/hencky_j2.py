@@ -255,9 +255,11 @@ def _plastic_multiplier(q_tr, p_n, three_mu, s0, modulus, exponent, law):
     lo = 0.0
     hi = (q_tr - s0) / three_mu
     dgamma = (q_tr - sy_n) / (three_mu + slope) if np.isfinite(slope) else 0.5 * hi
+    evaluated, power = -1.0, 0.0  # the last dgamma whose p^n was computed, and that power
     for _it in range(200):
         p = p_n + dgamma
-        sy, slope = _yield_and_slope(p, _hardening_power(p, exponent, law), s0, modulus, exponent, law)
+        evaluated, power = dgamma, _hardening_power(p, exponent, law)
+        sy, slope = _yield_and_slope(p, power, s0, modulus, exponent, law)
         r = q_tr - three_mu * dgamma - sy
         if abs(r) <= 1e-13 * q_tr:
             break
@@ -273,7 +275,9 @@ def _plastic_multiplier(q_tr, p_n, three_mu, s0, modulus, exponent, law):
         dgamma = trial
     if law == 0:
         p = p_n + dgamma
-        work = s0 * dgamma + modulus / (exponent + 1.0) * (p * _hardening_power(p, exponent, law) - p_n * power_n)
+        if dgamma != evaluated:  # the loop ended on an update (not on convergence)
+            power = _hardening_power(p, exponent, law)
+        work = s0 * dgamma + modulus / (exponent + 1.0) * (p * power - p_n * power_n)
     else:
         work = (s0 + modulus * (p_n + 0.5 * dgamma)) * dgamma
     return dgamma, True, work
