@@ -114,15 +114,16 @@ def test_series_update_equals_the_eigen_update_along_plastic_flow():
 
 
 def test_series_update_to_the_edge_of_its_radius():
-    """Elastic strains up to the series' radius |b_e - 1| = 0.1 (far beyond a metal's, e.g. an
-    elastomer-like material): the truncated series still give the principal-axes stress to
-    round-off; beyond the radius the kernel takes the eigen-decomposition."""
+    """Elastic strains from none (b_e = 1, points at rest) up to the series' radius |b_e - 1| = 0.1
+    (far beyond a metal's, e.g. an elastomer-like material): the truncated series still give the
+    principal-axes stress to round-off; beyond the radius the kernel takes the
+    eigen-decomposition."""
     from mpfem_fenicsx.material.hencky_j2 import SERIES_RADIUS
 
     rng = np.random.default_rng(8)
     material = ElastoPlastic(E=10.0, sigma_0=1e3)  # elastic throughout
     F = []
-    for radius in np.linspace(0.02, 1.3 * SERIES_RADIUS, 200):
+    for radius in np.concatenate([[0.0, 1e-15, 1e-9, 1e-5], np.linspace(0.02, 1.3 * SERIES_RADIUS, 200)]):
         R, _ = np.linalg.qr(rng.standard_normal((3, 3)))
         d = rng.standard_normal(3)
         b = R @ np.diag(1.0 + radius * d / np.linalg.norm(d)) @ R.T  # |b - 1| = radius
