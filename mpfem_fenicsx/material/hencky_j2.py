@@ -200,6 +200,19 @@ def _mul_abt(a, b, out):
 
 
 @numba.njit(cache=True, inline="always")
+def _store_cp_inv(be, Finv, M, C, out):
+    """out = the 6 components of C_p^-1 = F^-1 b_e F^-T (its two triangles averaged); M, C scratch."""
+    _mul_abt(be, Finv, M)
+    _mul_ab(Finv, M, C)
+    out[0] = C[0, 0]
+    out[1] = C[1, 1]
+    out[2] = C[2, 2]
+    out[3] = 0.5 * (C[0, 1] + C[1, 0])
+    out[4] = 0.5 * (C[0, 2] + C[2, 0])
+    out[5] = 0.5 * (C[1, 2] + C[2, 1])
+
+
+@numba.njit(cache=True, inline="always")
 def inverse3(F, Finv):
     """Finv = F^-1 of a 3 x 3 matrix (cofactors over the determinant; numba kernel, shared with
     the forms' gradient kernel)."""
@@ -307,6 +320,17 @@ def _sym_axpi(alpha, a, c):
     return (alpha * a[0] + c, alpha * a[1] + c, alpha * a[2] + c, alpha * a[3], alpha * a[4], alpha * a[5])
 
 
+@numba.njit(cache=True, inline="always")
+def _sym_to_full(a, out):
+    """The 3 x 3 matrix ``out`` of the 6 components (xx, yy, zz, xy, xz, yz) ``a``."""
+    out[0, 0] = a[0]
+    out[1, 1] = a[1]
+    out[2, 2] = a[2]
+    out[0, 1] = out[1, 0] = a[3]
+    out[0, 2] = out[2, 0] = a[4]
+    out[1, 2] = out[2, 1] = a[5]
+
+
 #: series path of the kernel for |b_e - 1| up to this (Frobenius): elastic log strains to ~5 %
 SERIES_RADIUS = 0.1
 _SERIES_TOLERANCE = 1e-17  # truncation error of the series, absolute on the log strain
@@ -380,20 +404,8 @@ def _update_point_by_series(qp, b, Finv, cp_inv_n, eps_p_n, mu, bulk, s0, modulu
         # dev eps_e = beta dev eps^trial, tr eps_e = tr eps^trial: b_e = e^(2 vol / 3) exp(2 beta dev)
         e = _exp_near_zero(_sym_axpi(2.0 * beta, dev, 0.0))
         scale = np.exp(2.0 * vol / 3.0)
-        M1[0, 0] = scale * e[0]
-        M1[1, 1] = scale * e[1]
-        M1[2, 2] = scale * e[2]
-        M1[0, 1] = M1[1, 0] = scale * e[3]
-        M1[0, 2] = M1[2, 0] = scale * e[4]
-        M1[1, 2] = M1[2, 1] = scale * e[5]
-        _mul_abt(M1, Finv, M3)  # C_p^-1 new = F^-1 b_e F^-T
-        _mul_ab(Finv, M3, C)
-        cp_inv_new[qp, 0] = C[0, 0]
-        cp_inv_new[qp, 1] = C[1, 1]
-        cp_inv_new[qp, 2] = C[2, 2]
-        cp_inv_new[qp, 3] = 0.5 * (C[0, 1] + C[1, 0])
-        cp_inv_new[qp, 4] = 0.5 * (C[0, 2] + C[2, 0])
-        cp_inv_new[qp, 5] = 0.5 * (C[1, 2] + C[2, 1])
+        _sym_to_full(_sym_axpi(scale, e, 0.0), M1)
+        _store_cp_inv(M1, Finv, M3, C, cp_inv_new[qp])
     else:
         for k in range(6):  # b_e = b_e^trial: C_p^-1 unchanged
             cp_inv_new[qp, k] = cp_inv_n[qp, k]
@@ -408,12 +420,7 @@ def _update_point_by_series(qp, b, Finv, cp_inv_n, eps_p_n, mu, bulk, s0, modulu
     tau[qp, 5] = s[5]
     dissipation[qp] = work
     psi[qp] = mu * beta * beta * _sym_norm2(dev)
-    M2[0, 0] = s[0]
-    M2[1, 1] = s[1]
-    M2[2, 2] = s[2]
-    M2[0, 1] = M2[1, 0] = s[3]
-    M2[0, 2] = M2[2, 0] = s[4]
-    M2[1, 2] = M2[2, 1] = s[5]
+    _sym_to_full(s, M2)
     _mul_abt(M2, Finv, P_dev[qp])  # P_dev = dev(tau) F^-T
 
 
@@ -428,13 +435,7 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
         three_mu = 3.0 * mu
         f = F[qp]
         inverse3(f, Finv)
-        c = cp_inv_n[qp]
-        C[0, 0] = c[0]
-        C[1, 1] = c[1]
-        C[2, 2] = c[2]
-        C[0, 1] = C[1, 0] = c[3]
-        C[0, 2] = C[2, 0] = c[4]
-        C[1, 2] = C[2, 1] = c[5]
+        _sym_to_full(cp_inv_n[qp], C)
         _mul_abt(C, f, M1)  # b_e^trial = f C f^T
         _mul_ab(f, M1, be)
         b = (be[0, 0], be[1, 1], be[2, 2], 0.5 * (be[0, 1] + be[1, 0]), 0.5 * (be[0, 2] + be[2, 0]),
@@ -475,14 +476,7 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
                     nn = Q[i, A] * Q[j, A]
                     M1[i, j] += e2 * nn
                     M2[i, j] += s[A] * nn
-        _mul_abt(M1, Finv, M3)  # C_p^-1 new = F^-1 b_e F^-T
-        _mul_ab(Finv, M3, C)
-        cp_inv_new[qp, 0] = C[0, 0]
-        cp_inv_new[qp, 1] = C[1, 1]
-        cp_inv_new[qp, 2] = C[2, 2]
-        cp_inv_new[qp, 3] = 0.5 * (C[0, 1] + C[1, 0])
-        cp_inv_new[qp, 4] = 0.5 * (C[0, 2] + C[2, 0])
-        cp_inv_new[qp, 5] = 0.5 * (C[1, 2] + C[2, 1])
+        _store_cp_inv(M1, Finv, M3, C, cp_inv_new[qp])
         eps_p_new[qp] = p_n + dgamma
         pressure = bulk * vol
         tau[qp, 0] = M2[0, 0] + pressure
