@@ -9,6 +9,10 @@ Per cell and point: J = sum_a X_a (x) dpsi_a/dxi (geometry), dphi_b/dX = J^-T dp
 Grad u = sum_b u_b (x) dphi_b/dX. Valid for Lagrange spaces whose cell dofs need no
 permutation (degree <= 2, e.g. Q1 hexahedra, P1/P2 tetrahedra): :meth:`DeformationGradients.matches`
 checks it against the Expression once, and the caller falls back to the Expression otherwise.
+
+The residual's deviatoric part int P_dev : Grad v dX (:class:`DeviatoricForces`) is assembled the
+same way, with the inverse Jacobians J^-1 and the points' reference volumes stored once: 35-40 %
+less time than the FFCx-compiled form on Q1 hexahedra (bench/README.md), checked against it once.
 """
 
 from __future__ import annotations
@@ -98,3 +102,93 @@ class DeformationGradients:
         expression = dolfinx.fem.Expression(deformation_gradient(w), self.points)
         F_ref = expression.eval(self.u.function_space.mesh, self.cells).reshape(-1, 3, 3)
         return bool(np.abs(self(w) - F_ref).max() <= rtol * max(1.0, np.abs(F_ref).max()))
+
+
+@numba.njit(cache=True)
+def _inverse_jacobians(cells, x, gdofs, dpsi, out):
+    """out[c * npts + q] = J^-1 of the reference-to-mesh map at point q of cell cells[c]."""
+    npts = dpsi.shape[0]
+    ng = dpsi.shape[1]
+    J = np.empty((3, 3))
+    for c in range(cells.size):
+        cell = cells[c]
+        for q in range(npts):
+            J[:] = 0.0
+            for a in range(ng):
+                node = gdofs[cell, a]
+                for i in range(3):
+                    xi = x[node, i]
+                    for j in range(3):
+                        J[i, j] += xi * dpsi[q, a, j]
+            inverse3(J, out[c * npts + q])
+
+
+@numba.njit(cache=True)
+def _add_deviatoric_forces(cells, dofs, dphi, Kinv, volumes, P, out):
+    """out[3 dof + i] += sum_q P_iJ dphi_b/dX_J dV_q over the points of ``cells`` (one thread:
+    cells share nodes)."""
+    npts = dphi.shape[0]
+    nd = dphi.shape[1]
+    g = np.empty((nd, 3))
+    for c in range(cells.size):
+        cell = cells[c]
+        for q in range(npts):
+            row = c * npts + q
+            K = Kinv[row]
+            dV = volumes[row]
+            for b in range(nd):  # dphi_b/dX_J dV = sum_k dphi_b/dxi_k (J^-1)_kJ dV
+                for j in range(3):
+                    g[b, j] = (dphi[q, b, 0] * K[0, j] + dphi[q, b, 1] * K[1, j] + dphi[q, b, 2] * K[2, j]) * dV
+            p = P[row]
+            for b in range(nd):
+                dof = dofs[cell, b]
+                for i in range(3):
+                    out[3 * dof + i] += p[i, 0] * g[b, 0] + p[i, 1] * g[b, 1] + p[i, 2] * g[b, 2]
+
+
+class DeviatoricForces:
+    """The deviatoric internal force int P_dev : Grad v dX (N), added into a local (ghosted) vector
+    array: the residual's first form (``bulk.internal_work``) at the kernel's points, with the
+    inverse Jacobians and the points' reference volumes computed once (total Lagrangian: the mesh
+    does not move). Same assumptions as :class:`DeformationGradients`; :meth:`matches` checks it
+    once against the FFCx-compiled form, and the caller falls back to it otherwise."""
+
+    def __init__(self, V, points: np.ndarray, cells: np.ndarray, point_volumes: np.ndarray):
+        mesh = V.mesh
+        self.cells = np.asarray(cells, dtype=np.int32)
+        self.dofs = V.dofmap.list
+        psi = mesh.ufl_domain().ufl_coordinate_element().basix_element.tabulate(1, points)
+        dpsi = np.ascontiguousarray(np.moveaxis(psi[1:4, :, :, 0], 0, -1))
+        phi = V.element.basix_element.tabulate(1, points)
+        self.dphi = np.ascontiguousarray(np.moveaxis(phi[1:4, :, :, 0], 0, -1))
+        self.Kinv = np.empty((self.cells.size * points.shape[0], 3, 3))
+        _inverse_jacobians(self.cells, mesh.geometry.x, mesh.geometry.dofmaps[0], dpsi, self.Kinv)
+        self.volumes = np.ascontiguousarray(point_volumes)
+
+    def add_to(self, P_dev: np.ndarray, array: np.ndarray) -> None:
+        """array += the force of the first Piola stresses ``P_dev`` ((cell, point) order, (n, 3, 3),
+        MPa) of the cells; ``array`` is the local array of a blocked (3) vector, ghosts included."""
+        _add_deviatoric_forces(self.cells, self.dofs, self.dphi, self.Kinv, self.volumes, P_dev, array)
+
+    def matches(self, form, P_function, material_P: np.ndarray, rtol: float = 1e-12) -> bool:
+        """Whether :meth:`add_to` reproduces the assembled ``form`` (int P : Grad v, P the
+        quadrature Function ``P_function`` that the form reads) for random stresses written into
+        ``material_P`` (the material points' array, restored afterwards)."""
+        import dolfinx.fem.petsc
+
+        if not self.cells.size:
+            return True
+        saved_P, saved_fn = material_P.copy(), P_function.x.array.copy()
+        rng = np.random.default_rng(0)
+        material_P[:] = rng.uniform(-1.0, 1.0, material_P.shape)
+        if P_function.x.array.size and not np.shares_memory(material_P, P_function.x.array):
+            width = material_P[0].size * (material_P.shape[0] // self.cells.size)
+            P_function.x.array[: P_function.x.array.size].reshape(-1, width)[self.cells] = \
+                material_P.reshape(self.cells.size, width)
+        reference = dolfinx.fem.assemble_vector(form)  # local array, ghosts not summed
+        ours = np.zeros_like(reference.array)
+        self.add_to(material_P, ours)
+        material_P[:] = saved_P
+        P_function.x.array[:] = saved_fn
+        scale = max(np.abs(reference.array).max(), 1e-300)
+        return bool(np.abs(ours - reference.array).max() <= rtol * scale)
