@@ -236,6 +236,15 @@ def test_assembled_jacobian_matches_residual_on_distorted_hexahedra():
     assert np.abs(vout.array - fd).max() < 1e-8 * np.abs(fd).max()
 
 
+def _mesh_of_kind(kind):
+    """Two curved cube-sphere particles (Q1), or a unit cube of tetrahedra (P2 displacement)."""
+    import dolfinx
+
+    if kind.startswith("cube"):
+        return particle_mesh([[0, 0, 0], [2.1, 0, 0]], [1.0, 1.0], MPI.COMM_SELF).mesh, None
+    return dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 2, 3, 2, dolfinx.mesh.CellType.tetrahedron), 2
+
+
 @pytest.mark.parametrize("kind", ["cube-sphere Q1", "tetrahedra P2"])
 def test_deformation_gradient_kernel_matches_the_compiled_expression(kind):
     """The threaded F kernel (forms.kinematics) reproduces FFCx's Expression of I + Grad u on
@@ -245,12 +254,7 @@ def test_deformation_gradient_kernel_matches_the_compiled_expression(kind):
 
     import dolfinx
 
-    if kind.startswith("cube"):
-        mesh = particle_mesh([[0, 0, 0], [2.1, 0, 0]], [1.0, 1.0], MPI.COMM_SELF).mesh
-        degree = None
-    else:
-        mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 2, 3, 2, dolfinx.mesh.CellType.tetrahedron)
-        degree = 2
+    mesh, degree = _mesh_of_kind(kind)
     cells = np.arange(0, mesh.topology.index_map(3).size_local, 3)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -275,14 +279,7 @@ def test_deviatoric_force_loop_equals_the_compiled_form(kind, subset):
     the same internal force to round-off, on curved hexahedra and P2 tetrahedra."""
     import warnings
 
-    import dolfinx
-
-    if kind.startswith("cube"):
-        mesh = particle_mesh([[0, 0, 0], [2.1, 0, 0]], [1.0, 1.0], MPI.COMM_SELF).mesh
-        degree = None
-    else:
-        mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 2, 3, 2, dolfinx.mesh.CellType.tetrahedron)
-        degree = 2
+    mesh, degree = _mesh_of_kind(kind)
     cells = np.arange(0, mesh.topology.index_map(3).size_local, 3) if subset else None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

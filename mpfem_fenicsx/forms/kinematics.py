@@ -25,11 +25,22 @@ from ..material.hencky_j2 import inverse3
 _CHUNK = 64  # cells per parallel chunk: scratch matrices are allocated once per chunk
 
 
+@numba.njit(cache=True, inline="always")
+def _reference_jacobian(cell, q, x, gdofs, dpsi, J):
+    """J = sum_a X_a (x) dpsi_a/dxi at point q of ``cell`` (the reference-to-mesh map's gradient)."""
+    J[:] = 0.0
+    for a in range(dpsi.shape[1]):
+        node = gdofs[cell, a]
+        for i in range(3):
+            xi = x[node, i]
+            for j in range(3):
+                J[i, j] += xi * dpsi[q, a, j]
+
+
 @numba.njit(parallel=True, cache=True)
 def _gradients(cells, x, gdofs, dpsi, u, dofs, dphi, out):
     """out[c * npts + q] = I + Grad u at point q of cell cells[c] (dpsi, dphi: (npts, n, 3))."""
     npts = dpsi.shape[0]
-    ng = dpsi.shape[1]
     nd = dphi.shape[1]
     nchunks = (cells.size + _CHUNK - 1) // _CHUNK
     for chunk in numba.prange(nchunks):
@@ -39,13 +50,7 @@ def _gradients(cells, x, gdofs, dpsi, u, dofs, dphi, out):
         for c in range(chunk * _CHUNK, min(cells.size, (chunk + 1) * _CHUNK)):
             cell = cells[c]
             for q in range(npts):
-                J[:] = 0.0  # J = sum_a X_a (x) dpsi_a/dxi
-                for a in range(ng):
-                    node = gdofs[cell, a]
-                    for i in range(3):
-                        xi = x[node, i]
-                        for j in range(3):
-                            J[i, j] += xi * dpsi[q, a, j]
+                _reference_jacobian(cell, q, x, gdofs, dpsi, J)
                 inverse3(J, K)
                 G[:] = 0.0  # G = sum_b u_b (x) dphi_b/dxi, so that Grad u = G J^-1
                 for b in range(nd):
@@ -61,6 +66,15 @@ def _gradients(cells, x, gdofs, dpsi, u, dofs, dphi, out):
                             + G[i, 2] * K[2, j]
 
 
+def reference_derivatives(V, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Reference derivatives (npts, n, 3) of the geometry basis functions and of the (scalar)
+    basis of the space ``V`` at ``points``."""
+    psi = V.mesh.ufl_domain().ufl_coordinate_element().basix_element.tabulate(1, points)
+    phi = V.element.basix_element.tabulate(1, points)  # (4, npts, ndofs, 1) for the scalar element
+    return (np.ascontiguousarray(np.moveaxis(psi[1:4, :, :, 0], 0, -1)),
+            np.ascontiguousarray(np.moveaxis(phi[1:4, :, :, 0], 0, -1)))
+
+
 class DeformationGradients:
     """F at the quadrature ``points`` (reference cell coordinates) of ``cells``, (n, 3, 3)."""
 
@@ -73,11 +87,7 @@ class DeformationGradients:
         self.x = mesh.geometry.x
         self.gdofs = mesh.geometry.dofmaps[0]
         self.dofs = V.dofmap.list
-        # reference derivatives (npts, n, 3) of the geometry and displacement basis functions
-        psi = mesh.ufl_domain().ufl_coordinate_element().basix_element.tabulate(1, points)
-        self.dpsi = np.ascontiguousarray(np.moveaxis(psi[1:4, :, :, 0], 0, -1))
-        phi = V.element.basix_element.tabulate(1, points)  # (4, npts, ndofs, 1) for the scalar element
-        self.dphi = np.ascontiguousarray(np.moveaxis(phi[1:4, :, :, 0], 0, -1))
+        self.dpsi, self.dphi = reference_derivatives(V, points)
         self.out = np.empty((self.cells.size * points.shape[0], 3, 3))
 
     def __call__(self, u=None) -> np.ndarray:
@@ -108,18 +118,11 @@ class DeformationGradients:
 def _inverse_jacobians(cells, x, gdofs, dpsi, out):
     """out[c * npts + q] = J^-1 of the reference-to-mesh map at point q of cell cells[c]."""
     npts = dpsi.shape[0]
-    ng = dpsi.shape[1]
     J = np.empty((3, 3))
     for c in range(cells.size):
         cell = cells[c]
         for q in range(npts):
-            J[:] = 0.0
-            for a in range(ng):
-                node = gdofs[cell, a]
-                for i in range(3):
-                    xi = x[node, i]
-                    for j in range(3):
-                        J[i, j] += xi * dpsi[q, a, j]
+            _reference_jacobian(cell, q, x, gdofs, dpsi, J)
             inverse3(J, out[c * npts + q])
 
 
@@ -157,10 +160,7 @@ class DeviatoricForces:
         mesh = V.mesh
         self.cells = np.asarray(cells, dtype=np.int32)
         self.dofs = V.dofmap.list
-        psi = mesh.ufl_domain().ufl_coordinate_element().basix_element.tabulate(1, points)
-        dpsi = np.ascontiguousarray(np.moveaxis(psi[1:4, :, :, 0], 0, -1))
-        phi = V.element.basix_element.tabulate(1, points)
-        self.dphi = np.ascontiguousarray(np.moveaxis(phi[1:4, :, :, 0], 0, -1))
+        dpsi, self.dphi = reference_derivatives(V, points)
         self.Kinv = np.empty((self.cells.size * points.shape[0], 3, 3))
         _inverse_jacobians(self.cells, mesh.geometry.x, mesh.geometry.dofmaps[0], dpsi, self.Kinv)
         self.volumes = np.ascontiguousarray(point_volumes)
