@@ -174,7 +174,7 @@ class DeviatoricForces:
         """Whether :meth:`add_to` reproduces the assembled ``form`` (int P : Grad v, P the
         quadrature Function ``P_function`` that the form reads) for random stresses written into
         ``material_P`` (the material points' array, restored afterwards)."""
-        import dolfinx.fem.petsc
+        import dolfinx.fem
 
         if not self.cells.size:
             return True
@@ -183,8 +183,7 @@ class DeviatoricForces:
         material_P[:] = rng.uniform(-1.0, 1.0, material_P.shape)
         if P_function.x.array.size and not np.shares_memory(material_P, P_function.x.array):
             width = material_P[0].size * (material_P.shape[0] // self.cells.size)
-            P_function.x.array[: P_function.x.array.size].reshape(-1, width)[self.cells] = \
-                material_P.reshape(self.cells.size, width)
+            P_function.x.array.reshape(-1, width)[self.cells] = material_P.reshape(self.cells.size, width)
         reference = dolfinx.fem.assemble_vector(form)  # local array, ghosts not summed
         ours = np.zeros_like(reference.array)
         self.add_to(material_P, ours)

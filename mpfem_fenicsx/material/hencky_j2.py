@@ -39,15 +39,6 @@ _SQRT_3_2 = np.sqrt(1.5)
 
 
 @numba.njit(cache=True, inline="always")
-def _hardening_slope(p, modulus, exponent, law):
-    if law == 0:
-        if p <= 0.0:
-            return np.inf
-        return modulus * exponent * p ** (exponent - 1.0)
-    return modulus
-
-
-@numba.njit(cache=True, inline="always")
 def _null_vector(b00, b01, b02, b11, b12, b22, beta):
     """Unit vector spanning the null space of the symmetric B - beta I when beta is a simple
     eigenvalue of B (rank 2): the longest of the cross products of two of its rows."""
@@ -361,8 +352,8 @@ def _half_log_near_identity(b):
     while last < 12 and power * r2 > _SERIES_TOLERANCE:
         power *= r2
         last += 1
-    poly = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    poly = _sym_axpi(0.0, poly, 1.0 / (2 * last + 1))
+    c = 1.0 / (2 * last + 1)
+    poly = (c, c, c, 0.0, 0.0, 0.0)
     for k in range(last - 1, -1, -1):  # Horner in z
         poly = _sym_axpi(1.0, _sym_mul(z, poly), 1.0 / (2 * k + 1))
     return _sym_mul(y, poly)
@@ -501,7 +492,8 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
             for B in range(3):
                 a[A, B] = 2.0 * mu * beta * ((1.0 if A == B else 0.0) - 1.0 / 3.0)
         if plastic:
-            slope = _hardening_slope(p_n + dgamma, modulus, exponent, law)
+            p = p_n + dgamma
+            slope = _yield_and_slope(p, _hardening_power(p, exponent, law), s0, modulus, exponent, law)[1]
             coef = 6.0 * mu * mu * (dgamma / q_tr - 1.0 / (three_mu + slope))
             for A in range(3):
                 for B in range(3):
