@@ -24,7 +24,7 @@ import ufl
 from petsc4py import PETSc
 
 from . import forms
-from .forms.kinematics import DeformationGradients, DeviatoricForces
+from .forms.kinematics import DeformationGradients, DeviatoricForces, VolumetricForces
 from .material import ElastoPlastic, HenckyJ2
 
 
@@ -137,6 +137,13 @@ class SolidProblem:
         self._deviatoric_forces = DeviatoricForces(self.V, self.points, self.material_cells, self.point_volumes)
         if not self._deviatoric_forces.matches(self.residual_forms[0], self.P_dev, self.material.P_dev):
             self._deviatoric_forces = None
+        # the volumetric (SRI) force likewise; its points serve the explicit solver's bulk viscosity
+        self._bulk = float(material.bulk)
+        self.volumetric_forces = VolumetricForces(self.V, *basix.make_quadrature(cell_type, self.rules.volumetric),
+                                                  self.material_cells)
+        self._volumetric_loop = self.volumetric_forces.reproduces(
+            self.residual_forms[1], lambda array: self.volumetric_forces.add_volumetric(self.u, self._bulk, array),
+            [(self.u, 1.0)])
         self._jacobian_key = self._packed_key(self.jacobian_forms[0], 81) if tangent else None
         # per-cell integrals of the Kirchhoff stress, on the residual's own quadrature rules
         self._cell_tensors = dolfinx.fem.functionspace(mesh, ("DG", 0, (3, 3)))
@@ -173,6 +180,10 @@ class SolidProblem:
             if k == 0 and self._deviatoric_forces is not None:
                 with b.localForm() as loc:
                     self._deviatoric_forces.add_to(self.material.P_dev, loc.array)
+                continue
+            if k == 1 and self._volumetric_loop:
+                with b.localForm() as loc:
+                    self.volumetric_forces.add_volumetric(self.u, self._bulk, loc.array)
                 continue
             coeffs = self._material_coefficients(self._residual_key, self.material.P_dev) if k == 0 else None
             dolfinx.fem.petsc.assemble_vector(b, form, coeffs=coeffs)

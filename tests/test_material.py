@@ -297,6 +297,47 @@ def test_deviatoric_force_loop_equals_the_compiled_form(kind, subset):
     assert np.abs(ours - b.array).max() <= 1e-13 * np.abs(b.array).max()
 
 
+@pytest.mark.parametrize("kind", ["cube-sphere Q1", "tetrahedra P2"])
+@pytest.mark.parametrize("subset", [False, True], ids=["all cells", "a third of the cells"])
+def test_volumetric_and_bulk_viscosity_loops_equal_the_compiled_forms(kind, subset):
+    """The residual's volumetric part and the explicit solver's bulk-viscosity force by the numba
+    loops at the volumetric points (forms.kinematics.VolumetricForces) and by FFCx's compiled
+    forms, at a random displacement and a random velocity whose volumetric rates, of both signs,
+    make the quadratic (compression-only) term as large as the linear one: the same forces to
+    round-off, on curved hexahedra (one SRI point) and P2 tetrahedra (four points)."""
+    import warnings
+
+    from mpfem_fenicsx.loading import PrescribedDisplacements
+    from mpfem_fenicsx.solvers.explicit import ExplicitSettings, ExplicitSolver
+
+    mesh, degree = _mesh_of_kind(kind)
+    cells = np.arange(0, mesh.topology.index_map(3).size_local, 3) if subset else None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        prob = SolidProblem(mesh, LEAD, degree=degree, active_cells=cells, tangent=False)
+    assert prob._volumetric_loop
+    rng = np.random.default_rng(6)
+    prob.u.x.array[:] = 0.01 * rng.standard_normal(prob.u.x.array.size)  # no cell inverted
+    prob.update_material()
+    b = prob.create_vector()
+    prob.assemble_residual(b)
+    ours = b.array.copy()
+    prob._volumetric_loop = False  # the compiled form
+    prob.assemble_residual(b)
+    assert np.abs(ours - b.array).max() <= 1e-13 * np.abs(b.array).max()
+
+    solver = ExplicitSolver(prob, PrescribedDisplacements(prob.V), ExplicitSettings(t_end=1e-5, target_dt=1e-7))
+    assert solver._viscous_loop
+    rate = solver._rate_scale(solver.settings)  # |tr grad_x v| at which both terms are equal
+    solver.velocity.x.array[:] = rate * 0.05 * rng.standard_normal(solver.velocity.x.array.size)
+    solver._forces()
+    ours = solver.f_visc.array.copy()
+    solver._viscous_loop = False
+    solver._forces()
+    reference = solver.f_visc.array
+    assert np.abs(ours - reference).max() <= 1e-12 * np.abs(reference).max()
+
+
 def test_cell_stress_integrals_are_the_stress_the_internal_forces_carry():
     """``SolidProblem.cell_stress_integrals`` (int sigma dv per cell, the volume-averaged stress of
     thesis eq. C.7) against two independent measures: the analytic Hencky stress of a homogeneous

@@ -12,7 +12,9 @@ checks it against the Expression once, and the caller falls back to the Expressi
 
 The residual's deviatoric part int P_dev : Grad v dX (:class:`DeviatoricForces`) is assembled the
 same way, with the inverse Jacobians J^-1 and the points' reference volumes stored once: 35-40 %
-less time than the FFCx-compiled form on Q1 hexahedra (bench/README.md), checked against it once.
+less time than the FFCx-compiled form on Q1 hexahedra (bench/README.md), checked against it once;
+:class:`VolumetricForces` does the same at the volumetric (SRI) points for the residual's
+volumetric part K ln(J) F^-T and the explicit solver's bulk viscosity.
 """
 
 from __future__ import annotations
@@ -115,15 +117,58 @@ class DeformationGradients:
 
 
 @numba.njit(cache=True)
-def _inverse_jacobians(cells, x, gdofs, dpsi, out):
-    """out[c * npts + q] = J^-1 of the reference-to-mesh map at point q of cell cells[c]."""
+def _inverse_jacobians(cells, x, gdofs, dpsi, out, dets):
+    """out[c * npts + q] = J^-1 and dets[c * npts + q] = |det J| of the reference-to-mesh map at
+    point q of cell cells[c]."""
     npts = dpsi.shape[0]
     J = np.empty((3, 3))
     for c in range(cells.size):
         cell = cells[c]
         for q in range(npts):
             _reference_jacobian(cell, q, x, gdofs, dpsi, J)
-            inverse3(J, out[c * npts + q])
+            dets[c * npts + q] = abs(inverse3(J, out[c * npts + q]))
+
+
+def _point_geometry(V, points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What a force loop over ``points`` of ``cells`` needs once (total Lagrangian): the reference
+    derivatives of V's scalar basis (npts, n, 3), J^-1 (n_cells npts, 3, 3) and |det J|."""
+    mesh = V.mesh
+    dpsi, dphi = reference_derivatives(V, points)
+    Kinv = np.empty((cells.size * points.shape[0], 3, 3))
+    dets = np.empty(cells.size * points.shape[0])
+    _inverse_jacobians(cells, mesh.geometry.x, mesh.geometry.dofmaps[0], dpsi, Kinv, dets)
+    return dphi, Kinv, dets
+
+
+@numba.njit(cache=True, inline="always")
+def _spatial_derivatives(q, dphi, K, scale, d):
+    """d[b, J] = scale dphi_b/dX_J at point q, dphi_b/dX_J = sum_k dphi_b/dxi_k (J^-1)_kJ."""
+    for b in range(dphi.shape[1]):
+        for j in range(3):
+            d[b, j] = (dphi[q, b, 0] * K[0, j] + dphi[q, b, 1] * K[1, j] + dphi[q, b, 2] * K[2, j]) * scale
+
+
+@numba.njit(cache=True, inline="always")
+def _nodal_gradient(cell, dofs, d, w, G):
+    """G = sum_b w_b (x) d_b over the dofs of ``cell`` (w a blocked (3) nodal array, d the
+    derivatives of :func:`_spatial_derivatives` with scale 1: G = Grad w)."""
+    G[:] = 0.0
+    for b in range(d.shape[0]):
+        dof = dofs[cell, b]
+        for i in range(3):
+            wi = w[3 * dof + i]
+            for j in range(3):
+                G[i, j] += wi * d[b, j]
+
+
+@numba.njit(cache=True, inline="always")
+def _add_pressure_forces(cell, dofs, d, scale, Finv, out):
+    """out[3 dof_b + i] += scale sum_J d_bJ (F^-1)_Ji: the nodal forces of P = scale F^-T, i.e.
+    of a Kirchhoff pressure stress scale I at a point of reference volume 1 (d in 1/mm)."""
+    for b in range(d.shape[0]):
+        dof = dofs[cell, b]
+        for i in range(3):
+            out[3 * dof + i] += scale * (d[b, 0] * Finv[0, i] + d[b, 1] * Finv[1, i] + d[b, 2] * Finv[2, i])
 
 
 @numba.njit(cache=True)
@@ -137,11 +182,7 @@ def _add_deviatoric_forces(cells, dofs, dphi, Kinv, volumes, P, out):
         cell = cells[c]
         for q in range(npts):
             row = c * npts + q
-            K = Kinv[row]
-            dV = volumes[row]
-            for b in range(nd):  # dphi_b/dX_J dV = sum_k dphi_b/dxi_k (J^-1)_kJ dV
-                for j in range(3):
-                    g[b, j] = (dphi[q, b, 0] * K[0, j] + dphi[q, b, 1] * K[1, j] + dphi[q, b, 2] * K[2, j]) * dV
+            _spatial_derivatives(q, dphi, Kinv[row], volumes[row], g)
             p = P[row]
             for b in range(nd):
                 dof = dofs[cell, b]
@@ -157,12 +198,9 @@ class DeviatoricForces:
     once against the FFCx-compiled form, and the caller falls back to it otherwise."""
 
     def __init__(self, V, points: np.ndarray, cells: np.ndarray, point_volumes: np.ndarray):
-        mesh = V.mesh
         self.cells = np.asarray(cells, dtype=np.int32)
         self.dofs = V.dofmap.list
-        dpsi, self.dphi = reference_derivatives(V, points)
-        self.Kinv = np.empty((self.cells.size * points.shape[0], 3, 3))
-        _inverse_jacobians(self.cells, mesh.geometry.x, mesh.geometry.dofmaps[0], dpsi, self.Kinv)
+        self.dphi, self.Kinv, _ = _point_geometry(V, points, self.cells)
         self.volumes = np.ascontiguousarray(point_volumes)
 
     def add_to(self, P_dev: np.ndarray, array: np.ndarray) -> None:
@@ -189,5 +227,109 @@ class DeviatoricForces:
         self.add_to(material_P, ours)
         material_P[:] = saved_P
         P_function.x.array[:] = saved_fn
+        scale = max(np.abs(reference.array).max(), 1e-300)
+        return bool(np.abs(ours - reference.array).max() <= rtol * scale)
+
+
+@numba.njit(cache=True, inline="always")
+def _deformation_at(cell, q, dofs, dphi, K, u, d, F, Finv):
+    """At point q of ``cell`` (K = J^-1 there): d = dphi/dX, F = I + Grad u, Finv = F^-1; returns
+    det F."""
+    _spatial_derivatives(q, dphi, K, 1.0, d)
+    _nodal_gradient(cell, dofs, d, u, F)
+    for i in range(3):
+        F[i, i] += 1.0
+    return inverse3(F, Finv)
+
+
+@numba.njit(cache=True)
+def _add_volumetric_forces(cells, dofs, dphi, Kinv, volumes, u, bulk, out):
+    """out += int K ln(J) F^-T : Grad v dX at the points of ``cells`` (one thread)."""
+    npts = dphi.shape[0]
+    d = np.empty((dphi.shape[1], 3))
+    F = np.empty((3, 3))
+    Finv = np.empty((3, 3))
+    for c in range(cells.size):
+        cell = cells[c]
+        for q in range(npts):
+            row = c * npts + q
+            J = _deformation_at(cell, q, dofs, dphi, Kinv[row], u, d, F, Finv)
+            _add_pressure_forces(cell, dofs, d, bulk * np.log(J) * volumes[row], Finv, out)
+
+
+@numba.njit(cache=True)
+def _add_bulk_viscosity_forces(cells, dofs, dphi, Kinv, volumes, u, velocity, cell_dofs, density, wave_speed,
+                               cell_length, linear, quadratic, out):
+    """out += int J sigma_bv : grad_x v dX at the points of ``cells`` (``bulk.bulk_viscosity_work``;
+    density, wave_speed, cell_length: cell values at ``cell_dofs[cell]``; one thread)."""
+    npts = dphi.shape[0]
+    d = np.empty((dphi.shape[1], 3))
+    F = np.empty((3, 3))
+    Finv = np.empty((3, 3))
+    L = np.empty((3, 3))
+    for c in range(cells.size):
+        cell = cells[c]
+        k = cell_dofs[cell]
+        rho, length = density[k], cell_length[k]
+        for q in range(npts):
+            row = c * npts + q
+            J = _deformation_at(cell, q, dofs, dphi, Kinv[row], u, d, F, Finv)
+            _nodal_gradient(cell, dofs, d, velocity, L)
+            rate = 0.0  # tr(grad_x velocity) = tr(Grad velocity F^-1)
+            for i in range(3):
+                for j in range(3):
+                    rate += L[i, j] * Finv[j, i]
+            pressure = linear * rho * wave_speed[k] * length * rate
+            if rate < 0.0:
+                pressure -= rho * (quadratic * length * rate) ** 2
+            _add_pressure_forces(cell, dofs, d, J * pressure * volumes[row], Finv, out)
+
+
+class VolumetricForces:
+    """The forces of the volumetric rule's points (one per hexahedron, SRI) by numba loops, with
+    J^-1 and the points' reference volumes stored once (total Lagrangian): the residual's second
+    form int K ln(J) F^-T : Grad v dX (``bulk.internal_work``) and the bulk viscosity's
+    int J sigma_bv : grad_x v dX (``bulk.bulk_viscosity_work``), added into local (ghosted) vector
+    arrays. Same assumptions as :class:`DeformationGradients`: :meth:`reproduces` checks each
+    against its FFCx-compiled form once, and the caller falls back to the form otherwise."""
+
+    def __init__(self, V, points: np.ndarray, weights: np.ndarray, cells: np.ndarray):
+        self.cells = np.asarray(cells, dtype=np.int32)
+        self.dofs = V.dofmap.list
+        self.dphi, self.Kinv, dets = _point_geometry(V, points, self.cells)
+        self.volumes = dets * np.tile(weights, self.cells.size)
+
+    def add_volumetric(self, u, bulk: float, array: np.ndarray) -> None:
+        """array += the volumetric internal force (N) of the displacement Function ``u`` (mm) for
+        the bulk modulus ``bulk`` (MPa)."""
+        _add_volumetric_forces(self.cells, self.dofs, self.dphi, self.Kinv, self.volumes, u.x.array, float(bulk),
+                               array)
+
+    def add_bulk_viscosity(self, u, velocity, density, wave_speed, cell_length, linear: float, quadratic: float,
+                           array: np.ndarray) -> None:
+        """array += the bulk-viscosity force (N) at displacement ``u`` (mm) and ``velocity`` (mm/s);
+        ``density`` (t/mm^3), ``wave_speed`` (mm/s), ``cell_length`` (mm): cell-wise (DG0) Functions."""
+        cell_dofs = density.function_space.dofmap.list[:, 0]
+        _add_bulk_viscosity_forces(self.cells, self.dofs, self.dphi, self.Kinv, self.volumes, u.x.array,
+                                   velocity.x.array, cell_dofs, density.x.array, wave_speed.x.array,
+                                   cell_length.x.array, float(linear), float(quadratic), array)
+
+    @staticmethod
+    def reproduces(form, add, fields, rtol: float = 1e-12) -> bool:
+        """Whether ``add(array)`` reproduces the assembled ``form`` with the vector Functions
+        ``fields`` (that the form reads) set to smooth non-affine fields, the k-th scaled by
+        ``fields[k][1]`` (their values restored afterwards)."""
+        import dolfinx.fem
+
+        saved = [f.x.array.copy() for f, _ in fields]
+        for k, (f, scale) in enumerate(fields):
+            f.interpolate(lambda x, k=k, s=scale: s * np.stack([
+                0.01 * np.sin(x[1] + 2 * x[2] + k), 0.02 * np.cos(x[0] * x[2] - k),
+                0.015 * np.sin(x[0] - x[1] + 2 * k) * x[2]]))
+        reference = dolfinx.fem.assemble_vector(form)  # local array, ghosts not summed
+        ours = np.zeros_like(reference.array)
+        add(ours)
+        for (f, _), values in zip(fields, saved):
+            f.x.array[:] = values
         scale = max(np.abs(reference.array).max(), 1e-300)
         return bool(np.abs(ours - reference.array).max() <= rtol * scale)

@@ -174,6 +174,11 @@ class ExplicitSolver:
             problem.u, self.velocity, v, self.density, self.scaling.wave_speed, self.scaling.cell_length,
             dolfinx.fem.Constant(mesh, settings.bulk_viscosity_linear),
             dolfinx.fem.Constant(mesh, settings.bulk_viscosity_quadratic), problem.dx_vol))
+        # the same force by the problem's numba loop at the volumetric points, when it reproduces
+        # the form (checked with rates large enough for the quadratic term to count)
+        self._viscous_loop = problem.volumetric_forces.reproduces(
+            self.viscous_form, self._add_viscous_forces,
+            [(problem.u, 1.0), (self.velocity, 50.0 * self._rate_scale(settings))])
 
         self.f_int = problem.create_vector()
         self.f_visc = problem.create_vector()
@@ -318,6 +323,20 @@ class ExplicitSolver:
         return contact.nodal_stiffness()[contact.surface.owned_nodes]
 
     # -- forces ------------------------------------------------------------------------------
+    def _add_viscous_forces(self, array: np.ndarray) -> None:
+        s, scaling = self.settings, self.scaling
+        self.problem.volumetric_forces.add_bulk_viscosity(
+            self.problem.u, self.velocity, self.density, scaling.wave_speed, scaling.cell_length,
+            s.bulk_viscosity_linear, s.bulk_viscosity_quadratic, array)
+
+    def _rate_scale(self, settings: ExplicitSettings) -> float:
+        """A volumetric rate (1/s) at which the quadratic bulk-viscosity term is as large as the
+        linear one, b1 c_d / (b2 L_e) (median cell), for checking both (the check's velocity
+        field has gradients of about 0.02 per unit scale)."""
+        c = np.median(self.scaling.wave_speed.x.array) if self.scaling.wave_speed.x.array.size else 1.0
+        length = np.median(self.scaling.cell_length.x.array) if self.scaling.cell_length.x.array.size else 1.0
+        return float(settings.bulk_viscosity_linear * c / (settings.bulk_viscosity_quadratic * length))
+
     def _assemble(self, vec: PETSc.Vec, form) -> None:
         with vec.localForm() as loc:
             loc.set(0.0)
@@ -330,7 +349,13 @@ class ExplicitSolver:
             self.problem.commit()
         with self.timings("assembly"):
             self.problem.assemble_residual(self.f_int)
-            self._assemble(self.f_visc, self.viscous_form)
+            if self._viscous_loop:
+                with self.f_visc.localForm() as loc:
+                    loc.set(0.0)
+                    self._add_viscous_forces(loc.array)
+                self.f_visc.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            else:
+                self._assemble(self.f_visc, self.viscous_form)
             with self.f_cont.localForm() as loc:
                 loc.set(0.0)
         if self.contact is not None:
