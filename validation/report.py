@@ -360,28 +360,33 @@ def dbc_rows(done: dict) -> tuple[list[dict], list[str]]:
 def size_rows(done: dict) -> tuple[list[dict], list[str]]:
     """Thesis §2.8 (fig. 2.26): with more particles (GDF, isotropic) the deviatoric stress and
     strain fall and sigma_m(rho) moves towards the CLP curve. h_d is compared above the centroid
-    fit's noise (``drift_noise``), which itself falls with N (tr M^-1 ~ 1 / N)."""
+    fit's noise (``drift_noise``), which itself falls with N (tr M^-1 ~ 1 / N). The gap to CLP is
+    judged at the end (rho_imposed 0.95, as the periodic table's "below CLP at the end"): at equal
+    centroid density the 50-particle GDF volume already lies on the CLP curve within 1 % (0.0 % at
+    0.90), where no approach can be told from the packings' spread; that reading is shown too."""
     lines = ["| run | end sigma_d (MPa) | end h_d | the centroid fit's noise, end | end h_d above the noise | "
-             "sigma_m at rho 0.90 (MPa) | gap to CLP at rho 0.90 |", "|---|---|---|---|---|---|---|"]
+             "sigma_m at rho 0.90 (centroids, MPa) | gap to CLP there | end sigma_m (rho_imposed 0.95, MPa) | "
+             "below CLP at the end |", "|---|---|---|---|---|---|---|---|---|"]
     rows, summary = [], {}
     clp = done.get("isotropic_CLP")
     for name in ("isotropic_GDF", "size_GDF_150", "isotropic_CLP"):
         run = done.get(name)
         if run is None:
-            lines.append(f"| {name} | not run yet | | | | | |")
+            lines.append(f"| {name} | not run yet | | | | | | | |")
             continue
         h = run["history"]
         s90 = at_density(h, "sigma_m", 0.90)
         gap = (1 - s90 / at_density(clp["history"], "sigma_m", 0.90)) if clp is not None else float("nan")
+        below = (1 - h["sigma_m"][-1] / clp["history"]["sigma_m"][-1]) if clp is not None else float("nan")
         noise = drift_noise(run)[-1]
         h_d = float(drift_above_noise(h["h_d"][-1], noise, h["h_v"][-1]) * abs(h["h_v"][-1]))
-        summary[name] = (h["sigma_d"][-1], h_d, abs(gap))
+        summary[name] = (h["sigma_d"][-1], h_d, abs(below))
         lines.append(f"| {name} | {h['sigma_d'][-1]:.3f} | {h['h_d'][-1]:.4f} | {noise:.4f} | {h_d:.4f} | {s90:.2f} | "
-                     f"{100 * gap:+.1f} % |")
+                     f"{100 * gap:+.1f} % | {h['sigma_m'][-1]:.2f} | {100 * below:+.1f} % |")
     if "isotropic_GDF" in summary and "size_GDF_150" in summary and clp is not None:
         small, large = summary["isotropic_GDF"], summary["size_GDF_150"]
         for k, quantity in enumerate(("end sigma_d falls with N", "end h_d above the centroid fit's noise falls with N",
-                                      "gap to CLP at rho 0.90 falls with N")):
+                                      "end gap to CLP (rho_imposed 0.95) falls with N")):
             ok = large[k] < small[k]
             rows.append(judged_row("size_GDF", quantity, 1.0, float(ok), ok, deviation=0.0 if ok else float("nan")))
     return rows, lines
@@ -870,20 +875,24 @@ def dbc_figure(done: dict, path: Path) -> None:
 
 def size_figure(done: dict, path: Path) -> None:
     """Thesis §2.8, fig. 2.26: GDF under isotropic loading with 50 and 150 particles against the
-    50-particle CLP curve: sigma_m(rho) and the deviatoric stress sigma_d(rho)."""
+    50-particle CLP curve: sigma_m against the centroids' and the imposed density, and the
+    deviatoric stress sigma_d(rho)."""
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
     runs = (("isotropic_GDF", "GDF, 50 particles", "C2", "-"), ("size_GDF_150", "GDF, 150 particles", "C2", "--"),
             ("isotropic_CLP", "CLP, 50 particles", "C0", "-"))
-    for ax, column, ylabel in zip(axes, ("sigma_m", "sigma_d"), ("sigma_m (MPa)", "sigma_d (MPa)")):
+    panels = (("rho", "sigma_m", "relative density (volume's centroids)", "sigma_m (MPa)"),
+              ("rho_imposed", "sigma_m", "relative density (imposed)", "sigma_m (MPa)"),
+              ("rho", "sigma_d", "relative density (volume's centroids)", "sigma_d (MPa)"))
+    for ax, (density, column, xlabel, ylabel) in zip(axes, panels):
         for name, label, colour, style in runs:
             run = done.get(name)
             if run is not None:
-                ax.plot(run["history"]["rho"], run["history"][column], style, color=colour, label=label)
+                ax.plot(run["history"][density], run["history"][column], style, color=colour, label=label)
             else:
                 ax.plot([], [], style, color=colour, label=f"{label}: not run yet")
-        _axis(ax, "relative density (volume's centroids)", ylabel)
+        _axis(ax, xlabel, ylabel)
     axes[0].set_title("Size effect, isotropic compaction (thesis fig. 2.26)")
     _write(fig, path)
 
