@@ -156,6 +156,32 @@ def test_size_effect_on_h_d_is_read_above_the_fit_noise():
     assert falls(0.02, 0.01) == "met"
 
 
+def test_size_effect_gap_is_read_against_clp_on_the_same_packing():
+    """The GDF-CLP gap at each size is taken against the CLP run of that size (the packings' own
+    spread is not the boundary condition's): a 150-particle CLP curve 10 % below the 50-particle
+    one must not read as the GDF curve approaching CLP; without the 150-particle CLP run the gap
+    is not judged."""
+    rho = np.linspace(0.6, 0.95, 15)
+    h_v = -np.log(rho / 0.6)
+
+    def run(level):
+        return {"history": {"rho": rho, "rho_imposed": rho, "h_v": h_v, "h_d": 0 * rho, "sigma_m": level * h_v,
+                            "sigma_d": 0 * rho + 0.1}}
+
+    runs = {"isotropic_GDF": run(18.0), "isotropic_CLP": run(20.0), "size_GDF_150": run(17.0)}
+
+    def gap_status():
+        rows, _ = report.size_rows(runs)
+        gaps = [r for r in rows if "gap" in r["quantity"]]
+        return gaps[0]["status"] if gaps else None
+
+    assert gap_status() is None  # no CLP on the 150-particle packing: not judged
+    runs["size_CLP_150"] = run(18.0)  # 150: 5.6 % below its own CLP; 50: 10 %
+    assert gap_status() == "met"
+    runs["size_CLP_150"] = run(20.0)  # the same CLP level: 15 % below, further than at 50
+    assert gap_status() == "not met"
+
+
 def test_stable_dbc_is_where_the_tail_settles():
     assert report.stable_dbc([1.5, 2.0, 2.5], [8.0, 9.6, 9.7]) == 2.0
     assert report.stable_dbc([1.0, 1.5, 2.0, 2.5], [11.2, 11.25, 11.1, 11.3]) == 1.0
