@@ -365,7 +365,10 @@ def test_mpirun_two_ranks_run_and_restart(tiny_run, tmp_path, root):
             continue
         family = name.rstrip("0123456789_")
         scale = max(np.nanmax(np.abs(serial[k])) for k in serial if k.rstrip("0123456789_") == family) + 1e-30
-        assert np.nanmax(np.abs(serial[name] - a[name])) <= 1e-5 * scale, name
+        # a ratio is compared where its denominator is above round-off: at rest (the first row,
+        # energies of 1e-32 mJ) E_c / E_int is a ratio of summation noise (E_c, E_int are compared as such)
+        rows = serial["E_int"] > 1e-12 * np.nanmax(serial["E_int"]) if name == "E_c_over_E_int" else slice(None)
+        assert np.nanmax(np.abs(serial[name][rows] - a[name][rows])) <= 1e-5 * scale, name
         np.testing.assert_array_equal(a[name], b[name], err_msg=name)
     # a checkpoint of 2 ranks is refused by a serial restart, with the command to use
     from mpfem_fenicsx.cli.main import main as mpfem
