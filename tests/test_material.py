@@ -271,12 +271,9 @@ def test_deformation_gradient_kernel_matches_the_compiled_expression(kind):
     assert np.array_equal(packed, prob.material.P_dev.reshape(cells.size, -1))
 
 
-@pytest.mark.parametrize("kind", ["cube-sphere Q1", "tetrahedra P2"])
-@pytest.mark.parametrize("subset", [False, True], ids=["all cells", "a third of the cells"])
-def test_deviatoric_force_loop_equals_the_compiled_form(kind, subset):
-    """The residual's deviatoric part by the numba loop (forms.kinematics.DeviatoricForces, stored
-    inverse Jacobians) and by FFCx's compiled form, after plastic flow at a random displacement:
-    the same internal force to round-off, on curved hexahedra and P2 tetrahedra."""
+def _plastic_problem(kind, subset, seed):
+    """A problem on ``_mesh_of_kind(kind)`` (material on every third cell if ``subset``) after
+    plastic flow at a random displacement (no cell inverted), and the random generator."""
     import warnings
 
     mesh, degree = _mesh_of_kind(kind)
@@ -284,17 +281,31 @@ def test_deviatoric_force_loop_equals_the_compiled_form(kind, subset):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         prob = SolidProblem(mesh, LEAD, degree=degree, active_cells=cells, tangent=False)
-    assert prob._deviatoric_forces is not None
-    rng = np.random.default_rng(4)
-    prob.u.x.array[:] = 0.01 * rng.standard_normal(prob.u.x.array.size)  # no cell inverted
+    rng = np.random.default_rng(seed)
+    prob.u.x.array[:] = 0.01 * rng.standard_normal(prob.u.x.array.size)
     prob.update_material()
-    assert (prob.material.eps_p_trial > 0).mean() > 0.5
+    return prob, rng
+
+
+def _internal_force(prob):
     b = prob.create_vector()
     prob.assemble_residual(b)
-    ours = b.array.copy()
+    return b.array.copy()
+
+
+@pytest.mark.parametrize("kind", ["cube-sphere Q1", "tetrahedra P2"])
+@pytest.mark.parametrize("subset", [False, True], ids=["all cells", "a third of the cells"])
+def test_deviatoric_force_loop_equals_the_compiled_form(kind, subset):
+    """The residual's deviatoric part by the numba loop (forms.kinematics.DeviatoricForces, stored
+    inverse Jacobians) and by FFCx's compiled form, after plastic flow at a random displacement:
+    the same internal force to round-off, on curved hexahedra and P2 tetrahedra."""
+    prob, _ = _plastic_problem(kind, subset, seed=4)
+    assert prob._deviatoric_forces is not None
+    assert (prob.material.eps_p_trial > 0).mean() > 0.5
+    ours = _internal_force(prob)
     prob._deviatoric_forces = None  # the compiled form
-    prob.assemble_residual(b)
-    assert np.abs(ours - b.array).max() <= 1e-13 * np.abs(b.array).max()
+    reference = _internal_force(prob)
+    assert np.abs(ours - reference).max() <= 1e-13 * np.abs(reference).max()
 
 
 @pytest.mark.parametrize("kind", ["cube-sphere Q1", "tetrahedra P2"])
@@ -305,30 +316,19 @@ def test_volumetric_and_bulk_viscosity_loops_equal_the_compiled_forms(kind, subs
     forms, at a random displacement and a random velocity whose volumetric rates, of both signs,
     make the quadratic (compression-only) term as large as the linear one: the same forces to
     round-off, on curved hexahedra (one SRI point) and P2 tetrahedra (four points)."""
-    import warnings
-
     from mpfem_fenicsx.loading import PrescribedDisplacements
     from mpfem_fenicsx.solvers.explicit import ExplicitSettings, ExplicitSolver
 
-    mesh, degree = _mesh_of_kind(kind)
-    cells = np.arange(0, mesh.topology.index_map(3).size_local, 3) if subset else None
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        prob = SolidProblem(mesh, LEAD, degree=degree, active_cells=cells, tangent=False)
+    prob, rng = _plastic_problem(kind, subset, seed=6)
     assert prob._volumetric_loop
-    rng = np.random.default_rng(6)
-    prob.u.x.array[:] = 0.01 * rng.standard_normal(prob.u.x.array.size)  # no cell inverted
-    prob.update_material()
-    b = prob.create_vector()
-    prob.assemble_residual(b)
-    ours = b.array.copy()
+    ours = _internal_force(prob)
     prob._volumetric_loop = False  # the compiled form
-    prob.assemble_residual(b)
-    assert np.abs(ours - b.array).max() <= 1e-13 * np.abs(b.array).max()
+    reference = _internal_force(prob)
+    assert np.abs(ours - reference).max() <= 1e-13 * np.abs(reference).max()
 
     solver = ExplicitSolver(prob, PrescribedDisplacements(prob.V), ExplicitSettings(t_end=1e-5, target_dt=1e-7))
     assert solver._viscous_loop
-    rate = solver._rate_scale(solver.settings)  # |tr grad_x v| at which both terms are equal
+    rate = solver._rate_scale()  # |tr grad_x v| at which both terms are equal
     solver.velocity.x.array[:] = rate * 0.05 * rng.standard_normal(solver.velocity.x.array.size)
     solver._forces()
     ours = solver.f_visc.array.copy()

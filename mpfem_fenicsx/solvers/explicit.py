@@ -178,7 +178,7 @@ class ExplicitSolver:
         # the form (checked with rates large enough for the quadratic term to count)
         self._viscous_loop = problem.volumetric_forces.reproduces(
             self.viscous_form, self._add_viscous_forces,
-            [(problem.u, 1.0), (self.velocity, 50.0 * self._rate_scale(settings))])
+            [(problem.u, 1.0), (self.velocity, 50.0 * self._rate_scale())])
 
         self.f_int = problem.create_vector()
         self.f_visc = problem.create_vector()
@@ -329,13 +329,14 @@ class ExplicitSolver:
             self.problem.u, self.velocity, self.density, scaling.wave_speed, scaling.cell_length,
             s.bulk_viscosity_linear, s.bulk_viscosity_quadratic, array)
 
-    def _rate_scale(self, settings: ExplicitSettings) -> float:
+    def _rate_scale(self) -> float:
         """A volumetric rate (1/s) at which the quadratic bulk-viscosity term is as large as the
         linear one, b1 c_d / (b2 L_e) (median cell), for checking both (the check's velocity
         field has gradients of about 0.02 per unit scale)."""
         c = np.median(self.scaling.wave_speed.x.array) if self.scaling.wave_speed.x.array.size else 1.0
         length = np.median(self.scaling.cell_length.x.array) if self.scaling.cell_length.x.array.size else 1.0
-        return float(settings.bulk_viscosity_linear * c / (settings.bulk_viscosity_quadratic * length))
+        s = self.settings
+        return float(s.bulk_viscosity_linear * c / (s.bulk_viscosity_quadratic * length))
 
     def _assemble(self, vec: PETSc.Vec, form) -> None:
         with vec.localForm() as loc:
