@@ -182,6 +182,34 @@ def test_size_effect_gap_is_read_against_clp_on_the_same_packing():
     assert gap_status() == "not met"
 
 
+def test_size_effect_must_exceed_the_spread_of_the_50_particle_packings():
+    """With a second 50-particle packing a quantity "falls with N" only if the 150-particle value
+    is below both packings' values: a 150-particle gap to CLP between the two 50-particle gaps is
+    not a fall; the sigma_d that falls below both is."""
+    rho = np.linspace(0.6, 0.95, 15)
+    h_v = -np.log(rho / 0.6)
+
+    def run(level, sigma_d=0.1):
+        return {"history": {"rho": rho, "rho_imposed": rho, "h_v": h_v, "h_d": 0 * rho, "sigma_m": level * h_v,
+                            "sigma_d": 0 * rho + sigma_d}}
+
+    runs = {"isotropic_GDF": run(18.0, 0.3), "isotropic_CLP": run(20.0),
+            "size_GDF_150": run(17.0, 0.1), "size_CLP_150": run(18.0)}  # gaps 10 % and 5.6 %
+
+    def status(word):
+        rows, lines = report.size_rows(runs)
+        return next(r for r in rows if word in r["quantity"])["status"], lines
+
+    assert status("gap")[0] == "met"
+    runs["size_GDF_50_seed2"], runs["size_CLP_50_seed2"] = run(19.4, 0.2), run(20.0)  # a 3 % gap
+    gap, lines = status("gap")
+    assert gap == "not met"
+    assert status("end sigma_d")[0] == "met"  # 0.1 below 0.3 and 0.2
+    assert sum("size_GDF_50_seed2" in line for line in lines) == 1
+    runs["size_GDF_50_seed2"] = run(19.4, 0.05)
+    assert status("end sigma_d")[0] == "not met"
+
+
 def test_stable_dbc_is_where_the_tail_settles():
     assert report.stable_dbc([1.5, 2.0, 2.5], [8.0, 9.6, 9.7]) == 2.0
     assert report.stable_dbc([1.0, 1.5, 2.0, 2.5], [11.2, 11.25, 11.1, 11.3]) == 1.0

@@ -128,12 +128,14 @@ def dbc_case(bc: str, d_bc: float) -> Case:
     return Case(f"dbc_{bc}_{d_bc:g}", options)
 
 
-def size_case(particles: int, bc: str = "GDF") -> Case:
+def size_case(particles: int, bc: str = "GDF", seed: int = 1) -> Case:
     """Isotropic compaction of ``particles`` (thesis §2.8, fig. 2.26: GDF, 50 to 1 000); with
     bc="CLP" the periodic reference on the same packing, so that the GDF-CLP gap at each size is
-    free of the packings' spread."""
-    return Case(f"size_{bc}_{particles}", dict(loading="isotropic", bc=bc, target_density=0.95,
-                                               particles=particles))
+    free of the packings' spread; ``seed`` another packing of the same size (the spread that a
+    difference between sizes must exceed)."""
+    suffix = "" if seed == 1 else f"_seed{seed}"
+    return Case(f"size_{bc}_{particles}{suffix}", dict(loading="isotropic", bc=bc, target_density=0.95,
+                                                       particles=particles, seed=seed))
 
 
 def adhesive_case(loading: str, delta_max: float | None = None, bc: str = "CLP") -> Case:
@@ -247,7 +249,9 @@ STAGES = {
     #: the die stage's increments: CLPS and GDF lose stress as the ramp decelerates (42 / 4.6 %)
     #: CLPS at 1.0 r_max (146 particles, the same 30-40 % end loss): the rate question at a third the cost
     "increments": [slow_die_case("CLPS", 12000), slow_die_case("GDF", 12000), slow_die_case("CLPS", 12000, d_bc=1.0)],
-    "size": [size_case(150), size_case(150, "CLP")],  # with isotropic_GDF and isotropic_CLP (50)
+    #: with isotropic_GDF and isotropic_CLP (50 particles, seed 1); a second 50-particle packing
+    #: gives the spread of the 50-particle values
+    "size": [size_case(150), size_case(150, "CLP"), size_case(50, seed=2), size_case(50, "CLP", seed=2)],
     "gamma": [adhesive_case("isotropic"), adhesive_case("isotropic", bc="GDF"), adhesive_case("die"),
               adhesive_case("die", bc="GDF")],
     #: the thesis' contradictions: n 0.35 (table 2.1) / 0.36 (input file), delta_max 0.5 um
