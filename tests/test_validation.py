@@ -210,6 +210,37 @@ def test_size_effect_must_exceed_the_spread_of_the_50_particle_packings():
     assert status("end sigma_d")[0] == "not met"
 
 
+def test_die_ordering_reads_the_quasi_static_run():
+    """The ordering CLP > CLPS > GDF reads each condition's die run unless it fails its
+    quasi-static check and its run with more increments passes it: a CLPS end lost to the ramp's
+    deceleration (30 % of the work through the carrier) is replaced by its slower repeat; a
+    slower repeat that fails too is not."""
+    rho = np.linspace(0.6, 0.95, 15)
+
+    def run(end, carrier_share):
+        sigma = end * ((rho - 0.6) / 0.35) ** 2
+        w = np.linspace(0.0, 5.0, rho.size)
+        history = {"rho": rho, "rho_imposed": rho, "rho_fe": 0.97 * rho, "sigma_m": sigma, "W_ext": w,
+                   "E_int": (1 + carrier_share) * w, "E_visc": 0 * w, "E_contact": 0 * w, "E_c": 0 * w,
+                   "E_damp": 0 * w, "unbalanced": 0 * w + 0.01}
+        return {"history": history, "wall_s": 60.0}
+
+    done = {"die_CLP": run(13.6, 0.01), "die_CLPS": run(5.9, 0.31), "die_GDF": run(10.6, 0.02),
+            "die_CLPS_n12000": run(11.0, 0.30)}
+
+    def ordering():
+        rows, lines = report.die_rows(done)
+        return next(r for r in rows if "ordering" in r["quantity"])["status"], lines[-1]
+
+    status, line = ordering()
+    assert status == "not met" and "`die_CLPS` (5.90 MPa)" in line  # the slow run fails its check too
+    done["die_CLPS_n12000"] = run(11.0, 0.03)
+    status, line = ordering()
+    assert status == "met" and "`die_CLPS_n12000` (11.00 MPa)" in line
+    done["die_CLPS_n12000"] = run(10.0, 0.03)
+    assert ordering()[0] == "not met"  # below GDF
+
+
 def test_stable_dbc_is_where_the_tail_settles():
     assert report.stable_dbc([1.5, 2.0, 2.5], [8.0, 9.6, 9.7]) == 2.0
     assert report.stable_dbc([1.0, 1.5, 2.0, 2.5], [11.2, 11.25, 11.1, 11.3]) == 1.0
