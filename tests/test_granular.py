@@ -145,6 +145,52 @@ def test_gdf_volume_takes_its_work_through_the_boundary(tmp_path):
     assert np.abs(share[loaded]).max() < 0.1
 
 
+def _translation_mass(solver) -> float:
+    """Mass (t) that the reduced mass of ``solver`` gives a rigid translation along x of the
+    whole model, t^T M_red t: the reduced coordinates of that translation are those of the free
+    dofs (every constraint of a periodic model is translation invariant)."""
+    t = solver.constraint.create_reduced_vector()
+    t.array[:] = (solver.constraint.free % 3 == 0).astype(float)
+    if solver.settings.constraint_mass == "consistent":
+        Mt = t.duplicate()
+        solver._mass_matrix.mult(t, Mt)
+        return Mt.dot(t)
+    return solver.mass_red.dot(t)
+
+
+@pytest.mark.parametrize("bc", ["CLPS", "CLP"])
+def test_consistent_constraint_mass(tmp_path, bc):
+    """The explicit solver's consistent reduced mass P^T M P (``constraint_mass="consistent"``)
+    against the default row-sum lumping |P|^T M |P| on the simple cubic cell:
+    - a rigid translation weighs the model's mass (its nodes' masses) with the consistent mass;
+      the lumped CLPS mass makes it heavier (each coupling's eliminated nodes hand their mass to
+      every master), CLP's ties (one master, coefficient 1) do not: there the two are one matrix
+      and the two runs the same history;
+    - with the consistent mass the reaction R = f + M a_w has no component on the free dofs
+      (P^T R = 0: the reduced equations of motion hold exactly); the lumped mass leaves one."""
+    runs = {}
+    for mass in ("lumped", "consistent"):
+        res = run_compaction(small_case(tmp_path / mass, bc=bc, constraint_mass=mass), MPI.COMM_SELF, log=quiet)
+        solver = res.solver
+        free_reaction = solver.constraint.create_reduced_vector()
+        R = solver.f_int.duplicate()
+        R.array[: solver.constraint.num_owned] = solver.reaction
+        solver.constraint.restrict(R, free_reaction)
+        r = solver.constraint.create_reduced_vector()
+        solver.constraint.restrict(solver.f_int, r)
+        runs[mass] = (res, _translation_mass(solver) / (solver.total_mass), free_reaction.norm() / r.norm())
+    (lumped, lumped_weight, lumped_residual), (consistent, weight, residual) = runs["lumped"], runs["consistent"]
+    assert weight == pytest.approx(1.0, rel=1e-9)
+    assert residual < 1e-9
+    sigma = {k: np.array(v[0].history.column("sigma_m")) for k, v in runs.items()}
+    if bc == "CLP":
+        assert lumped_weight == pytest.approx(1.0, rel=1e-9)
+        assert np.allclose(sigma["consistent"], sigma["lumped"], rtol=1e-8, atol=1e-10 * np.abs(sigma["lumped"]).max())
+    else:
+        assert lumped_weight > 1.5
+        assert lumped_residual > 1e-3
+
+
 @pytest.mark.parametrize("bc", ["CLP", "CLPS"])
 def test_rigid_translation_gives_zero_stress(tmp_path, bc):
     """F0 = I and a uniform translation of every node (allowed by the periodic constraints):

@@ -156,6 +156,7 @@ SCHEMA: tuple[Key, ...] = (
     case_key("solver", "steps"),
     case_key("solver", "damping"),
     case_key("solver", "local_damping"),
+    case_key("solver", "constraint_mass"),
     case_key("solver", "hold"),
     # stress-controlled paths (loading.mixed; beyond the thesis, issue 24): times in units of the
     # [loading] duration, the servo's rate in strain per duration

@@ -141,6 +141,10 @@ class CompactionCase:
     local_damping: float = parameter(0.7, "explicit local non-viscous damping alpha of the particles' rigid "
                                      "motion (Cundall): removes oscillations, resists no steady motion (-)",
                                      low=0, high=1, open_high=True)
+    #: explicit: the constrained model's reduced mass (ExplicitSettings.constraint_mass): "lumped"
+    #: row sums, which make the couplings' nodes heavy (CLPS, GDF, GDH), or "consistent" P^T M P
+    constraint_mass: str = parameter("lumped", "explicit reduced mass of the constrained model: lumped row sums "
+                                     "or the consistent P^T M P", choices=("lumped", "consistent"))
     #: carry every particle with the homogeneous flow at its centre (GranularBoundaryConditions
     #: comoving; the unknowns are the motions relative to it). False: only the constrained nodes
     #: follow F0, free particles move only when pushed (the carrier experiment of bench/README.md)
@@ -380,7 +384,8 @@ def make_solver(case: CompactionCase, model: CompactionModel, log=print):
         log(f"{model_line} -> {case.target_density}, implicit, {solver.total_steps} steps")
         return solver
     settings = ExplicitSettings(t_end=path.duration, target_dt=case.duration / case.increments,
-                                damping=case.damping / case.duration, local_damping=case.local_damping)
+                                damping=case.damping / case.duration, local_damping=case.local_damping,
+                                constraint_mass=case.constraint_mass)
     node_particle = node_particles(problem.V, model.assembly.cell_tags.values[: problem.num_cells])
     solver = create_solver(case.solver, problem, bcs, contact=model.contact, settings=settings,
                            damped_bodies=damped_bodies(case.bc, model.original)[node_particle])
