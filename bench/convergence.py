@@ -78,6 +78,8 @@ def main(argv=None) -> list[dict]:
     p.add_argument("--bc", default=d.bc, help="CompactionCase.bc: CLP, CLPS, GDF or GDH")
     p.add_argument("--d-bc", type=float, default=None, help="duplication distance / r_max (default: table 2.3)")
     p.add_argument("--divisions", type=int, default=None, help="hexahedra per inner-cube edge of the particle")
+    p.add_argument("--constraint-mass", choices=("lumped", "consistent"), default=d.constraint_mass,
+                   help="explicit reduced mass of the constrained model (CompactionCase.constraint_mass)")
     p.add_argument("--densities", type=float, nargs="+", default=list(DENSITIES),
                    help="densities where sigma_m is read")
     p.add_argument("--density", choices=("rho", "rho_imposed"), default="rho",
@@ -90,10 +92,13 @@ def main(argv=None) -> list[dict]:
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     out = Path(args.out)
-    options = dict(loading=args.loading, bc=args.bc, d_bc=args.d_bc, divisions=args.divisions)
+    options = dict(loading=args.loading, bc=args.bc, d_bc=args.d_bc, divisions=args.divisions,
+                   constraint_mass=args.constraint_mass)
     variant = "" if (args.loading, args.bc, args.d_bc, args.divisions) == (d.loading, d.bc, None, None) else (
         f"_{args.loading}_{args.bc}" + (f"_dbc{args.d_bc:g}" if args.d_bc is not None else "")
         + (f"_div{args.divisions}" if args.divisions is not None else ""))
+    if args.constraint_mass != d.constraint_mass:
+        variant += f"_{args.constraint_mass}_mass"
     densities = tuple(args.densities)
     columns = [f"sigma_m_{rho:.2f}" for rho in densities]
     rows = []
