@@ -155,33 +155,40 @@ def quasi_static_die_run(done: dict, bc: str) -> str:
 
 
 def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
-    """The die stage's increments: each condition run with more explicit increments over the same
-    duration (``cases.slow_die_case``) next to its 6000-increment run, along the ramp
-    (rho_imposed 0.90, 0.93), at its peak and at the end; the slower run's end at the thesis' d_bc
-    is compared with the thesis (§2.7) like the die stage's (at another d_bc it is not)."""
-    rows, lines = [], ["| condition | increments | sigma_m at rho_imposed 0.90 / 0.93 (MPa) | "
+    """The die stage's rate: each condition run with more explicit increments over the same
+    duration (``cases.slow_die_case``) or with the consistent reduced mass
+    (``cases.consistent_mass_die_case``) next to its 6000-increment run, along the ramp
+    (rho_imposed 0.90, 0.93), at its peak and at the end; a variant's end at the thesis' d_bc is
+    compared with the thesis (§2.7) like the die stage's (at another d_bc it is not)."""
+    rows, lines = [], ["| condition | increments | reduced mass | sigma_m at rho_imposed 0.90 / 0.93 (MPa) | "
                        "peak (MPa, at rho_imposed) "
                        "| end (MPa) | unbalanced at the end | work through the carrier / W_ext (end) | "
                        "quasi-static check | deviation from the thesis | status | wall |",
-                       "|---|---|---|---|---|---|---|---|---|---|---|"]
+                       "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    groups = {}  # the repeated run -> its variants, in the stage's order
     for case in STAGES["increments"]:
-        bc, repeated = case.options["bc"], CASES[case.repeats]
-        compared = "d_bc" not in case.options  # the thesis' value is at its d_bc (table 2.3)
-        condition = bc if compared else f"{bc} at d_bc {case.d_bc:g} r_max"
-        for name, n in ((repeated.name, repeated.increments), (case.name, case.increments)):
-            run = done.get(name)
+        groups.setdefault(case.repeats, []).append(case)
+    for repeated_name, variants in groups.items():
+        repeated = CASES[repeated_name]
+        bc = repeated.options["bc"]
+        compared = "d_bc" not in repeated.options  # the thesis' value is at its d_bc (table 2.3)
+        condition = bc if compared else f"{bc} at d_bc {repeated.d_bc:g} r_max"
+        for case in [repeated, *variants]:
+            mass = case.options.get("constraint_mass", "lumped")
+            run = done.get(case.name)
             if run is None:
-                lines.append(f"| {condition} | {n} | not run yet | | | | | | | | |")
+                lines.append(f"| {condition} | {case.increments} | {mass} | not run yet | | | | | | | | |")
                 continue
             h = run["history"]
             end = at_density(h, "sigma_m", 0.95, "rho_imposed")
             k = int(np.argmax(h["sigma_m"]))
-            r = row(name, "sigma_m at rho 0.95 (MPa)" + ("" if name == repeated.name else f", {n} increments"),
-                    THESIS_DIE_SIGMA_M[bc], end)
-            if name == case.name and compared:  # the repeated run's row is the die stage's
+            variant = ("" if case is repeated else f", {case.increments} increments" if mass == "lumped"
+                       else f", {mass} mass")
+            r = row(case.name, "sigma_m at rho 0.95 (MPa)" + variant, THESIS_DIE_SIGMA_M[bc], end)
+            if case is not repeated and compared:  # the repeated run's row is the die stage's
                 rows.append(r)
             deviation = f"{100 * r['deviation']:+.1f} % | {r['status']}" if compared else "(other d_bc) |"
-            lines.append(f"| {condition} | {n} | {at_density(h, 'sigma_m', 0.90, 'rho_imposed'):.2f} / "
+            lines.append(f"| {condition} | {case.increments} | {mass} | {at_density(h, 'sigma_m', 0.90, 'rho_imposed'):.2f} / "
                          f"{at_density(h, 'sigma_m', 0.93, 'rho_imposed'):.2f} | {h['sigma_m'][k]:.2f} "
                          f"({h['rho_imposed'][k]:.3f}) | {end:.2f} | {h['unbalanced'][-1]:.2f} | "
                          f"{100 * carrier_share(h)[-1]:.0f} % | {quasi_static_cell(h)} | "
