@@ -58,20 +58,23 @@ from mpi4py import MPI
 import mpfem_fenicsx
 from mpfem_fenicsx.meshes.packing import simple_cubic_packing
 from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
-case = CompactionCase(packing=simple_cubic_packing(), target_density=0.56, increments=100, outputs=3, visual=False,
+case = CompactionCase(packing=simple_cubic_packing(), target_density=0.56, increments=400, outputs=3, visual=False,
                       duration=1e-4, out_dir=sys.argv[1], d_bc=0.8, exact_volume=False, bc="CLPS",
                       constraint_mass="consistent", checkpoint_every=0)
 history = run_compaction(case, MPI.COMM_WORLD, log=lambda *a: None).history
 if MPI.COMM_WORLD.rank == 0:
-    print(json.dumps({c: list(map(float, history.column(c))) for c in ("W_ext", "E_int", "E_c", "rho", "h_d")}))
+    print(json.dumps({c: list(map(float, history.column(c))) for c in ("W_ext", "E_int", "E_c", "rho", "sigma_m")}))
 """
 
 
 @pytest.mark.mpi
 def test_two_ranks_reproduce_serial_with_the_consistent_constraint_mass(root, tmp_path):
-    """The explicit solver's consistent reduced mass P^T M P (a distributed Cholesky factorization
-    under MPI) on the CLPS simple cubic cell: the 2-rank history equals the serial one (measured
-    2026-11-28: within 2e-12 relative)."""
+    """The explicit solver's consistent reduced mass P^T M P (its Woodbury solve with a distributed
+    Cholesky factorization under MPI) on the CLPS simple cubic cell: the 2-rank history equals the
+    serial one (measured 2026-11-28: within 6e-14 relative on W_ext, 3e-11 on E_c). At 100
+    increments the run is too violent for this comparison: E_int is 8x W_ext, and the solves'
+    round-off (5e-14) grows to 6e-5 between serial and 2 ranks, as it does between two exact
+    solvers in one process."""
     import json
 
     script = tmp_path / "run.py"
