@@ -30,6 +30,7 @@ from mpi4py import MPI
 import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
 from mpfem_fenicsx.boundary import KINDS
 from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS, unit_ball_hex
+from mpfem_fenicsx.solvers.constraint_mass import CONSTRAINT_MASSES
 from mpfem_fenicsx.workflows.compaction import CompactionCase, CompactionRun, run_compaction
 
 
@@ -49,7 +50,7 @@ def main(argv=None) -> dict:
     p.add_argument("--mesh", choices=tuple(RESOLUTIONS), default=CompactionCase.mesh,
                    help="named cube-sphere resolution (chapter2: 561 nodes per particle, the default; "
                         "chapter4: 1 933; coarse: 517, the default before 2026-11-24)")
-    p.add_argument("--constraint-mass", choices=("lumped", "consistent"), default=CompactionCase.constraint_mass,
+    p.add_argument("--constraint-mass", choices=CONSTRAINT_MASSES, default=CompactionCase.constraint_mass,
                    help="explicit reduced mass of the constrained model (CompactionCase.constraint_mass)")
     p.add_argument("--target-density", type=float, default=0.95)
     p.add_argument("--seed", type=int, default=1)

@@ -37,6 +37,7 @@ import numpy as np
 from mpfem_fenicsx.io.history import read_csv
 from mpfem_fenicsx.loading import PROFILES
 from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS
+from mpfem_fenicsx.solvers.constraint_mass import CONSTRAINT_MASSES
 from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 
 DENSITIES = (0.80, 0.85, 0.90)
@@ -78,7 +79,7 @@ def main(argv=None) -> list[dict]:
     p.add_argument("--bc", default=d.bc, help="CompactionCase.bc: CLP, CLPS, GDF or GDH")
     p.add_argument("--d-bc", type=float, default=None, help="duplication distance / r_max (default: table 2.3)")
     p.add_argument("--divisions", type=int, default=None, help="hexahedra per inner-cube edge of the particle")
-    p.add_argument("--constraint-mass", choices=("lumped", "consistent"), default=d.constraint_mass,
+    p.add_argument("--constraint-mass", choices=CONSTRAINT_MASSES, default=d.constraint_mass,
                    help="explicit reduced mass of the constrained model (CompactionCase.constraint_mass)")
     p.add_argument("--densities", type=float, nargs="+", default=list(DENSITIES),
                    help="densities where sigma_m is read")

@@ -386,7 +386,7 @@ def dbc_rows(done: dict) -> tuple[list[dict], list[str]]:
 #: the size stage's runs: (particles, packing seed, GDF run, the CLP run on the same packing)
 SIZE_PAIRS = ((50, 1, "isotropic_GDF", "isotropic_CLP"), (50, 2, "size_GDF_50_seed2", "size_CLP_50_seed2"),
               (150, 1, "size_GDF_150", "size_CLP_150"))
-SIZE_LARGE = 150
+SIZE_SMALL, SIZE_LARGE = 50, 150  # the sizes compared
 
 
 def size_rows(done: dict) -> tuple[list[dict], list[str]]:
@@ -425,7 +425,7 @@ def size_rows(done: dict) -> tuple[list[dict], list[str]]:
             lines.append(f"| {particles} | {seed} | {name} | {h['sigma_d'][-1]:.3f} | {h['h_d'][-1]:.4f} | {noise:.4f} | "
                          f"{h_d:.4f} | {path:.4f} | {s90:.2f} | {100 * gap:+.1f} % | {h['sigma_m'][-1]:.2f} | "
                          f"{h['rho'][-1]:.4f} | {100 * below:+.1f} % |")
-    small, large = values.get(50, []), values.get(SIZE_LARGE, [])
+    small, large = values.get(SIZE_SMALL, []), values.get(SIZE_LARGE, [])
     if small and large:
         quantities = ["end sigma_d falls with N", "sigma_d / sigma_m along the path (mean, sigma_m > 1 MPa) falls with N",
                       "end h_d above the centroid fit's noise falls with N",

@@ -18,6 +18,9 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
+#: the explicit solver's reduced masses of a constrained model (``ExplicitSettings.constraint_mass``)
+CONSTRAINT_MASSES = ("lumped", "consistent")
+
 
 class ConsistentReducedMass:
     """Solves P^T M P a = r (:meth:`solve`) for the constraint's P (``AffineConstraint``) and the
@@ -29,13 +32,13 @@ class ConsistentReducedMass:
         mass = np.asarray(mass)[: constraint.num_owned]
         self._inverse_free = constraint.create_reduced_vector()  # D^-1
         self._inverse_free.array_w[:] = 1.0 / mass[constraint.free]
-        massive = constraint.slaves[mass[constraint.slaves] > 0.0]
+        massive = np.sort(constraint.slaves[mass[constraint.slaves] > 0.0])
         self.num_slaves = comm.tompi4py().allreduce(massive.size)
         self._ksp = None
         if not self.num_slaves:
             return
         row_start = P.getOwnershipRange()[0]
-        rows = PETSc.IS().createGeneral((row_start + np.sort(massive)).astype(PETSc.IntType), comm=comm)
+        rows = PETSc.IS().createGeneral((row_start + massive).astype(PETSc.IntType), comm=comm)
         lo, hi = constraint.reduced_range
         columns = PETSc.IS().createStride(hi - lo, first=lo, step=1, comm=comm)
         self._C = P.createSubMatrix(rows, columns)
@@ -44,7 +47,7 @@ class ConsistentReducedMass:
         self._S = scaled.matTransposeMult(self._C)  # C D^-1 C^T
         scaled.destroy()
         inverse_slave = self._S.createVecLeft()
-        inverse_slave.array_w[:] = 1.0 / mass[np.sort(massive)]
+        inverse_slave.array_w[:] = 1.0 / mass[massive]
         self._S.setDiagonal(self._S.getDiagonal() + inverse_slave)
         rows.destroy()
         columns.destroy()

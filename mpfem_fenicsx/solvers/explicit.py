@@ -53,7 +53,7 @@ import ufl
 from .. import forms
 from ..loading import PrescribedDisplacements
 from ..problem import SolidProblem
-from .constraint_mass import ConsistentReducedMass
+from .constraint_mass import CONSTRAINT_MASSES, ConsistentReducedMass
 from .mass_scaling import ElementMassScaling
 from .state import check_layout, histories_state, load_histories
 
@@ -85,8 +85,8 @@ class ExplicitSettings:
     #: reduced mass of the constrained model: "lumped", the row sums |P|^T M |P| (diagonal; a
     #: coupling's eliminated node hands its mass to each of its masters, so that a rigid
     #: translation of a CLPS model weighs ~2.5x its particles), or "consistent", P^T M P itself
-    #: (the particles' own inertia; a sparse Cholesky solve per increment, factorized whenever
-    #: the masses change; stable at the unconstrained model's increment)
+    #: (the particles' own inertia; solved per increment through a small factorized matrix,
+    #: :mod:`.constraint_mass`; stable at the unconstrained model's increment)
     constraint_mass: str = "lumped"
 
     def __post_init__(self):
@@ -102,8 +102,8 @@ class ExplicitSettings:
             raise ValueError(f"damping must be >= 0 1/s, got {self.damping}")
         if not 0.0 <= self.local_damping < 1.0:
             raise ValueError(f"local_damping must be in [0, 1), got {self.local_damping}")
-        if self.constraint_mass not in ("lumped", "consistent"):
-            raise ValueError(f"constraint_mass must be 'lumped' or 'consistent', got {self.constraint_mass!r}")
+        if self.constraint_mass not in CONSTRAINT_MASSES:
+            raise ValueError(f"constraint_mass must be one of {CONSTRAINT_MASSES}, got {self.constraint_mass!r}")
 
 
 @dataclass
@@ -177,6 +177,8 @@ class ExplicitSolver:
 
         self._element_mass_scaling(settings)
         self._contact_mass = None  # per owned surface node, set by _contact_mass_scaling
+        #: P^T M P and its solve when ``settings.constraint_mass`` is "consistent", else None
+        self.consistent_mass: ConsistentReducedMass | None = None
         self._build_mass()
 
         v = ufl.TestFunction(problem.V)
@@ -238,18 +240,14 @@ class ExplicitSolver:
         self.mass = mass
         self.total_mass = self.comm.allreduce(float(mass.x.array[: self.constraint.num_owned].sum()) / 3.0)
         self.mass_red = self.constraint.reduced_lumped_mass(mass)
-        #: P^T M P and its solve when ``settings.constraint_mass`` is "consistent", else None
-        self.consistent_mass = getattr(self, "consistent_mass", None)
         if self.settings.constraint_mass == "consistent":
             self._build_consistent_mass()
 
     def _build_consistent_mass(self) -> None:
-        """The consistent reduced mass P^T M P and its solve (:mod:`.constraint_mass`: Woodbury
-        over the massive slaves; Jacobi-preconditioned CG on P^T M P took ~140 iterations per
-        increment on a CLPS volume, a Cholesky factorization of the whole of it 0.34 s per
-        increment on the 50-particle CLPS model). By the Rayleigh quotient over the range of P,
-        the constrained model's highest frequency is at most the unconstrained one's: the
-        mass-scaled increment stays stable."""
+        """The consistent reduced mass P^T M P and its solve (:mod:`.constraint_mass`; the solves
+        compared: bench/README.md). By the Rayleigh quotient over the range of P, the constrained
+        model's highest frequency is at most the unconstrained one's: the mass-scaled increment
+        stays stable."""
         if self.consistent_mass is not None:
             self.consistent_mass.destroy()
         self.consistent_mass = ConsistentReducedMass(self.constraint, self.mass.x.array)

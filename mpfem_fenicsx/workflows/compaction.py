@@ -41,6 +41,7 @@ from ..meshes.packing import (Duplicates, Packing, assembly_particles, duplicate
 from ..problem import SolidProblem
 from ..parameters import check_parameters, parameter
 from ..solvers import SOLVERS, NonConvergence, StepControl, create_solver, solver_kind
+from ..solvers.constraint_mass import CONSTRAINT_MASSES
 from ..solvers.explicit import ExplicitSettings
 from .history_recorder import (COLUMNS, QUASI_STATIC_CHECK_COLUMNS, HistoryRecorder, QuasiStaticCheck,
                                quasi_static_check)
@@ -144,7 +145,7 @@ class CompactionCase:
     #: explicit: the constrained model's reduced mass (ExplicitSettings.constraint_mass): "lumped"
     #: row sums, which make the couplings' nodes heavy (CLPS, GDF, GDH), or "consistent" P^T M P
     constraint_mass: str = parameter("lumped", "explicit reduced mass of the constrained model: lumped row sums "
-                                     "or the consistent P^T M P", choices=("lumped", "consistent"))
+                                     "or the consistent P^T M P", choices=CONSTRAINT_MASSES)
     #: carry every particle with the homogeneous flow at its centre (GranularBoundaryConditions
     #: comoving; the unknowns are the motions relative to it). False: only the constrained nodes
     #: follow F0, free particles move only when pushed (the carrier experiment of bench/README.md)
