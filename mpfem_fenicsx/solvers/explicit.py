@@ -22,14 +22,20 @@ of every oscillation's energy but no steady motion. Both dissipate into E_damp.
 
 Energy balance (mJ = N mm), all with forces at integer steps n times the centred displacement
 increment du_n = (u_{n+1} - u_{n-1}) / 2 = dw_n + dg_n (peculiar part dw = P dx, offset part dg),
-which makes the discrete balance exact for central differences:
+which makes the discrete balance exact for central differences (the first step is one-sided,
+du_0 = (u_1 - u_0) / 2; started out of equilibrium, f_0 != 0, e.g. from overlapping particles, the
+balance then misses the start-up term 1/2 (dt/2 a_0)^T M (dt/2 a_0), a discretization term that
+no later step changes; from rest in equilibrium it is zero):
     W_ext = sum R_n . du_n,   R_n = f_int + f_bv - f_c + f_d + M a_w  (a_w = P a_red)
     E_int = sum f_int,n . du_n (elastic + plastic),  E_visc = sum f_bv,n . du_n,
     E_contact = -sum f_c,n . du_n (penalty energy + friction + adhesion work),
     E_damp = sum f_d,n . dw_n (dissipation of the relaxation damping, >= 0),
     E_kin = 1/2 w'^T M w' (peculiar velocity w' = P v_red at the step),
     E_carrier = sum (f_d + M a_w)_n . dg_n (work of damping and peculiar inertia through the
-    moving offsets; zero without a comoving carrier, small when quasi-static).
+    moving offsets; zero without a comoving carrier, small when quasi-static),
+    E_mass = sum 1/2 w'^T dM w' (the kinetic energy variable mass scaling adds: mass raised at an
+    unchanged velocity; zero at rest), so that W_ext + E_mass = E_int + E_visc + E_contact + E_kin
+    + E_damp + E_carrier.
 The material's own energies (Hencky stored energy and accumulated plastic work) are reported
 next to E_int as an independent check of the internal work.
 """
@@ -98,6 +104,11 @@ class ExplicitSettings:
             raise ValueError(f"deformation_margin must be in (0, 1], got {self.deformation_margin}")
         if not 0 < self.safety <= 1:
             raise ValueError(f"safety must be in (0, 1], got {self.safety}")
+        for name in ("bulk_viscosity_linear", "bulk_viscosity_quadratic"):
+            value = getattr(self, name)
+            if not value >= 0:
+                raise ValueError(f"{name} must be >= 0, got {value}")
+            setattr(self, name, float(value))  # a UFL constant of an int is refused by dolfinx
         if self.damping < 0:
             raise ValueError(f"damping must be >= 0 1/s, got {self.damping}")
         if not 0.0 <= self.local_damping < 1.0:
@@ -119,11 +130,13 @@ class Energies:
     elastic: float = 0.0  # current Hencky stored energy from the material
     damping: float = 0.0  # dissipated by the relaxation damping (>= 0)
     carrier: float = 0.0  # work of damping and peculiar inertia through the moving offsets
+    mass_scaling: float = 0.0  # kinetic energy added by mass raised at an unchanged velocity
 
     def balance_error(self) -> float:
-        """|W_ext - (E_int + E_visc + E_contact + E_kin + E_damp + E_carrier)| (mJ)."""
-        return abs(self.external - (self.internal + self.viscous + self.contact + self.kinetic + self.damping
-                                    + self.carrier))
+        """|W_ext + E_mass - (E_int + E_visc + E_contact + E_kin + E_damp + E_carrier)| (mJ): zero to
+        round-off from an equilibrium start, else the start-up term of the module docstring."""
+        return abs(self.external + self.mass_scaling - (self.internal + self.viscous + self.contact + self.kinetic
+                                                        + self.damping + self.carrier))
 
 
 
@@ -360,6 +373,8 @@ class ExplicitSolver:
         c = np.median(self.scaling.wave_speed.x.array) if self.scaling.wave_speed.x.array.size else 1.0
         length = np.median(self.scaling.cell_length.x.array) if self.scaling.cell_length.x.array.size else 1.0
         s = self.settings
+        if s.bulk_viscosity_linear == 0.0 or s.bulk_viscosity_quadratic == 0.0:
+            return float(c / length)  # one term only: any rate of that order checks it
         return float(s.bulk_viscosity_linear * c / (s.bulk_viscosity_quadratic * length))
 
     def _assemble(self, vec: PETSc.Vec, form) -> None:
@@ -500,10 +515,10 @@ class ExplicitSolver:
 
     def energy_record(self) -> dict[str, float]:
         """The energies of a history row (mJ): E_int, E_el, E_p (the whole model), E_contact,
-        E_c (kinetic), E_visc, E_damp, W_ext."""
+        E_c (kinetic), E_visc, E_damp, E_mass (added by mass scaling), W_ext."""
         e = self.energies
         return dict(E_int=e.internal, E_el=e.elastic, E_p=e.plastic, E_contact=e.contact, E_c=e.kinetic,
-                    E_visc=e.viscous, E_damp=e.damping, W_ext=e.external)
+                    E_visc=e.viscous, E_damp=e.damping, E_mass=e.mass_scaling, W_ext=e.external)
 
     @property
     def total_steps(self) -> int:
@@ -633,8 +648,12 @@ class ExplicitSolver:
         self.step += 1
         every = self.settings.rescale_every
         if every and self.settings.target_dt is not None and self.step % every == 0:
+            mass_function = self.mass
             with self.timings("mass_scaling"):
                 self._rescale_mass()
+            if self.mass is not mass_function:  # raised: the next steps' inertia is the new mass's
+                mass_before, mass = mass, self.mass.x.array[:n]
+                e.mass_scaling += 0.5 * self._dot(mass - mass_before, v_half * v_half)
         e.kinetic = 0.5 * self._dot(mass, v_half * v_half)
         if not np.isfinite(e.kinetic):  # before the contact search meets non-finite positions
             raise FloatingPointError(

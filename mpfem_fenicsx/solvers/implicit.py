@@ -257,7 +257,7 @@ class ImplicitSolver:
         stored energy, E_p the plastic work of the converged increments (the whole model), E_damp
         the regularization's work; E_int, E_contact, W_ext not tallied (NaN)."""
         return dict(E_int=np.nan, E_el=self.problem.stored_energy(), E_p=self.plastic_work, E_contact=np.nan,
-                    E_c=0.0, E_visc=0.0, E_damp=self.regularization_work, W_ext=np.nan)
+                    E_c=0.0, E_visc=0.0, E_damp=self.regularization_work, E_mass=0.0, W_ext=np.nan)
 
     def unbalanced_ratio(self) -> float:
         """NaN: Newton's converged residual (its tolerance) bounds the out-of-balance forces."""

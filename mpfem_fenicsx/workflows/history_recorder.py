@@ -40,7 +40,8 @@ History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C)
   the whole model (copies included; = E_p, E_d for CLP, whose copies are stiffless shells),
   E_c kinetic (of the motion relative to the imposed flow), E_int internal work, E_el stored
   elastic, E_contact work absorbed by contact, E_visc bulk viscosity, E_damp relaxation damping,
-  W_ext external work;
+  E_mass kinetic energy added by variable mass scaling (mass raised at an unchanged velocity; since
+  2026-11-28, NaN in older histories), W_ext external work;
 - unbalanced: out-of-balance ratio ||P^T (f_int + f_bv - f_c)|| / ||P^T f_int|| over the free dofs
   (ExplicitSolver.unbalanced_ratio: 0 in static equilibrium; NaN for implicit rows, whose Newton
   tolerance bounds it); E_c_over_E_int = E_c / E_int (kinetic over internal energy, -): the two
@@ -48,7 +49,7 @@ History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C)
 - wall_time (s).
 
 Quasi-static check of an explicit run (:func:`quasi_static_check`, logged at its end): the
-explicit energy balance is exact, W_ext = E_int + E_visc + E_contact + E_c + E_damp + E_carrier,
+explicit energy balance is exact, W_ext + E_mass = E_int + E_visc + E_contact + E_c + E_damp + E_carrier,
 where E_carrier is the work of the damping and of the particles' inertia through the imposed
 flow's offsets (``solvers.explicit``). On a quasi-static path it vanishes and a path brought to
 rest leaves the volume in balance; a share of the work through the carrier or an out-of-balance
@@ -77,7 +78,7 @@ TENSORS = {"F": "least-squares gradient of the centroids", "sigma": "Love-Weber 
            "sigma_schmidt_": "Schmidt stress (periodic conditions)", "sigma_vol_": "volume-averaged stress"}
 CONTACTS = ["n_contacts", "Z", "rattlers", "Gamma", "Gamma_model", "Gamma_closed"]
 ENERGIES = ["E_p", "E_f", "E_d", "E_p_model", "E_d_model", "E_c", "E_int", "E_el", "E_contact", "E_visc", "E_damp",
-            "W_ext"]
+            "E_mass", "W_ext"]
 QUASI_STATIC = ["unbalanced", "E_c_over_E_int"]
 COLUMNS = (KINEMATICS + STRESS_INVARIANTS + [c for prefix in TENSORS for c in tensor_columns(prefix)]
            + ["sigma_vol_m"] + CONTACTS + ENERGIES + QUASI_STATIC + ["wall_time"])
@@ -91,16 +92,18 @@ COLUMNS = (KINEMATICS + STRESS_INVARIANTS + [c for prefix in TENSORS for c in te
 CARRIER_SHARE_LIMIT = 0.1
 UNBALANCED_AT_REST_LIMIT = 0.05
 #: the history columns the check reads (the energy balance's and the out-of-balance ratio)
-QUASI_STATIC_CHECK_COLUMNS = ("W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp", "unbalanced")
+QUASI_STATIC_CHECK_COLUMNS = ("W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp", "E_mass", "unbalanced")
 
 
 def carrier_share(history) -> np.ndarray:
     """Per row, the share of the work done on the model that entered through the comoving carrier
     rather than through the boundary: E_carrier / W_ext with E_carrier = E_int + E_visc + E_contact
-    + E_c + E_damp - W_ext (-; NaN where W_ext = 0). ``history``: column name -> array (a
-    ``read_csv`` dict, or ``{c: History.column(c)}``)."""
+    + E_c + E_damp - W_ext - E_mass (-; NaN where W_ext = 0; E_mass counted as 0 where unknown: a
+    history written before the column, or rows before a restart that added it). ``history``:
+    column name -> array (a ``read_csv`` dict, or ``{c: History.column(c)}``)."""
     h = history
-    carrier = h["E_int"] + h["E_visc"] + h["E_contact"] + h["E_c"] + h["E_damp"] - h["W_ext"]
+    mass_scaling = np.nan_to_num(h["E_mass"], nan=0.0) if "E_mass" in h else 0.0
+    carrier = h["E_int"] + h["E_visc"] + h["E_contact"] + h["E_c"] + h["E_damp"] - h["W_ext"] - mass_scaling
     with np.errstate(divide="ignore", invalid="ignore"):  # W_ext = 0 before the first contact
         return carrier / h["W_ext"]
 
