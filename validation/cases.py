@@ -97,13 +97,17 @@ def slow_die_case(bc: str, increments: int, d_bc: float | None = None) -> Case:
                 repeats=reference.name)
 
 
-def consistent_mass_die_case(bc: str) -> Case:
+def consistent_mass_die_case(bc: str, increments: int | None = None) -> Case:
     """The die compaction of ``die_case(bc)`` with the consistent reduced mass P^T M P instead of
     the row-sum lumping that makes the couplings' nodes heavy (``ExplicitSettings.constraint_mass``;
     a rigid translation of the 50-particle CLPS model weighs ~2.5x its particles with the lumping):
-    whether the particles' own inertia brings the run to rest at 6000 increments."""
+    whether the particles' own inertia brings the run to rest at 6000 increments, and with
+    ``increments`` whether its end value still moves with them."""
     reference = die_case(bc)
-    return Case(f"{reference.name}_consistent_mass", {**reference.options, "constraint_mass": "consistent"},
+    options = {**reference.options, "constraint_mass": "consistent"}
+    if increments is not None:
+        options["increments"] = increments
+    return Case(f"{reference.name}_consistent_mass" + ("" if increments is None else f"_n{increments}"), options,
                 repeats=reference.name)
 
 
@@ -254,9 +258,9 @@ STAGES = {
     "dbc": [dbc_case(bc, d) for bc, grid in DBC_GRID.items() for d in grid],
     #: the die stage's increments: CLPS and GDF lose stress as the ramp decelerates (42 / 4.6 %)
     #: CLPS at 1.0 r_max (146 particles, the same 30-40 % end loss): the rate question at a third the cost
-    #: and the same CLPS with the consistent reduced mass at 6000 increments
+    #: and the same CLPS with the consistent reduced mass at 6000 and 12 000 increments
     "increments": [slow_die_case("CLPS", 12000), slow_die_case("GDF", 12000), slow_die_case("CLPS", 12000, d_bc=1.0),
-                   consistent_mass_die_case("CLPS")],
+                   consistent_mass_die_case("CLPS"), consistent_mass_die_case("CLPS", 12000)],
     #: with isotropic_GDF and isotropic_CLP (50 particles, seed 1); a second 50-particle packing
     #: gives the spread of the 50-particle values
     "size": [size_case(150), size_case(150, "CLP"), size_case(50, seed=2), size_case(50, "CLP", seed=2)],

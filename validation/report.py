@@ -184,7 +184,8 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
             end = at_density(h, "sigma_m", 0.95, "rho_imposed")
             k = int(np.argmax(h["sigma_m"]))
             variant = ("" if case is repeated else f", {case.increments} increments" if mass == "lumped"
-                       else f", {mass} mass")
+                       else f", {mass} mass" + ("" if case.increments == repeated.increments
+                                                 else f", {case.increments} increments"))
             r = row(case.name, "sigma_m at rho 0.95 (MPa)" + variant, THESIS_DIE_SIGMA_M[bc], end)
             if case is not repeated and compared:  # the repeated run's row is the die stage's
                 rows.append(r)
