@@ -83,7 +83,9 @@ def test_report_writes_summary_and_tables(tmp_path):
     assert "not run yet" in text  # the gamma stage
     # the overview: per table its compared numbers met and its stages' runs (60 s each)
     assert "| Die compaction, sigma_m at rho 0.95 (§2.7) | 3 of 4 | 3 of 5 (0.1) | `die_GDH`, `die_CLP_exact_volume` |" in text
-    assert "| Die stage's increments (the explicit runs' rate) | 1 of 1 | 2 of 4 (0.0) | `die_GDF_n12000`, `die_CLPS_consistent_mass` |" in text
+    assert ("| Die stage's increments (the explicit runs' rate) | 1 of 1 | 2 of 5 (0.0) | `die_GDF_n12000`, "
+            "`die_CLPS_consistent_mass`, `die_CLPS_consistent_mass_n12000` |") in text
+    assert "| CLPS | 12000 | consistent | not run yet" in text
     for figure in ("die_sigma_m", "periodic", "dbc", "size", "stress_measures", "gamma"):
         assert (here / "figures" / f"{figure}.png").stat().st_size > 1000, figure
 
