@@ -50,6 +50,8 @@ def main(argv=None) -> dict:
     p.add_argument("--mesh", choices=tuple(RESOLUTIONS), default=CompactionCase.mesh,
                    help="named cube-sphere resolution (chapter2: 561 nodes per particle, the default; "
                         "chapter4: 1 933; coarse: 517, the default before 2026-11-24)")
+    p.add_argument("--radius-factor", type=float, default=CompactionCase.radius_factor,
+                   help="CompactionCase.radius_factor (the coarse volume-exact particle needs <= 0.9778)")
     p.add_argument("--constraint-mass", choices=CONSTRAINT_MASSES, default=CompactionCase.constraint_mass,
                    help="explicit reduced mass of the constrained model (CompactionCase.constraint_mass)")
     p.add_argument("--target-density", type=float, default=0.95)
@@ -68,6 +70,7 @@ def main(argv=None) -> dict:
     out = comm.bcast(out)
     base = dict(particles=args.particles, bc=args.bc, solver=args.solver, seed=args.seed,
                 target_density=args.target_density, increments=args.increments, mesh=args.mesh,
+                radius_factor=args.radius_factor,
                 images=False if args.copies else None, constraint_mass=args.constraint_mass,
                 visual=False, checkpoint_every=0, out_dir=out)
     quiet = lambda *a, **k: None  # noqa: E731

@@ -4,7 +4,7 @@
     python bench/convergence.py --particles 50 --increments 6000 12000 --meshes chapter2
     python bench/convergence.py --profile smooth-step smooth-ramps --increments 4000 8000 --meshes chapter2
     python bench/convergence.py --table-only                     # tabulate the runs already made
-    python bench/convergence.py --particles 24 --loading die --bc CLPS --d-bc 1.5 --divisions 4 \
+    python bench/convergence.py --particles 24 --loading die --bc CLPS --d-bc 1.5 --divisions 4 --radius-factor 0.975 \
         --target-density 0.85 --outputs 40 --meshes chapter2 --increments 3000 6000 12000 \
         --density rho_imposed --densities 0.75 0.80 0.84   # the copies' conditions (validation CI subset)
 
@@ -79,6 +79,9 @@ def main(argv=None) -> list[dict]:
     p.add_argument("--bc", default=d.bc, help="CompactionCase.bc: CLP, CLPS, GDF or GDH")
     p.add_argument("--d-bc", type=float, default=None, help="duplication distance / r_max (default: table 2.3)")
     p.add_argument("--divisions", type=int, default=None, help="hexahedra per inner-cube edge of the particle")
+    p.add_argument("--radius-factor", type=float, default=d.radius_factor,
+                   help="CompactionCase.radius_factor (a coarse volume-exact particle needs less than 0.99: "
+                        "4 divisions <= 0.9778)")
     p.add_argument("--constraint-mass", choices=CONSTRAINT_MASSES, default=d.constraint_mass,
                    help="explicit reduced mass of the constrained model (CompactionCase.constraint_mass)")
     p.add_argument("--densities", type=float, nargs="+", default=list(DENSITIES),
@@ -94,10 +97,12 @@ def main(argv=None) -> list[dict]:
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     out = Path(args.out)
     options = dict(loading=args.loading, bc=args.bc, d_bc=args.d_bc, divisions=args.divisions,
-                   constraint_mass=args.constraint_mass)
+                   radius_factor=args.radius_factor, constraint_mass=args.constraint_mass)
     variant = "" if (args.loading, args.bc, args.d_bc, args.divisions) == (d.loading, d.bc, None, None) else (
         f"_{args.loading}_{args.bc}" + (f"_dbc{args.d_bc:g}" if args.d_bc is not None else "")
         + (f"_div{args.divisions}" if args.divisions is not None else ""))
+    if args.radius_factor != d.radius_factor:
+        variant += f"_rf{args.radius_factor:g}"
     if args.constraint_mass != d.constraint_mass:
         variant += f"_{args.constraint_mass}_mass"
     densities = tuple(args.densities)

@@ -439,16 +439,16 @@ def test_implicit_drag_work_is_small_at_the_default_steps(tmp_path):
     assert h.column("E_damp")[-1] < 0.05 * h.column("E_p")[-1]
 
 
-def test_start_overlap_of_a_coarse_volume_exact_particle_is_reported(tmp_path):
+def test_start_overlap_of_a_coarse_volume_exact_particle_is_refused(tmp_path):
     """A volume-exact particle's nodes lie outside its sphere (x1.0406 at 3 divisions): beyond the
-    radius reduction, touching neighbours start interpenetrating (a GDF die run on such a mesh
-    diverged at step ~150 of 3000); the build says so with the radius_factor that avoids it. The
-    thesis particle (6x6, nodes at x1.0100) with the default 0.99 does not."""
-    said = {}
-    for divisions in (3, None):
-        lines = said[divisions] = []
-        case = small_case(tmp_path, exact_volume=True, radius_factor=0.99, divisions=divisions)
-        build_compaction(case, MPI.COMM_SELF, log=lines.append)
-    warning = [m for m in said[3] if m.startswith("particle mesh:")]
-    assert len(warning) == 1 and "nodes at 1.0406" in warning[0] and "radius_factor <= 0.9610" in warning[0]
-    assert not any(m.startswith("particle mesh:") for m in said[None])
+    radius reduction, touching neighbours would start interpenetrating (a GDF die run on such a mesh
+    diverged at step ~150 of 3000; a 24-particle die volume at 4 divisions released 0.086 mJ of
+    penalty energy before any loading). The build refuses it, naming the radius_factor that avoids
+    it, before meshing; the thesis particle (6x6, nodes at x1.0100) with the default 0.99 builds,
+    and so does the 3-division one at the radius_factor the message gives."""
+    with pytest.raises(ValueError, match=r"radius_factor 0.99: .* 1.0406 x .* radius_factor <= 0.9610"):
+        build_compaction(small_case(tmp_path, exact_volume=True, radius_factor=0.99, divisions=3),
+                         MPI.COMM_SELF, log=quiet)
+    build_compaction(small_case(tmp_path, exact_volume=True, radius_factor=0.961, divisions=3), MPI.COMM_SELF,
+                     log=quiet)
+    build_compaction(small_case(tmp_path, exact_volume=True, radius_factor=0.99), MPI.COMM_SELF, log=quiet)
