@@ -439,8 +439,9 @@ def test_die_periodic_volume_is_the_stiffest_on_a_small_volume(tmp_path):
     """Thesis §2.7 at reduced size: over the constant-rate part of a die compaction (mean sigma_m
     over rho 0.70-0.80, 3000 increments) the periodic volume (CLP, images) is stiffer than the
     simplified periodic one (CLPS) and the driven copies (GDF), each at the d_bc from which the
-    thesis found it stable (table 2.3: CLPS 1.5, GDF 2.0 r_max). Measured (2026-11-25): CLP 4.121,
-    CLPS 3.844 (-6.7 %), GDF 3.903 MPa (-5.3 %). The thesis' full order CLP > CLPS > GDF is not
+    thesis found it stable (table 2.3: CLPS 1.5, GDF 2.0 r_max). Measured 2026-11-28 (radii x0.975,
+    no start overlap; 944 s beside a 2-rank run): CLP 4.030, CLPS 3.789 (-6.0 %), GDF 3.793 MPa
+    (-5.9 %); 2026-11-25 (radii x0.99, overlapping start): 4.121, 3.844, 3.903. The thesis' full order CLP > CLPS > GDF is not
     resolved at 24 particles (CLPS and GDF 1.5 % apart, in the other order); it is the 50-particle
     die stage's to show (validation/README.md)."""
     means = {}
