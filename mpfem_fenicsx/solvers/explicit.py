@@ -265,10 +265,11 @@ class ExplicitSolver:
             self.consistent_mass.destroy()
         self.consistent_mass = ConsistentReducedMass(self.constraint, self.mass.x.array)
 
-    def _rescale_mass(self) -> None:
+    def _rescale_mass(self) -> bool:
         """Variable mass scaling: where the deformed elements' stable increment fell below dt / 0.9,
         raise their density so that it is back; the bulk viscosity takes the current lengths; the
-        contact mass follows the current contact stiffness (see _contact_mass_scaling)."""
+        contact mass follows the current contact stiffness (see _contact_mass_scaling). Returns
+        whether the masses were raised (rebuilt)."""
         scaling = self.scaling
         length = self.problem.min_cell_length(deformed=True)
         dt_e = scaling.stable_increments(length)
@@ -279,12 +280,13 @@ class ExplicitSolver:
         if self._contact_mass is not None:
             contact_grows = bool((self._contact_mass_needed(self.contact) > 1.05 * self._contact_mass).any())
         if not self.comm.allreduce(bool(grow.any()) or contact_grows, op=MPI.LOR):
-            return
+            return False
         scaling.scale[grow] = need[grow]
         scaling.apply()
         self.mass_red.destroy()
         self._build_mass()
         self.mass_scaling_max = scaling.largest(self.comm)
+        return True
 
     def _contact_mass_scaling(self, mass, contact, settings) -> None:
         """Penalty contact adds springs to the surface nodes. With a target increment, add to
@@ -648,10 +650,9 @@ class ExplicitSolver:
         self.step += 1
         every = self.settings.rescale_every
         if every and self.settings.target_dt is not None and self.step % every == 0:
-            mass_function = self.mass
             with self.timings("mass_scaling"):
-                self._rescale_mass()
-            if self.mass is not mass_function:  # raised: the next steps' inertia is the new mass's
+                raised = self._rescale_mass()
+            if raised:  # the next steps' inertia is the new mass's
                 mass_before, mass = mass, self.mass.x.array[:n]
                 e.mass_scaling += 0.5 * self._dot(mass - mass_before, v_half * v_half)
         e.kinetic = 0.5 * self._dot(mass, v_half * v_half)

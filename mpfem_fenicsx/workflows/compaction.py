@@ -330,8 +330,7 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     # a volume-exact particle's nodes lie outside its sphere (x1.0100 at 6x6, x1.0227 at 4x4, x1.0406
     # at 3x3): when that exceeds the radius reduction, neighbours touching in the packing start
     # interpenetrating, and the penalty contact releases the overlap's energy in the first
-    # increments, a bang that deforms the particles plastically before any loading (24-particle die
-    # volume at 4x4 and 0.99: 0.086 mJ released, a fifth of the work done up to rho 0.80)
+    # increments, a bang that deforms the particles plastically before any loading (bench/README.md)
     outer = unit_ball_hex(divisions, layers, case.refinement, exact_volume=case.exact_volume).radius_scale
     start_overlap = replace(packing, radii=packing.radii * case.radius_factor * outer).max_overlap()
     if start_overlap > START_OVERLAP_TOLERANCE:
