@@ -38,7 +38,7 @@ def test_report_writes_summary_and_tables(tmp_path):
                "sigma_vol_m", "h_v", "h_d", "unbalanced", "W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp",
                "sigma_d"]
     for name, scale in (("die_CLP", 12.6), ("die_CLPS", 11.0), ("die_GDF", 7.0), ("die_CLPS_n12000", 11.5),
-                        ("dbc_CLPS_1", 7.0), ("dbc_CLPS_1_n12000", 9.0)):
+                        ("die_CLPS_lumped_mass", 10.0), ("dbc_CLPS_1", 7.0), ("dbc_CLPS_1_n12000", 9.0)):
         (runs / name).mkdir(parents=True)
         sigma = scale * ((rho - 0.6) / 0.35) ** 2
         h_v = -np.log(rho / 0.6)
@@ -67,25 +67,28 @@ def test_report_writes_summary_and_tables(tmp_path):
     text = (here / "README.md").read_text()
     assert "| CLP | 12.6 | 12.60 |" in text and "| GDH | (none) | not run yet" in text
     # its carrier takes 20 % of W_ext: the quasi-static check fails, whatever the thesis deviation
-    assert "| CLPS | 12000 | lumped | 8.45 / 10.28 | 11.50 (0.950) | 11.50 | 0.01 | 20 % | failed (20 % / 0.01) | +1.8 % | met |" in text
+    assert ("| CLPS | 12000 | consistent | 8.45 / 10.28 | 11.50 (0.950) | 11.50 | 0.01 | 20 % | failed (20 % / 0.01) "
+            "| +1.8 % | met |") in text
     assert "| GDF | 12000 | lumped | not run yet" in text
-    # the consistent-mass variant of the die CLPS run, listed once with its 6000-increment reference
-    assert "| CLPS | 6000 | consistent | not run yet" in text
+    # the lumped-mass variants of the die CLPS run (consistent mass), listed after it
+    lumped = by_case[("die_CLPS_lumped_mass", "sigma_m at rho 0.95 (MPa), lumped mass")]
+    assert lumped["ours"] == pytest.approx(10.0) and "| CLPS | 12000 | lumped | not run yet" in text
     increments_block = text[text.index("BEGIN increments"):text.index("END increments")]
-    assert increments_block.count("| CLPS | 6000 | lumped |") == 1
+    assert increments_block.count("| CLPS | 6000 | consistent |") == 1
     # the same question at another d_bc: in the table, not compared with the thesis' 2.5 r_max value
     assert "| CLPS at d_bc 1 r_max | 12000 | lumped | 6.61 / 8.04 | 9.00 (0.950) | 9.00 |" in text
     assert "| (other d_bc) | | 1 min |" in text
     assert not any(case.startswith("dbc_CLPS_1_n") for case, _ in by_case)
-    # d_bc: a verdict on the two finished CLPS runs (1.0 and the die stage's 2.5), naming the missing ones
+    # d_bc: a verdict on the two finished CLPS runs (1.0 and the die run at 2.5 with the d_bc runs'
+    # lumped mass, not the die stage's consistent-mass run), naming the missing ones
     assert by_case[("dbc_CLPS", "stable d_bc / r_max")]["ours"] == 2.5
+    assert "2.5: 5.10 / 7.35 / 8.94 / (10.00)" in text  # die_CLPS_lumped_mass (10 MPa at the end), not die_CLPS
     assert "| 2.5 (the largest run: not shown stable), 1.5 / 2 r_max not run yet | 1.5 | not met |" in text
     assert "not run yet" in text  # the gamma stage
     # the overview: per table its compared numbers met and its stages' runs (60 s each)
     assert "| Die compaction, sigma_m at rho 0.95 (§2.7) | 3 of 4 | 3 of 5 (0.1) | `die_GDH`, `die_CLP_exact_volume` |" in text
-    assert ("| Die stage's increments (the explicit runs' rate) | 1 of 1 | 2 of 5 (0.0) | `die_GDF_n12000`, "
-            "`die_CLPS_consistent_mass`, `die_CLPS_consistent_mass_n12000` |") in text
-    assert "| CLPS | 12000 | consistent | not run yet" in text
+    assert ("| Die stage's increments (the explicit runs' rate) | 2 of 2 | 3 of 5 (0.1) | "
+            "`die_CLPS_lumped_mass_n12000`, `die_GDF_n12000` |") in text
     for figure in ("die_sigma_m", "periodic", "dbc", "size", "stress_measures", "gamma"):
         assert (here / "figures" / f"{figure}.png").stat().st_size > 1000, figure
 

@@ -50,6 +50,14 @@ DBC_READ_AT = (0.85, 0.90, 0.93)
 TOLERANCE = 0.15
 
 
+#: the explicit solver's reduced mass of the constrained model (``ExplicitSettings.constraint_mass``)
+#: per condition in the die and isotropic stages: CLPS with the consistent P^T M P, the particles'
+#: own inertia, as Abaqus' constraint equations keep it (with the row-sum lumping its die run at
+#: 6000 increments loses 42 % of its stress where the ramp decelerates and fails its quasi-static
+#: check; the increments stage, validation/README.md); GDF and GDH with the lumping, with which
+#: they pass their checks; CLP by periodic images has no constraint to lump
+STAGE_CONSTRAINT_MASS = {"CLP": "lumped", "CLPS": "consistent", "GDF": "lumped", "GDH": "lumped"}
+
 #: the chapter-2 set-up every case starts from (its options override these)
 CHAPTER2_SETUP = dict(particles=50, seed=1, increments=6000, outputs=40, visual=False, checkpoint_every=2,
                       exact_volume=False)
@@ -58,7 +66,8 @@ CHAPTER2_SETUP = dict(particles=50, seed=1, increments=6000, outputs=40, visual=
 @dataclass(frozen=True)
 class Case:
     """One compaction run: ``name`` (its run directory) and the ``CompactionCase`` options;
-    ``repeats``: the run this one repeats with more increments (``slow_die_case``), else None."""
+    ``repeats``: the run this one repeats with more increments (``slow_die_case``) or another reduced
+    mass (``lumped_mass_die_case``), else None."""
 
     name: str
     options: dict = field(default_factory=dict)
@@ -83,8 +92,10 @@ class Case:
 
 
 def die_case(bc: str) -> Case:
-    """Die compaction ("matrice", uniaxial strain along z) to rho_f = 0.95 (thesis §2.7)."""
-    return Case(f"die_{bc}", dict(loading="die", bc=bc, target_density=0.95))
+    """Die compaction ("matrice", uniaxial strain along z) to rho_f = 0.95 (thesis §2.7), with the
+    condition's reduced mass (``STAGE_CONSTRAINT_MASS``)."""
+    return Case(f"die_{bc}", dict(loading="die", bc=bc, target_density=0.95,
+                                  constraint_mass=STAGE_CONSTRAINT_MASS[bc]))
 
 
 def slow_die_case(bc: str, increments: int, d_bc: float | None = None) -> Case:
@@ -97,18 +108,25 @@ def slow_die_case(bc: str, increments: int, d_bc: float | None = None) -> Case:
                 repeats=reference.name)
 
 
-def consistent_mass_die_case(bc: str, increments: int | None = None) -> Case:
-    """The die compaction of ``die_case(bc)`` with the consistent reduced mass P^T M P instead of
-    the row-sum lumping that makes the couplings' nodes heavy (``ExplicitSettings.constraint_mass``;
-    a rigid translation of the 50-particle CLPS model weighs ~2.5x its particles with the lumping):
-    whether the particles' own inertia brings the run to rest at 6000 increments, and with
-    ``increments`` whether its end value still moves with them."""
+def lumped_mass_die_case(bc: str, increments: int | None = None) -> Case:
+    """The die compaction of ``die_case(bc)`` with the row-sum lumped reduced mass |P|^T M |P|
+    instead of the consistent P^T M P (``ExplicitSettings.constraint_mass``): the lumping hands each
+    coupling's eliminated node to every master (a rigid translation of the 50-particle CLPS model
+    weighs ~2.5x its particles); with ``increments`` whether its end value moves with them."""
     reference = die_case(bc)
-    options = {**reference.options, "constraint_mass": "consistent"}
+    options = {**reference.options, "constraint_mass": "lumped"}
     if increments is not None:
         options["increments"] = increments
-    return Case(f"{reference.name}_consistent_mass" + ("" if increments is None else f"_n{increments}"), options,
+    return Case(f"{reference.name}_lumped_mass" + ("" if increments is None else f"_n{increments}"), options,
                 repeats=reference.name)
+
+
+def dbc_reference_case(bc: str) -> Case:
+    """The die run at the thesis' d_bc that closes the d_bc study of a condition with copies: the
+    die stage's run, or its lumped-mass repeat where the die stage uses the consistent mass (the
+    d_bc runs are lumped: one reduced mass along the study)."""
+    reference = die_case(bc)
+    return reference if reference.options["constraint_mass"] == "lumped" else lumped_mass_die_case(bc)
 
 
 def exact_volume_die_case() -> Case:
@@ -118,15 +136,10 @@ def exact_volume_die_case() -> Case:
 
 
 def isotropic_case(bc: str) -> Case:
-    """Isotropic compaction to rho_f = 0.95 (thesis §2.7, fig. 2.24a-b, 2.25a); CLPS with the
-    consistent reduced mass (``ExplicitSettings.constraint_mass``): with the row-sum lumping every
-    die CLPS run at the chapter-2 set-up's 6000 increments loses 30-42 % of its stress where the ramp
-    decelerates and fails its quasi-static check, with the consistent mass the die CLPS run holds it
-    and passes (the increments stage, validation/README.md)."""
-    options = dict(loading="isotropic", bc=bc, target_density=0.95)
-    if bc == "CLPS":
-        options["constraint_mass"] = "consistent"
-    return Case(f"isotropic_{bc}", options)
+    """Isotropic compaction to rho_f = 0.95 (thesis §2.7, fig. 2.24a-b, 2.25a), with the condition's
+    reduced mass (``STAGE_CONSTRAINT_MASS``)."""
+    return Case(f"isotropic_{bc}", dict(loading="isotropic", bc=bc, target_density=0.95,
+                                        constraint_mass=STAGE_CONSTRAINT_MASS[bc]))
 
 
 def dbc_case(bc: str, d_bc: float) -> Case:
@@ -256,11 +269,11 @@ STAGES = {
     "die": [die_case(bc) for bc in ("CLP", "CLPS", "GDF", "GDH")] + [exact_volume_die_case()],
     "isotropic": [isotropic_case(bc) for bc in ("CLP", "CLPS", "GDF", "GDH")],
     "dbc": [dbc_case(bc, d) for bc, grid in DBC_GRID.items() for d in grid],
-    #: the die stage's increments: CLPS and GDF lose stress as the ramp decelerates (42 / 4.6 %)
-    #: CLPS at 1.0 r_max (146 particles, the same 30-40 % end loss): the rate question at a third the cost
-    #: and the same CLPS with the consistent reduced mass at 6000 and 12 000 increments
-    "increments": [slow_die_case("CLPS", 12000), slow_die_case("GDF", 12000), slow_die_case("CLPS", 12000, d_bc=1.0),
-                   consistent_mass_die_case("CLPS"), consistent_mass_die_case("CLPS", 12000)],
+    #: the die stage's increments: CLPS (consistent mass) and GDF at 12 000; CLPS with the lumped
+    #: mass, which loses 42 % of its stress as the ramp decelerates at 6000, and at 12 000; CLPS at
+    #: 1.0 r_max (146 particles, lumped, the same 30-40 % end loss): the rate question at a third the cost
+    "increments": [slow_die_case("CLPS", 12000), lumped_mass_die_case("CLPS"), lumped_mass_die_case("CLPS", 12000),
+                   slow_die_case("GDF", 12000), slow_die_case("CLPS", 12000, d_bc=1.0)],
     #: with isotropic_GDF and isotropic_CLP (50 particles, seed 1); a second 50-particle packing
     #: gives the spread of the 50-particle values
     "size": [size_case(150), size_case(150, "CLP"), size_case(50, seed=2), size_case(50, "CLP", seed=2)],

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from cases import (CASES, CLP_DRIFT_LIMIT, DBC_GRID, DBC_READ_AT, DBC_STABLE_WITHIN, DRIFT_READ_AT, PATH_READ_AT,
-                   STAGES, THESIS_DIE_SIGMA_M, THESIS_DIVERGENCE_HV, THESIS_GAMMA_L, THESIS_GDF_DRIFT,
-                   THESIS_NONPERIODIC_GAP, THESIS_STABLE_DBC, TOLERANCE, FanCase, die_case)
+from cases import (CASES, CHAPTER2_SETUP, CLP_DRIFT_LIMIT, DBC_GRID, DBC_READ_AT, DBC_STABLE_WITHIN, DRIFT_READ_AT,
+                   PATH_READ_AT, STAGES, THESIS_DIE_SIGMA_M, THESIS_DIVERGENCE_HV, THESIS_GAMMA_L, THESIS_GDF_DRIFT,
+                   THESIS_NONPERIODIC_GAP, THESIS_STABLE_DBC, TOLERANCE, FanCase, dbc_reference_case, die_case)
 from mpfem_fenicsx.homogenization import gradient_fit_noise_hd
 from mpfem_fenicsx.homogenization.surfaces import MIN_GAMMA_COLLAPSE
 from mpfem_fenicsx.io.history import read_csv
@@ -137,14 +137,14 @@ def die_rows(done: dict) -> tuple[list[dict], list[str]]:
         lines += ["", "The ordering CLP > CLPS > GDF read on " + ", ".join(
             f"`{name}` ({value:.2f} MPa)" for name, value in zip(read, values))
             + f": {'met' if ordered else 'not met'} (each condition's die run, or its repeat with more "
-            "increments or the consistent reduced mass where only the repeat passes its quasi-static check)."]
+            "increments or another reduced mass where only the repeat passes its quasi-static check)."]
     return rows, lines
 
 
 def quasi_static_die_run(done: dict, bc: str) -> str:
     """The die run of condition ``bc`` whose end value the ordering reads: the die stage's run,
     unless it fails its quasi-static check (its end is the ramp deceleration's relaxation, a
-    loading-rate artefact) and a repeat (the ``increments`` stage: more increments, or the consistent
+    loading-rate artefact) and a repeat (the ``increments`` stage: more increments, or another
     reduced mass) passes; the first such repeat in the stage's order."""
     name = f"die_{bc}"
     if quasi_static_check(done[name]["history"]).passed:
@@ -157,8 +157,8 @@ def quasi_static_die_run(done: dict, bc: str) -> str:
 
 def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
     """The die stage's rate: each condition run with more explicit increments over the same
-    duration (``cases.slow_die_case``) or with the consistent reduced mass
-    (``cases.consistent_mass_die_case``) next to its 6000-increment run, along the ramp
+    duration (``cases.slow_die_case``) or with another reduced mass
+    (``cases.lumped_mass_die_case``) next to its 6000-increment run, along the ramp
     (rho_imposed 0.90, 0.93), at its peak and at the end; a variant's end at the thesis' d_bc is
     compared with the thesis (§2.7) like the die stage's (at another d_bc it is not)."""
     rows, lines = [], ["| condition | increments | reduced mass | sigma_m at rho_imposed 0.90 / 0.93 (MPa) | "
@@ -183,9 +183,9 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
             h = run["history"]
             end = at_density(h, "sigma_m", 0.95, "rho_imposed")
             k = int(np.argmax(h["sigma_m"]))
-            variant = ("" if case is repeated else f", {case.increments} increments" if mass == "lumped"
-                       else f", {mass} mass" + ("" if case.increments == repeated.increments
-                                                 else f", {case.increments} increments"))
+            differences = ([f"{mass} mass"] if mass != repeated.options.get("constraint_mass", "lumped") else []) + (
+                [f"{case.increments} increments"] if case.increments != repeated.increments else [])
+            variant = "".join(f", {d}" for d in differences)
             r = row(case.name, "sigma_m at rho 0.95 (MPa)" + variant, THESIS_DIE_SIGMA_M[bc], end)
             if case is not repeated and compared:  # the repeated run's row is the die stage's
                 rows.append(r)
@@ -342,10 +342,12 @@ def dbc_readings(history: dict) -> np.ndarray:
 
 def dbc_runs(done: dict, bc: str) -> dict:
     """d_bc / r_max -> finished run (or None) of a condition's d_bc study: the ``dbc`` stage's
-    runs and, for the conditions with copies at the thesis' d_bc, the die stage's run (2.5 r_max)."""
+    runs and, for the conditions with copies at the thesis' d_bc, the die run with the d_bc runs'
+    reduced mass (2.5 r_max, ``cases.dbc_reference_case``)."""
     runs = {d: done.get(f"dbc_{bc}_{d:g}") for d in DBC_GRID[bc]}
     if bc != "CLP":  # CLP's die run is by periodic images: no d_bc
-        runs[die_case(bc).d_bc] = done.get(die_case(bc).name)
+        reference = dbc_reference_case(bc)
+        runs[reference.d_bc] = done.get(reference.name)
     return runs
 
 
@@ -912,9 +914,11 @@ def dbc_figure(done: dict, path: Path) -> None:
             ax.plot(run["history"]["rho_imposed"], run["history"]["sigma_m"], color=colour,
                     ls="--" if d == "images" else "-", label=label)
             drawn = True
-            for case in STAGES["increments"]:  # the same d_bc with more increments, dotted
+            for case in STAGES["increments"]:  # the same d_bc and (lumped) mass with more increments, dotted
                 slow = done.get(case.name)
-                if slow is not None and case.options["bc"] == bc and case.d_bc == d:
+                if (slow is not None and case.options["bc"] == bc and case.d_bc == d
+                        and case.increments != CHAPTER2_SETUP["increments"]
+                        and case.options.get("constraint_mass", "lumped") == "lumped"):
                     ax.plot(slow["history"]["rho_imposed"], slow["history"]["sigma_m"], ":", color=colour,
                             label=f"{label}, {case.increments} increments")
         if not drawn:
