@@ -780,15 +780,17 @@ def figures(done: dict, out: Path) -> None:
     fig, ax = plt.subplots(figsize=(6, 4.2))
     for bc, colour in CONDITION_COLOURS.items():
         run = done.get(f"die_{bc}")
+        stage_mass = die_case(bc).options["constraint_mass"]
         if run is not None:
-            ax.plot(run["history"]["rho_imposed"], run["history"]["sigma_m"], color=colour, label=f"{bc} (ours)")
-        for case in STAGES["increments"]:  # the same run with more increments or the consistent mass
+            ax.plot(run["history"]["rho_imposed"], run["history"]["sigma_m"], color=colour,
+                    label=f"{bc}" + (f", {stage_mass} mass" if stage_mass != "lumped" else "") + " (ours)")
+        for case in STAGES["increments"]:  # the same run with more increments or another reduced mass
             variant = done.get(case.name)
             if case.options["bc"] == bc and "d_bc" not in case.options and variant is not None:
                 mass = case.options.get("constraint_mass", "lumped")
-                ax.plot(variant["history"]["rho_imposed"], variant["history"]["sigma_m"],
-                        ":" if mass == "lumped" else "-.", color=colour,
-                        label=f"{bc}, {case.increments} increments, {mass} mass (ours)")
+                style = "-." if mass == stage_mass else ":" if case.increments == CHAPTER2_SETUP["increments"] else "--"
+                ax.plot(variant["history"]["rho_imposed"], variant["history"]["sigma_m"], ls=style, lw=1.2,
+                        color=colour, label=f"{bc}, {case.increments} increments, {mass} mass (ours)")
         if bc in THESIS_DIE_SIGMA_M:
             ax.plot([0.95], [THESIS_DIE_SIGMA_M[bc]], "x", color=colour, ms=9, mew=2, label=f"{bc} thesis §2.7")
     if "die_CLP_exact_volume" in done:
@@ -925,7 +927,8 @@ def dbc_figure(done: dict, path: Path) -> None:
             _not_run(ax, bc)
         for rho in DBC_READ_AT:  # where the table reads the curves (and at their end)
             ax.axvline(rho, color="0.8", lw=0.8, zorder=0)
-        _axis(ax, RHO_IMPOSED_LABEL, title=f"die {bc}: thesis stable from {THESIS_STABLE_DBC[bc]} r_max")
+        lumped = " (lumped mass)" if die_case(bc).options["constraint_mass"] != "lumped" else ""  # the d_bc runs'
+        _axis(ax, RHO_IMPOSED_LABEL, title=f"die {bc}{lumped}: thesis stable from {THESIS_STABLE_DBC[bc]} r_max")
     axes[0].set_ylabel("sigma_m (MPa, Love-Weber)")
     _write(fig, path)
 
