@@ -87,8 +87,9 @@ def test_report_writes_summary_and_tables(tmp_path):
     assert "not run yet" in text  # the gamma stage
     # the overview: per table its compared numbers met and its stages' runs (60 s each)
     assert "| Die compaction, sigma_m at rho 0.95 (§2.7) | 3 of 4 | 3 of 5 (0.1) | `die_GDH`, `die_CLP_exact_volume` |" in text
-    assert ("| Die stage's increments (the explicit runs' rate) | 2 of 2 | 3 of 5 (0.1) | "
-            "`die_CLPS_lumped_mass_n12000`, `die_GDF_n12000` |") in text
+    assert ("| The explicit runs' rate: increments and reduced mass | 2 of 2 | 3 of 6 (0.1) | "
+            "`die_CLPS_lumped_mass_n12000`, `die_GDF_n12000`, `isotropic_CLPS_n12000` |") in text
+    assert "| CLPS, isotropic | 6000 | consistent | not run yet" in text
     for figure in ("die_sigma_m", "periodic", "dbc", "size", "stress_measures", "gamma"):
         assert (here / "figures" / f"{figure}.png").stat().st_size > 1000, figure
 
@@ -219,20 +220,34 @@ def test_size_effect_must_exceed_the_spread_of_the_50_particle_packings():
     assert status("end sigma_d")[0] == "not met"
 
 
+def _synthetic_run(end: float, carrier_share: float) -> dict:
+    """A finished run whose sigma_m rises to ``end`` (MPa) at rho 0.95, with ``carrier_share`` of
+    its work through the comoving carrier (its quasi-static check fails above 10 %)."""
+    rho = np.linspace(0.6, 0.95, 15)
+    sigma = end * ((rho - 0.6) / 0.35) ** 2
+    w = np.linspace(0.0, 5.0, rho.size)
+    history = {"rho": rho, "rho_imposed": rho, "rho_fe": 0.97 * rho, "sigma_m": sigma, "W_ext": w,
+               "E_int": (1 + carrier_share) * w, "E_visc": 0 * w, "E_contact": 0 * w, "E_c": 0 * w,
+               "E_damp": 0 * w, "unbalanced": 0 * w + 0.01}
+    return {"history": history, "wall_s": 60.0}
+
+
+def test_isotropic_rate_variant_is_listed_not_compared():
+    """The isotropic CLPS at 12 000 increments sits in the rate table beside its 6000-increment
+    run, not compared with the thesis' die values."""
+    done = {"isotropic_CLPS": _synthetic_run(13.2, 0.01), "isotropic_CLPS_n12000": _synthetic_run(13.5, 0.01)}
+    rows, lines = report.increments_rows(done)
+    assert not any(r["case"].startswith("isotropic") for r in rows)
+    line = next(line for line in lines if line.startswith("| CLPS, isotropic | 12000 | consistent |"))
+    assert "| 13.50 |" in line and "(not in the thesis)" in line
+
+
 def test_die_ordering_reads_the_quasi_static_run():
     """The ordering CLP > CLPS > GDF reads each condition's die run unless it fails its
     quasi-static check and its run with more increments passes it: a CLPS end lost to the ramp's
     deceleration (30 % of the work through the carrier) is replaced by its slower repeat; a
     slower repeat that fails too is not."""
-    rho = np.linspace(0.6, 0.95, 15)
-
-    def run(end, carrier_share):
-        sigma = end * ((rho - 0.6) / 0.35) ** 2
-        w = np.linspace(0.0, 5.0, rho.size)
-        history = {"rho": rho, "rho_imposed": rho, "rho_fe": 0.97 * rho, "sigma_m": sigma, "W_ext": w,
-                   "E_int": (1 + carrier_share) * w, "E_visc": 0 * w, "E_contact": 0 * w, "E_c": 0 * w,
-                   "E_damp": 0 * w, "unbalanced": 0 * w + 0.01}
-        return {"history": history, "wall_s": 60.0}
+    run = _synthetic_run
 
     done = {"die_CLP": run(13.6, 0.01), "die_CLPS": run(5.9, 0.31), "die_GDF": run(10.6, 0.02),
             "die_CLPS_n12000": run(11.0, 0.30)}

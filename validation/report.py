@@ -156,11 +156,12 @@ def quasi_static_die_run(done: dict, bc: str) -> str:
 
 
 def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
-    """The die stage's rate: each condition run with more explicit increments over the same
-    duration (``cases.slow_die_case``) or with another reduced mass
+    """The explicit runs' rate: a die (or isotropic) run with more explicit increments over the
+    same duration (``cases.slower_case``) or with another reduced mass
     (``cases.lumped_mass_die_case``) next to its 6000-increment run, along the ramp
-    (rho_imposed 0.90, 0.93), at its peak and at the end; a variant's end at the thesis' d_bc is
-    compared with the thesis (§2.7) like the die stage's (at another d_bc it is not)."""
+    (rho_imposed 0.90, 0.93), at its peak and at the end; a die variant's end at the thesis' d_bc
+    is compared with the thesis (§2.7) like the die stage's (at another d_bc, or isotropic, it is
+    not)."""
     rows, lines = [], ["| condition | increments | reduced mass | sigma_m at rho_imposed 0.90 / 0.93 (MPa) | "
                        "peak (MPa, at rho_imposed) "
                        "| end (MPa) | unbalanced at the end | work through the carrier / W_ext (end) | "
@@ -172,8 +173,11 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
     for repeated_name, variants in groups.items():
         repeated = CASES[repeated_name]
         bc = repeated.options["bc"]
-        compared = "d_bc" not in repeated.options  # the thesis' value is at its d_bc (table 2.3)
-        condition = bc if compared else f"{bc} at d_bc {repeated.d_bc:g} r_max"
+        die = repeated.options["loading"] == "die"
+        compared = die and "d_bc" not in repeated.options  # the thesis' value: die, at its d_bc (table 2.3)
+        condition = (bc if compared else f"{bc} at d_bc {repeated.d_bc:g} r_max" if die
+                     else f"{bc}, {repeated.options['loading']}")
+        not_compared = "(other d_bc) |" if die else "(not in the thesis) |"
         for case in [repeated, *variants]:
             mass = case.options.get("constraint_mass", "lumped")
             run = done.get(case.name)
@@ -186,10 +190,10 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
             differences = ([f"{mass} mass"] if mass != repeated.options.get("constraint_mass", "lumped") else []) + (
                 [f"{case.increments} increments"] if case.increments != repeated.increments else [])
             variant = "".join(f", {d}" for d in differences)
-            r = row(case.name, "sigma_m at rho 0.95 (MPa)" + variant, THESIS_DIE_SIGMA_M[bc], end)
+            r = row(case.name, "sigma_m at rho 0.95 (MPa)" + variant, THESIS_DIE_SIGMA_M.get(bc, np.nan), end)
             if case is not repeated and compared:  # the repeated run's row is the die stage's
                 rows.append(r)
-            deviation = f"{100 * r['deviation']:+.1f} % | {r['status']}" if compared else "(other d_bc) |"
+            deviation = f"{100 * r['deviation']:+.1f} % | {r['status']}" if compared else not_compared
             lines.append(f"| {condition} | {case.increments} | {mass} | {at_density(h, 'sigma_m', 0.90, 'rho_imposed'):.2f} / "
                          f"{at_density(h, 'sigma_m', 0.93, 'rho_imposed'):.2f} | {h['sigma_m'][k]:.2f} "
                          f"({h['rho_imposed'][k]:.3f}) | {end:.2f} | {h['unbalanced'][-1]:.2f} | "
@@ -786,7 +790,8 @@ def figures(done: dict, out: Path) -> None:
                     label=f"{bc}" + (f", {stage_mass} mass" if stage_mass != "lumped" else "") + " (ours)")
         for case in STAGES["increments"]:  # the same run with more increments or another reduced mass
             variant = done.get(case.name)
-            if case.options["bc"] == bc and "d_bc" not in case.options and variant is not None:
+            if (case.options["bc"] == bc and case.options["loading"] == "die" and "d_bc" not in case.options
+                    and variant is not None):
                 mass = case.options.get("constraint_mass", "lumped")
                 style = "-." if mass == stage_mass else ":" if case.increments == CHAPTER2_SETUP["increments"] else "--"
                 ax.plot(variant["history"]["rho_imposed"], variant["history"]["sigma_m"], ls=style, lw=1.2,
@@ -918,7 +923,7 @@ def dbc_figure(done: dict, path: Path) -> None:
             drawn = True
             for case in STAGES["increments"]:  # the same d_bc and (lumped) mass with more increments, dotted
                 slow = done.get(case.name)
-                if (slow is not None and case.options["bc"] == bc and case.d_bc == d
+                if (slow is not None and case.options["bc"] == bc and case.options["loading"] == "die" and case.d_bc == d
                         and case.increments != CHAPTER2_SETUP["increments"]
                         and case.options.get("constraint_mass", "lumped") == "lumped"):
                     ax.plot(slow["history"]["rho_imposed"], slow["history"]["sigma_m"], ":", color=colour,
@@ -1032,7 +1037,7 @@ def replace_block(text: str, name: str, lines: list[str]) -> str:
 #: the report's tables in the issue's order: README block, what it compares, the stages its runs
 #: come from (the overview counts their cases), the function that builds it
 TABLES = (("die", "Die compaction, sigma_m at rho 0.95 (§2.7)", ("die",), die_rows),
-          ("increments", "Die stage's increments (the explicit runs' rate)", ("increments",), increments_rows),
+          ("increments", "The explicit runs' rate: increments and reduced mass", ("increments",), increments_rows),
           ("periodic", "Isotropic and die: periodic vs non-periodic conditions (§2.7)", ("isotropic",),
            periodic_rows),
           ("drift", "Deviatoric drift under isotropic loading (§2.4, fig. 2.8a)", (), drift_rows),
