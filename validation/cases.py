@@ -66,7 +66,7 @@ CHAPTER2_SETUP = dict(particles=50, seed=1, increments=6000, outputs=40, visual=
 @dataclass(frozen=True)
 class Case:
     """One compaction run: ``name`` (its run directory) and the ``CompactionCase`` options;
-    ``repeats``: the run this one repeats with more increments (``slow_die_case``) or another reduced
+    ``repeats``: the run this one repeats with more increments (``slower_case``) or another reduced
     mass (``lumped_mass_die_case``), else None."""
 
     name: str
