@@ -247,10 +247,8 @@ def test_die_ordering_reads_the_quasi_static_run():
     quasi-static check and its run with more increments passes it: a CLPS end lost to the ramp's
     deceleration (30 % of the work through the carrier) is replaced by its slower repeat; a
     slower repeat that fails too is not."""
-    run = _synthetic_run
-
-    done = {"die_CLP": run(13.6, 0.01), "die_CLPS": run(5.9, 0.31), "die_GDF": run(10.6, 0.02),
-            "die_CLPS_n12000": run(11.0, 0.30)}
+    done = {"die_CLP": _synthetic_run(13.6, 0.01), "die_CLPS": _synthetic_run(5.9, 0.31),
+            "die_GDF": _synthetic_run(10.6, 0.02), "die_CLPS_n12000": _synthetic_run(11.0, 0.30)}
 
     def ordering():
         rows, lines = report.die_rows(done)
@@ -258,10 +256,10 @@ def test_die_ordering_reads_the_quasi_static_run():
 
     status, line = ordering()
     assert status == "not met" and "`die_CLPS` (5.90 MPa)" in line  # the slow run fails its check too
-    done["die_CLPS_n12000"] = run(11.0, 0.03)
+    done["die_CLPS_n12000"] = _synthetic_run(11.0, 0.03)
     status, line = ordering()
     assert status == "met" and "`die_CLPS_n12000` (11.00 MPa)" in line
-    done["die_CLPS_n12000"] = run(10.0, 0.03)
+    done["die_CLPS_n12000"] = _synthetic_run(10.0, 0.03)
     assert ordering()[0] == "not met"  # below GDF
 
 
@@ -412,7 +410,7 @@ def _die_compaction(tmp_path, name, **options):
     coarser particle (4 hexahedra per inner-cube edge) and fewer increments than the validation.
     The radii are reduced by 0.975: the volume-exact particle's nodes lie at 1.0227 x its radius
     at 4 divisions, and with the default 0.99 touching neighbours would start interpenetrating
-    (refused since 2026-11-28; the runs before then started with that overlap)."""
+    (``build_compaction`` refuses it)."""
     from mpi4py import MPI
 
     from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
@@ -436,10 +434,8 @@ def test_die_clp_density_definition_on_a_small_volume(tmp_path):
     from the spheres (eq. 2.4-2.5) the exact-volume volume is far stiffer. Two independent meshes,
     CLP by images, 1500 increments. Compared as the mean sigma_m over rho_fe 0.68-0.76 (the
     constant-rate middle of the smooth ramps): at single densities the faceted / exact ratio swings
-    by +-7 % as contacts form (validation/README.md, CI-sized subset). Measured 2026-11-28 (radii
-    x0.975, no start overlap): band mean 3.328 (faceted) vs 3.414 MPa (exact), -2.5 %; at
-    rho_imposed 0.75, 2.92 MPa faceted, 4.26 exact (x1.46). (2026-11-26, radii x0.99, the exact
-    volume starting with its neighbours interpenetrating: +0.8 %; 2.94 / ~4.3.)"""
+    by +-7 % as contacts form. Measured band means and their history: validation/README.md,
+    CI-sized subset (2026-11-28: 3.328 faceted vs 3.414 MPa exact, -2.5 %)."""
     exact = _die_compaction(tmp_path, "exact", bc="CLP", increments=1500)
     faceted = _die_compaction(tmp_path, "faceted", bc="CLP", increments=1500, exact_volume=False)
     assert faceted["rho_fe"][0] < 0.95 * exact["rho_fe"][0]  # the inscribed particle holds less solid
@@ -457,12 +453,10 @@ def test_die_periodic_volume_is_the_stiffest_on_a_small_volume(tmp_path):
     """Thesis §2.7 at reduced size: over the constant-rate part of a die compaction (mean sigma_m
     over rho 0.70-0.80, 3000 increments) the periodic volume (CLP, images) is stiffer than the
     simplified periodic one (CLPS) and the driven copies (GDF), each at the d_bc from which the
-    thesis found it stable (table 2.3: CLPS 1.5, GDF 2.0 r_max). Measured 2026-11-28 (radii x0.975,
-    no start overlap; 944 s beside a 2-rank run): CLP 4.030, CLPS 3.789 (-6.0 %), GDF 3.793 MPa
-    (-5.9 %); 2026-11-25 (radii x0.99, overlapping start): 4.121, 3.844, 3.903. The thesis' full
-    order CLP > CLPS > GDF is not resolved at 24 particles (CLPS and GDF 0.1 % apart, 1.5 % with the
-    overlapping start, in the other order); it is the 50-particle die stage's to show
-    (validation/README.md)."""
+    thesis found it stable (table 2.3: CLPS 1.5, GDF 2.0 r_max). Measured 2026-11-28: CLP 4.030,
+    CLPS 3.789 (-6.0 %), GDF 3.793 MPa (-5.9 %); earlier runs in validation/README.md, CI-sized
+    subset. The thesis' full order CLP > CLPS > GDF is not resolved at 24 particles (CLPS and GDF
+    0.1 % apart); it is the 50-particle die stage's to show."""
     means = {}
     for bc, d_bc in (("CLP", None), ("CLPS", 1.5), ("GDF", 2.0)):
         h = _die_compaction(tmp_path, bc, bc=bc, d_bc=d_bc, increments=3000)
