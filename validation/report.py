@@ -526,7 +526,8 @@ def gamma_rows(done: dict) -> tuple[list[dict], list[str]]:
             dry_text = ("not run yet" if dry is None else "not recorded" if "Gamma_model" not in dry["history"]
                         else f"{at_density(dry['history'], 'Gamma_model', rho_f, 'rho_imposed'):.2f}")
             lines.append(f"| {loading} | {rho_f} | {thesis} | {' | '.join(text)} | "
-                         + (f"{100 * last['deviation']:+.1f} % | {last['status']} |" if last else " | |")
+                         + ((f"{100 * last['deviation']:+.1f} % | {last['status']} |" if np.isfinite(last['deviation'])
+                             else f"(rho_f below the packing's start) | {last['status']} |") if last else " | |")
                          + f" {dry_text} |")
     return rows, lines
 
