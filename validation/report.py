@@ -525,10 +525,12 @@ def gamma_rows(done: dict) -> tuple[list[dict], list[str]]:
             last = rows[-1] if cells[2] is not None else None
             dry_text = ("not run yet" if dry is None else "not recorded" if "Gamma_model" not in dry["history"]
                         else f"{at_density(dry['history'], 'Gamma_model', rho_f, 'rho_imposed'):.2f}")
-            lines.append(f"| {loading} | {rho_f} | {thesis} | {' | '.join(text)} | "
-                         + ((f"{100 * last['deviation']:+.1f} % | {last['status']} |" if np.isfinite(last['deviation'])
-                             else f"(rho_f below the packing's start) | {last['status']} |") if last else " | |")
-                         + f" {dry_text} |")
+            verdict = " | |"
+            if last is not None:
+                deviation = (f"{100 * last['deviation']:+.1f} %" if np.isfinite(last["deviation"])
+                             else "(rho_f below the packing's start)")
+                verdict = f"{deviation} | {last['status']} |"
+            lines.append(f"| {loading} | {rho_f} | {thesis} | {' | '.join(text)} | {verdict} {dry_text} |")
     return rows, lines
 
 
