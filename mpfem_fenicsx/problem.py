@@ -28,6 +28,43 @@ from .forms.kinematics import DeformationGradients, DeviatoricForces, Volumetric
 from .material import ElastoPlastic, HenckyJ2
 
 
+#: the Q1 hexahedron's vertices in dolfinx's lexicographic order (x fastest) on the unit cube
+_HEX_VERTICES = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)])
+_GAUSS_1D = (0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0))
+
+
+def hexahedron_gauss_length(x: np.ndarray) -> np.ndarray:
+    """A stable-increment length of Q1 hexahedra with vertices ``x`` (n, 8, 3) (mm, lexicographic
+    order) from the Flanagan-Belytschko bound over the 2x2x2 Gauss points: with lumped mass
+    rho V / 8 the element's highest frequency satisfies
+    omega^2 <= (lambda + 2 mu) / rho * 8 / V * sum_g w_g det J_g sum_a |grad N_a(g)|^2 = omega_FB^2,
+    returned as L = (8 / sqrt(3)) c_d / omega_FB: the undistorted cube of edge h (omega_FB = 8 c_d /
+    (sqrt(3) h)) gets exactly h, the length L / c_d of a regular grid. It depends on the shape only;
+    it bounds omega_e L / c_d by 8 / sqrt(3) = 4.62 for every valid cell (the cube: 3.19 at nu =
+    0.435), where the
+    vertex distances and volume / face area let a folded cell reach 8.7 (measured,
+    bench/README.md). Cells whose Jacobian vanishes at a Gauss point get length 0."""
+    n = x.shape[0]
+    gradient_sum = np.zeros(n)
+    volume = np.zeros(n)
+    for xi in np.array(np.meshgrid(_GAUSS_1D, _GAUSS_1D, _GAUSS_1D, indexing="ij")).reshape(3, -1).T:
+        factors = np.where(_HEX_VERTICES == 1, xi, 1.0 - xi)  # (8, 3) 1D shape functions at xi
+        signs = np.where(_HEX_VERTICES == 1, 1.0, -1.0)
+        dN = np.stack([signs[:, 0] * factors[:, 1] * factors[:, 2], factors[:, 0] * signs[:, 1] * factors[:, 2],
+                       factors[:, 0] * factors[:, 1] * signs[:, 2]], axis=1)  # (8, 3) reference gradients
+        J = np.einsum("cai,aj->cij", x, dN)
+        det = np.linalg.det(J)
+        good = np.abs(det) > 0.0
+        inverse = np.zeros_like(J)
+        inverse[good] = np.linalg.inv(J[good])
+        grad = np.einsum("aj,cji->cai", dN, inverse)  # physical gradients (n, 8, 3)
+        gradient_sum += np.abs(det) / 8.0 * np.sum(grad * grad, axis=(1, 2))  # Gauss weight 1/8
+        volume += np.abs(det) / 8.0
+        gradient_sum[~good] = np.inf
+    # omega_FB^2 / c_d^2 = 8 gradient_sum / volume; L = (8 / sqrt(3)) / sqrt(that)
+    return 8.0 / np.sqrt(3.0) / np.sqrt(8.0 * gradient_sum / np.where(volume > 0.0, volume, np.inf))
+
+
 class SolidProblem:
     """Finite-strain elastoplastic bulk on a (multi-particle) mesh.
 
@@ -276,7 +313,9 @@ class SolidProblem:
         """Characteristic length of each owned cell (mm) for the explicit stable increment, in the
         reference configuration or (``deformed``) at the current displacement (P1/Q1 nodes): the
         smallest vertex-to-vertex distance, and for hexahedra also the volume / largest face area,
-        which catches flattened (sheared) cells whose edges keep their lengths."""
+        which catches flattened (sheared) cells whose edges keep their lengths, and
+        :func:`hexahedron_gauss_length`, which catches folded cells (a corner pushed inside) that
+        both miss (bench/README.md, ``element_frequencies.py``)."""
         geom = self.mesh.geometry
         if deformed:
             nodes = self.V.tabulate_dof_coordinates() + self.u.x.array.reshape(-1, 3)
@@ -295,5 +334,5 @@ class SolidProblem:
             faces = np.array([[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 4, 5], [2, 3, 6, 7], [0, 2, 4, 6], [1, 3, 5, 7]])
             area = 0.5 * np.linalg.norm(np.cross(x[:, faces[:, 3]] - x[:, faces[:, 0]],
                                                  x[:, faces[:, 2]] - x[:, faces[:, 1]]), axis=-1).max(axis=1)
-            d = np.minimum(d, volume / area)
+            d = np.minimum(np.minimum(d, volume / area), hexahedron_gauss_length(x))
         return d

@@ -60,6 +60,43 @@ def test_stable_increment_and_mass_scaling():
     assert scaled.total_mass == pytest.approx(100.0 * LEAD.density * length ** 3, rel=1e-10)
 
 
+#: a cell of the isotropic CLPS run at 12 000 increments, folded at the edge of a copy's coupling zone
+#: (two corners pushed inside; vertices in mm, lexicographic order; bench/README.md, element_frequencies.py)
+FOLDED_CELL = np.array([[0.359428, -0.188714, 0.456085], [0.374347, -0.201915, 0.465375],
+                        [0.351191, -0.169286, 0.465198], [0.367394, -0.175300, 0.471781],
+                        [0.363333, -0.184883, 0.475242], [0.373256, -0.200636, 0.482225],
+                        [0.351715, -0.173551, 0.483331], [0.366501, -0.179018, 0.488062]])
+
+
+def test_stable_length_bounds_the_highest_frequency_of_a_folded_cell():
+    """omega_e L / c_d, omega_e the exact highest frequency of the elastic Q1 cell with its lumped
+    mass (bench/element_frequencies.py): 2 sqrt((1 + nu) / (1 - nu)) = 3.19 for a cube (for which L =
+    h is exact on a regular grid, 2 c_d / h); the folded cell reached 8.7 with the vertex distances
+    and volume / face area and rang at the central difference's limit; the Gauss-point bound keeps
+    every valid cell at or below 8 / sqrt(3)."""
+    import sys
+    from pathlib import Path
+
+    import basix.ufl
+    import ufl
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    from element_frequencies import elasticity_matrix, element_highest_omega2
+
+    element = basix.ufl.element("Lagrange", "hexahedron", 1, shape=(3,))
+    c_d = LEAD.dilatational_wave_speed
+    cube = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)], dtype=float) * 0.02
+    for vertices, reference in ((cube, 2 * np.sqrt((1 + LEAD.nu) / (1 - LEAD.nu))), (FOLDED_CELL, None)):
+        mesh = dolfinx.mesh.create_mesh(MPI.COMM_SELF, np.arange(8, dtype=np.int64)[None], ufl.Mesh(element), vertices)
+        length = SolidProblem(mesh, LEAD, tangent=False).min_cell_length()[0]
+        omega = np.sqrt(element_highest_omega2(vertices[None], elasticity_matrix(LEAD.E, LEAD.nu),
+                                               np.array([LEAD.density])))[0]
+        if reference is not None:
+            assert length == pytest.approx(0.02, rel=1e-12)
+            assert omega * length / c_d == pytest.approx(reference, rel=1e-10)
+        else:
+            assert omega * length / c_d <= 8 / np.sqrt(3) * (1 + 1e-12)
+
+
 def test_explicit_is_stable_at_the_scaled_increment():
     """A free elastic block set in motion by a smooth step keeps bounded energy (no blow-up)."""
     mesh = dolfinx.mesh.create_box(MPI.COMM_SELF, [[0, 0, 0], [1, 1, 1]], [3] * 3,
