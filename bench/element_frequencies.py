@@ -5,7 +5,9 @@
 
 The explicit solver mass-scales each hexahedron for its stable increment
 dt_e = safety * L / c_d * (sqrt(1 + xi^2) - xi) (``solvers/mass_scaling.py``), L the smallest vertex
-distance or volume / largest face area (``SolidProblem.min_cell_length``). This script restores a
+distance or volume / largest face area (``SolidProblem.min_cell_length``; since 2026-11-28 also the
+Gauss-point bound ``problem.hexahedron_gauss_length``, so the ratio below reads the checkpoint with
+the current estimate, whatever the run used). This script restores a
 validation run's checkpoint (same number of ranks as the run) and computes, for every owned cell in
 its current shape and with its scaled density, the exact highest frequency omega_e of the elastic
 Q1 element (2x2x2 Gauss, element row-sum lumped mass rho V / 8, Lame constants of the material),
