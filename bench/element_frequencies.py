@@ -23,20 +23,16 @@ from __future__ import annotations
 
 import argparse
 import sys
-from itertools import product
 from pathlib import Path
 
 from mpi4py import MPI
 
 import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
 import numpy as np
+from mpfem_fenicsx.problem import HEX_GAUSS_GRADIENTS, HEX_VERTICES, hexahedron_gradients
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "validation"))
-
-#: the Q1 hexahedron's corners in dolfinx's lexicographic vertex order (x fastest)
-CORNERS = np.array(list(product([0, 1], [0, 1], [0, 1])))[:, ::-1]
-GAUSS = (0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0))
 
 
 def elasticity_matrix(E: float, nu: float) -> np.ndarray:
@@ -56,15 +52,9 @@ def element_highest_omega2(x: np.ndarray, D: np.ndarray, density: np.ndarray) ->
     n = x.shape[0]
     K = np.zeros((n, 24, 24))
     volume = np.zeros(n)
-    for point in product(GAUSS, GAUSS, GAUSS):
-        xi = np.array(point)
-        factors = np.where(CORNERS == 1, xi, 1 - xi)  # (8, 3) the 1D shape functions at xi
-        signs = np.where(CORNERS == 1, 1.0, -1.0)
-        dN = np.stack([signs[:, 0] * factors[:, 1] * factors[:, 2], factors[:, 0] * signs[:, 1] * factors[:, 2],
-                       factors[:, 0] * factors[:, 1] * signs[:, 2]], axis=1)  # (8, 3) reference gradients
-        J = np.einsum("cai,aj->cij", x, dN)
-        grad = np.einsum("aj,cji->cai", dN, np.linalg.inv(J))  # (n, 8, 3) physical gradients
-        weight = np.linalg.det(J) / 8.0  # Gauss weight 1/8 on the unit cube
+    for reference_gradients in HEX_GAUSS_GRADIENTS:
+        det, grad = hexahedron_gradients(x, reference_gradients)  # (n,), (n, 8, 3)
+        weight = det / 8.0  # Gauss weight 1/8 on the unit cube
         B = np.zeros((n, 6, 24))
         for i in range(3):
             B[:, i, i::3] = grad[:, :, i]
@@ -79,7 +69,7 @@ def element_highest_omega2(x: np.ndarray, D: np.ndarray, density: np.ndarray) ->
 def cube_reference(E: float, nu: float, density: float) -> tuple[float, float]:
     """The unit cube's omega_e h / c_d, computed and in closed form."""
     c_d = np.sqrt(E * (1 - nu) / ((1 + nu) * (1 - 2 * nu)) / density)
-    omega2 = element_highest_omega2(CORNERS[None].astype(float), elasticity_matrix(E, nu), np.array([density]))
+    omega2 = element_highest_omega2(HEX_VERTICES[None].astype(float), elasticity_matrix(E, nu), np.array([density]))
     return float(np.sqrt(omega2[0]) / c_d), float(2.0 * np.sqrt((1 + nu) / (1 - nu)))
 
 

@@ -29,8 +29,33 @@ from .material import ElastoPlastic, HenckyJ2
 
 
 #: the Q1 hexahedron's vertices in dolfinx's lexicographic order (x fastest) on the unit cube
-_HEX_VERTICES = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)])
+HEX_VERTICES = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)])
+
+
+def _hex_reference_gradients(xi: np.ndarray) -> np.ndarray:
+    """(8, 3) gradients of the Q1 shape functions on the unit cube at the point ``xi`` (3,)."""
+    factors = np.where(HEX_VERTICES == 1, xi, 1.0 - xi)  # the 1D shape functions at xi
+    signs = np.where(HEX_VERTICES == 1, 1.0, -1.0)
+    return np.stack([signs[:, 0] * factors[:, 1] * factors[:, 2], factors[:, 0] * signs[:, 1] * factors[:, 2],
+                     factors[:, 0] * factors[:, 1] * signs[:, 2]], axis=1)
+
+
 _GAUSS_1D = (0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0))
+#: (8, 8, 3) the Q1 reference gradients at the 2x2x2 Gauss points of the unit cube (weights 1/8 each)
+HEX_GAUSS_GRADIENTS = np.array([_hex_reference_gradients(np.array(xi))
+                                for xi in np.array(np.meshgrid(*[_GAUSS_1D] * 3, indexing="ij")).reshape(3, -1).T])
+
+
+def hexahedron_gradients(x: np.ndarray, reference_gradients: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """det J (n,) and the physical shape-function gradients (n, 8, 3) (1/mm) of Q1 hexahedra with
+    vertices ``x`` (n, 8, 3) (mm, lexicographic) at one point given by its ``reference_gradients``
+    (8, 3); cells with det J = 0 there get zero gradients."""
+    J = np.einsum("cai,aj->cij", x, reference_gradients)
+    det = np.linalg.det(J)
+    inverse = np.zeros_like(J)
+    good = det != 0.0
+    inverse[good] = np.linalg.inv(J[good])
+    return det, np.einsum("aj,cji->cai", reference_gradients, inverse)
 
 
 def hexahedron_gauss_length(x: np.ndarray) -> np.ndarray:
@@ -41,26 +66,16 @@ def hexahedron_gauss_length(x: np.ndarray) -> np.ndarray:
     returned as L = (8 / sqrt(3)) c_d / omega_FB: the undistorted cube of edge h (omega_FB = 8 c_d /
     (sqrt(3) h)) gets exactly h, the length L / c_d of a regular grid. It depends on the shape only;
     it bounds omega_e L / c_d by 8 / sqrt(3) = 4.62 for every valid cell (the cube: 3.19 at nu =
-    0.435), where the
-    vertex distances and volume / face area let a folded cell reach 8.7 (measured,
+    0.435), where the vertex distances and volume / face area let a folded cell reach 8.7 (measured,
     bench/README.md). Cells whose Jacobian vanishes at a Gauss point get length 0."""
     n = x.shape[0]
     gradient_sum = np.zeros(n)
     volume = np.zeros(n)
-    for xi in np.array(np.meshgrid(_GAUSS_1D, _GAUSS_1D, _GAUSS_1D, indexing="ij")).reshape(3, -1).T:
-        factors = np.where(_HEX_VERTICES == 1, xi, 1.0 - xi)  # (8, 3) 1D shape functions at xi
-        signs = np.where(_HEX_VERTICES == 1, 1.0, -1.0)
-        dN = np.stack([signs[:, 0] * factors[:, 1] * factors[:, 2], factors[:, 0] * signs[:, 1] * factors[:, 2],
-                       factors[:, 0] * factors[:, 1] * signs[:, 2]], axis=1)  # (8, 3) reference gradients
-        J = np.einsum("cai,aj->cij", x, dN)
-        det = np.linalg.det(J)
-        good = np.abs(det) > 0.0
-        inverse = np.zeros_like(J)
-        inverse[good] = np.linalg.inv(J[good])
-        grad = np.einsum("aj,cji->cai", dN, inverse)  # physical gradients (n, 8, 3)
+    for reference_gradients in HEX_GAUSS_GRADIENTS:
+        det, grad = hexahedron_gradients(x, reference_gradients)
         gradient_sum += np.abs(det) / 8.0 * np.sum(grad * grad, axis=(1, 2))  # Gauss weight 1/8
+        gradient_sum[det == 0.0] = np.inf
         volume += np.abs(det) / 8.0
-        gradient_sum[~good] = np.inf
     # omega_FB^2 / c_d^2 = 8 gradient_sum / volume; L = (8 / sqrt(3)) / sqrt(that)
     return 8.0 / np.sqrt(3.0) / np.sqrt(8.0 * gradient_sum / np.where(volume > 0.0, volume, np.inf))
 

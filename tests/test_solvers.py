@@ -9,7 +9,7 @@ import dolfinx
 from mpfem_fenicsx.loading import PrescribedDisplacements, SmoothStep, component_dofs
 from mpfem_fenicsx.material import LEAD
 from mpfem_fenicsx.meshes import particle_mesh
-from mpfem_fenicsx.problem import SolidProblem
+from mpfem_fenicsx.problem import HEX_VERTICES, SolidProblem
 from mpfem_fenicsx.solvers import ImplicitSolver, StepControl
 from mpfem_fenicsx.solvers.explicit import ExplicitSettings, ExplicitSolver
 
@@ -84,7 +84,7 @@ def test_stable_length_bounds_the_highest_frequency_of_a_folded_cell():
 
     element = basix.ufl.element("Lagrange", "hexahedron", 1, shape=(3,))
     c_d = LEAD.dilatational_wave_speed
-    cube = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)], dtype=float) * 0.02
+    cube = HEX_VERTICES.astype(float) * 0.02
     for vertices, reference in ((cube, 2 * np.sqrt((1 + LEAD.nu) / (1 - LEAD.nu))), (FOLDED_CELL, None)):
         mesh = dolfinx.mesh.create_mesh(MPI.COMM_SELF, np.arange(8, dtype=np.int64)[None], ufl.Mesh(element), vertices)
         length = SolidProblem(mesh, LEAD, tangent=False).min_cell_length()[0]
