@@ -44,6 +44,8 @@ _GAUSS_1D = (0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0))
 #: (8, 8, 3) the Q1 reference gradients at the 2x2x2 Gauss points of the unit cube (weights 1/8 each)
 HEX_GAUSS_GRADIENTS = np.array([_hex_reference_gradients(np.array(xi))
                                 for xi in np.array(np.meshgrid(*[_GAUSS_1D] * 3, indexing="ij")).reshape(3, -1).T])
+#: (8, 3) the Q1 reference gradients at the centre, the point of the volumetric part (forms.QuadratureRules)
+HEX_CENTRE_GRADIENTS = _hex_reference_gradients(np.full(3, 0.5))
 
 
 def hexahedron_gradients(x: np.ndarray, reference_gradients: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
