@@ -60,24 +60,31 @@ def hexahedron_gradients(x: np.ndarray, reference_gradients: np.ndarray) -> tupl
     return det, np.einsum("aj,cji->cai", reference_gradients, inverse)
 
 
-def hexahedron_gauss_length(x: np.ndarray) -> np.ndarray:
+def hexahedron_gauss_length(x: np.ndarray, reference: np.ndarray | None = None) -> np.ndarray:
     """A stable-increment length of Q1 hexahedra with vertices ``x`` (n, 8, 3) (mm, lexicographic
     order) from the Flanagan-Belytschko bound over the 2x2x2 Gauss points: with lumped mass
     rho V / 8 the element's highest frequency satisfies
     omega^2 <= (lambda + 2 mu) / rho * 8 / V * sum_g w_g det J_g sum_a |grad N_a(g)|^2 = omega_FB^2,
     returned as L = (8 / sqrt(3)) c_d / omega_FB: the undistorted cube of edge h (omega_FB = 8 c_d /
-    (sqrt(3) h)) gets exactly h, the length L / c_d of a regular grid. It depends on the shape only;
-    it bounds omega_e L / c_d by 8 / sqrt(3) = 4.62 for every valid cell (the cube: 3.19 at nu =
-    0.435), where the vertex distances and volume / face area let a folded cell reach 8.7 (measured,
-    bench/README.md). Cells whose Jacobian vanishes at a Gauss point get length 0."""
+    (sqrt(3) h)) gets exactly h, the length L / c_d of a regular grid. It bounds omega_e L / c_d by
+    8 / sqrt(3) = 4.62 for every valid cell (the cube: 3.19 at nu = 0.435), where the vertex
+    distances and volume / face area let a folded cell reach 8.7 (measured, bench/README.md).
+    With the ``reference`` vertices (n, 8, 3) of deformed cells, the weights det J_g and V are the
+    reference ones: the Hencky moduli act on the Kirchhoff stress, so the tangent per current
+    volume grows as 1 / J at a Gauss point (the spatial modulus c_tau / J), and the mass is
+    the reference one; a cell squeezed at one Gauss point (J ~ 0.02 there, its centre intact,
+    which the centre-point volume of the selective reduced integration does not resist) gets the
+    stiffness it has. Cells whose Jacobian vanishes at a Gauss point get length 0."""
     n = x.shape[0]
     gradient_sum = np.zeros(n)
     volume = np.zeros(n)
     for reference_gradients in HEX_GAUSS_GRADIENTS:
         det, grad = hexahedron_gradients(x, reference_gradients)
-        gradient_sum += np.abs(det) / 8.0 * np.sum(grad * grad, axis=(1, 2))  # Gauss weight 1/8
+        weight = np.abs(det if reference is None else np.linalg.det(np.einsum("cai,aj->cij", reference,
+                                                                             reference_gradients)))
+        gradient_sum += weight / 8.0 * np.sum(grad * grad, axis=(1, 2))  # Gauss weight 1/8
         gradient_sum[det == 0.0] = np.inf
-        volume += np.abs(det) / 8.0
+        volume += weight / 8.0
     # omega_FB^2 / c_d^2 = 8 gradient_sum / volume; L = (8 / sqrt(3)) / sqrt(that)
     return 8.0 / np.sqrt(3.0) / np.sqrt(8.0 * gradient_sum / np.where(volume > 0.0, volume, np.inf))
 
@@ -334,9 +341,11 @@ class SolidProblem:
         :func:`hexahedron_gauss_length`, which catches folded cells (a corner pushed inside) that
         both miss (bench/README.md, ``element_frequencies.py``)."""
         geom = self.mesh.geometry
+        reference = None
         if deformed:
-            nodes = self.V.tabulate_dof_coordinates() + self.u.x.array.reshape(-1, 3)
-            x = nodes[self.V.dofmap.list[: self.num_cells]]
+            nodes = self.V.tabulate_dof_coordinates()
+            reference = nodes[self.V.dofmap.list[: self.num_cells]]
+            x = (nodes + self.u.x.array.reshape(-1, 3))[self.V.dofmap.list[: self.num_cells]]
         else:
             x = geom.x[geom.dofmaps[0][: self.num_cells]]
         nv = x.shape[1]
@@ -351,5 +360,5 @@ class SolidProblem:
             faces = np.array([[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 4, 5], [2, 3, 6, 7], [0, 2, 4, 6], [1, 3, 5, 7]])
             area = 0.5 * np.linalg.norm(np.cross(x[:, faces[:, 3]] - x[:, faces[:, 0]],
                                                  x[:, faces[:, 2]] - x[:, faces[:, 1]]), axis=-1).max(axis=1)
-            d = np.minimum(np.minimum(d, volume / area), hexahedron_gauss_length(x))
+            d = np.minimum(np.minimum(d, volume / area), hexahedron_gauss_length(x, reference))
         return d
