@@ -97,6 +97,44 @@ def test_stable_length_bounds_the_highest_frequency_of_a_folded_cell():
             assert omega * length / c_d <= 8 / np.sqrt(3) * (1 + 1e-12)
 
 
+#: a cell of copy 147 of the isotropic CLPS run (6000 increments, step 5700, after the fix above):
+#: a cube of edge 0.014967597 mm in the coupling zone, squeezed at one Gauss point (J 0.018 there,
+#: 1.0 at the centre, where the volumetric part is integrated); current vertices (mm, lexicographic)
+SQUEEZED_CELL_ORIGIN, SQUEEZED_CELL_EDGE = np.array([0.316803567, -0.294636775, 0.476693410]), 0.014967597
+SQUEEZED_CELL = np.array([[0.334255397, -0.202675520, 0.443779183], [0.352069187, -0.202742743, 0.441526467],
+                          [0.329254689, -0.181069036, 0.451798893], [0.348437279, -0.176796127, 0.450335157],
+                          [0.340961372, -0.185731255, 0.454463796], [0.359275421, -0.189388673, 0.457075197],
+                          [0.333241389, -0.174562824, 0.466584106], [0.350635388, -0.170897463, 0.467112491]])
+
+
+def test_deformed_stable_length_bounds_the_tangent_of_a_squeezed_cell():
+    """The deformed cell's highest frequency with the run's element (volumetric part at the
+    centre) and the Hencky tangent, whose moduli act per reference volume (bench/
+    element_frequencies.py; on the run it reproduces the force increments of the model to 1 %): it
+    reached omega_e L / c_d = 13.0 with the length weighted by the current Jacobians, and rang;
+    with the reference ones it stays below 8 / sqrt(3)."""
+    import sys
+    from pathlib import Path
+
+    import basix.ufl
+    import ufl
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    from element_frequencies import elasticity_matrix, element_highest_omega2
+
+    reference = SQUEEZED_CELL_ORIGIN + HEX_VERTICES * SQUEEZED_CELL_EDGE
+    element = basix.ufl.element("Lagrange", "hexahedron", 1, shape=(3,))
+    mesh = dolfinx.mesh.create_mesh(MPI.COMM_SELF, np.arange(8, dtype=np.int64)[None], ufl.Mesh(element), reference)
+    problem = SolidProblem(mesh, LEAD, tangent=False)
+    dof_points = problem.V.tabulate_dof_coordinates()
+    vertex = np.argmin(np.linalg.norm(dof_points[:, None] - reference[None], axis=-1), axis=1)
+    problem.u.x.array[:] = (SQUEEZED_CELL - reference)[vertex].ravel()
+    length = problem.min_cell_length(deformed=True)[0]
+    omega = np.sqrt(element_highest_omega2(SQUEEZED_CELL[None], elasticity_matrix(LEAD.E, LEAD.nu),
+                                           np.array([LEAD.density]), volumetric=LEAD.bulk,
+                                           reference=reference[None]))[0]
+    assert omega * length / LEAD.dilatational_wave_speed <= 8 / np.sqrt(3)
+
+
 def test_explicit_is_stable_at_the_scaled_increment():
     """A free elastic block set in motion by a smooth step keeps bounded energy (no blow-up)."""
     mesh = dolfinx.mesh.create_box(MPI.COMM_SELF, [[0, 0, 0], [1, 1, 1]], [3] * 3,
