@@ -83,7 +83,11 @@ def test_report_writes_summary_and_tables(tmp_path):
     # lumped mass, not the die stage's consistent-mass run), naming the missing ones
     assert by_case[("dbc_CLPS", "stable d_bc / r_max")]["ours"] == 2.5
     assert "2.5: 5.10 / 7.35 / 8.94 / (10.00)" in text  # die_CLPS_lumped_mass (10 MPa at the end), not die_CLPS
-    assert "| 2.5 (the largest run: not shown stable), 1.5 / 2 r_max not run yet | 1.5 | not met |" in text
+    assert "| 2.5 (the largest run: not shown stable), 1.5 / 2 r_max not run yet | 1: " in text
+    # the same verdict at equal rho of eq. 2.4 (here the imposed one), read without the end
+    assert by_case[("dbc_CLPS", "stable d_bc / r_max at equal rho (eq. 2.4)")]["ours"] == 2.5
+    assert ("; 2.5: 5.10 / 7.35 / 8.94 | 2.5 (the largest run: not shown stable), 1.5 / 2 r_max not run yet | 1.5 "
+            "| not met / not met |") in text
     assert "not run yet" in text  # the gamma stage
     # the overview: per table its compared numbers met and its stages' runs (60 s each)
     assert "| Die compaction, sigma_m at rho 0.95 (§2.7) | 3 of 4 | 3 of 5 (0.1) | `die_GDH`, `die_CLP_exact_volume` |" in text
@@ -273,6 +277,9 @@ def test_stable_dbc_is_where_the_tail_settles():
     assert report.stable_dbc([1.5, 2.0, 2.5], ramp_and_end) == 2.0
     # an end left out (NaN: not quasi-static) does not decide
     assert report.stable_dbc([1.5, 2.0, 2.5], [[8.7, np.nan], [8.75, 6.0], [8.74, np.nan]]) == 1.5
+    # a run that reaches none of the reference's reading densities is not stable (eq. 2.4 readings:
+    # GDF at 1.5 r_max ends below the densities 2.5 r_max reaches)
+    assert report.stable_dbc([1.5, 2.0, 2.5], [[np.nan, np.nan], [8.1, np.nan], [8.2, 10.3]]) == 2.0
 
 
 

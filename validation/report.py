@@ -329,19 +329,30 @@ def stable_dbc(d_bc: list[float], readings: list, within: float = DBC_STABLE_WIT
     s = np.array([np.atleast_1d(np.asarray(readings[i], dtype=float)) for i in order])
     with np.errstate(invalid="ignore"):
         deviation = np.abs(s / s[-1] - 1.0)
-    close = np.all(np.isnan(deviation) | (deviation <= within), axis=1)
+    # close: within where both read, and at least one point read by both (a run that reaches none
+    # of the reference's reading densities says nothing in its favour)
+    close = (np.all(np.isnan(deviation) | (deviation <= within), axis=1)
+             & np.any(np.isfinite(deviation), axis=1))
     k = len(d) - 1
     while k > 0 and close[k - 1]:
         k -= 1
     return float(d[k])
 
 
-def dbc_readings(history: dict) -> np.ndarray:
-    """sigma_m (MPa) of a die run at rho_imposed ``DBC_READ_AT`` and at the end; the end NaN when
-    the run fails its quasi-static check (its end value is then the relaxation of the ramp's
-    deceleration, the increments stage, not an effect of d_bc)."""
+def dbc_readings(history: dict, density: str = "rho_imposed") -> np.ndarray:
+    """sigma_m (MPa) of a die run at ``DBC_READ_AT`` of the ``density`` column.
+
+    ``rho_imposed`` (the cell's density): also the end value, NaN when the run fails its
+    quasi-static check (its end value is then the relaxation of the ramp's deceleration, the
+    increments stage, not an effect of d_bc). ``rho`` (eq. 2.4: the particles' volume over the
+    volume the centroids' fitted F gives the VEP; the abscissa of the thesis' figs. 2.6-2.16): no
+    end value, as the runs end at different densities (the thesis, §2.5.2.2: the final density
+    "ne se stabilise pas complètement"); NaN at a density the run does not reach."""
+    readings = [at_density(history, "sigma_m", rho, density) for rho in DBC_READ_AT]
+    if density == "rho":
+        return np.array(readings)
     end = history["sigma_m"][-1] if quasi_static_check(history).passed else np.nan
-    return np.array([at_density(history, "sigma_m", rho, "rho_imposed") for rho in DBC_READ_AT] + [end])
+    return np.array(readings + [end])
 
 
 def dbc_runs(done: dict, bc: str) -> dict:
@@ -356,38 +367,54 @@ def dbc_runs(done: dict, bc: str) -> dict:
 
 
 def dbc_rows(done: dict) -> tuple[list[dict], list[str]]:
-    """Thesis table 2.3: d_bc / r_max from which die compaction results are stable (every larger
-    d_bc's sigma_m within 2 % of the largest's along the ramp and at a quasi-static end):
-    GDF 2.0, CLP 1.8, CLPS 1.5. Met when ours is not larger. With two finished runs or more the
-    verdict reads those and names the runs still missing."""
+    """Thesis table 2.3: d_bc / r_max from which die compaction results are stable: GDF 2.0, CLP
+    1.8, CLPS 1.5. Met when ours is not larger. Read twice: against the imposed density (every
+    larger d_bc's sigma_m within 2 % of the largest's along the ramp and at a quasi-static end),
+    and against the density of eq. 2.4, the thesis' abscissa (within 2 % at the reading densities
+    both runs reach). With two finished runs or more the verdicts read those and name the runs
+    still missing."""
     reads = " / ".join(f"{rho:g}" for rho in DBC_READ_AT)
     rows, lines = [], [f"| condition | sigma_m (MPa) at rho_imposed {reads} / end, per d_bc / r_max (end in "
-                       "brackets: not quasi-static, left out) | stable from (ours) | thesis table 2.3 | status |",
-                       "|---|---|---|---|---|"]
+                       "brackets: not quasi-static, left out) | stable from (ours, rho_imposed) | sigma_m (MPa) at "
+                       f"rho {reads} (eq. 2.4: the centroids' F, the thesis' abscissa; - where not reached) | "
+                       "stable from (ours, eq. 2.4) | thesis table 2.3 | status (rho_imposed / eq. 2.4) |",
+                       "|---|---|---|---|---|---|---|"]
     for bc in DBC_GRID:
         runs = dbc_runs(done, bc)
-        finished = {d: dbc_readings(r["history"]) for d, r in sorted(runs.items()) if r is not None}
+        finished = {d: r["history"] for d, r in sorted(runs.items()) if r is not None}
+        imposed = {d: dbc_readings(h) for d, h in finished.items()}
+        centroids = {d: dbc_readings(h, "rho") for d, h in finished.items()}
 
-        def cell(d):
-            if d not in finished:
-                return f"{d:g}: not run yet"
-            v = finished[d]
-            end = f"{v[-1]:.2f}" if np.isfinite(v[-1]) else f"({runs[d]['history']['sigma_m'][-1]:.2f})"
-            return f"{d:g}: " + " / ".join(f"{x:.2f}" for x in v[:-1]) + f" / {end}"
+        def cells(readings, brackets):
+            def cell(d):
+                if d not in readings:
+                    return f"{d:g}: not run yet"
+                v = readings[d]
+                text = [f"{x:.2f}" if np.isfinite(x) else "-" for x in v]
+                if brackets and not np.isfinite(v[-1]):
+                    text[-1] = f"({finished[d]['sigma_m'][-1]:.2f})"
+                return f"{d:g}: " + " / ".join(text)
+            return "; ".join(cell(d) for d in sorted(runs))
 
-        cells = "; ".join(cell(d) for d in sorted(runs))
         if len(finished) < 2:
-            lines.append(f"| {bc} | {cells} | | {THESIS_STABLE_DBC[bc]} | |")
+            lines.append(f"| {bc} | {cells(imposed, True)} | | {cells(centroids, False)} | | "
+                         f"{THESIS_STABLE_DBC[bc]} | |")
             continue
-        ours = stable_dbc(list(finished), list(finished.values()))
-        ok = ours <= THESIS_STABLE_DBC[bc]
-        rows.append(judged_row(f"dbc_{bc}", "stable d_bc / r_max", THESIS_STABLE_DBC[bc], ours, ok,
-                               deviation=ours / THESIS_STABLE_DBC[bc] - 1))
-        said = f"{ours:g}" if ours < max(finished) else f"{ours:g} (the largest run: not shown stable)"
         missing = [f"{d:g}" for d in sorted(runs) if d not in finished]
-        if missing:  # a verdict on the finished runs, to be read again when the others land
-            said += f", {' / '.join(missing)} r_max not run yet"
-        lines.append(f"| {bc} | {cells} | {said} | {THESIS_STABLE_DBC[bc]} | {'met' if ok else 'not met'} |")
+        said, verdicts = [], []
+        for readings, quantity in ((imposed, "stable d_bc / r_max"),
+                                   (centroids, "stable d_bc / r_max at equal rho (eq. 2.4)")):
+            ours = stable_dbc(list(readings), list(readings.values()))
+            ok = ours <= THESIS_STABLE_DBC[bc]
+            rows.append(judged_row(f"dbc_{bc}", quantity, THESIS_STABLE_DBC[bc], ours, ok,
+                                   deviation=ours / THESIS_STABLE_DBC[bc] - 1))
+            text = f"{ours:g}" if ours < max(finished) else f"{ours:g} (the largest run: not shown stable)"
+            if missing:  # a verdict on the finished runs, to be read again when the others land
+                text += f", {' / '.join(missing)} r_max not run yet"
+            said.append(text)
+            verdicts.append("met" if ok else "not met")
+        lines.append(f"| {bc} | {cells(imposed, True)} | {said[0]} | {cells(centroids, False)} | {said[1]} | "
+                     f"{THESIS_STABLE_DBC[bc]} | {' / '.join(verdicts)} |")
     return rows, lines
 
 
@@ -745,6 +772,7 @@ def trend_lines(done: dict) -> tuple[list[dict], list[str]]:
 
 
 RHO_IMPOSED_LABEL = "relative density (imposed by the cell)"
+RHO_CENTROIDS_LABEL = "relative density (eq. 2.4: the centroids' fitted F)"
 #: one colour per boundary condition in every figure
 CONDITION_COLOURS = {"CLP": "C0", "CLPS": "C1", "GDF": "C2", "GDH": "C3"}
 
@@ -904,13 +932,23 @@ def periodic_figure(done: dict, path: Path) -> None:
 
 
 def dbc_figure(done: dict, path: Path) -> None:
-    """Thesis §2.5, table 2.3: the die compaction's sigma_m(rho_imposed) per duplication distance
-    d_bc, one panel per condition (the die stage is the 2.5 r_max run of CLPS and GDF); the
+    """Thesis §2.5, table 2.3: the die compaction's sigma_m per duplication distance d_bc against
+    the imposed density (top) and against eq. 2.4's (bottom: the thesis' abscissa, figs. 2.6-2.16),
+    one panel per condition (the die stage is the 2.5 r_max run of CLPS and GDF); the
     increments stage's slower runs dotted beside the run they repeat; grey lines where the table
     reads the curves."""
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(DBC_GRID), figsize=(13, 4.2), sharey=True)
+    fig, panels = plt.subplots(2, len(DBC_GRID), figsize=(13, 8.4), sharey=True)
+    for density, axes in (("rho_imposed", panels[0]), ("rho", panels[1])):
+        _dbc_panels(done, axes, density)
+    _write(fig, path)
+
+
+def _dbc_panels(done: dict, axes, density: str) -> None:
+    """``dbc_figure``'s row of panels against the ``density`` column."""
+    import matplotlib.pyplot as plt
+
     for ax, bc in zip(axes, DBC_GRID):
         runs = dbc_runs(done, bc)
         if bc == "CLP":
@@ -921,7 +959,7 @@ def dbc_figure(done: dict, path: Path) -> None:
             if run is None:
                 continue
             label = "periodic images (no d_bc)" if d == "images" else f"d_bc {d:g} r_max"
-            ax.plot(run["history"]["rho_imposed"], run["history"]["sigma_m"], color=colour,
+            ax.plot(run["history"][density], run["history"]["sigma_m"], color=colour,
                     ls="--" if d == "images" else "-", label=label)
             drawn = True
             for case in STAGES["increments"]:  # the same d_bc and (lumped) mass with more increments, dotted
@@ -929,16 +967,16 @@ def dbc_figure(done: dict, path: Path) -> None:
                 if (slow is not None and case.options["bc"] == bc and case.options["loading"] == "die" and case.d_bc == d
                         and case.increments != CHAPTER2_SETUP["increments"]
                         and case.options.get("constraint_mass", "lumped") == "lumped"):
-                    ax.plot(slow["history"]["rho_imposed"], slow["history"]["sigma_m"], ":", color=colour,
+                    ax.plot(slow["history"][density], slow["history"]["sigma_m"], ":", color=colour,
                             label=f"{label}, {case.increments} increments")
         if not drawn:
             _not_run(ax, bc)
         for rho in DBC_READ_AT:  # where the table reads the curves (and at their end)
             ax.axvline(rho, color="0.8", lw=0.8, zorder=0)
         lumped = " (lumped mass)" if die_case(bc).options["constraint_mass"] != "lumped" else ""  # the d_bc runs'
-        _axis(ax, RHO_IMPOSED_LABEL, title=f"die {bc}{lumped}: thesis stable from {THESIS_STABLE_DBC[bc]} r_max")
+        xlabel = RHO_IMPOSED_LABEL if density == "rho_imposed" else RHO_CENTROIDS_LABEL
+        _axis(ax, xlabel, title=f"die {bc}{lumped}: thesis stable from {THESIS_STABLE_DBC[bc]} r_max")
     axes[0].set_ylabel("sigma_m (MPa, Love-Weber)")
-    _write(fig, path)
 
 
 def size_figure(done: dict, path: Path) -> None:
