@@ -950,7 +950,7 @@ def _dbc_panels(done: dict, axes, density: str) -> None:
     import matplotlib.pyplot as plt
 
     for ax, bc in zip(axes, DBC_GRID):
-        runs = dbc_runs(done, bc)
+        runs = dict(sorted(dbc_runs(done, bc).items()))  # shades in the order of d_bc
         if bc == "CLP":
             runs["images"] = done.get(die_case(bc).name)
         shades = plt.cm.viridis(np.linspace(0.0, 0.85, len(runs)))
