@@ -23,7 +23,7 @@ test-all: bootstrap  ## also the heavy cases
 # issue-23 validation, e.g. make validate STAGES="die dbc" JOBS=1 (JOBS cases at a time, one core each)
 JOBS ?= 2
 validate: bootstrap  ## issue-23 validation: every stage's runs (hours), then validation/README.md tables
-	$(PY) validation/run.py --jobs $(JOBS) $(STAGES)
+	$(PY) -m validation.run --jobs $(JOBS) $(STAGES)
 
 bench: bootstrap
 	$(PY) bench/material_assembly.py

@@ -34,7 +34,7 @@ import numpy as np
 from mpfem_fenicsx.problem import HEX_CENTRE_GRADIENTS, HEX_GAUSS_GRADIENTS, HEX_VERTICES, hexahedron_gradients
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "validation"))
+sys.path.insert(0, str(ROOT))  # the repository: the validation package
 
 
 def elasticity_matrix(E: float, nu: float) -> np.ndarray:
@@ -104,7 +104,7 @@ def main(argv=None) -> None:
     parser.add_argument("--case", required=True, help="validation case name (validation/cases.py)")
     parser.add_argument("--checkpoint", required=True, type=Path, help="a checkpoint directory of that case's run")
     args = parser.parse_args(argv)
-    from cases import CASES
+    from validation.cases import CASES
     from mpfem_fenicsx.workflows.compaction import CompactionRun
 
     comm = MPI.COMM_WORLD

@@ -3,7 +3,7 @@
 Data flow per evaluation: u -> F at quadrature points (numba kernel ``forms.kinematics``, checked
 against ``fem.Expression``) -> vectorized
 return mapping (``material.hencky_j2``) writing P_dev (and A_dev) straight into quadrature
-Functions -> residual / Jacobian assembled by DOLFINx from the UFL forms in ``mpfem_fenicsx/forms``
+Functions -> residual / Jacobian assembled by DOLFINx from the UFL forms in ``forms/`` (``mpfem_fenicsx.forms``)
 (the residual's deviatoric part by a numba loop of ``forms.kinematics`` when it reproduces the
 compiled form, checked at construction).
 """

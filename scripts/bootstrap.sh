@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # Create .venv/ (Python >= 3.12) at the repository root and install the project with its test
-# dependencies. Idempotent: does nothing when pyproject.toml has not changed since the last run.
+# dependencies. Idempotent: does nothing when pyproject.toml, setup.py and this script have not
+# changed since the last run.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 venv="$root/.venv"
 stamp="$venv/.mpfem-bootstrap"
-want="$(cat "$root/pyproject.toml" "${BASH_SOURCE[0]}" | sha256sum | cut -c1-16)"
+want="$(cat "$root/pyproject.toml" "$root/setup.py" "${BASH_SOURCE[0]}" | sha256sum | cut -c1-16)"
 if [[ -x "$venv/bin/python" && -f "$stamp" && "$(cat "$stamp")" == "$want" ]]; then
   exit 0
 fi

@@ -1,21 +1,38 @@
-"""The tree's rules (issue 25), checked on the source: short functions in the pipeline's
-packages, no branch on a solver's name outside the solver factory, no private attribute of
-another package read. Static checks (ast): no model is built."""
+"""The tree's rules, checked on the source: the design card's layout (``forms/`` and ``meshes/``
+at the top level, installed as ``mpfem_fenicsx.forms`` / ``mpfem_fenicsx.meshes``), short
+functions in the pipeline's packages, no branch on a solver's name outside the solver factory,
+no private attribute of another package read. Static checks (ast): no model is built."""
 
 import ast
 from pathlib import Path
 
 import pytest
 
-PACKAGE = Path(__file__).resolve().parents[1] / "mpfem_fenicsx"
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "mpfem_fenicsx"
+#: the library's subpackages that live at the repository's top level (setup.py maps them in)
+TOP_LEVEL = {"forms": ROOT / "forms", "meshes": ROOT / "meshes"}
 SOLVER_NAMES = {"explicit", "implicit"}
 #: the one place a solver's name picks a class or a kind
 FACTORY = {PACKAGE / "solvers" / "factory.py", PACKAGE / "solvers" / "kinds.py"}
 
 
 def _modules(*packages):
+    """The modules of the library's ``packages`` (``"."``: all of it, top-level folders included)."""
     for package in packages:
         yield from sorted((PACKAGE / package).rglob("*.py"))
+        if package == ".":
+            for folder in TOP_LEVEL.values():
+                yield from sorted(folder.rglob("*.py"))
+
+
+def test_forms_and_meshes_sit_at_the_top_level_and_import_as_subpackages():
+    import importlib
+
+    for name, folder in TOP_LEVEL.items():
+        assert (folder / "__init__.py").is_file() and not (PACKAGE / name).exists()
+        module = importlib.import_module(f"mpfem_fenicsx.{name}")
+        assert Path(module.__file__).resolve().parent == folder, (name, module.__file__)
 
 
 def test_no_function_over_80_lines_in_workflows_and_solvers():
@@ -70,10 +87,10 @@ def test_no_private_attribute_of_another_package_read():
             if (isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")
                     and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls", "np"))
                     and node.attr not in defined.get(path.parent, set())):
-                reads.append(f"{path.relative_to(PACKAGE)}:{node.lineno} .{node.attr}")
+                reads.append(f"{path.relative_to(ROOT)}:{node.lineno} .{node.attr}")
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.ImportFrom) and node.level >= 2:
                 for alias in node.names:
                     if alias.name.startswith("_"):
-                        reads.append(f"{path.relative_to(PACKAGE)}:{node.lineno} import {alias.name}")
+                        reads.append(f"{path.relative_to(ROOT)}:{node.lineno} import {alias.name}")
     assert not reads, "private names of another package: " + ", ".join(reads)

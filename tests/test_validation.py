@@ -1,16 +1,13 @@
-"""The issue-23 validation report machinery (validation/report.py) on synthetic histories: the
+"""The validation report machinery (validation/report.py) on synthetic histories: the
 comparison rows, the interpolation at a density, the generated README blocks."""
 
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "validation"))
-
-import report  # noqa: E402
-from cases import STAGE_CONSTRAINT_MASS, STAGES, THESIS_DIE_SIGMA_M  # noqa: E402
+from validation import report
+from validation.cases import STAGE_CONSTRAINT_MASS, STAGES, THESIS_DIE_SIGMA_M
 
 
 def test_at_density_interpolates_the_loading_branch():
@@ -319,7 +316,7 @@ def _ellipse_fan(case, centre, a, b, angle_deg, nphi=12, compressive=3.0, tensil
 
 
 def test_surface_axis_of_a_rotated_ellipse():
-    from cases import FanCase
+    from validation.cases import FanCase
 
     case = FanCase("f", "die", 0.82)
     for angle in (0.0, 30.0, -60.0, 89.0):
@@ -513,7 +510,7 @@ def test_list_tells_where_a_killed_run_resumes(tmp_path, monkeypatch):
     import json
 
     import run
-    from cases import CASES
+    from validation.cases import CASES
 
     monkeypatch.setattr(run, "RUNS", tmp_path)
     (tmp_path / "die_CLP").mkdir()

@@ -198,7 +198,6 @@ def test_killed_fan_resumes_where_it_stopped(fan, tmp_path):
 def test_fan_of_another_amplitude_reuses_the_finished_loading(fan, tmp_path):
     """validation/run.py's share_loading: a fan of larger reloads on the same path starts at its
     reloads from a copy of the finished fan's unload (no loading), and its reloads go farther."""
-    import sys
     from dataclasses import replace
 
     from mpi4py import MPI
@@ -206,8 +205,7 @@ def test_fan_of_another_amplitude_reuses_the_finished_loading(fan, tmp_path):
     from mpfem_fenicsx.io import read_csv
     from mpfem_fenicsx.workflows.yield_surface import run_yield_surface
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "validation"))
-    from run import share_loading
+    from validation.run import share_loading
 
     case, _ = fan
     out = tmp_path / "wider"
@@ -407,15 +405,13 @@ def test_implicit_fan_resumed_from_an_explicit_unload_settles_it_once(fan, tmp_p
     survives in its unloaded.json. The reloads are taken as finished (the explicit ones copied,
     each with its ``done``) so that only the resume branch runs."""
     import shutil
-    import sys
     from dataclasses import replace
 
     from mpi4py import MPI
 
     from mpfem_fenicsx.workflows.yield_surface import read_unloaded, run_yield_surface
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "validation"))
-    from run import share_loading
+    from validation.run import share_loading
 
     case, _ = fan
     share_loading(Path(case.out_dir), tmp_path, lambda *a: None)

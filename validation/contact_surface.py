@@ -13,13 +13,13 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository: the validation package
 
 import numpy as np  # noqa: E402
 from mpi4py import MPI  # noqa: E402
 
 import mpfem_fenicsx  # noqa: E402,F401  (mpi4py before dolfinx)
-from cases import STAGES  # noqa: E402
+from validation.cases import STAGES  # noqa: E402
 from mpfem_fenicsx.homogenization import contact_weights  # noqa: E402
 from mpfem_fenicsx.workflows.compaction import CompactionRun  # noqa: E402
 

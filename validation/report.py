@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cases import (CASES, CHAPTER2_SETUP, CLP_DRIFT_LIMIT, DBC_GRID, DBC_READ_AT, DBC_STABLE_WITHIN, DRIFT_READ_AT,
+from .cases import (CASES, CHAPTER2_SETUP, CLP_DRIFT_LIMIT, DBC_GRID, DBC_READ_AT, DBC_STABLE_WITHIN, DRIFT_READ_AT,
                    PATH_READ_AT, STAGES, THESIS_DIE_SIGMA_M, THESIS_DIVERGENCE_HV, THESIS_GAMMA_L, THESIS_GDF_DRIFT,
                    THESIS_NONPERIODIC_GAP, THESIS_STABLE_DBC, TOLERANCE, FanCase, dbc_reference_case, die_case)
 from mpfem_fenicsx.homogenization import gradient_fit_noise_hd

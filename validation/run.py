@@ -24,12 +24,12 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent))  # the repository: the validation package
 
 from mpi4py import MPI  # noqa: E402
 
 import mpfem_fenicsx  # noqa: E402,F401  (mpi4py before dolfinx)
-from cases import CASES, STAGES, FanCase  # noqa: E402
+from validation.cases import CASES, STAGES, FanCase  # noqa: E402
 
 RUNS = HERE / "runs"
 
