@@ -80,8 +80,8 @@ def main(argv=None) -> list[dict]:
         if not done and not args.table_only and ("on" if comoving else "off") in args.carrier:
             say(f"--- {args.particles} particles, {bc}, carrier {'on' if comoving else 'off'} -> {run_dir}")
             start = time.perf_counter()
-            case = CompactionCase(particles=args.particles, bc=bc, comoving=comoving, increments=args.increments,
-                                  outputs=args.outputs, visual=False, checkpoint_every=0, out_dir=str(run_dir))
+            case = CompactionCase.build(particles=args.particles, condition=bc, comoving=comoving, increments=args.increments,
+                                  outputs=args.outputs, visual=False, checkpoint_every=0, directory=str(run_dir))
             run_compaction(case, comm, log=lambda *a, **k: None)
             if comm.rank == 0:
                 (run_dir / "done").write_text(f"{time.perf_counter() - start:.1f}\n")

@@ -61,10 +61,10 @@ def main(argv=None) -> list[dict]:
                 ("on" if rotations else "off") in args.rotations:
             say(f"--- CLPS, equal rotations {'on' if rotations else 'off'} -> {run_dir}")
             start = time.perf_counter()
-            case = CompactionCase(particles=args.particles, loading=args.loading, bc="CLPS", d_bc=args.d_bc,
+            case = CompactionCase.build(particles=args.particles, path=args.loading, condition="CLPS", d_bc=args.d_bc,
                                   target_density=args.target_density, equal_rotations=rotations,
                                   increments=args.increments, outputs=args.outputs, visual=False,
-                                  checkpoint_every=0, out_dir=str(run_dir))
+                                  checkpoint_every=0, directory=str(run_dir))
             run_compaction(case, comm, log=lambda *a, **k: None)
             if comm.rank == 0:
                 (run_dir / "done").write_text(f"{time.perf_counter() - start:.1f}\n")

@@ -31,7 +31,8 @@ import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
 from mpfem_fenicsx.boundary import KINDS
 from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS, unit_ball_hex
 from mpfem_fenicsx.solvers.constraint_mass import CONSTRAINT_MASSES
-from mpfem_fenicsx.workflows.compaction import CompactionCase, CompactionRun, run_compaction
+from mpfem_fenicsx.case import CompactionCase, MeshSection, SolverSection
+from mpfem_fenicsx.workflows.compaction import CompactionRun, run_compaction
 
 
 def main(argv=None) -> dict:
@@ -47,13 +48,13 @@ def main(argv=None) -> dict:
     p.add_argument("--full", action="store_true", help="time the whole run to --target-density")
     p.add_argument("--copies", action="store_true",
                    help="CLP by copies tied to their originals (the default, since 2026-11-24: periodic images)")
-    p.add_argument("--mesh", choices=tuple(RESOLUTIONS), default=CompactionCase.mesh,
+    p.add_argument("--mesh", choices=tuple(RESOLUTIONS), default=MeshSection.resolution,
                    help="named cube-sphere resolution (chapter2: 561 nodes per particle, the default; "
                         "chapter4: 1 933; coarse: 517, the default before 2026-11-24)")
-    p.add_argument("--radius-factor", type=float, default=CompactionCase.radius_factor,
-                   help="CompactionCase.radius_factor (the coarse volume-exact particle needs <= 0.9778)")
-    p.add_argument("--constraint-mass", choices=CONSTRAINT_MASSES, default=CompactionCase.constraint_mass,
-                   help="explicit reduced mass of the constrained model (CompactionCase.constraint_mass)")
+    p.add_argument("--radius-factor", type=float, default=MeshSection.radius_factor,
+                   help="[mesh] radius_factor (the coarse volume-exact particle needs <= 0.9778)")
+    p.add_argument("--constraint-mass", choices=CONSTRAINT_MASSES, default=SolverSection.constraint_mass,
+                   help="explicit reduced mass of the constrained model ([solver] constraint_mass)")
     p.add_argument("--target-density", type=float, default=0.95)
     p.add_argument("--seed", type=int, default=1)
     args = p.parse_args(argv)
@@ -68,16 +69,16 @@ def main(argv=None) -> dict:
     nodes = unit_ball_hex(*RESOLUTIONS[args.mesh]).num_nodes
     out = tempfile.mkdtemp(prefix="mpfem-bench-") if comm.rank == 0 else None
     out = comm.bcast(out)
-    base = dict(particles=args.particles, bc=args.bc, solver=args.solver, seed=args.seed,
-                target_density=args.target_density, increments=args.increments, mesh=args.mesh,
+    base = dict(particles=args.particles, condition=args.bc, kind=args.solver, seed=args.seed,
+                target_density=args.target_density, increments=args.increments, resolution=args.mesh,
                 radius_factor=args.radius_factor,
                 images=False if args.copies else None, constraint_mass=args.constraint_mass,
-                visual=False, checkpoint_every=0, out_dir=out)
+                visual=False, checkpoint_every=0, directory=out)
     quiet = lambda *a, **k: None  # noqa: E731
     warmup = 0 if args.full else (int(0.55 * args.increments) if args.warmup is None else args.warmup)
     start = time.perf_counter()
     if args.full:
-        case = CompactionCase(**base, outputs=40)
+        case = CompactionCase.build(**base, outputs=40)
         res = run_compaction(case, comm, log=quiet)
         timed_steps = res.solver.step
         solver = res.solver
@@ -89,7 +90,7 @@ def main(argv=None) -> dict:
         # between, one at the end to include the homogenization's cost once)
         every = max(1, args.increments // 40)  # 40 outputs: rho and contacts known at the end of the warm-up
         warmup = max(every, warmup // every * every)
-        case = CompactionCase(**base, outputs=40)
+        case = CompactionCase.build(**base, outputs=40)
         res = CompactionRun(case, comm, log=quiet).run(max_steps=warmup)
         solver = res.solver
         setup = time.perf_counter() - start

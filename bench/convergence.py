@@ -68,22 +68,23 @@ def summarize(history: dict, densities=DENSITIES, column: str = "rho") -> dict:
 def main(argv=None) -> list[dict]:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     d = CompactionCase()
-    p.add_argument("--particles", type=int, default=d.particles)
-    p.add_argument("--increments", type=int, nargs="+", default=[d.increments, 2 * d.increments, 4 * d.increments])
+    p.add_argument("--particles", type=int, default=d.packing.particles)
+    p.add_argument("--increments", type=int, nargs="+", default=[d.solver.increments, 2 * d.solver.increments,
+                                                                     4 * d.solver.increments])
     p.add_argument("--meshes", nargs="+", choices=tuple(RESOLUTIONS), default=["chapter2", "chapter4"])
-    p.add_argument("--profile", nargs="+", choices=tuple(PROFILES), default=[d.profile],
-                   help="amplitude of the compaction in time (CompactionCase.profile)")
-    p.add_argument("--target-density", type=float, default=d.target_density)
+    p.add_argument("--profile", nargs="+", choices=tuple(PROFILES), default=[d.loading.profile],
+                   help="amplitude of the compaction in time ([loading] profile)")
+    p.add_argument("--target-density", type=float, default=d.loading.target_density)
     p.add_argument("--outputs", type=int, default=100, help="history rows over the path")
-    p.add_argument("--loading", default=d.loading, help="CompactionCase.loading (isotropic, die, ...)")
-    p.add_argument("--bc", default=d.bc, help="CompactionCase.bc: CLP, CLPS, GDF or GDH")
+    p.add_argument("--loading", default=d.loading.path, help="[loading] path (isotropic, die)")
+    p.add_argument("--bc", default=d.boundary.condition, help="[boundary] condition: CLP, CLPS, GDF or GDH")
     p.add_argument("--d-bc", type=float, default=None, help="duplication distance / r_max (default: table 2.3)")
     p.add_argument("--divisions", type=int, default=None, help="hexahedra per inner-cube edge of the particle")
-    p.add_argument("--radius-factor", type=float, default=d.radius_factor,
-                   help="CompactionCase.radius_factor (a coarse volume-exact particle needs less than 0.99: "
+    p.add_argument("--radius-factor", type=float, default=d.mesh.radius_factor,
+                   help="[mesh] radius_factor (a coarse volume-exact particle needs less than 0.99: "
                         "4 divisions <= 0.9778)")
-    p.add_argument("--constraint-mass", choices=CONSTRAINT_MASSES, default=d.constraint_mass,
-                   help="explicit reduced mass of the constrained model (CompactionCase.constraint_mass)")
+    p.add_argument("--constraint-mass", choices=CONSTRAINT_MASSES, default=d.solver.constraint_mass,
+                   help="explicit reduced mass of the constrained model ([solver] constraint_mass)")
     p.add_argument("--densities", type=float, nargs="+", default=list(DENSITIES),
                    help="densities where sigma_m is read")
     p.add_argument("--density", choices=("rho", "rho_imposed"), default="rho",
@@ -96,14 +97,14 @@ def main(argv=None) -> list[dict]:
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     out = Path(args.out)
-    options = dict(loading=args.loading, bc=args.bc, d_bc=args.d_bc, divisions=args.divisions,
+    options = dict(path=args.loading, condition=args.bc, d_bc=args.d_bc, divisions=args.divisions,
                    radius_factor=args.radius_factor, constraint_mass=args.constraint_mass)
-    variant = "" if (args.loading, args.bc, args.d_bc, args.divisions) == (d.loading, d.bc, None, None) else (
+    variant = "" if (args.loading, args.bc, args.d_bc, args.divisions) == (d.loading.path, d.boundary.condition, None, None) else (
         f"_{args.loading}_{args.bc}" + (f"_dbc{args.d_bc:g}" if args.d_bc is not None else "")
         + (f"_div{args.divisions}" if args.divisions is not None else ""))
-    if args.radius_factor != d.radius_factor:
+    if args.radius_factor != d.mesh.radius_factor:
         variant += f"_rf{args.radius_factor:g}"
-    if args.constraint_mass != d.constraint_mass:
+    if args.constraint_mass != d.solver.constraint_mass:
         variant += f"_{args.constraint_mass}_mass"
     densities = tuple(args.densities)
     columns = [f"sigma_m_{rho:.2f}" for rho in densities]
@@ -115,9 +116,9 @@ def main(argv=None) -> list[dict]:
             if not done and not args.table_only:
                 say(f"--- {args.particles} particles, mesh {mesh}, {profile}, {n} increments -> {run_dir}")
                 start = time.perf_counter()
-                case = CompactionCase(particles=args.particles, mesh=mesh, profile=profile, increments=n,
+                case = CompactionCase.build(particles=args.particles, resolution=mesh, profile=profile, increments=n,
                                       target_density=args.target_density, outputs=args.outputs, visual=False,
-                                      checkpoint_every=0, out_dir=str(run_dir), **options)
+                                      checkpoint_every=0, directory=str(run_dir), **options)
                 run_compaction(case, comm, log=lambda *a, **k: None)
                 if comm.rank == 0:
                     (run_dir / "done").write_text(f"{time.perf_counter() - start:.1f}\n")

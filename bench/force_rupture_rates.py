@@ -40,8 +40,8 @@ def main(argv=None) -> int:
     p.add_argument("--probes", nargs="+", default=["force:1", "force:4", "strain:100", "strain:20", "strain:5"])
     p.add_argument("--out", default="results/force_rupture_rates")
     args = p.parse_args(argv)
-    base = CompactionCase(packing=simple_cubic_packing(), bc="CLP", d_bc=0.8, images=False, exact_volume=False, gamma=1e-2,
-                          duration=1e-3, increments=1000, outputs=10, visual=False, out_dir=args.out)
+    base = CompactionCase.build(spheres=simple_cubic_packing(), condition="CLP", d_bc=0.8, images=False, exact_volume=False, gamma=1e-2,
+                          duration=1e-3, increments=1000, outputs=10, visual=False, directory=args.out)
     case = ForceRuptureCase(base=base, p_load=2.0, p_probe=0.2, final_stress=tuple(FINAL), rows_per_probe=40,
                             out_dir=args.out)
     state = consolidate(case, MPI.COMM_SELF, log=lambda *a: None)

@@ -3,10 +3,15 @@
     python demos/die.py                             # embedded default: 24 particles, CLP, rho -> 0.92
     python demos/die.py --particles 50 --target-density 0.95 --bc GDF
 
-Same pipeline and outputs as demos/isotropic.py (see there), in results/die/ by default.
+Same pipeline, options and outputs as demos/isotropic.py (see there), in results/die/ by default.
 """
 
-from mpfem_fenicsx.cli.compaction import main
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the demos folder: isotropic.py's steps
+
+from isotropic import main  # noqa: E402
 
 if __name__ == "__main__":
-    main("die", __doc__)
+    main(loading="die", doc=__doc__)

@@ -24,28 +24,37 @@ mpfem_fenicsx/workflows/history_recorder.py.
 
 from mpi4py import MPI
 
-from mpfem_fenicsx.cli.compaction import case_from_args, parser, report, run_exits
 from mpfem_fenicsx.io.progress import Progress
+from mpfem_fenicsx.options import compaction_case, compaction_parser, report_compaction, run_exits
 from mpfem_fenicsx.workflows.compaction import CompactionRun
 
 
-def main(argv=None) -> None:
+def main(argv=None, loading: str = "isotropic", doc: str = __doc__) -> None:
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
 
-    # 1. The case: the options (case-file keys, checked against their ranges) -> a CompactionCase
-    args = parser("isotropic", __doc__).parse_args(argv)
-    case = case_from_args(args, "isotropic")
+    # 1. The case, section by section as in a case file ([packing], [mesh], [contact], [boundary],
+    #    [loading], [solver], [output]): each option is a declared parameter, checked against its
+    #    range (exit 2 with one line naming it)
+    args = compaction_parser(loading, doc).parse_args(argv)
+    case = compaction_case(args, loading)
+    say(f"case: {case.packing.particles} particles, {case.boundary.condition}, {case.loading.path} to "
+        f"rho = {case.loading.target_density}, {case.solver.kind} solver ({case.solver.increments} increments)")
 
     with run_exits():  # exit 2 on bad input found while building, 3 if the run diverges
-        # 2. The model: packing -> particle mesh -> bulk problem -> CLP constraints + contact; the
-        #    explicit solver, the history recorder and the checkpoints on it
+        # 2. The model, each stage taking the sections it needs (build_compaction): the packing
+        #    (rho0 = V_p / V0, thesis eq. 2.5) -> duplicated particles (none for CLP by periodic
+        #    images) -> one DOLFINx mesh of cube-sphere particles -> the Hencky / von Mises bulk
+        #    problem -> the periodic constraints on F0(t) (eq. 2.14) + penalty / Coulomb / adhesive
+        #    contact; then the solver (make_solver: explicit central differences, mass scaling,
+        #    local damping), the history recorder and the checkpoints
         run = CompactionRun(case, comm, say, restart=args.restart, progress=Progress(comm))
-        # 3. The loop: increments to the target density, a history row per output, checkpoints
+        # 3. The loop: increments to the target density, a history row per output, checkpoints.
+        #    demos/cubic_cell.py spells every stage out on the 8-sphere simple cubic cell
         result = run.run()
 
     # 4. Post-processing: the end state (history.csv holds every row, particles.png the picture)
-    report(result, args, say)
+    report_compaction(result, say)
 
 
 if __name__ == "__main__":

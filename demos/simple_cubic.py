@@ -34,8 +34,8 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from mpfem_fenicsx.cli.casefile import add_schema_option
-from mpfem_fenicsx.cli.exits import bad_input_exits
+from mpfem_fenicsx.options import add_case_option
+from mpfem_fenicsx.exits import bad_input_exits
 from mpfem_fenicsx.workflows.compaction import initial_packing, run_compaction
 from mpfem_fenicsx.workflows.simple_cubic import COMPONENTS, checks, simple_cubic_case
 
@@ -81,8 +81,8 @@ def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--loading", choices=("isotropic", "die", "both"), default="both")
     p.add_argument("--radius", type=float, default=0.1, help="sphere radius r (mm); the cell is 4 r")
-    add_schema_option(p, "loading", "target_density", default=0.95)
-    add_schema_option(p, "solver", "increments", default=4000, help="per loading")
+    add_case_option(p, "loading", "target_density", default=0.95)
+    add_case_option(p, "solver", "increments", default=4000, help="per loading")
     p.add_argument("--face-copies-only", action="store_true",
                    help="the thesis' 12 face copies (no edge / corner copies)")
     p.add_argument("--no-visual", action="store_true", help="skip ParaView output and the particle PNG")
@@ -96,7 +96,7 @@ def main(argv=None) -> None:
         with bad_input_exits():  # the case and its packing, checked before any mesh
             case = simple_cubic_case(loading, args.radius, args.target_density, args.increments, str(out),
                                      visual=not args.no_visual, face_copies_only=args.face_copies_only)
-            initial_packing(case)
+            initial_packing(case.packing, case.mesh, case.loading.target_density)
         res = run_compaction(case, comm, log=lambda *a: None)
         chk = checks(res)
         results[loading] = (res, chk)

@@ -10,8 +10,8 @@ import argparse
 
 from mpi4py import MPI
 
-from mpfem_fenicsx.cli.exits import bad_input_exits
-from mpfem_fenicsx.cli.options import add_parameter_option
+from mpfem_fenicsx.exits import bad_input_exits
+from mpfem_fenicsx.options import add_parameter_option
 from mpfem_fenicsx.workflows.foundation import SqueezeCase, run_sphere_squeeze
 
 

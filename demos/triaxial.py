@@ -28,13 +28,14 @@ import numpy as np
 from mpi4py import MPI
 
 from mpfem_fenicsx.io.plots import plot_loading_path
-from mpfem_fenicsx.cli.casefile import add_schema_option
-from mpfem_fenicsx.cli.compaction import run_exits
-from mpfem_fenicsx.cli.exits import bad_input_exits
-from mpfem_fenicsx.cli.options import add_parameter_option
+from mpfem_fenicsx.options import add_case_option
+from mpfem_fenicsx.options import run_exits
+from mpfem_fenicsx.exits import bad_input_exits
+from mpfem_fenicsx.options import add_parameter_option
 from mpfem_fenicsx.loading.stress_paths import StressPath
 from mpfem_fenicsx.parameters import parameter_default
-from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
+from mpfem_fenicsx.case import CompactionCase, LoadingSection
+from mpfem_fenicsx.workflows.compaction import run_compaction
 
 #: the demo's servo band / confining pressure (the paths' default is 0.25)
 TRIAXIAL_BAND_FRACTION = 0.15
@@ -42,19 +43,19 @@ TRIAXIAL_BAND_FRACTION = 0.15
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_schema_option(p, "packing", "particles")  # type, default, range and help from the case-file schema
-    add_schema_option(p, "packing", "seed")
+    add_case_option(p, "packing", "particles")  # type, default, range and help from the case declarations
+    add_case_option(p, "packing", "seed")
     # the path's options (meaning, unit, default, range) from its declaration: loading.stress_paths.StressPath
     add_parameter_option(p, StressPath, "pressure", flag="--confining", default=2.0)
     add_parameter_option(p, StressPath, "axial_strain")
-    add_schema_option(p, "solver", "increments", help="per 1e-3 s of loading")
+    add_case_option(p, "solver", "increments", help="per 1e-3 s of loading")
     for name in ("rate", "band", "measure", "integral_time", "filter_time", "axial_ramp"):
         add_parameter_option(p, StressPath, name)
     # a narrower band than the paths' default: the lateral stresses' lag in the axial phase
     # (README, the triaxial servo study: 0.25 -> 0.15 took the largest Schmidt deviation from 2.14 to 1.85 %)
     add_parameter_option(p, StressPath, "band_fraction", default=TRIAXIAL_BAND_FRACTION,
                          help=f"here {TRIAXIAL_BAND_FRACTION}")
-    add_schema_option(p, "output", "outputs", default=60)
+    add_case_option(p, "output", "outputs", default=60)
     p.add_argument("--out", default="results/triaxial")
     p.add_argument("--restart", default=None, metavar="CHECKPOINT",
                    help="continue a killed run from a checkpoint (directory, or its results folder: the newest "
@@ -64,10 +65,10 @@ def main(argv=None) -> int:
         path = StressPath(path="triaxial", pressure=args.confining, axial_strain=args.axial_strain, rate=args.rate,
                           band=args.band, band_fraction=args.band_fraction, measure=args.measure,
                           integral_time=args.integral_time, filter_time=args.filter_time, axial_ramp=args.axial_ramp)
-        duration = parameter_default(CompactionCase, "duration")  # times above in units of it
+        duration = parameter_default(LoadingSection, "duration")  # times above in units of it
         control = path.control(duration)
-        case = CompactionCase(particles=args.particles, seed=args.seed, bc="CLP", control=control, duration=duration,
-                              increments=args.increments, outputs=args.outputs, visual=False, out_dir=args.out)
+        case = CompactionCase.build(particles=args.particles, seed=args.seed, condition="CLP", control=control, duration=duration,
+                              increments=args.increments, outputs=args.outputs, visual=False, directory=args.out)
     with run_exits():  # a refused checkpoint exits 2, a diverged run 3
         result = run_compaction(case, MPI.COMM_WORLD, restart=args.restart)
     h = result.history

@@ -29,8 +29,8 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from mpfem_fenicsx.cli.exits import bad_input_exits
-from mpfem_fenicsx.cli.options import add_parameter_option
+from mpfem_fenicsx.exits import bad_input_exits
+from mpfem_fenicsx.options import add_parameter_option
 from mpfem_fenicsx.io import History
 from mpfem_fenicsx.workflows.two_spheres import TwoSphereCase, run_two_spheres, unloading_branch
 

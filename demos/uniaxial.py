@@ -13,9 +13,9 @@ import argparse
 import numpy as np
 from mpi4py import MPI
 
-from mpfem_fenicsx.cli.exits import bad_input_exits
+from mpfem_fenicsx.exits import bad_input_exits
 from mpfem_fenicsx.material import LEAD
-from mpfem_fenicsx.cli.options import add_parameter_option
+from mpfem_fenicsx.options import add_parameter_option
 from mpfem_fenicsx.workflows.foundation import UniaxialCase, run_uniaxial
 
 

@@ -25,9 +25,9 @@ Stresses in MPa, compression > 0.
 
 from mpi4py import MPI
 
-from mpfem_fenicsx.cli.compaction import case_from_args, parser
-from mpfem_fenicsx.cli.exits import RUN_FAILED, bad_input_exits, fail
-from mpfem_fenicsx.cli.options import add_parameter_option
+from mpfem_fenicsx.options import compaction_case, compaction_parser
+from mpfem_fenicsx.exits import RUN_FAILED, bad_input_exits, fail
+from mpfem_fenicsx.options import add_parameter_option
 from mpfem_fenicsx.workflows.compaction import RunFailure
 from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase, run_yield_surface, surfaces
 
@@ -36,7 +36,7 @@ DEFAULTS = dict(particles=24, target_density=0.80, increments=2000, gamma=1e-2, 
 
 
 def main(argv=None) -> None:
-    p = parser("isotropic", __doc__)
+    p = compaction_parser("isotropic", __doc__)
     p.set_defaults(out="results/yield_surface", **DEFAULTS)
     p.add_argument("--loading", choices=("isotropic", "die"), default="isotropic", help="initial loading path")
     # meaning, unit, default and range of the fan's options from YieldSurfaceCase's declarations
@@ -59,7 +59,7 @@ def main(argv=None) -> None:
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     args.no_visual = True  # the stages write histories, the fan its own figure
     reload_solver, args.solver = args.solver, "explicit"  # --solver: the reloads' (loading: explicit)
-    base = case_from_args(args, args.loading)
+    base = compaction_case(args, args.loading)
     with bad_input_exits():
         case = YieldSurfaceCase(base=base, solver=reload_solver, reload_steps=args.reload_steps, nphi=args.nphi, unload_stress_ratio=args.unload_ratio,
                                 amplitude_factor=args.amplitude_factor, reload_profile=args.reload_profile,

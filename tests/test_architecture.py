@@ -94,3 +94,20 @@ def test_no_private_attribute_of_another_package_read():
                     if alias.name.startswith("_"):
                         reads.append(f"{path.relative_to(ROOT)}:{node.lineno} import {alias.name}")
     assert not reads, "private names of another package: " + ", ".join(reads)
+
+
+#: the pipeline's orchestrators: they hand each stage the sections it needs
+ORCHESTRATORS = {"build_compaction", "run_compaction", "__init__"}  # __init__: CompactionRun's
+
+
+def test_no_stage_takes_the_whole_case():
+    """A function annotated with a ``CompactionCase`` parameter is an orchestrator; every other
+    stage takes the case's sections (``PackingSection``, ``SolverSection``...)."""
+    whole = []
+    for path in _modules("."):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name not in ORCHESTRATORS:
+                arguments = node.args.posonlyargs + node.args.args + node.args.kwonlyargs
+                if any(a.annotation is not None and "CompactionCase" in ast.unparse(a.annotation) for a in arguments):
+                    whole.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name}")
+    assert not whole, "stages given the whole case (give them its sections): " + ", ".join(whole)

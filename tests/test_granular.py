@@ -20,10 +20,10 @@ def quiet(*args):
 
 
 def small_case(tmp_path, **kw) -> CompactionCase:
-    options = dict(packing=simple_cubic_packing(), target_density=0.56, increments=100, outputs=3, visual=False,
-                   duration=1e-4, out_dir=str(tmp_path), d_bc=0.8, images=False, exact_volume=False)
+    options = dict(spheres=simple_cubic_packing(), target_density=0.56, increments=100, outputs=3, visual=False,
+                   duration=1e-4, directory=str(tmp_path), d_bc=0.8, images=False, exact_volume=False)
     options.update(kw)
-    return CompactionCase(**options)
+    return CompactionCase.build(**options)
 
 
 def coupling_means(model):
@@ -56,7 +56,7 @@ def residual_at(model, field):
 
 @pytest.mark.parametrize("bc", ["GDH", "GDF", "CLPS", "CLP"])
 def test_constraints_hold_after_compaction(tmp_path, bc):
-    res = run_compaction(small_case(tmp_path, bc=bc), MPI.COMM_SELF, log=quiet)
+    res = run_compaction(small_case(tmp_path, condition=bc), MPI.COMM_SELF, log=quiet)
     model = res.model
     H = model.bcs.displacement_gradient(res.solver.t)
     assert np.abs(H).max() > 0.02  # the cell did deform
@@ -135,9 +135,9 @@ def test_gdf_volume_takes_its_work_through_the_boundary(tmp_path):
     test reads the carrier only."""
     from mpfem_fenicsx.meshes.packing import generate_packing
 
-    case = CompactionCase(packing=generate_packing(16, 0.12, 0.147, seed=3), loading="die", bc="GDF", d_bc=1.0,
+    case = CompactionCase.build(spheres=generate_packing(16, 0.12, 0.147, seed=3), path="die", condition="GDF", d_bc=1.0,
                           target_density=0.75, increments=1600, outputs=10, divisions=3, exact_volume=False,
-                          visual=False, checkpoint_every=0, out_dir=str(tmp_path))
+                          visual=False, checkpoint_every=0, directory=str(tmp_path))
     h = run_compaction(case, MPI.COMM_SELF, log=quiet).history
     share = carrier_share({k: h.column(k) for k in QUASI_STATIC_CHECK_COLUMNS})
     loaded = h.column("sigma_m") > 0.3
@@ -182,7 +182,7 @@ def test_consistent_constraint_mass(tmp_path, bc):
       (P^T R = 0: the reduced equations of motion hold exactly); the lumped mass leaves one."""
     runs = {}
     for mass in ("lumped", "consistent"):
-        res = run_compaction(small_case(tmp_path / mass, bc=bc, constraint_mass=mass), MPI.COMM_SELF, log=quiet)
+        res = run_compaction(small_case(tmp_path / mass, condition=bc, constraint_mass=mass), MPI.COMM_SELF, log=quiet)
         solver = res.solver
         free_reaction = solver.constraint.create_reduced_vector()
         R = solver.f_int.duplicate()
@@ -210,7 +210,7 @@ def test_consistent_constraint_mass(tmp_path, bc):
 def test_rigid_translation_gives_zero_stress(tmp_path, bc):
     """F0 = I and a uniform translation of every node (allowed by the periodic constraints):
     no internal or contact force, zero Schmidt stress."""
-    model = build_compaction(small_case(tmp_path, bc=bc), MPI.COMM_SELF, log=quiet)
+    model = build_compaction(small_case(tmp_path, condition=bc), MPI.COMM_SELF, log=quiet)
     problem, bcs, contact = model.problem, model.bcs, model.contact
     bcs.apply(0.0)  # F0(0) = I
     problem.u.x.array.reshape(-1, 3)[:] = [0.013, -0.007, 0.021]
@@ -248,7 +248,7 @@ def test_clp_by_copies_equals_clp_by_images(tmp_path, lattice):
     packing = simple_cubic_packing() if lattice == "simple cubic" else face_centred_cubic()
     results = []
     for images in (False, True):
-        model = build_compaction(small_case(tmp_path, bc="CLP", images=images, packing=packing,
+        model = build_compaction(small_case(tmp_path, condition="CLP", images=images, spheres=packing,
                                             target_density=0.8 if lattice != "simple cubic" else 0.56),
                                  MPI.COMM_SELF, log=quiet)
         problem, bcs, contact = model.problem, model.bcs, model.contact
@@ -285,7 +285,7 @@ def test_schmidt_stress_sees_only_the_boundary_forces(tmp_path, images):
     the particles' stress (eq. C.7) is zero too: the three measures agree only in equilibrium."""
     from mpfem_fenicsx.homogenization import love_weber_stress
 
-    model = build_compaction(small_case(tmp_path, bc="CLP", images=images), MPI.COMM_SELF, log=quiet)
+    model = build_compaction(small_case(tmp_path, condition="CLP", images=images), MPI.COMM_SELF, log=quiet)
     problem, bcs, contact = model.problem, model.bcs, model.contact
     bcs.apply(0.0)  # F0 = I: no offsets
     X = problem.V.tabulate_dof_coordinates()
@@ -314,7 +314,7 @@ def test_static_anchor_moves_with_its_particle(tmp_path, bc):
     relative motion w = 0) each particle translates rigidly: no internal force anywhere. (Held at
     u = 0, the anchor stretched its particle by H (X_c - L/2) at every step and the implicit
     pseudo-time drag reacted on it.)"""
-    model = build_compaction(small_case(tmp_path, bc=bc, solver="implicit"), MPI.COMM_SELF, log=quiet)
+    model = build_compaction(small_case(tmp_path, condition=bc, kind="implicit"), MPI.COMM_SELF, log=quiet)
     problem, bcs = model.problem, model.bcs
     assert bcs.anchor_block is not None
     F0 = np.diag([0.97, 0.98, 0.96])
@@ -351,8 +351,8 @@ def test_random_volume_copies_images_and_three_stresses(tmp_path):
     packing = generate_packing(24, 0.082, 0.147, seed=2)
     histories = []
     for images in (False, True):
-        case = CompactionCase(packing=packing, target_density=0.9, increments=3000, hold=0.3, outputs=40,
-                              images=images, visual=False, checkpoint_every=0, out_dir=str(tmp_path / str(images)))
+        case = CompactionCase.build(spheres=packing, target_density=0.9, increments=3000, hold=0.3, outputs=40,
+                              images=images, visual=False, checkpoint_every=0, directory=str(tmp_path / str(images)))
         histories.append(run_compaction(case, MPI.COMM_SELF, log=quiet).history)
     copies, images = histories
     loaded = images.column("sigma_m") > 1.0
@@ -395,7 +395,7 @@ def test_clps_copies_turn_with_their_originals(tmp_path, equal_rotations):
     second order in the strain (the rows equate the linearized rotations; halving the motion
     divides the gap by 4), while the copies of eq. 2.15 alone turn freely. A finite rigid rotation
     of the whole cell (F0 = R, 29 degrees) satisfies the constraints exactly and strains nothing."""
-    model = build_compaction(small_case(tmp_path, bc="CLPS", equal_rotations=equal_rotations), MPI.COMM_SELF,
+    model = build_compaction(small_case(tmp_path, condition="CLPS", equal_rotations=equal_rotations), MPI.COMM_SELF,
                              log=quiet)
     bcs, problem = model.bcs, model.problem
     copies = np.flatnonzero(model.is_copy)
@@ -433,7 +433,7 @@ def test_implicit_drag_work_is_small_at_the_default_steps(tmp_path):
     """Issue 22 item 5: the implicit pseudo-time drag that holds particles before contact does
     work k |dw|^2 per step, i.e. ~1 / steps of the path (measured on this cell: E_damp / E_p = 0.31
     at 10 steps, 0.157 at 20). At the default 100 steps it stays below 5 % of the plastic work."""
-    h = run_compaction(small_case(tmp_path, bc="CLP", solver="implicit"), MPI.COMM_SELF, log=quiet).history
+    h = run_compaction(small_case(tmp_path, condition="CLP", kind="implicit"), MPI.COMM_SELF, log=quiet).history
     assert CompactionCase().steps == 100
     assert h.column("E_p")[-1] > 1e-4  # mJ: the cell did yield
     assert h.column("E_damp")[-1] < 0.05 * h.column("E_p")[-1]

@@ -61,13 +61,13 @@ def test_compaction_case_profiles_its_further_segments():
     from mpfem_fenicsx.workflows.compaction import CompactionCase, loading_path
 
     unload = (1e-4, np.eye(3) * 1.01)
-    case = CompactionCase(hold=0.5, segments_after=(unload,), segment_profiles=("smooth-ramps",), visual=False)
-    path = loading_path(case, 0.6)
-    t0 = case.duration * 1.5  # the unload starts after the compaction and its hold
+    case = CompactionCase.build(hold=0.5, segments_after=(unload,), segment_profiles=("smooth-ramps",), visual=False)
+    path = loading_path(case.loading, 0.6)
+    t0 = case.loading.duration * 1.5  # the unload starts after the compaction and its hold
     fraction = np.log(path(t0 + 0.4e-4)[0, 0] / path(t0)[0, 0]) / np.log(1.01)
     assert fraction == pytest.approx(SmoothRamps(1e-4)(0.4e-4))
-    assert np.allclose(path(case.duration * 1.25), path(case.duration))  # the hold holds
+    assert np.allclose(path(case.loading.duration * 1.25), path(case.loading.duration))  # the hold holds
     with pytest.raises(ValueError, match="segment_profiles must name one of smooth-step, smooth-ramps"):
-        CompactionCase(segments_after=(unload,), segment_profiles=("linear",))
+        CompactionCase.build(segments_after=(unload,), segment_profiles=("linear",))
     with pytest.raises(ValueError, match="for at most the 0 segments_after"):
-        CompactionCase(segment_profiles=("smooth-ramps",))
+        CompactionCase.build(segment_profiles=("smooth-ramps",))

@@ -33,7 +33,7 @@ def test_control_integrates_the_velocity_gradient():
     with pytest.raises(ValueError, match="stress_driven must be a symmetric"):
         StressControl(duration=1.0, stress_driven=np.triu(np.ones((3, 3), bool)), target=lambda t: 0, rate=1, band=1)
     with pytest.raises(ValueError, match="control .* needs bc CLP or CLPS"):
-        CompactionCase(bc="GDF", control=control)
+        CompactionCase.build(condition="GDF", control=control)
 
 
 def test_lode_shear_keeps_the_mean_stress():
@@ -137,7 +137,7 @@ def test_consolidation_then_triaxial_on_the_simple_cubic_cell(tmp_path):
     control = StressControl(duration=T, stress_driven=mask, rate=50.0, band=0.5,
                             target=lambda t: p0 * min(t / (0.3 * T), 1.0) * np.eye(3),
                             velocity_gradient=lambda t: np.diag([0.0, 0.0, -10.0]) if t >= consolidation else np.zeros((3, 3)))
-    case = small_case(tmp_path, bc="CLP", control=control, material=replace(LEAD, sigma_0=1e4), duration=T,
+    case = small_case(tmp_path, condition="CLP", control=control, material=replace(LEAD, sigma_0=1e4), duration=T,
                       increments=2000, outputs=40)
     h = run_compaction(case, MPI.COMM_SELF, log=quiet).history
     t = h.column("time")
@@ -161,7 +161,7 @@ def test_strain_path_replayed_under_stress_control(tmp_path):
     the end its strains are the strain-driven ones, within 2 % of the axial strain."""
     T = 1e-3
     material = replace(LEAD, sigma_0=1e4)
-    strain = run_compaction(small_case(tmp_path / "strain", bc="CLP", loading="die", target_density=0.53,
+    strain = run_compaction(small_case(tmp_path / "strain", condition="CLP", path="die", target_density=0.53,
                                        material=material, duration=T, increments=1000, outputs=20, hold=0.5),
                             MPI.COMM_SELF, log=quiet).history
     t = np.concatenate([[0.0], strain.column("time")])
@@ -173,7 +173,7 @@ def test_strain_path_replayed_under_stress_control(tmp_path):
     peak = recorded[:, 2].max()
     control = StressControl(duration=t[-1], stress_driven=np.eye(3, dtype=bool), target=target, rate=100.0,
                             band=0.1 * peak, integral_time=2e-4)
-    replay = run_compaction(small_case(tmp_path / "replay", bc="CLP", control=control, material=material, duration=T,
+    replay = run_compaction(small_case(tmp_path / "replay", condition="CLP", control=control, material=material, duration=T,
                                        increments=1000, outputs=20), MPI.COMM_SELF, log=quiet).history
     h_strain = [np.log(strain.column(f"F{i}{i}")) for i in (1, 2, 3)]
     h_replay = [np.log(replay.column(f"F{i}{i}")) for i in (1, 2, 3)]
@@ -199,7 +199,7 @@ def test_stress_controlled_run_restarts_bit_for_bit(tmp_path):
         control = StressControl(duration=4e-4, stress_driven=np.eye(3, dtype=bool), rate=50.0, band=0.5,
                                 target=lambda t: 2.0 * min(t / 2e-4, 1.0) * np.eye(3), integral_time=1e-4,
                                 filter_time=5e-6)
-        return small_case(out, bc="CLP", control=control, material=replace(LEAD, sigma_0=1e4), duration=4e-4,
+        return small_case(out, condition="CLP", control=control, material=replace(LEAD, sigma_0=1e4), duration=4e-4,
                           increments=400, outputs=4, checkpoint_every=2)
 
     a = run_compaction(case(tmp_path / "a"), MPI.COMM_SELF, log=quiet).history
@@ -215,12 +215,12 @@ def test_stress_controlled_run_restarts_bit_for_bit(tmp_path):
         np.testing.assert_array_equal(a.column(name), b.column(name), err_msg=name)
     # a stress path continuing a strain-driven compaction from its checkpoint: it starts at the
     # checkpoint's gradient, and the pressure it holds is met
-    strain_driven = small_case(tmp_path / "c", bc="CLP", material=replace(LEAD, sigma_0=1e4), target_density=0.52,
+    strain_driven = small_case(tmp_path / "c", condition="CLP", material=replace(LEAD, sigma_0=1e4), target_density=0.52,
                                duration=4e-4, increments=400, outputs=2, checkpoint_every=1)
     c = run_compaction(strain_driven, MPI.COMM_SELF, log=quiet).history
     held = StressControl(duration=8e-4, stress_driven=np.eye(3, dtype=bool), rate=50.0, band=0.5,
                          target=lambda t: c.column("sigma_schmidt_11")[-1] * np.eye(3), integral_time=1e-4)
-    d = run_compaction(small_case(tmp_path / "d", bc="CLP", control=held, material=replace(LEAD, sigma_0=1e4),
+    d = run_compaction(small_case(tmp_path / "d", condition="CLP", control=held, material=replace(LEAD, sigma_0=1e4),
                                   duration=4e-4, increments=400, outputs=4), MPI.COMM_SELF, log=quiet,
                        restart=tmp_path / "c" / "checkpoints" / "step0000400").history
     new = d.column("time") > 4e-4 * (1 + 1e-9)  # the rows after the restart (the history goes on)
@@ -258,7 +258,7 @@ def test_deviatoric_fan_analysis(tmp_path):
     with pytest.raises(ValueError, match="p_probe must be in"):
         DeviatoricSurfaceCase(p_load=1.0, p_probe=1.5)
     with pytest.raises(ValueError, match="bc CLP or CLPS"):
-        DeviatoricSurfaceCase(base=CompactionCase(bc="GDF"))
+        DeviatoricSurfaceCase(base=CompactionCase.build(condition="GDF"))
 
 
 @pytest.mark.heavy
@@ -276,7 +276,7 @@ def test_deviatoric_fan_on_the_simple_cubic_cell(tmp_path):
     10 % across the probes, q_y increasing with theta."""
     from mpfem_fenicsx.workflows.deviatoric_surface import DeviatoricSurfaceCase, run_deviatoric_surface
 
-    base = small_case(tmp_path, bc="CLP", duration=1e-3, increments=1000, outputs=10)
+    base = small_case(tmp_path, condition="CLP", duration=1e-3, increments=1000, outputs=10)
     case = DeviatoricSurfaceCase(base=base, p_load=2.0, p_probe=1.6, q_max=2.2, angles_deg=(0.0, 20.0, 40.0),
                                  rows_per_probe=40, out_dir=str(tmp_path / "fan"))
     result = run_deviatoric_surface(case, MPI.COMM_SELF, log=quiet)
@@ -352,16 +352,16 @@ def test_force_rupture_analysis(tmp_path):
     assert points["w2"]["path_stress"] > 2.9 and points["w2"]["time"] >= points["peak"]["time"]
     assert points["phi"]["time"] < points["w2"]["time"]
     assert "phi" not in rupture_points(rows, phi_c=0.5)
-    case = ForceRuptureCase(base=CompactionCase(bc="CLP", gamma=1e-2), out_dir=str(tmp_path))
+    case = ForceRuptureCase(base=CompactionCase.build(condition="CLP", gamma=1e-2), out_dir=str(tmp_path))
     write_outputs(tmp_path, rows, points, case)
     assert (tmp_path / "force_rupture.png").stat().st_size > 1000
     assert (tmp_path / "rupture_points.csv").read_text().count("\n") == 4
     with pytest.raises(ValueError, match="without adhesion"):
-        ForceRuptureCase(base=CompactionCase(bc="CLP"))
+        ForceRuptureCase(base=CompactionCase.build(condition="CLP"))
     with pytest.raises(ValueError, match="final_stress must hold 3"):
-        ForceRuptureCase(base=CompactionCase(bc="CLP", gamma=1e-2), final_stress=(1.0, 2.0))
+        ForceRuptureCase(base=CompactionCase.build(condition="CLP", gamma=1e-2), final_stress=(1.0, 2.0))
     with pytest.raises(ValueError, match="phi_c = 2.0 is out of range: must be > 0 and < 1"):
-        ForceRuptureCase(base=CompactionCase(bc="CLP", gamma=1e-2), phi_c=2.0)
+        ForceRuptureCase(base=CompactionCase.build(condition="CLP", gamma=1e-2), phi_c=2.0)
 
 
 @pytest.mark.heavy
@@ -379,7 +379,7 @@ def test_force_controlled_rupture_where_the_strain_driven_tangent_falls_below_th
     from mpfem_fenicsx.workflows.force_rupture import ForceRuptureCase, run_force_rupture
     from mpfem_fenicsx.workflows.stress_probes import consolidate, run_probe
 
-    base = small_case(tmp_path, bc="CLP", duration=1e-3, increments=1000, outputs=10, gamma=1e-2)
+    base = small_case(tmp_path, condition="CLP", duration=1e-3, increments=1000, outputs=10, gamma=1e-2)
     case = ForceRuptureCase(base=base, p_load=2.0, p_probe=0.2, final_stress=(0.2, 0.2, -6.0), rows_per_probe=40,
                             out_dir=str(tmp_path / "force"))
     result = run_force_rupture(case, MPI.COMM_SELF, log=quiet)

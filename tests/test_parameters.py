@@ -1,4 +1,4 @@
-"""Parameters defined once (issue 25): every dataclass that declares its fields with
+"""Parameters defined once: every dataclass that declares its fields with
 ``parameter()`` refuses a value just outside each declared bound, with one line naming the
 field, and accepts its defaults."""
 
@@ -6,11 +6,12 @@ from dataclasses import fields, replace
 
 import pytest
 
+from mpfem_fenicsx.case import (BoundarySection, CompactionCase, ContactSection, LoadingSection, MeshSection,
+                                OutputSection, PackingSection, SolverSection)
 from mpfem_fenicsx.cli.casefile import SCHEMA
 from mpfem_fenicsx.loading.stress_paths import ServoSettings, StressPath
 from mpfem_fenicsx.material import ElastoPlastic
 from mpfem_fenicsx.parameters import Range, parameter_range
-from mpfem_fenicsx.workflows.compaction import CompactionCase
 from mpfem_fenicsx.workflows.deviatoric_surface import DeviatoricSurfaceCase
 from mpfem_fenicsx.workflows.foundation import SqueezeCase, UniaxialCase
 from mpfem_fenicsx.workflows.force_rupture import ForceRuptureCase
@@ -19,10 +20,12 @@ from mpfem_fenicsx.workflows.stress_probes import StressProbeCase
 from mpfem_fenicsx.workflows.two_spheres import TwoSphereCase
 from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase
 
-DECLARED = (CompactionCase, ElastoPlastic, HertzCase, TwoSphereCase, UniaxialCase, SqueezeCase, ServoSettings,
+SECTIONS = (PackingSection, MeshSection, ContactSection, BoundarySection, LoadingSection, SolverSection,
+            OutputSection)
+DECLARED = (*SECTIONS, ElastoPlastic, HertzCase, TwoSphereCase, UniaxialCase, SqueezeCase, ServoSettings,
             StressPath, StressProbeCase, DeviatoricSurfaceCase, ForceRuptureCase, YieldSurfaceCase)
 #: a valid instance of the classes whose defaults alone are not one
-VALID = {ForceRuptureCase: lambda: ForceRuptureCase(base=CompactionCase(gamma=1e-2))}
+VALID = {ForceRuptureCase: lambda: ForceRuptureCase(base=CompactionCase.build(gamma=1e-2))}
 
 
 def just_outside(allowed: Range) -> list:
@@ -42,7 +45,7 @@ def just_outside(allowed: Range) -> list:
 def test_every_declared_bound_is_enforced(cls):
     default = VALID.get(cls, cls)()
     declared = [f.name for f in fields(cls) if "range" in f.metadata]
-    assert len(declared) >= 5, declared
+    assert len(declared) >= 3, declared
     for name in declared:
         allowed = parameter_range(cls, name)
         for value in just_outside(allowed):
@@ -75,3 +78,20 @@ def test_shared_parameters_are_declared_once():
     for key in control:
         assert key.range == parameter_range(StressPath, key.name), key.name
     assert parameter_range(ForceRuptureCase, "p_probe") == parameter_range(StressProbeCase, "p_probe")
+
+
+def test_the_case_file_keys_are_the_sections_fields():
+    """Every declared field of a case section is the case-file key of the same name, and a case
+    built from flat field names puts each value into its section."""
+    keys = {(key.section, key.name) for key in SCHEMA if key.section != "control"}
+    declared = {(section, f.name) for section, cls in
+                (("packing", PackingSection), ("mesh", MeshSection), ("contact", ContactSection),
+                 ("boundary", BoundarySection), ("loading", LoadingSection), ("solver", SolverSection),
+                 ("output", OutputSection), ("material", ElastoPlastic)) for f in fields(cls) if "range" in f.metadata}
+    assert keys == declared
+    case = CompactionCase.build(particles=30, condition="GDF", increments=77, directory="x", gamma=0.01)
+    assert (case.packing.particles, case.boundary.condition, case.solver.increments, case.output.directory,
+            case.contact.gamma) == (30, "GDF", 77, "x", 0.01)
+    assert case.updated(solver={"increments": 5 * 77}).solver == SolverSection(increments=385)
+    with pytest.raises(TypeError, match="no section or field 'bc'"):
+        CompactionCase.build(bc="GDF")

@@ -29,7 +29,7 @@ def sigma_at(h, rho):
 
 
 def compaction(tmp_path, **kw):
-    return run_compaction(CompactionCase(out_dir=str(tmp_path), **{**CASE, **kw}), MPI.COMM_SELF, quiet).history
+    return run_compaction(CompactionCase.build(directory=str(tmp_path), **{**CASE, **kw}), MPI.COMM_SELF, quiet).history
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +40,7 @@ def history(tmp_path_factory):
 def test_model_solid_fraction_is_the_spheres(tmp_path):
     """Finite-element volumes (DOLFINx integral over the particles) = the spheres' volumes the
     relative density counts (thesis eq. 2.4-2.5), on the flagship packing with its two radii."""
-    model = build_compaction(CompactionCase(visual=False, out_dir=str(tmp_path)), MPI.COMM_SELF, log=quiet)
+    model = build_compaction(CompactionCase.build(visual=False, directory=str(tmp_path)), MPI.COMM_SELF, log=quiet)
     assert model.rho0_fe == pytest.approx(model.rho0, rel=1e-9)
 
 
@@ -100,7 +100,7 @@ def test_compaction_passes_its_quasi_static_check(history, tmp_path):
     columns = {c: history.column(c) for c in QUASI_STATIC_CHECK_COLUMNS}
     assert quasi_static_check(columns).passed
     lines = []
-    fast = run_compaction(CompactionCase(out_dir=str(tmp_path), **{**CASE, "increments": 400}), MPI.COMM_SELF,
+    fast = run_compaction(CompactionCase.build(directory=str(tmp_path), **{**CASE, "increments": 400}), MPI.COMM_SELF,
                           lambda line="", **kw: lines.append(line))
     # measured 2026-11-26: out of balance 0.80 at rest, sigma_m 17 % below its peak at the end
     # (1000 increments: 0.13, 11 %; 4000: 0.0067, 3 %); the carrier takes -3 % / -2.5 % / -0.5 %

@@ -419,9 +419,9 @@ def _die_compaction(tmp_path, name, **options):
 
     from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 
-    base = dict(particles=24, seed=1, loading="die", target_density=0.85, divisions=4, radius_factor=0.975, outputs=20,
-                visual=False, checkpoint_every=0, out_dir=str(tmp_path / name))
-    history = run_compaction(CompactionCase(**{**base, **options}), MPI.COMM_SELF, log=lambda *a: None).history
+    base = dict(particles=24, seed=1, path="die", target_density=0.85, divisions=4, radius_factor=0.975, outputs=20,
+                visual=False, checkpoint_every=0, directory=str(tmp_path / name))
+    history = run_compaction(CompactionCase.build(**{**base, **options}), MPI.COMM_SELF, log=lambda *a: None).history
     return {name: history.column(name) for name in history.columns}
 
 
@@ -440,8 +440,8 @@ def test_die_clp_density_definition_on_a_small_volume(tmp_path):
     constant-rate middle of the smooth ramps): at single densities the faceted / exact ratio swings
     by +-7 % as contacts form. Measured band means and their history: validation/README.md,
     CI-sized subset (2026-11-28: 3.328 faceted vs 3.414 MPa exact, -2.5 %)."""
-    exact = _die_compaction(tmp_path, "exact", bc="CLP", increments=1500)
-    faceted = _die_compaction(tmp_path, "faceted", bc="CLP", increments=1500, exact_volume=False)
+    exact = _die_compaction(tmp_path, "exact", condition="CLP", increments=1500)
+    faceted = _die_compaction(tmp_path, "faceted", condition="CLP", increments=1500, exact_volume=False)
     assert faceted["rho_fe"][0] < 0.95 * exact["rho_fe"][0]  # the inscribed particle holds less solid
     a = _band_mean(exact, "sigma_m", 0.68, 0.76, "rho_fe")
     b = _band_mean(faceted, "sigma_m", 0.68, 0.76, "rho_fe")
@@ -463,7 +463,7 @@ def test_die_periodic_volume_is_the_stiffest_on_a_small_volume(tmp_path):
     and GDF within 2.5 %); it is the 50-particle die stage's to show."""
     means = {}
     for bc, d_bc in (("CLP", None), ("CLPS", 1.5), ("GDF", 2.0)):
-        h = _die_compaction(tmp_path, bc, bc=bc, d_bc=d_bc, increments=3000,
+        h = _die_compaction(tmp_path, bc, condition=bc, d_bc=d_bc, increments=3000,
                             constraint_mass=STAGE_CONSTRAINT_MASS[bc])
         means[bc] = _band_mean(h, "sigma_m", 0.70, 0.80, "rho_imposed", points=11)
     print("mean sigma_m over rho 0.70-0.80 (MPa):", means)  # shown with pytest -rP

@@ -69,8 +69,7 @@ def fan(tmp_path_factory):
     from mpfem_fenicsx.workflows.simple_cubic import simple_cubic_case
 
     out = tmp_path_factory.mktemp("fan")
-    base = replace(simple_cubic_case("isotropic", target_density=0.70, increments=600, visual=False, outputs=10),
-                   gamma=1e-2)
+    base = simple_cubic_case("isotropic", target_density=0.70, increments=600, visual=False, outputs=10).updated(gamma=1e-2)
     case = YieldSurfaceCase(base=base, nphi=4, amplitude_factor=3.0, min_increments=200, reload_increments=200,
                             rows_per_reload=20, out_dir=str(out))
     return case, run_yield_surface(case, MPI.COMM_SELF, log=lambda *a: None)
@@ -275,7 +274,7 @@ def test_reload_profile_sets_the_reload_strain_in_time(fan, tmp_path):
 def replace_out(case, out):
     from dataclasses import replace
 
-    return replace(case, out_dir=str(out))
+    return case.updated(directory=str(out))
 
 
 @pytest.mark.heavy  # ~3-4 min (adaptive Newton with cut-backs, run twice): pytest -m heavy
@@ -290,12 +289,12 @@ def test_implicit_restart_reproduces_the_uninterrupted_run(tmp_path):
 
     centres = np.array([(x, y, z) for x in (0.1, 0.3) for y in (0.1, 0.3) for z in (0.1, 0.3)])
     packing = Packing([0.4] * 3, centres, [0.1] * 8)
-    kw = dict(packing=packing, target_density=0.53, steps=6, solver="implicit", outputs=6, checkpoint_every=2,
+    kw = dict(spheres=packing, target_density=0.53, steps=6, kind="implicit", outputs=6, checkpoint_every=2,
               checkpoint_keep=0, visual=False, gamma=1e-2)
     quiet = lambda *a: None  # noqa: E731
-    whole = run_compaction(CompactionCase(out_dir=str(tmp_path / "whole"), **kw), MPI.COMM_SELF, quiet)
+    whole = run_compaction(CompactionCase.build(directory=str(tmp_path / "whole"), **kw), MPI.COMM_SELF, quiet)
     checkpoints = sorted((tmp_path / "whole" / "checkpoints").glob("step*"))
-    restarted = run_compaction(CompactionCase(out_dir=str(tmp_path / "restarted"), **kw), MPI.COMM_SELF, quiet,
+    restarted = run_compaction(CompactionCase.build(directory=str(tmp_path / "restarted"), **kw), MPI.COMM_SELF, quiet,
                                restart=checkpoints[0])
     a, b = whole.history.array(), restarted.history.array()
     assert a.shape == b.shape and a.shape[0] > int(checkpoints[0].name[4:]) + 1

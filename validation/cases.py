@@ -78,7 +78,7 @@ class Case:
         """Duplication distance / r_max: the case's, else its condition's (thesis table 2.3)."""
         from mpfem_fenicsx.boundary import boundary_kind
 
-        return self.options.get("d_bc", boundary_kind(self.options["bc"]).default_d_bc)
+        return self.options.get("d_bc", boundary_kind(self.options["condition"]).default_d_bc)
 
     @property
     def increments(self) -> int:
@@ -88,13 +88,13 @@ class Case:
     def compaction_case(self, out_dir: str):
         from mpfem_fenicsx.workflows.compaction import CompactionCase
 
-        return CompactionCase(**{**CHAPTER2_SETUP, **self.options}, out_dir=out_dir)
+        return CompactionCase.build(**{**CHAPTER2_SETUP, **self.options}, directory=out_dir)
 
 
 def die_case(bc: str) -> Case:
     """Die compaction ("matrice", uniaxial strain along z) to rho_f = 0.95 (thesis §2.7), with the
     condition's reduced mass (``STAGE_CONSTRAINT_MASS``)."""
-    return Case(f"die_{bc}", dict(loading="die", bc=bc, target_density=0.95,
+    return Case(f"die_{bc}", dict(path="die", condition=bc, target_density=0.95,
                                   constraint_mass=STAGE_CONSTRAINT_MASS[bc]))
 
 
@@ -136,20 +136,20 @@ def dbc_reference_case(bc: str) -> Case:
 def exact_volume_die_case() -> Case:
     """Die CLP on the library's default particle, which holds its sphere's volume (issue 21): rho
     = 0.95 is then 0.95 of real solid, where the thesis' faceted particles hold ~0.92."""
-    return Case("die_CLP_exact_volume", dict(loading="die", bc="CLP", target_density=0.95, exact_volume=True))
+    return Case("die_CLP_exact_volume", dict(path="die", condition="CLP", target_density=0.95, exact_volume=True))
 
 
 def isotropic_case(bc: str) -> Case:
     """Isotropic compaction to rho_f = 0.95 (thesis §2.7, fig. 2.24a-b, 2.25a), with the condition's
     reduced mass (``STAGE_CONSTRAINT_MASS``)."""
-    return Case(f"isotropic_{bc}", dict(loading="isotropic", bc=bc, target_density=0.95,
+    return Case(f"isotropic_{bc}", dict(path="isotropic", condition=bc, target_density=0.95,
                                         constraint_mass=STAGE_CONSTRAINT_MASS[bc]))
 
 
 def dbc_case(bc: str, d_bc: float) -> Case:
     """Die compaction to 0.95 at duplication distance d_bc r_max (thesis §2.5, table 2.3); CLP
     through tied copies."""
-    options = dict(loading="die", bc=bc, target_density=0.95, d_bc=d_bc)
+    options = dict(path="die", condition=bc, target_density=0.95, d_bc=d_bc)
     if bc == "CLP":
         options["images"] = False
     return Case(f"dbc_{bc}_{d_bc:g}", options)
@@ -161,7 +161,7 @@ def size_case(particles: int, bc: str = "GDF", seed: int = 1) -> Case:
     free of the packings' spread; ``seed`` another packing of the same size (the spread that a
     difference between sizes must exceed)."""
     suffix = "" if seed == 1 else f"_seed{seed}"
-    return Case(f"size_{bc}_{particles}{suffix}", dict(loading="isotropic", bc=bc, target_density=0.95,
+    return Case(f"size_{bc}_{particles}{suffix}", dict(path="isotropic", condition=bc, target_density=0.95,
                                                        particles=particles, seed=seed))
 
 
@@ -170,7 +170,7 @@ def adhesive_case(loading: str, delta_max: float | None = None, bc: str = "CLP")
     the library's 0.5 um of the thesis text, or e.g. appendix A's 0.2 um). bc "GDF" is the
     thesis' own chapter-4 model (346 particles: the 50 of the volume and their copies, §4.5
     conclusion); "CLP" the periodic volume."""
-    options = dict(loading=loading, bc=bc, gamma=1e-2, target_density=max(THESIS_GAMMA_L[loading]))
+    options = dict(path=loading, condition=bc, gamma=1e-2, target_density=max(THESIS_GAMMA_L[loading]))
     if delta_max is None:
         return Case(f"{loading}_{bc}_gamma1e-2", options)
     return Case(f"{loading}_{bc}_gamma1e-2_dmax{1e3 * delta_max:g}um", {**options, "delta_max": delta_max})
@@ -181,7 +181,7 @@ def hardening_case(n: float) -> Case:
     and the library: 0.35)."""
     from mpfem_fenicsx.material import LEAD
 
-    return Case(f"die_CLP_n{n:g}", dict(loading="die", bc="CLP", target_density=0.95,
+    return Case(f"die_CLP_n{n:g}", dict(path="die", condition="CLP", target_density=0.95,
                                          material=replace(LEAD, n=n)))
 
 
@@ -244,13 +244,13 @@ class FanCase:
         from mpfem_fenicsx.workflows.compaction import initial_packing
         from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase
 
-        chapter2 = Case("chapter2", dict(loading=self.loading, bc="CLP", target_density=0.95))
+        chapter2 = Case("chapter2", dict(path=self.loading, condition="CLP", target_density=0.95))
         reference = chapter2.compaction_case(out_dir)
-        _, rho0 = initial_packing(reference)
+        _, rho0 = initial_packing(reference.packing, reference.mesh, reference.loading.target_density)
         share = math.log(self.rho_f / rho0) / math.log(0.95 / rho0)
-        base = replace(reference, target_density=self.rho_f, gamma=self.gamma,
-                       increments=max(100, round(share * reference.increments)),
-                       duration=share * reference.duration, checkpoint_every=4)
+        base = reference.updated(target_density=self.rho_f, gamma=self.gamma,
+                                 increments=max(100, round(share * reference.solver.increments)),
+                                 duration=share * reference.loading.duration, checkpoint_every=4)
         return YieldSurfaceCase(base=base, nphi=self.nphi, amplitude_factor=self.amplitude_factor,
                                 min_increments=self.min_reload_increments, reload_profile=self.reload_profile,
                                 out_dir=out_dir)

@@ -42,7 +42,7 @@ def measured_at_checkpoints(fan, run_dir: Path) -> float:
     model, closed = None, np.nan
     for stage in ("load", "unload"):
         checkpoint = sorted((run_dir / stage / "checkpoints").iterdir())[-1]
-        case = replace(base, out_dir=f"/tmp/closed_contact_surface_{fan.name}/{stage}", checkpoint_every=0,
+        case = base.updated(directory=f"/tmp/closed_contact_surface_{fan.name}/{stage}", checkpoint_every=0,
                        visual=False, segments_after=(*unloaded.segments, hold))
         result = CompactionRun(case, MPI.COMM_SELF, log=lambda *a, **k: None, restart=checkpoint,
                                model=model).run(max_steps=1)

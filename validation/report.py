@@ -172,8 +172,8 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
         groups.setdefault(case.repeats, []).append(case)
     for repeated_name, variants in groups.items():
         repeated = CASES[repeated_name]
-        bc = repeated.options["bc"]
-        die = repeated.options["loading"] == "die"
+        bc = repeated.options["condition"]
+        die = repeated.options["path"] == "die"
         compared = die and "d_bc" not in repeated.options  # the thesis' value: die, at its d_bc (table 2.3)
         condition = (bc if compared else f"{bc} at d_bc {repeated.d_bc:g} r_max" if die
                      else f"{bc}, {repeated.options['loading']}")
@@ -821,7 +821,7 @@ def figures(done: dict, out: Path) -> None:
                     label=f"{bc}" + (f", {stage_mass} mass" if stage_mass != "lumped" else "") + " (ours)")
         for case in STAGES["increments"]:  # the same run with more increments or another reduced mass
             variant = done.get(case.name)
-            if (case.options["bc"] == bc and case.options["loading"] == "die" and "d_bc" not in case.options
+            if (case.options["condition"] == bc and case.options["path"] == "die" and "d_bc" not in case.options
                     and variant is not None):
                 mass = case.options.get("constraint_mass", "lumped")
                 style = "-." if mass == stage_mass else ":" if case.increments == CHAPTER2_SETUP["increments"] else "--"
@@ -964,7 +964,7 @@ def _dbc_panels(done: dict, axes, density: str) -> None:
             drawn = True
             for case in STAGES["increments"]:  # the same d_bc and (lumped) mass with more increments, dotted
                 slow = done.get(case.name)
-                if (slow is not None and case.options["bc"] == bc and case.options["loading"] == "die" and case.d_bc == d
+                if (slow is not None and case.options["condition"] == bc and case.options["path"] == "die" and case.d_bc == d
                         and case.increments != CHAPTER2_SETUP["increments"]
                         and case.options.get("constraint_mass", "lumped") == "lumped"):
                     ax.plot(slow["history"][density], slow["history"]["sigma_m"], ":", color=colour,

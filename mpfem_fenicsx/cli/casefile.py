@@ -1,9 +1,13 @@
 """Case files: a TOML description of a compaction run, validated before any computation.
 
 One table, :data:`SCHEMA`, says every key: its section, type, default, allowed range, unit and
-meaning. It drives the validation (unknown section or key, wrong type, out-of-range value ->
+meaning. It is derived from the declarations of the case's sections (:mod:`mpfem_fenicsx.case`:
+a field declared with :func:`~mpfem_fenicsx.parameters.parameter` is the key ``[section] name``)
+and of the stress paths (``[control]``, :class:`~mpfem_fenicsx.loading.stress_paths.StressPath`).
+It drives the validation (unknown section or key, wrong type, out-of-range value ->
 :class:`CaseError` naming the field and what is allowed), the documentation (``mpfem run
---help``, ``mpfem init``) and the conversion into a :class:`CompactionCase`.
+--help``, ``mpfem init``, the documentation's case-file reference) and the conversion into a
+:class:`~mpfem_fenicsx.case.CompactionCase`.
 
 Example (every key optional; defaults = the flagship demo)::
 
@@ -25,16 +29,15 @@ Example (every key optional; defaults = the flagship demo)::
 
 from __future__ import annotations
 
+import re
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
+from ..case import SECTIONS, CompactionCase
 from ..loading.stress_paths import PATH_FIELDS, StressPath
-from ..material import ElastoPlastic
 from ..parameters import Range, parameter_default, parameter_range
-from ..workflows.compaction import CompactionCase
-from .options import add_range_option
 
 
 class CaseError(ValueError):
@@ -44,15 +47,14 @@ class CaseError(ValueError):
 @dataclass(frozen=True)
 class Key:
     """A case-file key ``[section] name``: the values it allows (``range``, its meaning and unit
-    in ``range.doc``), its default and the CompactionCase attribute it sets (``target``;
-    ``material.<x>``: an ElastoPlastic field). A key with a target takes range and default from
-    that field's :func:`~mpfem_fenicsx.parameters.parameter` declaration (:func:`case_key`)."""
+    in ``range.doc``) and its default, both from the field's
+    :func:`~mpfem_fenicsx.parameters.parameter` declaration (the case section's field
+    ``section.name``, or a ``[control]`` StressPath field)."""
 
     section: str
     name: str
     range: Range
     default: Any = None
-    target: str | None = None
 
     @property
     def kind(self) -> type:
@@ -92,87 +94,21 @@ class Key:
 _KIND_WORDS = {int: "an integer", float: "a number", bool: "true or false", str: "a string"}
 
 
-def case_key(section: str, name: str, target: str | None = None) -> Key:
-    """The key setting CompactionCase.``target`` (default: ``name``; ``material.<x>``: an
-    ElastoPlastic field): range and default from the field's declaration."""
-    target = target or name
-    owner, attribute = (ElastoPlastic, target[9:]) if target.startswith("material.") else (CompactionCase, target)
-    return Key(section, name, parameter_range(owner, attribute), parameter_default(owner, attribute), target)
+def declared_keys(section: str, cls: type) -> list[Key]:
+    """The keys of ``[section]``: the fields of ``cls`` declared with ``parameter()``, in order."""
+    return [Key(section, f.name, f.metadata["range"], parameter_default(cls, f.name))
+            for f in fields(cls) if "range" in f.metadata]
 
 
-def own_key(section: str, name: str, kind: type, doc: str, low: float | None = None, high: float | None = None,
-            *, open_low: bool = False, open_high: bool = False, choices: tuple | None = None,
-            default: Any = None, target: str | None = None) -> Key:
-    """A key that sets no CompactionCase field of its own (the [control] keys build the stress
-    control, [output] directory the results folder): its range here; optional without ``default``."""
-    return Key(section, name, Range(doc, kind, low, high, open_low, open_high, choices, optional=default is None),
-               default, target)
+#: every key of a case file, in the documentation's order: the case's sections (material: thesis
+#: table 2.1, lead; packing §2.2; mesh; contact law §3.3; boundary conditions table 2.2; loading
+#: path §2.2.3; solver; outputs), then the stress-controlled paths (``[control]``; times in units
+#: of the [loading] duration, the servo's rate in strain per duration)
+SCHEMA: tuple[Key, ...] = (*(key for name, cls in SECTIONS.items() for key in declared_keys(name, cls)),
+                           *declared_keys("control", StressPath))
 
-
-def control_key(name: str) -> Key:
-    """The ``[control]`` key ``name``: a :class:`~mpfem_fenicsx.loading.stress_paths.StressPath`
-    field (range and default from its declaration); the keys together build the path."""
-    return Key("control", name, parameter_range(StressPath, name), parameter_default(StressPath, name))
-
-
-def _material(name: str) -> Key:
-    return case_key("material", name, f"material.{name}")
-
-
-#: every key of a case file (section order = the order of the documentation)
-SCHEMA: tuple[Key, ...] = (
-    # particles: thesis table 2.1 (lead)
-    *(_material(name) for name in ("E", "nu", "sigma_0", "hardening", "K", "n", "H", "density")),
-    # packing (thesis §2.2)
-    case_key("packing", "particles"),
-    case_key("packing", "r_min"),
-    case_key("packing", "r_max"),
-    case_key("packing", "seed"),
-    case_key("packing", "fraction", "packing_fraction"),
-    own_key("packing", "file", str, "packing file instead of the generator: 'dx dy dz' then one 'x y z r' line per "
-            "sphere (mm; path relative to the case file)", target="packing_file"),
-    # meshing (SPEC §2)
-    case_key("mesh", "resolution", "mesh"),
-    case_key("mesh", "refinement"),
-    case_key("mesh", "radius_factor"),
-    # contact law (thesis §3.3)
-    case_key("contact", "friction"),
-    case_key("contact", "gamma"),
-    case_key("contact", "delta_max"),
-    case_key("contact", "asperity_yield"),
-    case_key("contact", "penalty_factor"),
-    # boundary conditions (thesis table 2.2)
-    case_key("boundary", "condition", "bc"),
-    case_key("boundary", "images"),
-    case_key("boundary", "d_bc"),
-    # loading path (thesis §2.2.3)
-    case_key("loading", "path", "loading"),
-    case_key("loading", "target_density"),
-    case_key("loading", "duration"),
-    case_key("loading", "profile"),
-    # solver (SPEC §6)
-    case_key("solver", "kind", "solver"),
-    case_key("solver", "increments"),
-    case_key("solver", "steps"),
-    case_key("solver", "damping"),
-    case_key("solver", "local_damping"),
-    case_key("solver", "constraint_mass"),
-    case_key("solver", "hold"),
-    # stress-controlled paths (loading.mixed; beyond the thesis, issue 24): times in units of the
-    # [loading] duration, the servo's rate in strain per duration
-    *(control_key(name) for name in ("path", "pressure", "ramp", "hold", "axial_strain", "axial_time", "axial_ramp",
-                                      "unload_to", "reload_to", "q_max", "lode_angle", "shear_time", "rate", "band",
-                                      "band_fraction", "integral_time", "filter_time", "measure")),
-    # outputs (SPEC §10)
-    own_key("output", "directory", str, "results folder (default: results/<case file name>; --out overrides)",
-            target="out_dir"),
-    case_key("output", "outputs"),
-    case_key("output", "visual"),
-    case_key("output", "checkpoint_every"),
-    case_key("output", "checkpoint_keep"),
-)
-
-SECTIONS = tuple(dict.fromkeys(k.section for k in SCHEMA))
+#: the case file's sections, in order
+FILE_SECTIONS = tuple(dict.fromkeys(k.section for k in SCHEMA))
 
 
 def _keys(section: str) -> dict[str, Key]:
@@ -187,24 +123,12 @@ def schema_key(section: str, name: str) -> Key:
         raise KeyError(f"no case-file key [{section}] {name}") from None
 
 
-def add_schema_option(parser, section: str, name: str, flag: str | None = None, default: Any = "schema",
-                      help: str | None = None) -> None:
-    """A command-line option of the demos from the case-file key ``[section] name``: its type,
-    default, choices and help (meaning, unit, allowed range) come from :data:`SCHEMA`, and the
-    value is checked by the key's range like a case file's (:mod:`.options`: exit 2, one line
-    naming the option). ``flag``: the option (default ``--name`` with dashes); ``default``:
-    another default than the key's (e.g. a demo's own); ``help``: prepended to the key's meaning."""
-    key = schema_key(section, name)
-    add_range_option(parser, flag or "--" + name.replace("_", "-"), name, key.range,
-                     key.default if default == "schema" else default, help)
-
-
 def parse_case(data: dict, where: str = "case", base: Path | None = None) -> dict[str, Any]:
     """Validated values of a parsed TOML document: {(section, key): value} of the keys given."""
     values: dict[tuple[str, str], Any] = {}
     for section, table in data.items():
-        if section not in SECTIONS:
-            raise CaseError(f"{where}: unknown section [{section}] (allowed: {', '.join(SECTIONS)})")
+        if section not in FILE_SECTIONS:
+            raise CaseError(f"{where}: unknown section [{section}] (allowed: {', '.join(FILE_SECTIONS)})")
         if not isinstance(table, dict):
             raise CaseError(f"{where}: {section} must be a [{section}] table, got {table!r}")
         keys = _keys(section)
@@ -212,11 +136,8 @@ def parse_case(data: dict, where: str = "case", base: Path | None = None) -> dic
             if name not in keys:
                 raise CaseError(f"{where}: unknown key [{section}] {name} (allowed: {', '.join(keys)})")
             values[(section, name)] = keys[name].check(value, where)
-    # checks between keys
+    # checks between keys of the file (the rules between fields are the sections' own: to_case)
     get = lambda s, k: values.get((s, k), next(x.default for x in SCHEMA if (x.section, x.name) == (s, k)))
-    if get("packing", "r_max") < get("packing", "r_min"):
-        raise CaseError(f"{where}: [packing] r_max = {get('packing', 'r_max')!r} is out of range: must be >= "
-                        f"r_min = {get('packing', 'r_min')!r} mm")
     if ("packing", "file") in values:
         given = [k for k in ("particles", "r_min", "r_max", "seed", "fraction") if ("packing", k) in values]
         if given:
@@ -236,9 +157,6 @@ def parse_case(data: dict, where: str = "case", base: Path | None = None) -> dic
         if stray:
             raise CaseError(f"{where}: [control] {stray[0]} belongs to path = {owner!r}")
     stress_path(values, where)  # the rules between the path's keys
-    if get("boundary", "images") and get("boundary", "condition") != "CLP":
-        raise CaseError(f"{where}: [boundary] images = true realizes CLP only, got condition = "
-                        f"{get('boundary', 'condition')!r}")
     return values
 
 
@@ -257,26 +175,28 @@ def load_case(path: str | Path, out_dir: str | None = None) -> CompactionCase:
 
 
 def to_case(values: dict[tuple[str, str], Any], out_dir: str, where: str = "case") -> CompactionCase:
-    """A CompactionCase from validated values (defaults for the keys not given)."""
-    material = {}
-    kwargs: dict[str, Any] = {"out_dir": out_dir}
-    for key in SCHEMA:
-        if (key.section, key.name) not in values or key.target in ("out_dir", None):
-            continue
-        value = values[(key.section, key.name)]
-        if key.target.startswith("material."):
-            material[key.target[9:]] = value
-        else:
-            kwargs[key.target] = value
+    """A CompactionCase from validated values (defaults for the keys not given); a rule between
+    fields that a section or the case checks raises CaseError naming it."""
+    sections: dict[str, dict[str, Any]] = {}
+    for (section, name), value in values.items():
+        if section != "control":
+            sections.setdefault(section, {})[name] = value
+    sections.setdefault("output", {})["directory"] = out_dir
     try:
-        if material:
-            kwargs["material"] = ElastoPlastic(**material)
+        if "material" in sections:
+            sections["material"] = SECTIONS["material"](**sections["material"])
         path = stress_path(values, where)
         if path.path != "none":
-            kwargs["control"] = path.control(kwargs.get("duration", parameter_default(CompactionCase, "duration")))
-        return CompactionCase(**kwargs)
+            duration = sections.get("loading", {}).get("duration", parameter_default(SECTIONS["loading"], "duration"))
+            sections.setdefault("loading", {})["control"] = path.control(duration)
+        return CompactionCase.build(**sections)
     except ValueError as err:  # a rule of the case classes not expressed in the schema
-        raise CaseError(f"{where}: {err}") from None
+        raise CaseError(f"{where}: {as_key(str(err))}") from None
+
+
+def as_key(message: str) -> str:
+    """A section's message in the case file's words: ``packing.r_max`` -> ``[packing] r_max``."""
+    return re.sub(rf"\b({'|'.join(SECTIONS)})\.(\w+)", r"[\1] \2", message)
 
 
 def stress_path(values: dict[tuple[str, str], Any], where: str = "case") -> StressPath:
@@ -291,7 +211,7 @@ def stress_path(values: dict[tuple[str, str], Any], where: str = "case") -> Stre
 def documentation() -> str:
     """The case-file reference: every section and key with type, default, range, meaning."""
     lines = []
-    for section in SECTIONS:
+    for section in FILE_SECTIONS:
         lines.append(f"[{section}]")
         for k in SCHEMA:
             if k.section == section:
@@ -305,7 +225,7 @@ def example_case() -> str:
     out = ["# mpfem case file: compaction of a periodic volume of elastoplastic particles.",
            "# Every key is optional; the values below are the defaults (the flagship demo).",
            "# Units: mm, N, MPa, s, t/mm^3. Reference: `mpfem run --help`.", ""]
-    for section in SECTIONS:
+    for section in FILE_SECTIONS:
         out.append(f"[{section}]")
         for k in SCHEMA:
             if k.section != section:
@@ -315,8 +235,9 @@ def example_case() -> str:
             else:
                 value = ("true" if k.default else "false") if k.kind is bool else (
                     f'"{k.default}"' if k.kind is str else repr(k.default))
-                # a [control] key needs a path: shown with its default, commented out
-                comment = "# " if k.section == "control" and k.name != "path" else ""
+                # a [control] key needs a path, and the results folder defaults to the case file's
+                # name: shown with their defaults, commented out
+                comment = "# " if (k.section == "control" and k.name != "path") or k.name == "directory" else ""
                 out.append(f"{comment + k.name + ' = ' + value:<30} # {k.doc}; {k.allowed()}")
         out.append("")
     return "\n".join(out)

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from .exits import BAD_INPUT, RUN_FAILED
+from ..exits import BAD_INPUT, RUN_FAILED
 
 
 class _Exit(Exception):
@@ -104,16 +104,16 @@ def _run(args, comm) -> None:
     except CaseError as err:
         raise _Exit(BAD_INPUT, str(err))
     if args.check:
-        if case.packing_file is not None:  # what `run` would refuse while building, before any mesh
+        if case.packing.file is not None:  # what `run` would refuse while building, before any mesh
             try:
-                packing, rho0 = initial_packing(case, log=say)
+                packing, rho0 = initial_packing(case.packing, case.mesh, case.loading.target_density, log=say)
             except (ValueError, OSError) as err:
                 raise _Exit(BAD_INPUT, f"{args.case}: {err}")
-            packing = f"{case.packing_file}: {packing.num_particles}, rho0 {rho0:.4f}"
+            packing = f"{packing.num_particles} particles from {case.packing.file}, rho0 {rho0:.4f}"
         else:
-            packing = f"{case.particles} generated"
-        say(f"{args.case}: valid ({packing} particles, {case.bc}, {case.loading} to {case.target_density}, "
-            f"{case.solver})")
+            packing = f"{case.packing.particles} generated particles"
+        say(f"{args.case}: valid ({packing}, {case.boundary.condition}, {case.loading.path} to "
+            f"{case.loading.target_density}, {case.solver.kind})")
         return
     start = time.perf_counter()
     try:
@@ -129,12 +129,12 @@ def _run(args, comm) -> None:
         f"{h.column('sigma_m')[-1]:.3f} MPa, {round(h.column('n_contacts')[-1])} contacts (Z {h.column('Z')[-1]:.2f}); "
         f"{res.num_particles_model} particles in the model, {res.num_dofs} dofs, wall {time.perf_counter() - start:.0f} s")
     say(f"outputs in {res.out_dir}/: history.csv, packing.txt, checkpoints/"
-        + (", particles.xdmf (ParaView), particles.png, loading_path.png" if case.visual else ""))
+        + (", particles.xdmf (ParaView), particles.png, loading_path.png" if case.output.visual else ""))
 
 
 def _pack(args, comm) -> None:
     from ..meshes.packing import generate_packing, packing_format, read_packing, write_packing
-    from ..workflows.compaction import CompactionCase
+    from ..case import MeshSection
 
     say = _say(comm)
     try:
@@ -147,7 +147,7 @@ def _pack(args, comm) -> None:
             say(f"{args.input}: read as {packing_format(args.input)}")
             if args.scale != 1.0:
                 packing = packing.scaled(args.scale)
-            reduction = CompactionCase.radius_factor  # what a run does to the radii before meshing
+            reduction = MeshSection().radius_factor  # what a run does to the radii before meshing
             packing.validate(overlap_tolerance=args.tolerance, radius_factor=reduction)
             if packing.max_overlap() > 0:
                 say(f"largest overlap {packing.max_overlap():.3g} of the smaller radius, removed by the run's radius "

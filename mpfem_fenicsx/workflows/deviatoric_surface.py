@@ -94,7 +94,7 @@ def run_deviatoric_surface(case: DeviatoricSurfaceCase, comm: MPI.Comm = MPI.COM
     fan, points = [], []
     for theta in case.angles_deg:
         control = lode_shear_control(mean=case.p_probe, q_max=case.q_max, theta=np.radians(theta),
-                                     duration=case.probe * case.base.duration, t0=state.time, **case.servo())
+                                     duration=case.probe * case.base.loading.duration, t0=state.time, **case.servo())
         history = run_probe(case, state, control, f"probe_{theta:g}", comm, log=log)
         rows = probe_rows(history, theta, state.time)
         fan.append(rows)

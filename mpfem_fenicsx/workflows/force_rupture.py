@@ -6,7 +6,7 @@ Stages (data flow: consolidation -> unload -> checkpoint -> stress probe -> rupt
    up to ``p_load``, then down to ``p_probe``, checkpoint; E_0 = E_d there;
 2. **probe** (``out/probe``): from that checkpoint the three normal stresses are driven linearly
    from p_probe to ``final_stress`` (e.g. (0, 0, -5): uniaxial tension along z with free lateral
-   faces; tension needs adhesion, ``base.gamma`` > 0) over ``probe`` durations, then held. Past
+   faces; tension needs adhesion, ``base.contact.gamma`` > 0) over ``probe`` durations, then held. Past
    the volume's strength the servo can no longer raise the stress: it strains the cell at its
    largest rate and the particles, no longer held, accelerate;
 3. **rupture**, by two independent criteria, both recorded:
@@ -65,8 +65,8 @@ class ForceRuptureCase(StressProbeCase):
             raise ValueError(f"final_stress must hold 3 finite normal stresses (MPa), got {self.final_stress}")
         if np.linalg.norm(final - self.p_probe) == 0:
             raise ValueError("final_stress must differ from the starting state p_probe I")
-        if np.any(final < 0) and not self.base.gamma > 0:
-            raise ValueError(f"final_stress is tensile but base.gamma = {self.base.gamma}: without adhesion the "
+        if np.any(final < 0) and not self.base.contact.gamma > 0:
+            raise ValueError(f"final_stress is tensile but base.contact.gamma = {self.base.contact.gamma}: without adhesion the "
                              f"volume carries no tension (set gamma > 0 mJ/mm^2)")
         if self.w2_window != 0 and not (self.w2_window >= 3 and self.w2_window % 2 == 1):
             raise ValueError(f"w2_window must be 0 or an odd number >= 3 of rows, got {self.w2_window}")
@@ -120,7 +120,7 @@ def phi_quasi_static(rows: dict) -> float:
 def run_force_rupture(case: ForceRuptureCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> dict:
     """Stages 1-3 (module docstring); returns {"E_0", "rows", "points", "phi_quasi_static"}."""
     state = consolidate(case, comm, log=log)
-    T = case.base.duration
+    T = case.base.loading.duration
     start = np.full(3, case.p_probe)
     final = np.asarray(case.final_stress, dtype=float)
     control = normal_stress_path([state.time, state.time + case.probe * T], [start, final], **case.servo())
@@ -150,4 +150,4 @@ def write_outputs(out: Path, rows: dict, points: dict, case: ForceRuptureCase) -
 
     plot_force_rupture(rows, points, case.phi_c, out / "force_rupture.png",
                        title=f"stress probe {case.p_probe:g} I -> diag{tuple(case.final_stress)} MPa "
-                             f"(gamma {case.base.gamma:g} mJ/mm^2)")
+                             f"(gamma {case.base.contact.gamma:g} mJ/mm^2)")

@@ -152,7 +152,7 @@ class HistoryRecorder:
         self.model, self.comm = model, comm
         self.n = model.packing.num_particles
         self.cell_volume0 = float(np.prod(model.packing.cell))
-        self.periodic = boundary_kind(model.case.bc).periodic  # Schmidt stress defined
+        self.periodic = boundary_kind(model.boundary.condition).periodic  # Schmidt stress defined
         self.mean_radius = float(np.mean(model.radii[: self.n]))
         self.centroids = ParticleCentroids(model.assembly, model.problem.u)
         # one memory layout: a restart reproduces the BLAS round-off
@@ -200,7 +200,7 @@ class HistoryRecorder:
         pf = model.contact.pair_forces()
         pairs = pf["pairs"]
         image = np.rint(np.linalg.solve(F0, pf["shift"].T).T / model.packing.cell).astype(np.int64)
-        weights = contact_weights(pairs[:, 0], pairs[:, 1], model.original, model.shift, model.case.bc, image)
+        weights = contact_weights(pairs[:, 0], pairs[:, 1], model.original, model.shift, model.boundary.condition, image)
         volume = np.linalg.det(F) * self.cell_volume0
         sigma_lw = love_weber_stress(pf["force"], branch_vectors(x, pairs[:, 0], pairs[:, 1], pf["shift"]),
                                      volume, weights)  # tension > 0

@@ -31,10 +31,10 @@ def simple_cubic_case(loading: str, radius: float = 0.1, target_density: float =
                       face_copies_only: bool = False) -> CompactionCase:
     """The thesis §2.6 cell: CLP by copies, radii not shrunk (exact pi / 6; the particle meshes are
     inscribed in their touching spheres), all copies (or the 12 face copies of the thesis)."""
-    return CompactionCase(packing=simple_cubic_packing(radius), loading=loading, bc="CLP", images=False,
+    return CompactionCase.build(spheres=simple_cubic_packing(radius), path=loading, condition="CLP", images=False,
                           exact_volume=False, corners=not face_copies_only,
-                          d_bc=1.0, radius_factor=1.0, mesh_rotation=MESH_ROTATION, target_density=target_density,
-                          increments=increments, outputs=outputs, visual=visual, out_dir=str(Path(out_dir) / loading))
+                          d_bc=1.0, radius_factor=1.0, rotation=MESH_ROTATION, target_density=target_density,
+                          increments=increments, outputs=outputs, visual=visual, directory=str(Path(out_dir) / loading))
 
 
 def checks(result) -> dict[str, np.ndarray]:

@@ -10,7 +10,7 @@ checkpoint with the servo's state and the contact history carried over (``run_pr
 at the end of the consolidation: the reference of the iso-dissipation yield (thesis §4.2.2) and
 of the kinetic / dissipated energy ratio (eq. 4.14).
 
-Times in units of ``base.duration``; the servo's ``rate`` in strain per duration. MPa,
+Times in units of ``base.loading.duration``; the servo's ``rate`` in strain per duration. MPa,
 compression > 0.
 """
 
@@ -52,19 +52,19 @@ class StressProbeCase(ServoSettings):
 
     def __post_init__(self):
         super().__post_init__()  # every declared range
-        if not boundary_kind(self.base.bc).periodic or not solver_kind(self.base.solver).stress_control:
+        if not boundary_kind(self.base.boundary.condition).periodic or not solver_kind(self.base.solver.kind).stress_control:
             raise ValueError(f"base: a stress-controlled probe needs bc CLP or CLPS and the explicit solver, got "
-                             f"{self.base.bc!r} / {self.base.solver!r}")
+                             f"{self.base.boundary.condition!r} / {self.base.solver.kind!r}")
         if not self.p_probe < self.p_load:
             raise ValueError(f"p_probe must be in (0, p_load = {self.p_load}) MPa, got {self.p_probe}")
 
     def servo(self) -> dict:
         """The servo's keyword arguments in seconds (loading.mixed.StressControl)."""
-        return self.in_seconds(self.base.duration, self.p_load)
+        return self.in_seconds(self.base.loading.duration, self.p_load)
 
     def consolidation(self) -> StressControl:
         """Pressure up to p_load (ramp), held, down to p_probe (unload), held."""
-        T = self.base.duration
+        T = self.base.loading.duration
         return pressure_control(self.p_load, self.ramp * T, self.hold * T, unload_to=self.p_probe,
                                 unload=self.unload * T, **self.servo())
 
@@ -83,7 +83,7 @@ def consolidate(case: StressProbeCase, comm: MPI.Comm = MPI.COMM_WORLD, log=prin
     """Run the consolidation and unload into ``out_dir/consolidate`` (module docstring)."""
     out = Path(case.out_dir) / "consolidate"
     log(f"consolidation to {case.p_load} MPa, unload to {case.p_probe} MPa -> {out}")
-    run = run_compaction(replace(case.base, control=case.consolidation(), out_dir=str(out),
+    run = run_compaction(case.base.updated(control=case.consolidation(), directory=str(out),
                                  checkpoint_every=_FINAL_ONLY, outputs=max(8, case.rows_per_probe)), comm, log=log)
     return ConsolidatedState(time=float(run.history.column("time")[-1]), E_0=float(run.history.column("E_d")[-1]),
                              checkpoint=sorted((out / "checkpoints").glob("step*"))[-1], model=run.model)
@@ -94,8 +94,8 @@ def run_probe(case: StressProbeCase, state: ConsolidatedState, control: StressCo
     """One probe (``control`` starting at ``state.time``) restarted from the consolidated state
     into ``out_dir/<name>``, ``rows_per_probe`` history rows over the probe; returns its history
     (the consolidation's rows included)."""
-    T = case.base.duration
-    probe = replace(case.base, control=control, out_dir=str(Path(case.out_dir) / name), checkpoint_every=0,
+    T = case.base.loading.duration
+    probe = case.base.updated(control=control, directory=str(Path(case.out_dir) / name), checkpoint_every=0,
                     outputs=max(4, round(case.rows_per_probe * (state.time + case.probe * T) / (case.probe * T))))
     log(f"probe {name} -> {probe.out_dir}")
     return run_compaction(probe, comm, log=log, restart=state.checkpoint, model=state.model).history

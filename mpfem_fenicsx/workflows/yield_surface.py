@@ -113,13 +113,13 @@ class YieldSurfaceCase:
 
     def __post_init__(self):
         check_parameters(self)
-        if solver_kind(self.base.solver).static:
+        if solver_kind(self.base.solver.kind).static:
             raise ValueError(f"base.solver: the loading and unload of a fan run with the explicit solver "
-                             f"(implicit granular compaction is experimental), got {self.base.solver!r}; "
+                             f"(implicit granular compaction is experimental), got {self.base.solver.kind!r}; "
                              f"choose the reloads' solver with YieldSurfaceCase.solver")
-        if not boundary_kind(self.base.bc).periodic:
+        if not boundary_kind(self.base.boundary.condition).periodic:
             raise ValueError(f"bc must be CLP or CLPS for a yield surface (periodic volume whose macroscopic "
-                             f"gradient is imposed), got {self.base.bc!r}")
+                             f"gradient is imposed), got {self.base.boundary.condition!r}")
         if any(not g > 0 for g in self.gamma_thresholds):
             raise ValueError(f"gamma_thresholds must be > 0 (1/mm), got {self.gamma_thresholds}")
 
@@ -175,18 +175,19 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print,
     """Stages 1-2 on ``comm``; returns the unload checkpoint and E_0, and the model (reused by
     the probe, the unload and the reloads of this rank). ``resume``: the loading continues from
     its newest checkpoint in ``out/load`` if a killed run left one (it writes one every
-    ``base.checkpoint_every`` outputs, keeping the newest)."""
+    ``base.output.checkpoint_every`` outputs, keeping the newest)."""
     base, out = case.base, Path(case.out_dir)
-    dt = base.duration / base.increments
+    dt = base.loading.duration / base.solver.increments
     quiet = _quiet(log)
     restart = _newest_checkpoint(out / "load") if resume else None
-    log(f"[load] {base.loading} compaction to rho = {base.target_density} ({base.increments} increments)"
+    log(f"[load] {base.loading.path} compaction to rho = {base.loading.target_density} ({base.solver.increments} "
+        "increments)"
         + (f", continued from {restart}" if restart else ""))
-    loaded = run_compaction(replace(base, out_dir=str(out / "load"), checkpoint_every=base.checkpoint_every or _FINAL_ONLY,
+    loaded = run_compaction(base.updated(directory=str(out / "load"), checkpoint_every=base.output.checkpoint_every or _FINAL_ONLY,
                                     checkpoint_keep=1), comm, log, restart=restart)
     h = loaded.history
     model = loaded.model
-    base = replace(base, packing=loaded.packing)
+    base = base.updated(spheres=loaded.packing)
     sigma_m_c = float(h.column("sigma_m")[-1])
     rho_imp_c = float(h.column("rho_imposed")[-1])
     h_v_c = abs(float(h.column("h_v")[-1]))
@@ -196,7 +197,7 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print,
         f"{loaded.wall_time:.0f} s")
 
     def increments_for(strain: float) -> int:  # the compaction's strain rate / slowdown
-        return max(case.min_increments, int(math.ceil(case.slowdown * base.increments * strain / h_v_c)))
+        return max(case.min_increments, int(math.ceil(case.slowdown * base.solver.increments * strain / h_v_c)))
 
     # probe: how much expansion brings sigma_m to the target (linear elastic guess x 30: the
     # porous compact is much softer than its solid)
@@ -206,9 +207,9 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print,
     h_d = np.nan
     for attempt in range(3):
         n_p = increments_for(guess)
-        probe = run_compaction(replace(base, out_dir=str(out / "unload_probe"), checkpoint_every=0, visual=False,
+        probe = run_compaction(base.updated(directory=str(out / "unload_probe"), checkpoint_every=0, visual=False,
                                        segments_after=((n_p * dt, unload_gradient(guess)),),
-                                       output_every=max(1, n_p // 50)), comm, quiet, restart=load_checkpoint_dir,
+                                       every=max(1, n_p // 50)), comm, quiet, restart=load_checkpoint_dir,
                                model=model)
         hp = {c: probe.history.column(c) for c in ("time", "sigma_m", "rho_imposed")}
         after = hp["time"] >= t_c * (1 - 1e-12)
@@ -227,9 +228,9 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print,
                            f"{guess:.3g}; raise unload_stress_ratio or check the loading stage")
     n_d = increments_for(float(h_d))
     segments = ((n_d * dt, unload_gradient(float(h_d))),)
-    unload = run_compaction(replace(base, out_dir=str(out / "unload"), checkpoint_every=_FINAL_ONLY,
+    unload = run_compaction(base.updated(directory=str(out / "unload"), checkpoint_every=_FINAL_ONLY,
                                     checkpoint_keep=1, visual=False, segments_after=segments,
-                                    output_every=max(1, n_d // 20)), comm, quiet, restart=load_checkpoint_dir,
+                                    every=max(1, n_d // 20)), comm, quiet, restart=load_checkpoint_dir,
                             model=model)
     hu = unload.history
     E_0 = float(hu.column("E_d")[-1])
@@ -239,7 +240,7 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print,
     unloaded = Unloaded(checkpoint=str(resolve_checkpoint(out / "unload")), segments=segments, h_v_unload=float(h_d),
                         E_0=E_0, sigma_m_loaded=sigma_m_c, sigma_m_unloaded=float(hu.column("sigma_m")[-1]),
                         Gamma_unloaded=float(hu.column("Gamma")[-1]), t_unloaded=float(hu.column("time")[-1]),
-                        increments=n_d, increments_per_strain=case.slowdown * base.increments / h_v_c, dt=dt,
+                        increments=n_d, increments_per_strain=case.slowdown * base.solver.increments / h_v_c, dt=dt,
                         packing=loaded.packing)
     if solver_kind(case.solver).static:  # reloads from a static equilibrium
         unloaded, model = settle(case, unloaded, comm, log)
@@ -285,8 +286,8 @@ def settle(case: YieldSurfaceCase, unloaded: Unloaded, comm: MPI.Comm, log=print
     out = Path(case.out_dir)
     hold = (2.0 * _reload_duration(case, unloaded)[0] / case.reload_steps, np.eye(3))
     segments = (*unloaded.segments, hold)
-    held = run_compaction(replace(case.base, solver=case.solver, packing=unloaded.packing,
-                                  out_dir=str(out / "settle"), checkpoint_every=_FINAL_ONLY, checkpoint_keep=1,
+    held = run_compaction(case.base.updated(kind=case.solver, spheres=unloaded.packing,
+                                  directory=str(out / "settle"), checkpoint_every=_FINAL_ONLY, checkpoint_keep=1,
                                   visual=False, segments_after=segments,
                                   segment_steps=(1,) * len(unloaded.segments) + (2,)),
                           comm, _quiet(log), restart=unloaded.checkpoint)
@@ -304,12 +305,12 @@ def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> Compactio
     """The compaction case of reload ``k`` (direction phi_k), to restart from the unload checkpoint."""
     duration, n_r = _reload_duration(case, unloaded)
     segments = (*unloaded.segments, (duration, reload_gradient(float(case.phis[k]), _reload_amplitude(case, unloaded))))
-    reload = replace(case.base, packing=unloaded.packing, out_dir=str(Path(case.out_dir) / f"reload_{k:03d}"),
+    reload = case.base.updated(spheres=unloaded.packing, directory=str(Path(case.out_dir) / f"reload_{k:03d}"),
                      checkpoint_every=0, visual=False, segments_after=segments,
                      segment_profiles=(*("smooth-step" for _ in unloaded.segments), case.reload_profile),
-                     output_every=max(1, n_r // case.rows_per_reload))
+                     every=max(1, n_r // case.rows_per_reload))
     if solver_kind(case.solver).static:  # every step a history row
-        reload = replace(reload, solver=case.solver, segment_steps=(1,) * (len(segments) - 1) + (case.reload_steps,))
+        reload = reload.updated(kind=case.solver, segment_steps=(1,) * (len(segments) - 1) + (case.reload_steps,))
     return reload
 
 
@@ -368,7 +369,7 @@ def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, l
     for k in range(comm.rank, case.nphi, comm.size):
         t0 = time.perf_counter()
         reload = reload_case(case, unloaded, k)
-        finished = Path(reload.out_dir) / "done"
+        finished = Path(reload.output.directory) / "done"
         if resume and finished.exists():
             log(f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg: done before")
             continue
@@ -456,8 +457,8 @@ def surfaces(case: YieldSurfaceCase, unloaded: Unloaded | None = None, log=print
         f"max {max(sign_changes)}")
     plot_yield_surface(out / "unload" / "history.csv", out / "fan.csv", out / "surfaces.csv",
                        out / "yield_surface.png",
-                       title=f"{case.base.loading} compaction to rho = {case.base.target_density}, "
-                             f"gamma = {case.base.gamma:g} mJ/mm^2, {case.nphi} {case.solver} reloads",
+                       title=f"{case.base.loading.path} compaction to rho = {case.base.loading.target_density}, "
+                             f"gamma = {case.base.contact.gamma:g} mJ/mm^2, {case.nphi} {case.solver} reloads",
                        gamma_limit=gamma_limit)
     return {"points": points, "uniaxial": uniaxial, "gamma_thresholds": gammas, "gamma_limit": gamma_limit,
             "w2_raw_sign_changes": sign_changes}
