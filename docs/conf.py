@@ -20,6 +20,7 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    "sphinx-mathjax-offline",  # MathJax served from the site itself: equations render offline
     "sphinx.ext.viewcode",
     "mpfem_docs",
 ]
@@ -37,10 +38,13 @@ autosummary_generate = True
 autosummary_imported_members = False
 autodoc_default_options = {"members": True, "show-inheritance": True, "ignore-module-all": True}
 autodoc_member_order = "bysource"
-autodoc_typehints = "description"
-autodoc_class_signature = "separated"
 add_module_names = False
 
 html_theme = "furo"
 html_title = "mpfem-fenicsx"
 html_static_path = []
+
+# docstrings and demo texts are plain ASCII on purpose: keep "--option" and quotes as written,
+# and show their indented blocks (formulas, command lines) without guessing a language
+smartquotes = False
+highlight_language = "none"

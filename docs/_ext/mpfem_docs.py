@@ -8,6 +8,8 @@ so the documentation cannot drift from them.
   ``allowed()``).
 - :func:`demo_page`: a demo's page; a literate demo (``# %%`` cells) becomes alternating text and
   code, any other its module docstring and its source.
+- :func:`loose_rst`: docstrings, written for humans in a loose reStructuredText, made valid
+  (the API pages and the demos' docstrings are read through it).
 - :func:`readme_summary`: the opening of a README up to the end of its first table's section,
   with links to files outside the documentation turned into plain text.
 
@@ -125,14 +127,21 @@ def demo_page(path: Path, source_link: str) -> str:
             if kind == "markdown":
                 lines += [text, ""]
             elif docstring is not None:
-                lines += [docstring, ""]
+                lines += [_rst_block(docstring), ""]
             else:
                 lines += ["```python", text, "```", ""]
         return "\n".join(lines)
     docstring = ast.get_docstring(ast.parse(source)) or "(no module docstring)"
-    lines += [docstring, "", "## Source", "",
+    lines += [_rst_block(docstring), "", "## Source", "",
               f"```{{literalinclude}} {source_link}", ":language: python", ":linenos:", "```", ""]
     return "\n".join(lines)
+
+
+def _rst_block(docstring: str) -> str:
+    """A docstring as a MyST block of reStructuredText, read like the API's (:func:`loose_rst`)."""
+    body = "\n".join(loose_rst(docstring.splitlines()))
+    fence = "````" if "```" in body else "```"
+    return f"{fence}{{eval-rst}}\n{body}\n{fence}"
 
 
 def demo_paths(root: Path = ROOT) -> list[Path]:
