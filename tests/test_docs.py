@@ -67,12 +67,19 @@ def test_a_demo_in_cells_reads_as_alternating_text_and_code(tmp_path):
 
         # %%
         x = 1  # code
+
+        # %% [markdown]
+        # # A second part
+        # ```bash
+        # # a shell comment
+        # ```
         '''))
     page = docs.demo_page(demo, "../cells.py")
-    assert "jupyter" not in page
+    assert "jupyter" not in page and page.startswith("# A title\n")
     title, text, docstring, code = (page.index(s) for s in
                                     ("# A title", "Some *text*.", "Only a docstring", "```python\nx = 1"))
-    assert title < text < docstring < code
+    assert title < text < docstring < code < page.index("\n## A second part")
+    assert "\n# a shell comment" in page
     assert page.count("```python") == 1 and "literalinclude" not in page
 
 
@@ -89,6 +96,7 @@ def test_readme_summary_stops_after_the_first_table_and_unlinks_files():
         # Report
 
         Intro, see [the runs](runs/x.csv) and [a site](https://example.org).
+        ![a figure](figures/missing.png)
 
         | check | ours |
         |---|---|
@@ -100,7 +108,9 @@ def test_readme_summary_stops_after_the_first_table_and_unlinks_files():
         """)
     summary = docs.readme_summary(readme)
     assert "| a | 1 |" in summary and "Details" not in summary and "# Report" not in summary
-    assert "see the runs and [a site](https://example.org)" in summary
+    assert "see the runs and [a site](https://example.org)" in summary and "missing.png" not in summary
+    kept = docs.readme_summary("![die](figures/die_sigma_m.png)\n", ROOT / "validation")
+    assert kept.strip() == "![die](../validation/figures/die_sigma_m.png)"
 
 
 LOOSE = '''\

@@ -122,10 +122,15 @@ def demo_page(path: Path, source_link: str) -> str:
              f"Source: {{download}}`demos/{name}.py <{source_link}>`. Run it from the repository "
              f"root with `.venv/bin/python demos/{name}.py --help` for its options.", ""]
     if is_literate(source):
-        for kind, text in _cells(source):
+        cells = _cells(source)
+        if cells and cells[0][0] == "markdown" and cells[0][1].startswith("# "):
+            title, _, rest = cells[0][1].partition("\n")
+            lines = [title, ""] + lines[1:]
+            cells[0] = ("markdown", rest.strip("\n"))
+        for kind, text in cells:
             docstring = _docstring_only(text) if kind == "code" else None
             if kind == "markdown":
-                lines += [text, ""]
+                lines += [_demote(text), ""]
             elif docstring is not None:
                 lines += [_rst_block(docstring), ""]
             else:
@@ -135,6 +140,16 @@ def demo_page(path: Path, source_link: str) -> str:
     lines += [_rst_block(docstring), "", "## Source", "",
               f"```{{literalinclude}} {source_link}", ":language: python", ":linenos:", "```", ""]
     return "\n".join(lines)
+
+
+def _demote(markdown: str) -> str:
+    """Level-1 headings of a text cell made level 2 (the page has its title), code fences left."""
+    out, fenced = [], False
+    for line in markdown.splitlines():
+        if line.lstrip().startswith(("```", "~~~")):
+            fenced = not fenced
+        out.append("#" + line if not fenced and line.startswith("# ") else line)
+    return "\n".join(out)
 
 
 def _rst_block(docstring: str) -> str:
@@ -155,21 +170,24 @@ _LINK = re.compile(r"(!?)\[([^\]]*)\]\(([^)\s]+)\)")
 _HEADING = re.compile(r"^(#{1,6})\s")
 
 
-def _unlink(text: str) -> str:
+def _unlink(text: str, folder: Path | None = None) -> str:
     """Links to anything but a web address become their text (a relative link of a README points
-    at a repository file the documentation does not hold); images are dropped."""
+    at a repository file the documentation does not hold). An image of the README's ``folder``
+    is kept, its path made relative to a page of ``docs/``; any other image is dropped."""
     def plain(match: re.Match) -> str:
         image, label, target = match.groups()
         if target.startswith(("http://", "https://")):
             return match.group(0)
+        if image and folder is not None and (folder / target).is_file():
+            return f"![{label}](../{(folder / target).resolve().relative_to(ROOT).as_posix()})"
         return "" if image else label
     return _LINK.sub(plain, text)
 
 
-def readme_summary(text: str) -> str:
+def readme_summary(text: str, folder: Path | None = None) -> str:
     """The opening of a README: everything before the first level-2 heading that follows its
     first table (the whole text if none), its title dropped, headings kept at level 3 or below,
-    repository links made plain text."""
+    repository links made plain text (images of ``folder``, the README's, kept)."""
     lines = text.splitlines()
     seen_table = False
     kept = []
@@ -187,12 +205,13 @@ def readme_summary(text: str) -> str:
         if match:
             line = "#" * max(3, len(match.group(1)) + 1) + line[len(match.group(1)):]
         out.append(line)
-    return _unlink("\n".join(out)).strip("\n") + "\n"
+    return _unlink("\n".join(out), folder).strip("\n") + "\n"
 
 
-def whole_readme(text: str) -> str:
-    """A whole README for a page of its own: its headings kept, repository links made plain."""
-    return _unlink(text)
+def whole_readme(text: str, folder: Path | None = None) -> str:
+    """A whole README for a page of its own: its headings kept, repository links made plain
+    (images of ``folder``, the README's, kept)."""
+    return _unlink(text, folder)
 
 
 # --- docstrings in loose reStructuredText -----------------------------------------------------
@@ -335,8 +354,8 @@ def generate(app=None) -> None:
     for name, readme in (("validation", ROOT / "validation" / "README.md"),
                          ("bench", ROOT / "bench" / "README.md")):
         text = readme.read_text() if readme.exists() else f"(no {name}/README.md)\n"
-        _write(GENERATED / f"{name}_summary.md", readme_summary(text))
-        _write(GENERATED / f"{name}_full.md", whole_readme(text))
+        _write(GENERATED / f"{name}_summary.md", readme_summary(text, readme.parent))
+        _write(GENERATED / f"{name}_full.md", whole_readme(text, readme.parent))
     _write(GENERATED / "validation_figures.md", _figures(ROOT / "validation" / "figures",
                                                          "../validation/figures"))
     flagship = DOCS / "figures" / "flagship.png"
