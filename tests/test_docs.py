@@ -14,7 +14,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _docs_extension():
-    spec = importlib.util.spec_from_file_location("mpfem_docs", ROOT / "docs" / "_ext" / "mpfem_docs.py")
+    path = ROOT / "docs" / "_ext" / "mpfem_docs.py"
+    spec = importlib.util.spec_from_file_location("mpfem_docs", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -37,7 +38,9 @@ def test_casefile_reference_lists_every_schema_key_in_its_section():
     missing = []
     for key in SCHEMA:
         rows = [r for r in sections[key.section].splitlines() if r.startswith(f"| `{key.name}` |")]
-        if len(rows) != 1 or docs._cell(key.allowed()) not in rows[0] or docs._cell(key.doc) not in rows[0]:
+        expected = (docs.table_cell(key.allowed()), docs.table_cell(key.doc))
+        complete = len(rows) == 1 and all(text in rows[0] for text in expected)
+        if not complete:
             missing.append(f"[{key.section}] {key.name}")
     assert not missing, f"keys missing from the case-file reference: {missing}"
 
@@ -48,7 +51,8 @@ def test_history_page_documents_every_column():
     page = (ROOT / "docs" / "history.md").read_text()
     documented = set(re.findall(r"^\| `(\w+)`", page, flags=re.MULTILINE))
     # a tensor's nine columns are one row, written `X11` ... `X33`
-    missing = [c for c in COLUMNS if c not in documented and re.sub(r"\d\d$", "11", c) not in documented]
+    missing = [c for c in COLUMNS
+               if c not in documented and re.sub(r"\d\d$", "11", c) not in documented]
     assert not missing, f"history columns missing from docs/history.md: {missing}"
 
 
@@ -76,8 +80,8 @@ def test_a_demo_in_cells_reads_as_alternating_text_and_code(tmp_path):
         '''))
     page = docs.demo_page(demo, "../cells.py")
     assert "jupyter" not in page and page.startswith("# A title\n")
-    title, text, docstring, code = (page.index(s) for s in
-                                    ("# A title", "Some *text*.", "Only a docstring", "```python\nx = 1"))
+    marks = ("# A title", "Some *text*.", "Only a docstring", "```python\nx = 1")
+    title, text, docstring, code = (page.index(mark) for mark in marks)
     assert title < text < docstring < code < page.index("\n## A second part")
     assert "\n# a shell comment" in page
     assert page.count("```python") == 1 and "literalinclude" not in page
@@ -108,7 +112,8 @@ def test_readme_summary_stops_after_the_first_table_and_unlinks_files():
         """)
     summary = docs.readme_summary(readme)
     assert "| a | 1 |" in summary and "Details" not in summary and "# Report" not in summary
-    assert "see the runs and [a site](https://example.org)" in summary and "missing.png" not in summary
+    assert "see the runs and [a site](https://example.org)" in summary
+    assert "missing.png" not in summary
     kept = docs.readme_summary("![die](figures/die_sigma_m.png)\n", ROOT / "validation")
     assert kept.strip() == "![die](../validation/figures/die_sigma_m.png)"
 
@@ -133,7 +138,8 @@ def _docutils_messages(text: str) -> list[str]:
     import io
 
     stream = io.StringIO()
-    docutils_core.publish_doctree(text, settings_overrides={"warning_stream": stream, "report_level": 2})
+    settings = {"warning_stream": stream, "report_level": 2}
+    docutils_core.publish_doctree(text, settings_overrides=settings)
     return [m for m in stream.getvalue().splitlines() if m.strip()]
 
 

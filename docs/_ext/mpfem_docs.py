@@ -35,7 +35,7 @@ _KIND_WORDS = {int: "integer", float: "number", bool: "true / false", str: "stri
 # --- the case-file reference ------------------------------------------------------------------
 
 
-def _cell(text: str) -> str:
+def table_cell(text: str) -> str:
     """``text`` made safe inside a Markdown table cell (no pipe, no line break)."""
     return " ".join(str(text).split()).replace("|", "\\|")
 
@@ -63,8 +63,8 @@ def casefile_reference(schema) -> str:
                   "| key | type | default | allowed | meaning (unit) |", "|---|---|---|---|---|"]
         for key in keys:
             kind = _KIND_WORDS.get(key.kind, key.kind.__name__)
-            lines.append(f"| `{key.name}` | {kind} | {_cell(_toml_value(key.default))} "
-                         f"| {_cell(key.allowed())} | {_cell(key.doc)} |")
+            lines.append(f"| `{key.name}` | {kind} | {table_cell(_toml_value(key.default))} "
+                         f"| {table_cell(key.allowed())} | {table_cell(key.doc)} |")
         lines.append("")
     return "\n".join(lines)
 
