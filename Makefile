@@ -41,3 +41,4 @@ bench-compaction: bootstrap
 
 clean:
 	rm -rf results .pytest_cache docs/_build docs/_generated docs/_api
+	find docs/demos -name "*.md" ! -name index.md -delete
