@@ -1,7 +1,7 @@
 # Every target bootstraps .venv/ first (Python >= 3.12, DOLFINx 0.11 from PyPI); idempotent.
 PY := .venv/bin/python
 
-.PHONY: bootstrap demo test test-all bench bench-compaction validate clean
+.PHONY: bootstrap demo test test-all docs bench bench-compaction validate clean
 
 bootstrap:
 	@bash scripts/bootstrap.sh
@@ -20,6 +20,10 @@ test: bootstrap  ## the CI suite (serial + mpirun -n 2), heavy cases excluded
 test-all: bootstrap  ## also the heavy cases
 	$(PY) -m pytest -m ""
 
+# the documentation site (Sphinx + MyST) -> docs/_build/html/index.html; any warning fails it
+docs: bootstrap  ## the documentation site, built without warnings
+	.venv/bin/sphinx-build -W --keep-going -b html docs docs/_build/html
+
 # issue-23 validation, e.g. make validate STAGES="die dbc" JOBS=1 (JOBS cases at a time, one core each)
 JOBS ?= 2
 validate: bootstrap  ## issue-23 validation: every stage's runs (hours), then validation/README.md tables
@@ -36,4 +40,5 @@ bench-compaction: bootstrap
 	$(if $(NP),.venv/bin/mpirun -n $(NP) )$(PY) bench/compaction.py $(ARGS)
 
 clean:
-	rm -rf results .pytest_cache
+	rm -rf results .pytest_cache docs/_build docs/_generated docs/_api
+	find docs/demos -name "*.md" ! -name index.md -delete

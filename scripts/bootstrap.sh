@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Create .venv/ (Python >= 3.12) at the repository root and install the project with its test
-# dependencies. Idempotent: does nothing when pyproject.toml, setup.py and this script have not
-# changed since the last run.
+# and documentation dependencies. Idempotent: does nothing when pyproject.toml, setup.py and this
+# script have not changed since the last run.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 venv="$root/.venv"
@@ -35,7 +35,7 @@ echo "bootstrap: creating $venv with $("$python" --version) ($python)"
 rm -rf "$venv"
 "$python" -m venv "$venv"
 "$venv/bin/python" -m pip install --quiet --upgrade pip
-"$venv/bin/python" -m pip install --quiet -e "$root[test]"
+"$venv/bin/python" -m pip install --quiet -e "$root[test,docs]"
 # DOLFINx's compiled module needs libmpi.so.12 (in .venv/lib), which only mpi4py knows how to
 # find: a user script importing dolfinx first failed ("libmpi.so.12: cannot open shared object
 # file"). A .pth line loads the library (no MPI_Init) at interpreter start, in any import order.
