@@ -24,16 +24,16 @@ test-all: bootstrap  ## also the heavy cases
 docs: bootstrap  ## the documentation site, built without warnings
 	.venv/bin/sphinx-build -W --keep-going -b html docs docs/_build/html
 
-# issue-23 validation, e.g. make validate STAGES="die dbc" JOBS=1 (JOBS cases at a time, one core each)
+# the validation campaign, e.g. make validate STAGES="die dbc" JOBS=1 (JOBS cases at a time, one core each)
 JOBS ?= 2
-validate: bootstrap  ## issue-23 validation: every stage's runs (hours), then validation/README.md tables
+validate: bootstrap  ## the validation campaign: every stage's runs (hours), then validation/README.md tables
 	$(PY) -m validation.run --jobs $(JOBS) $(STAGES)
 
 bench: bootstrap
 	$(PY) bench/material_assembly.py
 	$(PY) bench/contact.py
 
-# issue-8 compaction step benchmark (one JSON object), e.g.
+# the compaction step benchmark (one JSON object), e.g.
 #   make bench-compaction ARGS="--particles 350 --bc GDF --increments 40 --warmup 20 --steps 10" NP=2
 ARGS ?= --particles 50 --bc CLP --increments 40 --warmup 20 --steps 20
 bench-compaction: bootstrap

@@ -1,4 +1,4 @@
-"""The comoving carrier experiment (issue 22 item 4): does carrying every particle with the
+"""The comoving carrier experiment: does carrying every particle with the
 imposed homogeneous flow bias the explicit compaction?
 
     python bench/carrier.py                                   # 50 particles, CLP and GDF, 4000 increments

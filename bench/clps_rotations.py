@@ -1,4 +1,4 @@
-"""CLPS with and without the equal rotations of thesis eq. 2.16 (issue 22 item 7).
+"""CLPS with and without the equal rotations of thesis eq. 2.16.
 
     python bench/clps_rotations.py --rotations on  --out results/clps_rotations   # one process
     python bench/clps_rotations.py --rotations off --out results/clps_rotations   # another

@@ -1,4 +1,4 @@
-"""Cost of a granular compaction step, split by phase (issue 8, SPEC §11).
+"""Cost of a granular compaction step, split by phase.
 
     python bench/compaction.py                                   # 50 particles, CLP, 200 increments
     python bench/compaction.py --particles 50 --bc GDF --steps 200

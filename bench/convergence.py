@@ -1,4 +1,4 @@
-"""Convergence study of the explicit compaction curves (issue 21): loading rate and particle mesh.
+"""Convergence study of the explicit compaction curves: loading rate and particle mesh.
 
     python bench/convergence.py                                  # flagship: N, 2N, 4N; chapter2 vs chapter4
     python bench/convergence.py --particles 50 --increments 6000 12000 --meshes chapter2

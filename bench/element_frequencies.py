@@ -1,4 +1,4 @@
-"""The explicit stable increment against each element's exact highest frequency (issue 23 follow-up).
+"""The explicit stable increment against each element's exact highest frequency.
 
     mpirun -n 2 python bench/element_frequencies.py --case isotropic_CLPS_n12000 \\
         --checkpoint validation/runs/isotropic_CLPS_n12000/checkpoints/step0012000

@@ -1,4 +1,4 @@
-"""Force-controlled rupture against strain-driven tension at several rates (issue 24).
+"""Force-controlled rupture against strain-driven tension at several rates.
 
     python bench/force_rupture_rates.py                              # every probe below
     python bench/force_rupture_rates.py --probes force:1 strain:5    # some of them

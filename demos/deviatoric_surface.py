@@ -1,5 +1,5 @@
 """Yield surface of a periodic volume of lead particles in the deviatoric plane, by stress-controlled
-probes at constant mean stress over Lode angles (issue 24; beyond the thesis, whose chapter-4
+probes at constant mean stress over Lode angles (beyond the thesis, whose chapter-4
 fans are strain-driven reloads in the (sigma_m, sigma~_d) plane).
 
     python demos/deviatoric_surface.py                         # flagship volume, 7 probes over 0-60 deg

@@ -1,4 +1,4 @@
-"""Force-controlled rupture of an adhesive periodic volume of lead particles (issue 24; the
+"""Force-controlled rupture of an adhesive periodic volume of lead particles (the
 thesis' perspective 4: rupture under force control, detected by the growth of the kinetic energy).
 
     python demos/force_rupture.py                          # flagship volume, gamma 1e-2, pulled along z

@@ -1,4 +1,4 @@
-"""Hertz contact of two identical elastic spheres (SPEC §9 case 2), frictionless, implicit.
+"""Hertz contact of two identical elastic spheres, frictionless, implicit.
 
     python demos/hertz.py [--size-min 0.005] [--steps 10] [--out results/hertz]
     python demos/hertz.py --solver explicit [--increments 8000]    # after the implicit run
@@ -10,7 +10,7 @@ relative deviation from F = 4/3 E* sqrt(R) delta^(3/2) for delta/r <= 0.005.
 ``--solver explicit`` runs the same mesh with central differences (smooth-step approach over
 --increments mass-scaled increments) into <out>/force_explicit.csv and, when the implicit
 <out>/force.csv is there, prints the explicit force's largest deviation from the implicit curve
-for delta/r >= 0.002 (issue 3: within 5 % at slow loading).
+for delta/r >= 0.002 (within 5 % at slow loading).
 """
 
 import argparse

@@ -19,7 +19,7 @@ default all 19 copies (faces, edges, corner) are meshed; --face-copies-only give
 12 (then the die path loses the exact symmetry, h_lsq - h_aux ~ 1e-6, at the end).
 
 Outputs in --out (default results/simple_cubic/): <loading>/history.csv (the compaction history,
-SPEC §10 columns), <loading>/checks.csv (time, rho, rho_pi6 = pi / (6 det F), the six Hencky
+the columns of the history), <loading>/checks.csv (time, rho, rho_pi6 = pi / (6 det F), the six Hencky
 components of the least-squares and auxiliary-node gradients, sigma_m of Love-Weber and
 Schmidt), simple_cubic.png (rho vs h_v, least-squares vs auxiliary Hencky strain, Love-Weber vs
 Schmidt) and the printed figures of the three checks.

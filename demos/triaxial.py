@@ -1,4 +1,4 @@
-"""Triaxial compression of a periodic volume of lead particles under mixed control (issue 24;
+"""Triaxial compression of a periodic volume of lead particles under mixed control (
 beyond the thesis, whose loading is strain-driven only).
 
     python demos/triaxial.py                          # flagship volume: consolidation to 2 MPa, then 10 % axial

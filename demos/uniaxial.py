@@ -1,4 +1,4 @@
-"""Homogeneous uniaxial tension of a lead block to log strain 0.5 (SPEC §9 case 1).
+"""Homogeneous uniaxial tension of a lead block to log strain 0.5.
 
     python demos/uniaxial.py --solver implicit|explicit [--out results/uniaxial]
 

@@ -1,4 +1,4 @@
-"""The validation cases of issue 23 and the thesis numbers they are compared with.
+"""The validation cases and the thesis numbers they are compared with.
 
 Every case is a ``CompactionCase`` of the thesis' chapter-2 set-up: lead (thesis table 2.1, the
 library's ``LEAD``), 50 particles (seed 1), friction 0.1, explicit, d_bc per thesis table 2.3
@@ -134,7 +134,7 @@ def dbc_reference_case(bc: str) -> Case:
 
 
 def exact_volume_die_case() -> Case:
-    """Die CLP on the library's default particle, which holds its sphere's volume (issue 21): rho
+    """Die CLP on the library's default particle, which holds its sphere's volume: rho
     = 0.95 is then 0.95 of real solid, where the thesis' faceted particles hold ~0.92."""
     return Case("die_CLP_exact_volume", dict(path="die", condition="CLP", target_density=0.95, exact_volume=True))
 

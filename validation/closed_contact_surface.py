@@ -1,4 +1,4 @@
-"""The specific contact surface of a finished fan counted two ways (issue 23, table 4.2 and
+"""The specific contact surface of a finished fan counted two ways (table 4.2 and
 thesis fig. 4.11-4.12): every loaded contact point (``Gamma``, adhesive points in tension
 included) against the compressive, closed points only (``Gamma_closed``; Abaqus' CAREA counts
 the closed part of a contact).

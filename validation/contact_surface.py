@@ -1,5 +1,5 @@
 """Contact surface of every contact of the model against the volume's own, at a checkpoint of a
-validation run (issue 23, table 4.2: the thesis' footnote 4 of §4.4.1 sums S over "each contact
+validation run (table 4.2: the thesis' footnote 4 of §4.4.1 sums S over "each contact
 of the MPFEM model"; eq. 4.13 divides by the volume of the VEP).
 
     python validation/contact_surface.py die_GDF validation/runs/die_GDF/checkpoints/step0002100

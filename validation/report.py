@@ -1,4 +1,4 @@
-"""Issue 23 report: compare the finished validation runs with the thesis, write
+"""The validation report: compare the finished validation runs with the thesis, write
 ``summary.csv`` (case, quantity, thesis, ours, deviation, status), the figures and the generated
 tables of ``README.md`` (between ``<!-- BEGIN name -->`` and ``<!-- END name -->``).
 

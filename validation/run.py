@@ -1,4 +1,4 @@
-"""Issue 23 validation: run the stages' compactions, then regenerate the report.
+"""The validation campaign: run the stages' compactions, then regenerate the report.
 
     python validation/run.py die            # the die stage's runs (hours on 2 cores), then the report
     python validation/run.py die gamma      # several stages
