@@ -15,8 +15,9 @@ linear bulk-viscosity fraction (Abaqus/Explicit estimate) and L_e the element's 
 (``SolidProblem.min_cell_length``): the smallest of the smallest vertex distance, for hexahedra
 the centre-point volume over the largest face area, and the Gauss-point bound of
 ``problem.hexahedron_gauss_length`` (Flanagan-Belytschko). Mass scaling (element by element,
-Abaqus "fixed mass scaling to a target increment", :mod:`.mass_scaling`):
-rho_e = rho * max(1, (dt_target / dt_e)^2); penalty contact adds mass to the surface nodes.
+Abaqus "fixed mass scaling to a target increment", then variable re-checks, :mod:`.mass_scaling`):
+rho_e = rho * max(1, (dt_target / (margin dt_e))^2); penalty contact adds mass to the surface
+nodes.
 
 Relaxation damping towards the quasi-static path (``ExplicitSettings.damping`` and
 ``local_damping``): :mod:`.damping`. Energy balance, exact for central differences: :mod:`.energy`.
