@@ -8,14 +8,22 @@ import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
+
+import pytest
+
+
+def _clean_env() -> dict:
+    """os.environ without the thread counts that configure_runtime leaves alone when exported."""
+    exported = ("OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")
+    return {k: v for k, v in os.environ.items() if k not in exported}
 
 
 def _run(code: str, env: dict | None = None) -> dict:
     """Run ``code`` in a fresh interpreter (no OPENBLAS_NUM_THREADS / NUMBA_NUM_THREADS unless
     ``env`` sets them); its last output line, JSON, decoded."""
-    base = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")}
-    done = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env={**base, **(env or {})},
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True,
+                          env={**_clean_env(), **(env or {})}, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-3000:]
     return json.loads(done.stdout.strip().splitlines()[-1])
 
@@ -47,7 +55,8 @@ def test_importing_the_library_changes_no_environment_variable_nor_numba_threads
         before = dict(os.environ)
         import mpfem_fenicsx, mpfem_fenicsx.solvers, mpfem_fenicsx.workflows.compaction
         import mpfem_fenicsx.cli.main
-        changed = sorted(k for k in set(before) | set(os.environ) if before.get(k) != os.environ.get(k))
+        keys = set(before) | set(os.environ)
+        changed = sorted(k for k in keys if before.get(k) != os.environ.get(k))
         print(json.dumps({"changed": changed, "numba": numba.get_num_threads()}))
     """)
     assert out == {"changed": [], "numba": 1}
@@ -70,8 +79,9 @@ _CONFIGURE = """
 
     print(json.dumps({"blas": applied.blas, "numba": applied.numba, "same": again is applied,
                       "libraries": {p: threads(p) for p in applied.blas_libraries},
-                      "env": os.environ.get("OPENBLAS_NUM_THREADS"), "cores": len(os.sched_getaffinity(0)),
-                      "numba_now": numba.get_num_threads(), "numba_max": numba.config.NUMBA_NUM_THREADS}))
+                      "env": os.environ.get("OPENBLAS_NUM_THREADS"),
+                      "cores": len(os.sched_getaffinity(0)), "numba_now": numba.get_num_threads(),
+                      "numba_max": numba.config.NUMBA_NUM_THREADS}))
 """
 
 
@@ -90,3 +100,25 @@ def test_configure_runtime_leaves_exported_thread_counts_alone():
     out = _run(_CONFIGURE, env={"OPENBLAS_NUM_THREADS": "2", "NUMBA_NUM_THREADS": "1"})
     assert out["blas"] is None and out["numba"] is None and out["libraries"] == {}
     assert out["env"] == "2" and out["numba_now"] == 1
+
+
+@pytest.mark.mpi
+def test_two_ranks_on_a_node_share_its_cores_for_numba():
+    """mpirun -n 2: each rank gets max(1, min(NUMBA_NUM_THREADS, cores // 2)) numba threads."""
+    code = textwrap.dedent("""
+        import json, os
+        import numba
+        from mpi4py import MPI
+        from mpfem_fenicsx.runtime import configure_runtime
+        share = max(1, min(numba.config.NUMBA_NUM_THREADS, len(os.sched_getaffinity(0)) // 2))
+        applied = configure_runtime(MPI.COMM_WORLD)
+        rows = MPI.COMM_WORLD.gather([applied.numba, numba.get_num_threads(), share])
+        if MPI.COMM_WORLD.rank == 0:
+            print(json.dumps(rows))
+    """)
+    mpirun = str(Path(sys.executable).parent / "mpirun")
+    done = subprocess.run([mpirun, "-n", "2", sys.executable, "-c", code], env=_clean_env(),
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    rows = json.loads(done.stdout.strip().splitlines()[-1])
+    assert len(rows) == 2 and all(a == b == share for a, b, share in rows), rows

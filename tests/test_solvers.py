@@ -207,9 +207,11 @@ def test_both_solvers_are_the_solver_interface():
     from mpfem_fenicsx.solvers import DynamicSolver, Solver, StaticSolver, create_solver
     from mpfem_fenicsx.solvers import interface
 
-    mesh = dolfinx.mesh.create_box(MPI.COMM_SELF, [[0, 0, 0], [1, 1, 1]], [1] * 3, dolfinx.mesh.CellType.hexahedron)
+    mesh = dolfinx.mesh.create_box(MPI.COMM_SELF, [[0, 0, 0], [1, 1, 1]], [1] * 3,
+                                   dolfinx.mesh.CellType.hexahedron)
     prob = SolidProblem(mesh, LEAD, tangent=True)
-    bcs = PrescribedDisplacements(prob.V).add(component_dofs(prob.V, lambda x: np.isclose(x[0], 0), 0))
+    fixed = component_dofs(prob.V, lambda x: np.isclose(x[0], 0), 0)
+    bcs = PrescribedDisplacements(prob.V).add(fixed)
     explicit = create_solver("explicit", prob, bcs, settings=ExplicitSettings(t_end=1e-5))
     implicit = create_solver("implicit", prob, bcs, controls=[StepControl()])
     assert isinstance(explicit, Solver) and isinstance(implicit, Solver)
@@ -223,4 +225,5 @@ def test_both_solvers_are_the_solver_interface():
                 assert inspect.getdoc(member), f"{protocol.__name__}.{name} has no contract"
             else:  # an attribute: a "#:" comment right above its annotation
                 line = next(i for i, text in enumerate(lines) if text.startswith(f"    {name}: "))
-                assert lines[line - 1].lstrip().startswith("#: "), f"{protocol.__name__}.{name} has no contract"
+                documented = lines[line - 1].lstrip().startswith("#: ")
+                assert documented, f"{protocol.__name__}.{name} has no contract"
