@@ -6,9 +6,9 @@ also offers (its increment, mass scaling and energy tallies), :class:`StaticSolv
 implicit one also offers (adopting an explicit state). A workflow asks the solver's
 :class:`~mpfem_fenicsx.solvers.kinds.SolverKind` (``static``) before it uses either.
 
-Units mm, N, MPa, mJ (= N mm), s; the time of a static solver is a pseudo-time. Forces and
-reactions are the forces exerted on the bodies at a dof in the mechanics convention (tension >
-0 for the stresses built from them).
+Units mm, N, MPa, mJ (= N mm), s; the time of a static solver is a pseudo-time. Reactions are
+forces exerted on the bodies, per unrolled dof; the stresses built from them are in the
+mechanics convention (tension > 0) until reported (compression > 0).
 """
 
 from __future__ import annotations
@@ -60,7 +60,8 @@ class Solver(Protocol):
 
     def reactions(self, dofs: np.ndarray) -> float:
         """Sum over the ranks of the reaction (N) on the local unrolled ``dofs`` (owned ones
-        count), at the current state: the force the bodies exert there."""
+        count) at the current state: the force the prescribed displacements exert on the bodies
+        there (a platen pressing down on a top face: negative along z)."""
         ...
 
     def energy_record(self) -> dict[str, float]:
