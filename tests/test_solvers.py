@@ -196,3 +196,34 @@ def test_bulk_viscosity_coefficients_are_checked_and_may_be_integers():
     ExplicitSolver(prob, PrescribedDisplacements(prob.V), settings)
     with pytest.raises(ValueError, match="bulk_viscosity_quadratic must be >= 0"):
         ExplicitSettings(t_end=1e-5, bulk_viscosity_quadratic=-1.0)
+
+
+def test_both_solvers_are_the_solver_interface():
+    """Both solvers satisfy the Solver protocol (every member present, runtime check), the
+    explicit one as a DynamicSolver, the implicit one as a StaticSolver; and every member of
+    the protocols states its contract (a docstring or a ``#:`` comment)."""
+    import inspect
+
+    from mpfem_fenicsx.solvers import DynamicSolver, Solver, StaticSolver, create_solver
+    from mpfem_fenicsx.solvers import interface
+
+    mesh = dolfinx.mesh.create_box(MPI.COMM_SELF, [[0, 0, 0], [1, 1, 1]], [1] * 3,
+                                   dolfinx.mesh.CellType.hexahedron)
+    prob = SolidProblem(mesh, LEAD, tangent=True)
+    fixed = component_dofs(prob.V, lambda x: np.isclose(x[0], 0), 0)
+    bcs = PrescribedDisplacements(prob.V).add(fixed)
+    explicit = create_solver("explicit", prob, bcs, settings=ExplicitSettings(t_end=1e-5))
+    implicit = create_solver("implicit", prob, bcs, controls=[StepControl()])
+    assert isinstance(explicit, Solver) and isinstance(implicit, Solver)
+    assert isinstance(explicit, DynamicSolver) and not isinstance(explicit, StaticSolver)
+    assert isinstance(implicit, StaticSolver) and not isinstance(implicit, DynamicSolver)
+    lines = inspect.getsource(interface).splitlines()
+    for protocol in (Solver, DynamicSolver, StaticSolver):
+        for name in protocol.__protocol_attrs__:
+            member = getattr(protocol, name, None)
+            if member is not None:  # a method or property: its docstring
+                assert inspect.getdoc(member), f"{protocol.__name__}.{name} has no contract"
+            else:  # an attribute: a "#:" comment right above its annotation
+                line = next(i for i, text in enumerate(lines) if text.startswith(f"    {name}: "))
+                documented = lines[line - 1].lstrip().startswith("#: ")
+                assert documented, f"{protocol.__name__}.{name} has no contract"

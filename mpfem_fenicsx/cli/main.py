@@ -20,6 +20,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from ..exits import BAD_INPUT, RUN_FAILED
+from ..runtime import configure_runtime
 
 
 class _Exit(Exception):
@@ -199,6 +200,7 @@ def _init(args, comm) -> None:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``mpfem`` console script; returns the exit code."""
     comm = MPI.COMM_WORLD
+    configure_runtime(comm)  # thread rules before numpy and PETSc load their BLAS
     args = _parser().parse_args(argv)
     try:
         {"run": _run, "pack": _pack, "plot": _plot, "init": _init}[args.command](args, comm)

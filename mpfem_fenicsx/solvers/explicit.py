@@ -11,33 +11,16 @@ idea: mass scaling then slows the particles' motion *relative to* the imposed fl
     v_{n+1/2} = v_{n-1/2} + dt a_n        (v_{1/2} = v_0 + dt/2 a_0)
     x_{n+1}   = x_n + dt v_{n+1/2}
 Stability: dt <= dt_e = safety * L_e / c_d * (sqrt(1 + xi^2) - xi) per element, with xi = b1 the
-linear bulk-viscosity fraction (Abaqus/Explicit estimate), L_e the smallest vertex distance.
-Mass scaling (element by element, Abaqus "fixed mass scaling to a target increment"):
-rho_e = rho * max(1, (dt_target / dt_e)^2).
+linear bulk-viscosity fraction (Abaqus/Explicit estimate) and L_e the element's stable length
+(``SolidProblem.min_cell_length``): the smallest of the smallest vertex distance, for hexahedra
+the centre-point volume over the largest face area, and the Gauss-point bound of
+``problem.hexahedron_gauss_length`` (Flanagan-Belytschko). Mass scaling (element by element,
+Abaqus "fixed mass scaling to a target increment", then variable re-checks, :mod:`.mass_scaling`):
+rho_e = rho * max(1, (dt_target / (margin dt_e))^2); penalty contact adds mass to the surface
+nodes.
 
-Damping (relaxation towards the quasi-static path): ``ExplicitSettings.damping``, a viscous force
-c M w' on the peculiar velocity (per body: its rigid motion), and ``local_damping``, the local
-non-viscous damping of DEM codes, -alpha |F| sign(w') (per body or per dof), which removes a share
-of every oscillation's energy but no steady motion. Both dissipate into E_damp.
-
-Energy balance (mJ = N mm), all with forces at integer steps n times the centred displacement
-increment du_n = (u_{n+1} - u_{n-1}) / 2 = dw_n + dg_n (peculiar part dw = P dx, offset part dg),
-which makes the discrete balance exact for central differences (the first step is one-sided,
-du_0 = (u_1 - u_0) / 2; started out of equilibrium, f_0 != 0, e.g. from overlapping particles, the
-balance then misses the start-up term 1/2 (dt/2 a_0)^T M (dt/2 a_0), a discretization term that
-no later step changes; from rest in equilibrium it is zero):
-    W_ext = sum R_n . du_n,   R_n = f_int + f_bv - f_c + f_d + M a_w  (a_w = P a_red)
-    E_int = sum f_int,n . du_n (elastic + plastic),  E_visc = sum f_bv,n . du_n,
-    E_contact = -sum f_c,n . du_n (penalty energy + friction + adhesion work),
-    E_damp = sum f_d,n . dw_n (dissipation of the relaxation damping, >= 0),
-    E_kin = 1/2 w'^T M w' (peculiar velocity w' = P v_red at the step),
-    E_carrier = sum (f_d + M a_w)_n . dg_n (work of damping and peculiar inertia through the
-    moving offsets; zero without a comoving carrier, small when quasi-static),
-    E_mass = sum 1/2 w'^T dM w' (the kinetic energy variable mass scaling adds: mass raised at an
-    unchanged velocity; zero at rest), so that W_ext + E_mass = E_int + E_visc + E_contact + E_kin
-    + E_damp + E_carrier.
-The material's own energies (Hencky stored energy and accumulated plastic work) are reported
-next to E_int as an independent check of the internal work.
+Relaxation damping towards the quasi-static path (``ExplicitSettings.damping`` and
+``local_damping``): :mod:`.damping`. Energy balance, exact for central differences: :mod:`.energy`.
 """
 
 from __future__ import annotations
@@ -59,7 +42,10 @@ import ufl
 from .. import forms
 from ..loading import PrescribedDisplacements
 from ..problem import SolidProblem
+from ..runtime import configure_runtime
 from .constraint_mass import CONSTRAINT_MASSES, ConsistentReducedMass
+from .damping import RelaxationDamping
+from .energy import Energies, EnergyTally
 from .mass_scaling import ElementMassScaling
 from .state import check_layout, histories_state, load_histories
 
@@ -117,32 +103,6 @@ class ExplicitSettings:
             raise ValueError(f"constraint_mass must be one of {CONSTRAINT_MASSES}, got {self.constraint_mass!r}")
 
 
-@dataclass
-class Energies:
-    """Cumulated energies (mJ)."""
-
-    external: float = 0.0
-    internal: float = 0.0
-    viscous: float = 0.0
-    contact: float = 0.0  # work absorbed by contact (penalty energy + friction + adhesion)
-    kinetic: float = 0.0
-    plastic: float = 0.0  # accumulated plastic work from the material
-    elastic: float = 0.0  # current Hencky stored energy from the material
-    damping: float = 0.0  # dissipated by the relaxation damping (>= 0)
-    carrier: float = 0.0  # work of damping and peculiar inertia through the moving offsets
-    mass_scaling: float = 0.0  # kinetic energy added by mass raised at an unchanged velocity
-
-    def balance_error(self) -> float:
-        """|W_ext + E_mass - (E_int + E_visc + E_contact + E_kin + E_damp + E_carrier)| (mJ): zero to
-        round-off from an equilibrium start, else the start-up term of the module docstring."""
-        return abs(self.external + self.mass_scaling - (self.internal + self.viscous + self.contact + self.kinetic
-                                                        + self.damping + self.carrier))
-
-
-
-_ENERGY_FIELDS = tuple(Energies.__dataclass_fields__)
-
-
 class PhaseTimes(dict):
     """Wall time (s) per phase of the time step, accumulated: ``with times("material"): ...``.
 
@@ -161,11 +121,8 @@ class PhaseTimes(dict):
 
 
 class ExplicitSolver:
-    """Central-difference integrator of a :class:`SolidProblem` with prescribed displacements.
-
-    The solver interface it shares with :class:`~mpfem_fenicsx.solvers.implicit.ImplicitSolver`:
-    ``t``, ``step``, :meth:`run_path`, :attr:`macroscopic_reaction`, :meth:`energy_record`,
-    :meth:`unbalanced_ratio`, :meth:`state_dict` / :meth:`load_state`."""
+    """Central-difference integrator of a :class:`SolidProblem` with prescribed displacements:
+    a :class:`~mpfem_fenicsx.solvers.interface.DynamicSolver` (the solver interface)."""
 
     name = "explicit"
 
@@ -179,8 +136,8 @@ class ExplicitSolver:
         viscous stress that the full :attr:`reaction` sees and the Love-Weber contact sum does
         not, hence :attr:`static_reaction` for the Schmidt stress (measurements: bench/README.md,
         "Damping, inertia and the Schmidt stress")."""
+        configure_runtime(problem.comm)
         self.problem = problem
-        self.damped_bodies = None if damped_bodies is None else np.asarray(damped_bodies, dtype=np.int64)
         self.contact = contact  # optional ContactModel: its forces join the internal ones
         self.bcs = bcs
         self.settings = settings
@@ -210,11 +167,11 @@ class ExplicitSolver:
         self.f_visc = problem.create_vector()
         self.f_cont = problem.create_vector()  # minus the contact forces on the bodies
         self.f_damp = problem.create_vector()
-        self._f_local = problem.create_vector()  # local damping lifted to the full dofs
-        if self.damped_bodies is not None:
-            self._num_damped = self.comm.allreduce(int(self.damped_bodies.max(initial=-1)) + 1, op=MPI.MAX)
-            # undamped nodes (-1) point past the last body: a bin dropped from the sums, a zero row when lifted
-            self._body_index = np.where(self.damped_bodies >= 0, self.damped_bodies, self._num_damped)
+        self.timings = PhaseTimes()
+        #: the viscous and local relaxation damping (:mod:`.damping`)
+        self.relaxation = RelaxationDamping(settings.damping, settings.local_damping,
+                                            self.constraint, self.comm, problem.create_vector(),
+                                            damped_bodies, self.timings)
         self._force = problem.create_vector()  # their sum, reused every step
         self.x = self.constraint.create_reduced_vector()
         self.v_red = self.x.duplicate()
@@ -222,16 +179,14 @@ class ExplicitSolver:
         self.r_red = self.x.duplicate()
         self.t = 0.0
         self.step = 0
-        self.energies = Energies()
-        self.timings = PhaseTimes()
+        self.tally = EnergyTally(self.comm)
+        self.energies: Energies = self.tally.energies
         n = self.constraint.num_owned
         self._u_prev = np.zeros(n)
         self._v_half_prev = np.zeros(n)  # peculiar half-step velocity P v_red
         self._g_prev = np.zeros(n)
-        self._forces_prev = None  # (f_int, f_visc, R) at step n, waiting for u_{n+1}
         # periodic images (bcs.image_force): their work through the moving shifts joins W_ext
         self._images = getattr(bcs, "image_force", None)
-        self._H_prev = np.zeros((3, 3))  # H = F0 - I at the previous step
         self._image_force = None  # bcs.image_force() at the current step (saved with the state)
 
     def _element_mass_scaling(self, settings: ExplicitSettings) -> None:
@@ -414,78 +369,6 @@ class ExplicitSolver:
                                               + time.perf_counter() - start - search)
         self.energies.plastic += self.problem.plastic_dissipation_increment()
 
-    def _damping_force(self) -> None:
-        """f_d = c M w' at step n with the last half-step peculiar velocity w' = P v_red (explicit
-        in v), node by node or per damped body (see ``__init__``)."""
-        n = self.constraint.num_owned
-        m = self.mass.x.array[:n].reshape(-1, 3)[:, 0]
-        v = self._v_half_prev.reshape(-1, 3)
-        if self.damped_bodies is not None:
-            sums = self._body_sums(np.column_stack([m, m[:, None] * v]))
-            mass = sums[:, 0]
-            v_body = sums[:, 1:4] / np.where(mass > 0, mass, 1.0)[:, None]
-            # remove the mean: the damping conserves momentum and ignores rigid translations
-            if mass.sum() > 0:
-                v_body -= (mass @ v_body) / mass.sum()
-            v = self._on_nodes(v_body)
-        self.f_damp.array_w[:n] = (self.settings.damping * m[:, None] * v).ravel()
-
-    def _body_sums(self, values: np.ndarray) -> np.ndarray:
-        """(num_bodies, k) sums over ranks of per-node ``values`` (owned nodes, (n_nodes, k)) by damped body."""
-        nb = self._num_damped
-        sums = np.stack([np.bincount(self._body_index, weights=values[:, j], minlength=nb + 1)[:nb]
-                         for j in range(values.shape[1])], axis=1)
-        return self.comm.allreduce(sums, op=MPI.SUM)
-
-    def _on_nodes(self, per_body: np.ndarray) -> np.ndarray:
-        """(n_nodes, k) rows of a per-body array at every owned node (zero on undamped nodes)."""
-        return np.vstack([per_body, np.zeros((1, per_body.shape[1]))])[self._body_index]
-
-    def _local_damping_force(self, force: PETSc.Vec) -> None:
-        """Local non-viscous damping (ExplicitSettings.local_damping = alpha), added to ``force``,
-        to ``f_damp`` (its work is E_damp) and to the reduced force r_red = P^T force.
-
-        With ``damped_bodies``: per body b and direction, the force -alpha |F_b| sign(W_b) against the
-        body's mean peculiar velocity W_b, F_b the body's out-of-balance force (sum of -force over its
-        nodes, tied copy nodes included), spread over the nodes in proportion to their mass; the
-        momentum-weighted mean is removed (no net force on the volume). The bodies' deformation is
-        not resisted. Without bodies: on every free reduced dof, d = alpha |r_red| sign(v_red),
-        lifted to the full dofs as M P (d / m_red)."""
-        alpha = self.settings.local_damping
-        n = self.constraint.num_owned
-        if self.damped_bodies is not None:
-            m = self.mass.x.array[:n].reshape(-1, 3)[:, 0]
-            sums = self._body_sums(np.column_stack([m, -force.array_r[:n].reshape(-1, 3),
-                                                    m[:, None] * self._v_half_prev.reshape(-1, 3)]))
-            mass, push, momentum = sums[:, 0], sums[:, 1:4], sums[:, 4:7]
-            d_body = -alpha * np.abs(push) * np.sign(momentum)  # driving-force convention
-            if mass.sum() > 0:  # none when every body's motion is imposed (GDH)
-                d_body -= mass[:, None] * (d_body.sum(axis=0) / mass.sum())
-            per_mass = d_body / np.where(mass > 0, mass, 1.0)[:, None]
-            lifted = -(m[:, None] * self._on_nodes(per_mass)).ravel()  # force convention
-            with self.timings("constraints"):
-                self._f_local.array_w[:n] = lifted
-                d = self.a_red  # scratch: overwritten by the acceleration right after
-                self.constraint.restrict(self._f_local, d)
-        else:
-            d = self.a_red
-            d.array_w[:] = alpha * np.abs(self.r_red.array_r) * np.sign(self.v_red.array_r)
-            scaled = d.duplicate()
-            scaled.pointwiseDivide(d, self.mass_red)
-            with self.timings("constraints"):
-                self.constraint.P.mult(scaled, self._f_local)
-            scaled.destroy()
-            lifted = self._f_local.array_r[:n] * self.mass.x.array[:n]
-        self.r_red.axpy(1.0, d)
-        if self.settings.damping > 0:
-            self.f_damp.array_w[:n] += lifted
-        else:
-            self.f_damp.array_w[:n] = lifted
-        force.array_w[:n] += lifted
-
-    def _dot(self, a: np.ndarray, b: np.ndarray) -> float:
-        return self.comm.allreduce(float(a @ b), op=MPI.SUM)
-
     def reactions(self, dofs: np.ndarray) -> float:
         """Sum over ranks of the reaction force (N) on the given local unrolled dofs at the last
         step: R = f_int + f_bv - f_c + f_d + M a_w (peculiar inertia included)."""
@@ -516,11 +399,8 @@ class ExplicitSolver:
         return self.static_reaction
 
     def energy_record(self) -> dict[str, float]:
-        """The energies of a history row (mJ): E_int, E_el, E_p (the whole model), E_contact,
-        E_c (kinetic), E_visc, E_damp, E_mass (added by mass scaling), W_ext."""
-        e = self.energies
-        return dict(E_int=e.internal, E_el=e.elastic, E_p=e.plastic, E_contact=e.contact, E_c=e.kinetic,
-                    E_visc=e.viscous, E_damp=e.damping, E_mass=e.mass_scaling, W_ext=e.external)
+        """The energies of a history row (mJ): :meth:`Energies.record`."""
+        return self.energies.record()
 
     @property
     def total_steps(self) -> int:
@@ -549,29 +429,30 @@ class ExplicitSolver:
 
     # -- stepping ----------------------------------------------------------------------------
     def _tally_work(self, reaction, inertia, du, dg, image_force, H_n, t_new: float) -> None:
-        """The energies' increments around step n (the balance of the module docstring): the
-        reaction's, internal, viscous, contact, damping and carrier work over the centred
-        displacement increment ``du`` (offset part ``dg``)."""
+        """The energies' increments around step n (:mod:`.energy`): the reaction's, internal,
+        viscous, contact, damping and carrier work over the centred displacement increment
+        ``du`` (offset part ``dg``), and the periodic images' work through their moving shifts."""
         n = self.constraint.num_owned
-        e = self.energies
-        e.external += self._dot(reaction, du)
+        self.tally.add_external_work(reaction, du)
         if image_force is not None:
-            # the images' shifts S = F0 (L o s) move: their work sum f_slave . dS (centred increment of
-            # H around step n, as du) is done by the loading (W_ext) and absorbed by the contacts
-            # (relative motion du_s - du_m - dS), which -f_c . du alone misses
             H_new = self.bcs.displacement_gradient(t_new)
-            image_work = float(np.sum(image_force * 0.5 * (H_new - (self._H_prev if self.step > 0 else H_n))))
-            e.external += image_work
-            e.contact += image_work
-            self._H_prev = H_n
-        e.internal += self._dot(self.f_int.array_r[:n], du)
-        e.viscous += self._dot(self.f_visc.array_r[:n], du)
-        e.contact += self._dot(self.f_cont.array_r[:n], du)
-        carrier = inertia
-        if self.settings.damping > 0 or self.settings.local_damping > 0:
-            e.damping += self._dot(self.f_damp.array_r[:n], du - dg)
-            carrier = carrier + self.f_damp.array_r[:n]
-        e.carrier += self._dot(carrier, dg)
+            self.tally.add_image_work(image_force, H_n, H_new, first=self.step == 0)
+        damping = self.f_damp.array_r[:n] if self.relaxation.active else None
+        forces = (self.f_int.array_r[:n], self.f_visc.array_r[:n], self.f_cont.array_r[:n])
+        self.tally.add_step_work(inertia, du, dg, forces, damping)
+
+    def _add_local_damping(self, force: PETSc.Vec) -> None:
+        """The local non-viscous damping (:mod:`.damping`) added to ``force``, to ``f_damp`` (its
+        work is E_damp) and to the reduced force r_red = P^T force."""
+        n = self.constraint.num_owned
+        lifted = self.relaxation.local_force(force.array_r[:n], self.r_red, self.v_red,
+                                             self.mass.x.array[:n], self.mass_red,
+                                             self._v_half_prev, self.a_red)
+        if self.settings.damping > 0:
+            self.f_damp.array_w[:n] += lifted
+        else:
+            self.f_damp.array_w[:n] = lifted
+        force.array_w[:n] += lifted
 
     def _reduced_acceleration(self) -> None:
         """a_red = -M_red^-1 r_red: a division by the lumped reduced mass, or the solve with the
@@ -601,12 +482,13 @@ class ExplicitSolver:
         force.axpy(1.0, self.f_visc)
         force.axpy(1.0, self.f_cont)
         if self.settings.damping > 0:
-            self._damping_force()
+            nodal_mass = self.mass.x.array[:n].reshape(-1, 3)[:, 0]
+            self.f_damp.array_w[:n] = self.relaxation.viscous_force(nodal_mass, self._v_half_prev)
             force.axpy(1.0, self.f_damp)
         with self.timings("constraints"):
             self.constraint.restrict(force, self.r_red)
         if self.settings.local_damping > 0:
-            self._local_damping_force(force)
+            self._add_local_damping(force)
         self._reduced_acceleration()
         self.v_red.axpy(0.5 * dt if self.step == 0 else dt, self.a_red)
         self.x.axpy(dt, self.v_red)
@@ -639,7 +521,6 @@ class ExplicitSolver:
         du = 0.5 * (u.x.array[:n] - (self._u_prev if self.step > 0 else u_n))
         dg = 0.5 * (g_new - (self._g_prev if self.step > 0 else g_n))
         self._tally_work(reaction, inertia, du, dg, image_force, H_n if image_force is not None else None, t_new)
-        e = self.energies
         self._u_prev[:] = u_n
         self._g_prev[:] = g_n
         self._v_half_prev[:] = v_half
@@ -654,14 +535,15 @@ class ExplicitSolver:
                 raised = self._rescale_mass()
             if raised:  # the next steps' inertia is the new mass's
                 mass_before, mass = mass, self.mass.x.array[:n]
-                e.mass_scaling += 0.5 * self._dot(mass - mass_before, v_half * v_half)
-        e.kinetic = 0.5 * self._dot(mass, v_half * v_half)
-        if not np.isfinite(e.kinetic):  # before the contact search meets non-finite positions
+                self.tally.add_mass_scaling(mass - mass_before, v_half)
+        self.tally.set_kinetic(mass, v_half)
+        # before the contact search meets non-finite positions
+        if not np.isfinite(self.energies.kinetic):
             raise FloatingPointError(
                 f"explicit integration diverged at step {self.step} (t={self.t:.4g} s, dt={dt:.3g} s): "
                 "non-finite velocities; use more increments (smaller target_dt) or a smaller deformation_margin")
         self._forces()  # f_int(u_{n+1}), f_bv(u_{n+1}, v_{n+1/2})
-        e.elastic = self.problem.stored_energy()
+        self.energies.elastic = self.problem.stored_energy()
 
     # -- checkpoints --------------------------------------------------------------------------
     _SCALARS = ("t", "step", "dt", "mass_scaling_max", "total_mass", "contact_added_mass")
@@ -680,10 +562,10 @@ class ExplicitSolver:
             "v_half_prev": self._v_half_prev.copy(), "g_prev": self._g_prev.copy(),
             "reaction": np.asarray(getattr(self, "_reaction_last", np.zeros(0))).copy(),
             "mass_scale": self.scaling.scale.copy(), "cell_length": self.scaling.cell_length.x.array.copy(), "mass": self.mass.x.array.copy(),
-            "mass_red": self.mass_red.array_r.copy(), "H_prev": self._H_prev.copy(),
+            "mass_red": self.mass_red.array_r.copy(), "H_prev": self.tally.H_prev.copy(),
             "image_force": np.zeros(0) if self._image_force is None else self._image_force.copy(),
             "contact_mass": np.zeros(0) if self._contact_mass is None else self._contact_mass.copy(),
-            "energies": np.array([getattr(self.energies, f) for f in _ENERGY_FIELDS]),
+            "energies": self.energies.to_array(),
         })
         for name, vec in (("f_int", self.f_int), ("f_visc", self.f_visc), ("f_cont", self.f_cont),
                           ("f_damp", self.f_damp)):
@@ -715,11 +597,10 @@ class ExplicitSolver:
         self.mass_red.array_w[:] = data["mass_red"]
         if self.settings.constraint_mass == "consistent":
             self._build_consistent_mass()
-        self._H_prev = np.array(data["H_prev"]) if "H_prev" in data else np.zeros((3, 3))
+        self.tally.H_prev = np.array(data["H_prev"]) if "H_prev" in data else np.zeros((3, 3))
         force = data.get("image_force", np.zeros(0))
         self._image_force = np.array(force).reshape(3, 3) if force.size else None
-        for name, value in zip(_ENERGY_FIELDS, data["energies"]):
-            setattr(self.energies, name, float(value))
+        self.energies.load_array(data["energies"])
         for name, vec in (("f_int", self.f_int), ("f_visc", self.f_visc), ("f_cont", self.f_cont),
                           ("f_damp", self.f_damp)):
             with vec.localForm() as loc:

@@ -1,18 +1,19 @@
 """The solver factory: the one place where a solver's name picks a class. A static solver steps
 through ``controls`` (pseudo-time, Newton); a dynamic one integrates to ``settings.t_end`` with
-mass scaling. Both then share the interface of :mod:`mpfem_fenicsx.solvers`."""
+mass scaling. Both are a :class:`~mpfem_fenicsx.solvers.interface.Solver`."""
 
 from __future__ import annotations
 
 from ..loading.amplitude import Ramp, SmoothStep
 from .explicit import ExplicitSettings, ExplicitSolver
 from .implicit import ImplicitSolver, StepControl
+from .interface import Solver
 from .kinds import solver_kind
 
 
 def create_solver(name: str, problem, bcs, *, contact=None, controls: list[StepControl] | None = None,
                   settings: ExplicitSettings | None = None, petsc_options: dict | None = None,
-                  regularization=None, damped_bodies=None):
+                  regularization=None, damped_bodies=None) -> Solver:
     """The solver ``name`` on ``problem`` with ``bcs``: implicit with its step ``controls``
     (``petsc_options``, ``regularization``), explicit with its ``settings`` (``damped_bodies``)."""
     if solver_kind(name).static:

@@ -21,6 +21,7 @@ import dolfinx
 
 from ..loading import PrescribedDisplacements
 from ..problem import SolidProblem
+from ..runtime import configure_runtime
 from .state import check_layout, histories_state, load_histories
 
 
@@ -67,12 +68,10 @@ DEFAULT_OPTIONS = {
 
 
 class ImplicitSolver:
-    """Newton-Raphson on the reduced system, one SNES solve per load increment.
-
-    The solver interface it shares with :class:`~mpfem_fenicsx.solvers.explicit.ExplicitSolver`:
-    ``t``, ``step`` (converged increments), :meth:`run_path` (the ``controls`` of the path, one
-    per segment), :attr:`macroscopic_reaction`, :meth:`energy_record`, :meth:`unbalanced_ratio`,
-    :meth:`state_dict` / :meth:`load_state`."""
+    """Newton-Raphson on the reduced system, one SNES solve per load increment: a
+    :class:`~mpfem_fenicsx.solvers.interface.StaticSolver` (the solver interface; ``step``
+    counts converged increments, :meth:`run_path` runs the ``controls`` of the path, one per
+    segment)."""
 
     name = "implicit"
 
@@ -91,6 +90,7 @@ class ImplicitSolver:
         gradient, whose every retry would otherwise pose the same Newton problem)."""
         if problem.jacobian_forms is None:
             raise ValueError("the implicit solver needs SolidProblem(..., tangent=True)")
+        configure_runtime(problem.comm)
         self.problem = problem
         self.contact = contact  # optional ContactModel: forces and tangent added to the bulk ones
         self.bcs = bcs

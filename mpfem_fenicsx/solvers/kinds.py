@@ -1,6 +1,9 @@
 """The two solvers as one type owning their rules: what the problem must assemble, how a periodic
 model is held, what the loading may be, which checkpoints a solver continues. Workflows ask a
-:class:`SolverKind` instead of comparing solver names."""
+:class:`SolverKind` instead of comparing solver names. What they call on a solver is the
+:class:`~mpfem_fenicsx.solvers.interface.Solver` protocol (``static``: a
+:class:`~mpfem_fenicsx.solvers.interface.StaticSolver`, else a
+:class:`~mpfem_fenicsx.solvers.interface.DynamicSolver`)."""
 
 from __future__ import annotations
 

@@ -1,9 +1,11 @@
 """Element-wise mass scaling of the explicit solver (Abaqus "fixed mass scaling to a target
 increment", then variable re-checks): rho_e = rho * max(1, (dt_target / (margin dt_e))^2) with
-the element stable increment dt_e = safety * L_e / c_d * (sqrt(1 + xi^2) - xi) (L_e the
-smallest vertex distance, c_d the dilatational wave speed, xi the linear bulk-viscosity
-fraction). The scaled density and wave speed and the element lengths are cell functions the
-bulk-viscosity form reads."""
+the element stable increment dt_e = safety * L_e / c_d * (sqrt(1 + xi^2) - xi) (c_d the
+dilatational wave speed, xi the linear bulk-viscosity fraction, L_e the element's stable length,
+``SolidProblem.min_cell_length``: the smallest of the smallest vertex distance, for hexahedra
+the centre-point volume over the largest face area, and the Gauss-point bound of
+``problem.hexahedron_gauss_length``). The scaled density and wave speed and the element lengths
+are cell functions the bulk-viscosity form reads."""
 
 from __future__ import annotations
 
@@ -22,7 +24,7 @@ class ElementMassScaling:
     cell_dofs: np.ndarray  # DG0 dof of every owned cell
     density: dolfinx.fem.Function  # scaled density (t / mm^3) per cell
     wave_speed: dolfinx.fem.Function  # scaled dilatational wave speed c_d / sqrt(scale) (mm / s) per cell
-    cell_length: dolfinx.fem.Function  # smallest vertex distance (mm) per cell
+    cell_length: dolfinx.fem.Function  # stable length L_e (mm) per cell (min_cell_length)
     material_density: float  # unscaled (t / mm^3)
     dilatational_speed: float  # unscaled c_d (mm / s)
     bulk_viscosity_linear: float  # xi (-)

@@ -60,6 +60,7 @@ from ..homogenization.surfaces import (MIN_GAMMA_COLLAPSE, default_gamma_levels,
 from ..io.checkpoint import CheckpointError, resolve_checkpoint
 from ..io.history import read_csv, tensor_from_columns
 from ..parameters import check_parameters, parameter
+from ..runtime import configure_runtime
 from ..solvers import SOLVERS, solver_kind
 from ..io.plots import plot_yield_surface
 from ..loading import PROFILES, reload_gradient, unload_gradient
@@ -346,6 +347,7 @@ def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, l
     count this run only."""
     start = time.perf_counter()
     out = Path(case.out_dir)
+    configure_runtime(comm)  # the thread share of the whole run, before any solver on `alone`
     alone = comm.Split(color=comm.rank, key=0)  # each rank on its own communicator
     unloaded, model = None, None
     if comm.rank == 0:  # the other ranks sleep meanwhile: rank 0 may use every core of the node
