@@ -35,6 +35,7 @@ from ..loading import PROFILES, GradientPath, compaction_gradient
 from ..material import LEAD, ElastoPlastic
 from ..meshes.cubesphere import RESOLUTIONS, unit_ball_hex
 from ..meshes import node_particles, particle_mesh, particle_volumes
+from ..meshes.admission import Admission, admit_packing
 from ..meshes.packing import (Duplicates, Packing, assembly_particles, duplicate_particles, generate_packing,
                               packing_format, periodic_pair_realizations, read_packing,
                               write_packing)
@@ -227,12 +228,13 @@ class CompactionResult:
     quasi_static: QuasiStaticCheck | None = None
 
 
-def initial_packing(case: CompactionCase, log=None) -> tuple[Packing, float]:
-    """The case's packing (its object, its file, or the generator) and its initial relative
-    density rho0 = V_p / V0 with the meshed radii (thesis eq. 2.5), checked before any mesh:
-    spheres in the cell, no overlap left after the ``radius_factor`` reduction (a DEM packing's
-    small contact overlaps are accepted; ``log`` reports the largest), and rho0 below the target.
-    Raises ValueError naming the file, particle or field."""
+def initial_packing(case: CompactionCase, log=None) -> Admission:
+    """The case's packing (its object, its file, or the generator) admitted for the run by
+    :func:`~mpfem_fenicsx.meshes.admission.admit_packing`, before any mesh: spheres in the cell,
+    no overlap of the spheres through the particle meshes' nodes at the start (the default
+    radius reduction lowered for a DEM packing's contact overlaps), and the initial relative
+    density rho0 = V_p / V0 with the meshed radii (thesis eq. 2.5) below the target. ``log``
+    reports what was decided. Raises ValueError naming the file, particle or field."""
     if case.packing is not None:
         packing = case.packing
     elif case.packing_file is not None:
@@ -242,16 +244,13 @@ def initial_packing(case: CompactionCase, log=None) -> tuple[Packing, float]:
     else:
         packing = generate_packing(case.particles, case.r_min, case.r_max, seed=case.seed,
                                    target_fraction=case.packing_fraction)
-    packing.validate(radius_factor=case.radius_factor)
-    overlap = packing.max_overlap()
-    if overlap > 0 and log is not None:
-        log(f"packing: largest overlap {overlap:.3g} of the smaller radius, removed by the radius reduction "
-            f"x{case.radius_factor:g}")
-    rho0 = solid_volume(packing.radii * case.radius_factor) / float(np.prod(packing.cell))
-    if not rho0 < case.target_density < 1.0:
-        raise ValueError(f"loading.target_density = {case.target_density} is out of range: must be in "
-                         f"({rho0:.4f}, 1), above the packing's initial relative density V_p / V0 = {rho0:.4f}")
-    return packing, rho0
+    divisions, layers = case.mesh_divisions
+    node_scale = unit_ball_hex(divisions, layers, case.refinement, exact_volume=case.exact_volume).radius_scale
+    admitted = admit_packing(packing, case.radius_factor, node_scale, target_density=case.target_density,
+                             automatic=case.radius_factor == CompactionCase.radius_factor)
+    for note in admitted.notes if log is not None else ():
+        log(f"packing: {note}")
+    return admitted
 
 
 @dataclass
@@ -302,14 +301,10 @@ def loading_path(case: CompactionCase, rho0: float) -> GradientPath:
                         profiles=(case.profile, *("smooth-step" for _ in hold), *case.segment_profiles))
 
 
-#: largest overlap (fraction of the smaller radius) of the spheres through the particle meshes'
-#: nodes at the start: round-off of touching spheres, not an interpenetration
-START_OVERLAP_TOLERANCE = 1e-6
-
-
 def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> CompactionModel:
     """Packing, duplicated particles, mesh, bulk problem, constraints and contact of a case."""
-    packing, rho0 = initial_packing(case, log)
+    admitted = initial_packing(case, log)  # the start-overlap rule and the radius reduction
+    packing, rho0 = admitted.packing, admitted.rho0
     n = packing.num_particles
     kind = boundary_kind(case.bc)
     d_bc = (case.d_bc if case.d_bc is not None else kind.default_d_bc) * float(packing.radii.max())
@@ -319,7 +314,7 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
         copies = duplicate_particles(packing, d_bc, faces=kind.copy_faces,
                                      corners=case.corners)
     centres, radii, original, shift = assembly_particles(packing, copies)
-    radii = radii * case.radius_factor
+    radii = radii * admitted.radius_factor
     is_copy = np.any(shift != 0, axis=1)
     log(f"packing: {n} particles, solid fraction {packing.solid_fraction:.4f}, cell {packing.cell}; "
         f"{int(is_copy.sum())} duplicated particles (d_bc = {d_bc:.4g} mm, bc {case.bc})")
@@ -327,17 +322,6 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     solid0 = solid_volume(radii[:n])  # thesis eq. 2.5, initial (meshed) radii
 
     divisions, layers = case.mesh_divisions
-    # a volume-exact particle's nodes lie outside its sphere (x1.0100 at 6x6, x1.0227 at 4x4, x1.0406
-    # at 3x3): when that exceeds the radius reduction, neighbours touching in the packing start
-    # interpenetrating, and the penalty contact releases the overlap's energy in the first
-    # increments, a bang that deforms the particles plastically before any loading (bench/README.md)
-    outer = unit_ball_hex(divisions, layers, case.refinement, exact_volume=case.exact_volume).radius_scale
-    start_overlap = replace(packing, radii=packing.radii * case.radius_factor * outer).max_overlap()
-    if start_overlap > START_OVERLAP_TOLERANCE:
-        raise ValueError(
-            f"radius_factor {case.radius_factor:g}: the particle mesh's nodes lie at {outer:.4f} x the meshed radius, "
-            f"so touching neighbours would start interpenetrating by up to {100 * start_overlap:.2g} % of the smaller "
-            f"radius; use radius_factor <= {1 / outer:.4f}, more divisions or exact_volume = false")
     # surface element edge at a cube-face centre of the smallest particle (equi-angular grid)
     h_contact = float(radii.min()) * np.pi / (2 * divisions * case.refinement)
     law = ContactLaw(penalty=default_penalty(case.material.E, h_contact, case.penalty_factor),
