@@ -98,7 +98,7 @@ class Packing:
         return float(4.0 / 3.0 * np.pi * np.sum(self.radii**3) / np.prod(self.cell))
 
     def scaled(self, radius_factor: float) -> Packing:
-        """Copy with radii multiplied by ``radius_factor`` (a run reduces them, ~0.99, before meshing)."""
+        """Copy with radii multiplied by ``radius_factor`` (a run reduces them before meshing)."""
         if not (np.isfinite(radius_factor) and radius_factor > 0):
             raise ValueError(f"radius_factor must be > 0, got {radius_factor}")
         return Packing(self.cell, self.centres, self.radii * radius_factor)

@@ -130,14 +130,15 @@ def test_check_reads_a_dem_export_with_its_contact_overlaps(tmp_path, capsys):
     case = _case(tmp_path, "[packing]\nfile = 'yade.txt'\n[loading]\ntarget_density = 0.5\n")
     assert main(["run", case, "--check"]) == 0
     out = capsys.readouterr().out
-    assert "read as yade" in out and "radius reduction x0.9893" in out and "0.12 % overlaps" in out, out
+    assert "read as yade" in out and "radius reduction x0.9893" in out, out
+    assert "0.12 % overlaps" in out, out
     assert "valid: 3 particles from" in out, out
     assert main(["pack", "--input", str(tmp_path / "yade.txt"), "--out", str(tmp_path / "ours.txt")]) == 0
     assert read_packing_file(tmp_path / "ours.txt", validate=False).cell.tolist() == [1.0] * 3
     rows[1] = (0.2 + 0.194, 0.2, 0.2)
     (tmp_path / "yade.txt").write_text(header + "".join(f"{x} {y} {z} {r}\n" for x, y, z in rows))
     assert main(["run", case, "--check"]) == 2
-    assert "overlap of particles 0 and 1 (image shift [0, 0, 0]): 6 % of the" in capsys.readouterr().err
+    assert "overlap of particles 0 and 1 (image shift [0, 0, 0]): 6 %" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("demo, args, words", [
@@ -246,43 +247,50 @@ def test_restart_reads_history_rows_by_column_name():
         _history_rows({"history": [[1.0, 2.0]]}, columns)
 
 
-YADE_50 = "tests/data/yade_50_overlapping.txt"  # 50 spheres, contact overlaps up to 0.12 % of a radius
+#: 50 spheres, contact overlaps up to 0.12 % of a radius (made by tests/test_packing.py's recipe)
+YADE_50 = "tests/data/yade_50_overlapping.txt"
+REDUCTION = "radius reduction x0.9895 (instead of x0.99) for the packing's 0.12 % overlaps"
 
 
 def test_a_dem_export_runs_at_the_defaults(tmp_path, capsys, root):
     """The YADE fixture as it comes: `pack --input` and `run --check` accept it and say the
-    radius reduction the run will use; the run (few increments: a smoke run) builds at that
+    radius reduction the run will use; the run (10 increments: a smoke run) builds at that
     reduction and ends with exit 0. Before the shared admission, pack and --check accepted it at
     0.99 and the run refused it (the 6x6 particle's nodes at 1.0100 x its radius)."""
-    reduction = "radius reduction x0.9895 (instead of x0.99) for the packing's 0.12 % overlaps"
-    assert main(["pack", "--input", str(root / YADE_50), "--out", str(tmp_path / "ours.txt")]) == 0
-    assert reduction in capsys.readouterr().out
+    out = str(tmp_path / "ours.txt")
+    assert main(["pack", "--input", str(root / YADE_50), "--out", out]) == 0
+    assert REDUCTION in capsys.readouterr().out
     case = _case(tmp_path, f"[packing]\nfile = '{root / YADE_50}'\n[solver]\nincrements = 10\n"
                            "[output]\noutputs = 1\nvisual = false\ncheckpoint_every = 0\n")
     assert main(["run", case, "--check"]) == 0
     out = capsys.readouterr().out
-    assert reduction in out and "valid: 50 particles from" in out and "rho0 0.6133 (radius reduction x0.9895)" in out
+    assert REDUCTION in out and "valid: 50 particles from" in out, out
+    assert "rho0 0.6133 (radius reduction x0.9895)" in out, out
     assert main(["run", case, "--out", str(tmp_path / "run")]) == 0
     out = capsys.readouterr().out
-    assert reduction in out and "rho0 = 0.6133" in out
+    assert REDUCTION in out and "rho0 = 0.6133" in out
     assert read_csv(tmp_path / "run" / "history.csv")["rho"].size == 1
 
 
 REFUSED_BY_RUN = [
     # (packing, further case lines, words of the one-line error): the YADE fixture ...
     (f"file = '{YADE_50}'", "[mesh]\nradius_factor = 0.995\n",  # a user's factor is not lowered
-     ["radius_factor 0.995: the particle mesh's nodes lie at 1.0100 x", "radius_factor <= 0.9896 (or leave"]),
-    (f"file = '{YADE_50}'", "[loading]\ntarget_density = 0.6\n", ["loading.target_density = 0.6", "(0.6133, 1)"]),
+     ["radius_factor 0.995: the particle mesh's nodes lie at 1.0100 x",
+      "radius_factor <= 0.9896 (or leave"]),
+    (f"file = '{YADE_50}'", "[loading]\ntarget_density = 0.6\n",
+     ["loading.target_density = 0.6", "(0.6133, 1)"]),
     # ... and a generated packing (no overlap: no automatic reduction) with the coarse particle
     ("particles = 24", "[mesh]\nresolution = 'coarse'\n",
-     ["radius_factor 0.99: the particle mesh's nodes lie at 1.0227 x", "radius_factor <= 0.9778, more"]),
+     ["radius_factor 0.99: the particle mesh's nodes lie at 1.0227 x",
+      "radius_factor <= 0.9778, more"]),
 ]
 
 
 @pytest.mark.parametrize("packing, settings, words", REFUSED_BY_RUN)
-def test_check_refuses_first_what_run_refuses_with_the_same_message(tmp_path, capsys, root, packing, settings,
-                                                                     words):
-    case = _case(tmp_path, f"[packing]\n{packing.replace(YADE_50, str(root / YADE_50))}\n{settings}")
+def test_check_refuses_first_what_run_refuses(tmp_path, capsys, root, packing, settings, words):
+    """`run --check` exits 2 with the very line `run` exits 2 with."""
+    packing = packing.replace(YADE_50, str(root / YADE_50))
+    case = _case(tmp_path, f"[packing]\n{packing}\n{settings}")
     lines = []
     for args in (["run", case, "--check"], ["run", case, "--out", str(tmp_path / "run")]):
         assert main(args) == 2
@@ -292,17 +300,31 @@ def test_check_refuses_first_what_run_refuses_with_the_same_message(tmp_path, ca
         assert w in lines[0], (w, lines[0])
 
 
+LAMMPS_METRES = """ITEM: TIMESTEP
+0
+ITEM: NUMBER OF ATOMS
+2
+ITEM: BOX BOUNDS pp pp pp
+0 0.0008
+0 0.0008
+0 0.0008
+ITEM: ATOMS id type x y z radius
+1 1 0.0002 0.0002 0.0002 0.0001
+2 1 0.0006 0.0006 0.0006 0.0001
+"""
+
+
 def test_pack_warns_when_lengths_look_like_metres(tmp_path, capsys):
     """A LAMMPS dump in metres read without --length-scale: a one-line warning naming the fix,
     the file still written (exit 0); none with --length-scale 1000."""
     dump = tmp_path / "dump.lammps"
-    dump.write_text("ITEM: TIMESTEP\n0\nITEM: NUMBER OF ATOMS\n2\nITEM: BOX BOUNDS pp pp pp\n0 0.0008\n"
-                    "0 0.0008\n0 0.0008\nITEM: ATOMS id type x y z radius\n1 1 0.0002 0.0002 0.0002 0.0001\n"
-                    "2 1 0.0006 0.0006 0.0006 0.0001\n")
+    dump.write_text(LAMMPS_METRES)
     assert main(["pack", "--input", str(dump), "--out", str(tmp_path / "a.txt")]) == 0
     warnings = [line for line in capsys.readouterr().out.splitlines() if "WARNING" in line]
-    assert len(warnings) == 1 and "look like metres" in warnings[0] and "--length-scale 1000" in warnings[0]
-    assert main(["pack", "--input", str(dump), "--length-scale", "1000", "--out", str(tmp_path / "b.txt")]) == 0
+    assert len(warnings) == 1 and "look like metres" in warnings[0], warnings
+    assert "--length-scale 1000" in warnings[0]
+    converted = ["--length-scale", "1000", "--out", str(tmp_path / "b.txt")]
+    assert main(["pack", "--input", str(dump), *converted]) == 0
     assert "WARNING" not in capsys.readouterr().out
 
 

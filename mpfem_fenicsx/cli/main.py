@@ -61,9 +61,10 @@ def _parser() -> argparse.ArgumentParser:
                                       "a packing file as a DEM code left it (--input: ours, 'dx dy dz' then 'x y z r' "
                                       "lines; a YADE export.text, '#format x_y_z_r', its cell in a '# dx dy dz = ...' "
                                       "header or --cell; a LAMMPS / LIGGGHTS dump with box bounds and x y z radius "
-                                      "columns), check it as a run at the default mesh would (spheres in the cell, "
-                                      "contact overlaps: the radius reduction that removes them is reported) and "
-                                      "write it in our format.")
+                                      "columns), check it as a run at the default mesh would "
+                                      "(spheres in the cell, contact overlaps: the radius "
+                                      "reduction that removes them is reported) and write it in "
+                                      "our format.")
     src = pack.add_mutually_exclusive_group(required=True)
     src.add_argument("--particles", type=int, help="number of spheres to generate (>= ~20 for a periodic cell)")
     src.add_argument("--input", help="packing file to check / convert")
@@ -73,8 +74,8 @@ def _parser() -> argparse.ArgumentParser:
     pack.add_argument("--fraction", type=float, default=None,
                       help="stop the generator at this solid fraction (default: jammed)")
     pack.add_argument("--scale", type=float, default=1.0,
-                      help="multiply the input's radii by this factor (a run reduces them itself to remove a DEM "
-                           "export's contact overlaps)")
+                      help="multiply the input's radii by this factor (a run reduces them "
+                           "itself to remove a DEM export's contact overlaps)")
     pack.add_argument("--cell", type=float, nargs=3, default=None, metavar=("DX", "DY", "DZ"),
                       help="periodic cell of the input (mm; e.g. a YADE export without a cell header)")
     pack.add_argument("--length-scale", type=float, default=1.0,
@@ -107,10 +108,10 @@ def _run(args, comm) -> None:
             admitted = initial_packing(case, log=say)
         except (ValueError, OSError) as err:
             raise _Exit(BAD_INPUT, f"{args.case}: {err}")
-        source = case.packing_file if case.packing_file is not None else f"generated, seed {case.seed}"
-        say(f"{args.case}: valid: {admitted.packing.num_particles} particles from {source}, rho0 {admitted.rho0:.4f} "
-            f"(radius reduction x{admitted.radius_factor:g}), {case.bc}, {case.loading} to {case.target_density}, "
-            f"{case.solver}")
+        source = case.packing_file or f"generated, seed {case.seed}"
+        say(f"{args.case}: valid: {admitted.packing.num_particles} particles from {source}, "
+            f"rho0 {admitted.rho0:.4f} (radius reduction x{admitted.radius_factor:g}), {case.bc}, "
+            f"{case.loading} to {case.target_density}, {case.solver}")
         return
     start = time.perf_counter()
     try:
@@ -147,8 +148,10 @@ def _pack(args, comm) -> None:
             if args.scale != 1.0:
                 packing = packing.scaled(args.scale)
             run = CompactionCase()  # the run's defaults: radius reduction, particle mesh
-            node_scale = unit_ball_hex(*run.mesh_divisions, run.refinement, exact_volume=run.exact_volume).radius_scale
-            admitted = admit_packing(packing, run.radius_factor, node_scale, automatic=True)
+            particle = unit_ball_hex(*run.mesh_divisions, run.refinement,
+                                     exact_volume=run.exact_volume)
+            admitted = admit_packing(packing, run.radius_factor, particle.radius_scale,
+                                     automatic=True)
             for note in admitted.notes:
                 say(f"{args.input}: {note}")
         else:

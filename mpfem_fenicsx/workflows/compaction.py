@@ -245,8 +245,9 @@ def initial_packing(case: CompactionCase, log=None) -> Admission:
         packing = generate_packing(case.particles, case.r_min, case.r_max, seed=case.seed,
                                    target_fraction=case.packing_fraction)
     divisions, layers = case.mesh_divisions
-    node_scale = unit_ball_hex(divisions, layers, case.refinement, exact_volume=case.exact_volume).radius_scale
-    admitted = admit_packing(packing, case.radius_factor, node_scale, target_density=case.target_density,
+    particle = unit_ball_hex(divisions, layers, case.refinement, exact_volume=case.exact_volume)
+    admitted = admit_packing(packing, case.radius_factor, particle.radius_scale,
+                             target_density=case.target_density,
                              automatic=case.radius_factor == CompactionCase.radius_factor)
     for note in admitted.notes if log is not None else ():
         log(f"packing: {note}")
