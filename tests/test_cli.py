@@ -14,6 +14,9 @@ from mpfem_fenicsx.meshes.packing import read_packing as read_packing_file
 from test_parameters import just_outside  # the values a declared range must refuse
 
 TINY = "demos/cases/tiny.toml"
+#: its [solver] increments (a multiple of 30: rows every 15 of them in the forced divergence,
+#: checkpoints at half of them and at the end)
+TINY_STEPS = 1800
 
 
 def _case(tmp_path, text, name="case.toml"):
@@ -358,9 +361,11 @@ def test_run_writes_history_paraview_figures_and_checkpoints(tiny_run):
     out, stdout = tiny_run
     h = read_csv(out / "history.csv")
     assert h["rho"].size == 10
-    assert h["rho_imposed"][-1] == pytest.approx(0.64, abs=1e-9)
-    assert abs(h["rho"][-1] - 0.64) < 0.01 and h["E_p"][-1] > 0 and h["n_contacts"][-1] > 10
-    assert "step 150/150" in stdout and "ETA" in stdout  # the progress bar's last line
+    assert h["rho_imposed"][-1] == pytest.approx(0.70, abs=1e-9)
+    assert abs(h["rho"][-1] - 0.70) < 0.01 and h["E_p"][-1] > 0 and h["n_contacts"][-1] > 10
+    assert f"step {TINY_STEPS}/{TINY_STEPS}" in stdout and "ETA" in stdout  # the progress bar
+    verdict = [line for line in stdout.splitlines() if "quasi-static check" in line]
+    assert len(verdict) == 1 and "quasi-static check passed" in verdict[0], verdict  # its own check
     xdmf = (out / "particles.xdmf").read_text()
     for name in ("displacement", "von_mises_MPa", "eps_p", "particle", "contact_pressure_MPa"):
         assert f'Name="{name}"' in xdmf, name
@@ -368,7 +373,7 @@ def test_run_writes_history_paraview_figures_and_checkpoints(tiny_run):
     for png in ("particles.png", "loading_path.png"):
         assert _not_uniform(out / png), png
     steps = sorted(p.name for p in (out / "checkpoints").iterdir())
-    assert steps == ["step0000075", "step0000150"]
+    assert steps == [f"step{TINY_STEPS // 2:07d}", f"step{TINY_STEPS:07d}"]
 
 
 def test_plot_regenerates_the_figures(tiny_run, tmp_path):
@@ -385,7 +390,8 @@ def test_restart_reproduces_the_uninterrupted_run(tiny_run, tmp_path, root):
     """Explicit restart from the mid-run checkpoint: identical history (bit for bit, wall time
     aside), contact history (alpha with adhesion) included."""
     out, _ = tiny_run
-    code = main(["run", str(root / TINY), "--out", str(tmp_path), "--restart", str(out / "checkpoints" / "step0000075")])
+    half = out / "checkpoints" / f"step{TINY_STEPS // 2:07d}"
+    code = main(["run", str(root / TINY), "--out", str(tmp_path), "--restart", str(half)])
     assert code == 0
     a, b = read_csv(out / "history.csv"), read_csv(tmp_path / "history.csv")
     for name in a:
@@ -394,8 +400,9 @@ def test_restart_reproduces_the_uninterrupted_run(tiny_run, tmp_path, root):
     from mpfem_fenicsx.io.checkpoint import load_checkpoint
     from mpi4py import MPI
 
-    ca, _ = load_checkpoint(out / "checkpoints" / "step0000150", MPI.COMM_SELF)
-    cb, _ = load_checkpoint(tmp_path / "checkpoints" / "step0000150", MPI.COMM_SELF)
+    end = f"step{TINY_STEPS:07d}"
+    ca, _ = load_checkpoint(out / "checkpoints" / end, MPI.COMM_SELF)
+    cb, _ = load_checkpoint(tmp_path / "checkpoints" / end, MPI.COMM_SELF)
     assert ca["solver/contact/alpha"].max() > 0.1  # adhesive memory exists and survived
     for key in ("solver/u", "solver/contact/alpha", "solver/contact/sigma_max", "solver/material/eps_p"):
         np.testing.assert_array_equal(ca[key], cb[key], err_msg=key)
@@ -403,7 +410,8 @@ def test_restart_reproduces_the_uninterrupted_run(tiny_run, tmp_path, root):
 
 def test_forced_divergence_keeps_checkpoint_and_history(tmp_path, capsys, monkeypatch, root):
     """A NaN injected in the velocities after step 100 is caught by the integrator's own check:
-    exit code 3, the message names the step, the checkpoint of step 90 and the history remain."""
+    exit code 3, the message names the step, the checkpoint of step 90 and the history remain
+    (the tiny case with a row every 15 increments, a checkpoint every 2 rows)."""
     from mpfem_fenicsx.solvers.explicit import ExplicitSolver
 
     advance = ExplicitSolver.advance
@@ -415,6 +423,7 @@ def test_forced_divergence_keeps_checkpoint_and_history(tmp_path, capsys, monkey
 
     monkeypatch.setattr(ExplicitSolver, "advance", poisoned)
     case = (root / TINY).read_text().replace("checkpoint_every = 5", "checkpoint_every = 2")
+    case = case.replace("outputs = 10", f"outputs = {TINY_STEPS // 15}")
     code = main(["run", _case(tmp_path, case), "--out", str(tmp_path / "run")])
     err = capsys.readouterr().err
     assert code == 3, err
@@ -436,12 +445,13 @@ def test_mpirun_two_ranks_run_and_restart(tiny_run, tmp_path, root):
     magnitude; SPEC §9 case 8), and a 2-rank restart equal to the 2-rank run bit for bit."""
     out, _ = tiny_run
     bin_ = root / ".venv" / "bin"
-    for args in ([], ["--restart", str(tmp_path / "a" / "checkpoints" / "step0000075")]):
+    half = tmp_path / "a" / "checkpoints" / f"step{TINY_STEPS // 2:07d}"
+    for args in ([], ["--restart", str(half)]):
         dest = tmp_path / ("b" if args else "a")
         proc = subprocess.run([str(bin_ / "mpirun"), "-n", "2", str(bin_ / "mpfem"), "run", str(root / TINY),
                                "--out", str(dest), *args], capture_output=True, text=True, cwd=root, timeout=900)
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-        assert proc.stdout.count("step 150/150") == 1  # progress on rank 0 only
+        assert proc.stdout.count(f"step {TINY_STEPS}/{TINY_STEPS}") == 1  # progress on rank 0 only
     serial, a, b = (read_csv(p / "history.csv") for p in (out, tmp_path / "a", tmp_path / "b"))
     for name in serial:
         if name == "wall_time":
