@@ -97,12 +97,13 @@ def _worst_pair(packing: Packing, scale: float) -> tuple[int, int, list[int], fl
     return int(i[k]), int(j[k]), shift[k].tolist(), float(rel[k])
 
 
-def _start_refusal(packing: Packing, factor: float, node_scale: float, overlap: float) -> str:
-    """The message for a factor whose start spheres overlap, with the largest factor that works."""
+def _start_refusal(packing: Packing, factor: float, node_scale: float, dem: bool) -> str:
+    """The message for a factor whose start spheres overlap, with the largest factor that works
+    (``dem``: the packing overlaps, and the default factor would be lowered)."""
     i, j, shift, start = _worst_pair(packing, factor * node_scale)
     fit = _floor4(packing.contact_ratio() / node_scale)
     default = (" (or leave the default: it is lowered for a DEM packing's overlaps)"
-               if overlap > 0 else "")
+               if dem else "")
     return (f"radius_factor {factor:g}: the particle mesh's nodes lie at {node_scale:.4f} x the "
             f"meshed radius, so particles {i} and {j} (image shift {shift}) would start "
             f"interpenetrating by up to {_percent(start)} of the smaller radius; use radius_factor "
@@ -128,7 +129,7 @@ def _choose_factor(packing: Packing, radius_factor: float, node_scale: float, au
     if start <= tolerance:
         return radius_factor, overlap, False
     if not (automatic and overlap > tolerance):
-        raise ValueError(_start_refusal(packing, radius_factor, node_scale, overlap))
+        raise ValueError(_start_refusal(packing, radius_factor, node_scale, overlap > tolerance))
     if overlap > MAX_DEM_OVERLAP:
         raise ValueError(_dem_refusal(packing, node_scale))
     return _floor4((1.0 - START_GAP) * packing.contact_ratio() / node_scale), overlap, True
@@ -163,7 +164,7 @@ def admit_packing(packing: Packing, radius_factor: float, node_scale: float, *,
         notes.append(f"radius reduction x{factor:.4f} (instead of x{radius_factor:g}) for the "
                      f"packing's {_percent(overlap)} overlaps and the particle's nodes at "
                      f"{node_scale:.4f} x its radius")
-    elif overlap > 0.0:
+    elif overlap > tolerance:  # a DEM packing's contacts (not the round-off of touching spheres)
         notes.append(f"largest overlap {_percent(overlap)} of the smaller radius, removed by the "
                      f"radius reduction x{factor:g} (the particle's nodes at {node_scale:.4f} x "
                      f"its radius)")
