@@ -108,8 +108,8 @@ def _run(args, comm) -> None:
             admitted = initial_packing(case, log=say)
         except (ValueError, OSError) as err:
             raise _Exit(BAD_INPUT, f"{args.case}: {err}")
-        source = case.packing_file or f"generated, seed {case.seed}"
-        say(f"{args.case}: valid: {admitted.packing.num_particles} particles from {source}, "
+        source = f"from {case.packing_file}" if case.packing_file else f"generated (seed {case.seed})"
+        say(f"{args.case}: valid: {admitted.packing.num_particles} particles {source}, "
             f"rho0 {admitted.rho0:.4f} (radius reduction x{admitted.radius_factor:g}), {case.bc}, "
             f"{case.loading} to {case.target_density}, {case.solver}")
         return
