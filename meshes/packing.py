@@ -5,9 +5,9 @@ holds N sphere centres in [0, d) per axis and their radii.
 
 - :class:`Packing` with :meth:`Packing.validate` (overlap check over periodic images).
 - :func:`write_packing` / :func:`read_packing`: the plain format a YADE or LIGGGHTS script
-  exports (SPEC §5): a header line ``dx dy dz``, then one ``x y z r`` line per sphere.
+  exports: a header line ``dx dy dz``, then one ``x y z r`` line per sphere.
 - :func:`generate_packing`: our own seeded, deterministic generator of a frictionless random
-  packing (SPEC §5, thesis §2.2.1): random centres in a dilute periodic cell, then the radii grow
+  packing (thesis §2.2.1): random centres in a dilute periodic cell, then the radii grow
   (equivalently the cell shrinks) in small increments, each followed by a frictionless energy
   minimisation (harmonic repulsion, FIRE) over a periodic neighbour list. It stops at a
   requested solid fraction, or when the packing jams (overlaps can no longer be relaxed).
@@ -98,16 +98,27 @@ class Packing:
         return float(4.0 / 3.0 * np.pi * np.sum(self.radii**3) / np.prod(self.cell))
 
     def scaled(self, radius_factor: float) -> Packing:
-        """Copy with radii multiplied by ``radius_factor`` (SPEC §2: ~0.99 before meshing)."""
+        """Copy with radii multiplied by ``radius_factor`` (a run reduces them before meshing)."""
         if not (np.isfinite(radius_factor) and radius_factor > 0):
             raise ValueError(f"radius_factor must be > 0, got {radius_factor}")
         return Packing(self.cell, self.centres, self.radii * radius_factor)
 
+    def pair_distances(self):
+        """The periodic pairs whose centres are closer than 2 r_max: ``i``, ``j`` (i < j),
+        ``shift`` (M, 3) the lattice vector of j's image, ``distance`` (M,) mm."""
+        return _periodic_pairs(self.centres, self.radii, self.cell, 2.0 * self.radii.max())
+
     def _overlaps(self):
         """Periodic pairs within 2 r_max and their overlap relative to the smaller radius."""
-        i, j, shift, dist = _periodic_pairs(self.centres, self.radii, self.cell, 2.0 * self.radii.max())
+        i, j, shift, dist = self.pair_distances()
         rel = (self.radii[i] + self.radii[j] - dist) / np.minimum(self.radii[i], self.radii[j])
         return i, j, shift, rel
+
+    def contact_ratio(self) -> float:
+        """Smallest d_ij / (r_i + r_j) over the periodic pairs (d the centre distance), capped
+        at 1: below 1 the closest pair overlaps; the radii times this ratio overlap nowhere."""
+        i, j, _, dist = self.pair_distances()
+        return float(min(np.min(dist / (self.radii[i] + self.radii[j]), initial=1.0), 1.0))
 
     def max_overlap(self) -> float:
         """Largest overlap (r_i + r_j - distance) / min(r_i, r_j) over periodic pairs; 0 if none."""
@@ -481,7 +492,7 @@ def _check_positive(name, value, unit="mm"):
 
 def generate_packing(n: int, r_min: float, r_max: float, seed: int, target_fraction: float | None = None,
                      cell_aspect=(1.0, 1.0, 1.0), max_time_s: float = 600.0) -> Packing:
-    """Seeded frictionless random packing of ``n`` spheres in a periodic cell (SPEC §5, thesis §2.2.1).
+    """Seeded frictionless random packing of ``n`` spheres in a periodic cell (thesis §2.2.1).
 
     Radii are uniform in [r_min, r_max] (mm; thesis 0.082-0.147, r_max/r_min ~ 1.8). Centres are
     drawn at random in a dilute cell of aspect ``cell_aspect``; the radii then grow in small
@@ -588,7 +599,7 @@ class Duplicates:
 
 
 def duplicate_particles(packing: Packing, d_bc: float, faces: str = "all", corners: bool = True) -> Duplicates:
-    """Duplicated particles for the boundary conditions (thesis §2.2.1, SPEC §5).
+    """Duplicated particles for the boundary conditions (thesis §2.2.1).
 
     A particle whose centre is closer than ``d_bc`` (mm) to the plane x = x_min is copied to
     x + dx (beyond x_max); one closer than ``d_bc`` to x = x_max is copied to x - dx. x_min and

@@ -14,6 +14,9 @@ from mpfem_fenicsx.meshes.packing import read_packing as read_packing_file
 from test_parameters import just_outside  # the values a declared range must refuse
 
 TINY = "demos/cases/tiny.toml"
+#: its [solver] increments (a multiple of 30: rows every 15 of them in the forced divergence,
+#: checkpoints at half of them and at the end)
+TINY_STEPS = 1800
 
 
 def _case(tmp_path, text, name="case.toml"):
@@ -121,8 +124,8 @@ def test_check_refuses_what_run_refuses(tmp_path, capsys, packing, loading, word
 
 def test_check_reads_a_dem_export_with_its_contact_overlaps(tmp_path, capsys):
     """A YADE export with its cell in a comment header and 0.12 % of a radius of contact overlap
-    (a packing held under 10 kPa): valid for a run (the 0.99 radius reduction removes it), the
-    format and the largest overlap said; a 3 % overlap is refused."""
+    (a packing held under 10 kPa): valid for a run (the radius reduction lowered to remove it), the
+    format and the reduction said; a 6 % overlap is refused."""
     r, gap = 0.1, 0.1 * (2 - 0.0012)
     rows = [(0.2, 0.2, 0.2), (0.2 + gap, 0.2, 0.2), (0.6, 0.6, 0.6)]
     header = "# dx dy dz (mm) = 1.0 1.0 1.0 ; solid_fraction = 0.0126 ; N = 3\n"
@@ -130,13 +133,15 @@ def test_check_reads_a_dem_export_with_its_contact_overlaps(tmp_path, capsys):
     case = _case(tmp_path, "[packing]\nfile = 'yade.txt'\n[loading]\ntarget_density = 0.5\n")
     assert main(["run", case, "--check"]) == 0
     out = capsys.readouterr().out
-    assert "read as yade" in out and "largest overlap 0.0012" in out and "valid" in out, out
+    assert "read as yade" in out and "radius reduction x0.9893" in out, out
+    assert "0.12 % overlaps" in out, out
+    assert "valid: 3 particles from" in out, out
     assert main(["pack", "--input", str(tmp_path / "yade.txt"), "--out", str(tmp_path / "ours.txt")]) == 0
     assert read_packing_file(tmp_path / "ours.txt", validate=False).cell.tolist() == [1.0] * 3
     rows[1] = (0.2 + 0.194, 0.2, 0.2)
     (tmp_path / "yade.txt").write_text(header + "".join(f"{x} {y} {z} {r}\n" for x, y, z in rows))
     assert main(["run", case, "--check"]) == 2
-    assert "after the radius reduction x0.99" in capsys.readouterr().err
+    assert "overlap of particles 0 and 1 (image shift [0, 0, 0]): 6 %" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("demo, args, words", [
@@ -245,6 +250,87 @@ def test_restart_reads_history_rows_by_column_name():
         _history_rows({"history": [[1.0, 2.0]]}, columns)
 
 
+#: 50 spheres, contact overlaps up to 0.12 % of a radius (made by tests/test_packing.py's recipe)
+YADE_50 = "tests/data/yade_50_overlapping.txt"
+REDUCTION = "radius reduction x0.9895 (instead of x0.99) for the packing's 0.12 % overlaps"
+
+
+def test_a_dem_export_runs_at_the_defaults(tmp_path, capsys, root):
+    """The YADE fixture as it comes: `pack --input` and `run --check` accept it and say the
+    radius reduction the run will use; the run (10 increments: a smoke run) builds at that
+    reduction and ends with exit 0. Before the shared admission, pack and --check accepted it at
+    0.99 and the run refused it (the 6x6 particle's nodes at 1.0100 x its radius)."""
+    out = str(tmp_path / "ours.txt")
+    assert main(["pack", "--input", str(root / YADE_50), "--out", out]) == 0
+    assert REDUCTION in capsys.readouterr().out
+    case = _case(tmp_path, f"[packing]\nfile = '{root / YADE_50}'\n[solver]\nincrements = 10\n"
+                           "[output]\noutputs = 1\nvisual = false\ncheckpoint_every = 0\n")
+    assert main(["run", case, "--check"]) == 0
+    out = capsys.readouterr().out
+    assert REDUCTION in out and "valid: 50 particles from" in out, out
+    assert "rho0 0.6133 (radius reduction x0.9895)" in out, out
+    assert main(["run", case, "--out", str(tmp_path / "run")]) == 0
+    out = capsys.readouterr().out
+    assert REDUCTION in out and "rho0 = 0.6133" in out
+    assert read_csv(tmp_path / "run" / "history.csv")["rho"].size == 1
+
+
+REFUSED_BY_RUN = [
+    # (packing, further case lines, words of the one-line error): the YADE fixture ...
+    (f"file = '{YADE_50}'", "[mesh]\nradius_factor = 0.995\n",  # a user's factor is not lowered
+     ["radius_factor 0.995: the particle mesh's nodes lie at 1.0100 x",
+      "radius_factor <= 0.9896 (or leave"]),
+    (f"file = '{YADE_50}'", "[loading]\ntarget_density = 0.6\n",
+     ["loading.target_density = 0.6", "(0.6133, 1)"]),
+    # ... and a generated packing (no overlap: no automatic reduction) with the coarse particle
+    ("particles = 24", "[mesh]\nresolution = 'coarse'\n",
+     ["radius_factor 0.99: the particle mesh's nodes lie at 1.0227 x",
+      "radius_factor <= 0.9778, more"]),
+]
+
+
+@pytest.mark.parametrize("packing, settings, words", REFUSED_BY_RUN)
+def test_check_refuses_first_what_run_refuses(tmp_path, capsys, root, packing, settings, words):
+    """`run --check` exits 2 with the very line `run` exits 2 with."""
+    packing = packing.replace(YADE_50, str(root / YADE_50))
+    case = _case(tmp_path, f"[packing]\n{packing}\n{settings}")
+    lines = []
+    for args in (["run", case, "--check"], ["run", case, "--out", str(tmp_path / "run")]):
+        assert main(args) == 2
+        lines.append(capsys.readouterr().err.strip())
+    assert lines[0] == lines[1] and len(lines[0].splitlines()) == 1, lines
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+
+
+LAMMPS_METRES = """ITEM: TIMESTEP
+0
+ITEM: NUMBER OF ATOMS
+2
+ITEM: BOX BOUNDS pp pp pp
+0 0.0008
+0 0.0008
+0 0.0008
+ITEM: ATOMS id type x y z radius
+1 1 0.0002 0.0002 0.0002 0.0001
+2 1 0.0006 0.0006 0.0006 0.0001
+"""
+
+
+def test_pack_warns_when_lengths_look_like_metres(tmp_path, capsys):
+    """A LAMMPS dump in metres read without --length-scale: a one-line warning naming the fix,
+    the file still written (exit 0); none with --length-scale 1000."""
+    dump = tmp_path / "dump.lammps"
+    dump.write_text(LAMMPS_METRES)
+    assert main(["pack", "--input", str(dump), "--out", str(tmp_path / "a.txt")]) == 0
+    warnings = [line for line in capsys.readouterr().out.splitlines() if "WARNING" in line]
+    assert len(warnings) == 1 and "look like metres" in warnings[0], warnings
+    assert "--length-scale 1000" in warnings[0]
+    converted = ["--length-scale", "1000", "--out", str(tmp_path / "b.txt")]
+    assert main(["pack", "--input", str(dump), *converted]) == 0
+    assert "WARNING" not in capsys.readouterr().out
+
+
 def test_pack_generates_a_valid_file(tmp_path):
     out = tmp_path / "p.txt"
     assert main(["pack", "--particles", "30", "--seed", "4", "--fraction", "0.5", "--out", str(out)]) == 0
@@ -275,9 +361,11 @@ def test_run_writes_history_paraview_figures_and_checkpoints(tiny_run):
     out, stdout = tiny_run
     h = read_csv(out / "history.csv")
     assert h["rho"].size == 10
-    assert h["rho_imposed"][-1] == pytest.approx(0.64, abs=1e-9)
-    assert abs(h["rho"][-1] - 0.64) < 0.01 and h["E_p"][-1] > 0 and h["n_contacts"][-1] > 10
-    assert "step 150/150" in stdout and "ETA" in stdout  # the progress bar's last line
+    assert h["rho_imposed"][-1] == pytest.approx(0.70, abs=1e-9)
+    assert abs(h["rho"][-1] - 0.70) < 0.01 and h["E_p"][-1] > 0 and h["n_contacts"][-1] > 10
+    assert f"step {TINY_STEPS}/{TINY_STEPS}" in stdout and "ETA" in stdout  # the progress bar
+    verdict = [line for line in stdout.splitlines() if "quasi-static check" in line]
+    assert len(verdict) == 1 and "quasi-static check passed" in verdict[0], verdict  # its own check
     xdmf = (out / "particles.xdmf").read_text()
     for name in ("displacement", "von_mises_MPa", "eps_p", "particle", "contact_pressure_MPa"):
         assert f'Name="{name}"' in xdmf, name
@@ -285,7 +373,7 @@ def test_run_writes_history_paraview_figures_and_checkpoints(tiny_run):
     for png in ("particles.png", "loading_path.png"):
         assert _not_uniform(out / png), png
     steps = sorted(p.name for p in (out / "checkpoints").iterdir())
-    assert steps == ["step0000075", "step0000150"]
+    assert steps == [f"step{TINY_STEPS // 2:07d}", f"step{TINY_STEPS:07d}"]
 
 
 def test_plot_regenerates_the_figures(tiny_run, tmp_path):
@@ -302,7 +390,8 @@ def test_restart_reproduces_the_uninterrupted_run(tiny_run, tmp_path, root):
     """Explicit restart from the mid-run checkpoint: identical history (bit for bit, wall time
     aside), contact history (alpha with adhesion) included."""
     out, _ = tiny_run
-    code = main(["run", str(root / TINY), "--out", str(tmp_path), "--restart", str(out / "checkpoints" / "step0000075")])
+    half = out / "checkpoints" / f"step{TINY_STEPS // 2:07d}"
+    code = main(["run", str(root / TINY), "--out", str(tmp_path), "--restart", str(half)])
     assert code == 0
     a, b = read_csv(out / "history.csv"), read_csv(tmp_path / "history.csv")
     for name in a:
@@ -311,8 +400,9 @@ def test_restart_reproduces_the_uninterrupted_run(tiny_run, tmp_path, root):
     from mpfem_fenicsx.io.checkpoint import load_checkpoint
     from mpi4py import MPI
 
-    ca, _ = load_checkpoint(out / "checkpoints" / "step0000150", MPI.COMM_SELF)
-    cb, _ = load_checkpoint(tmp_path / "checkpoints" / "step0000150", MPI.COMM_SELF)
+    end = f"step{TINY_STEPS:07d}"
+    ca, _ = load_checkpoint(out / "checkpoints" / end, MPI.COMM_SELF)
+    cb, _ = load_checkpoint(tmp_path / "checkpoints" / end, MPI.COMM_SELF)
     assert ca["solver/contact/alpha"].max() > 0.1  # adhesive memory exists and survived
     for key in ("solver/u", "solver/contact/alpha", "solver/contact/sigma_max", "solver/material/eps_p"):
         np.testing.assert_array_equal(ca[key], cb[key], err_msg=key)
@@ -320,7 +410,8 @@ def test_restart_reproduces_the_uninterrupted_run(tiny_run, tmp_path, root):
 
 def test_forced_divergence_keeps_checkpoint_and_history(tmp_path, capsys, monkeypatch, root):
     """A NaN injected in the velocities after step 100 is caught by the integrator's own check:
-    exit code 3, the message names the step, the checkpoint of step 90 and the history remain."""
+    exit code 3, the message names the step, the checkpoint of step 90 and the history remain
+    (the tiny case with a row every 15 increments, a checkpoint every 2 rows)."""
     from mpfem_fenicsx.solvers.explicit import ExplicitSolver
 
     advance = ExplicitSolver.advance
@@ -332,6 +423,7 @@ def test_forced_divergence_keeps_checkpoint_and_history(tmp_path, capsys, monkey
 
     monkeypatch.setattr(ExplicitSolver, "advance", poisoned)
     case = (root / TINY).read_text().replace("checkpoint_every = 5", "checkpoint_every = 2")
+    case = case.replace("outputs = 10", f"outputs = {TINY_STEPS // 15}")
     code = main(["run", _case(tmp_path, case), "--out", str(tmp_path / "run")])
     err = capsys.readouterr().err
     assert code == 3, err
@@ -353,12 +445,13 @@ def test_mpirun_two_ranks_run_and_restart(tiny_run, tmp_path, root):
     magnitude; SPEC §9 case 8), and a 2-rank restart equal to the 2-rank run bit for bit."""
     out, _ = tiny_run
     bin_ = root / ".venv" / "bin"
-    for args in ([], ["--restart", str(tmp_path / "a" / "checkpoints" / "step0000075")]):
+    half = tmp_path / "a" / "checkpoints" / f"step{TINY_STEPS // 2:07d}"
+    for args in ([], ["--restart", str(half)]):
         dest = tmp_path / ("b" if args else "a")
         proc = subprocess.run([str(bin_ / "mpirun"), "-n", "2", str(bin_ / "mpfem"), "run", str(root / TINY),
                                "--out", str(dest), *args], capture_output=True, text=True, cwd=root, timeout=900)
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-        assert proc.stdout.count("step 150/150") == 1  # progress on rank 0 only
+        assert proc.stdout.count(f"step {TINY_STEPS}/{TINY_STEPS}") == 1  # progress on rank 0 only
     serial, a, b = (read_csv(p / "history.csv") for p in (out, tmp_path / "a", tmp_path / "b"))
     for name in serial:
         if name == "wall_time":

@@ -434,7 +434,7 @@ def test_implicit_drag_work_is_small_at_the_default_steps(tmp_path):
     work k |dw|^2 per step, i.e. ~1 / steps of the path (measured on this cell: E_damp / E_p = 0.31
     at 10 steps, 0.157 at 20). At the default 100 steps it stays below 5 % of the plastic work."""
     h = run_compaction(small_case(tmp_path, condition="CLP", kind="implicit"), MPI.COMM_SELF, log=quiet).history
-    assert CompactionCase().steps == 100
+    assert CompactionCase().solver.steps == 100
     assert h.column("E_p")[-1] > 1e-4  # mJ: the cell did yield
     assert h.column("E_damp")[-1] < 0.05 * h.column("E_p")[-1]
 

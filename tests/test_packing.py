@@ -1,6 +1,7 @@
 """Periodic sphere packings (SPEC §5, §9.7; thesis §2.2.1): container, I/O, generator, duplicates."""
 
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -336,3 +337,102 @@ def test_overlap_beyond_the_radius_reduction_is_refused():
     assert p.max_overlap() == pytest.approx(0.06)
     with pytest.raises(ValueError, match=r"after the radius reduction x0.99"):
         p.validate(radius_factor=0.99)
+
+
+# ------------------------------------------------------------------------ admission for a run
+# One rule for `mpfem pack --input`, `mpfem run --check` and the run (meshes.admission): the
+# spheres through the particle meshes' nodes (1.0100 x the meshed radius for the default 6x6
+# volume-exact particle) must not overlap at the start.
+YADE_50 = Path(__file__).parent / "data" / "yade_50_overlapping.txt"
+NODE_SCALE = 1.0100435833250068  # unit_ball_hex(6, 1).radius_scale, the default particle
+
+
+def yade_50_recipe(overlap=0.0012):
+    """How tests/data/yade_50_overlapping.txt was made: a generated 50-sphere packing whose radii
+    grow until the largest overlap is ``overlap`` of the smaller radius (a DEM packing at rest
+    under ~10 kPa), written as a YADE export.text with its cell in a '# dx dy dz =' header."""
+    p = generate_packing(50, R_MIN, R_MAX, seed=1)
+    lo, hi = 1.0, 1.01
+    for _ in range(60):
+        g = 0.5 * (lo + hi)
+        lo, hi = (g, hi) if p.scaled(g).max_overlap() < overlap else (lo, g)
+    return p.scaled(lo)
+
+
+def test_the_yade_fixture_is_its_recipe():
+    from mpfem_fenicsx.meshes.cubesphere import unit_ball_hex
+
+    read, made = read_packing(YADE_50, validate=False), yade_50_recipe()
+    np.testing.assert_allclose(read.cell, made.cell, rtol=1e-11)
+    np.testing.assert_allclose(np.column_stack([read.centres, read.radii]),
+                               np.column_stack([made.centres, made.radii]), rtol=1e-11, atol=1e-12)
+    assert read.max_overlap() == pytest.approx(0.0012, rel=1e-6)
+    assert unit_ball_hex(6, 1).radius_scale == NODE_SCALE
+
+
+def test_admission_lowers_the_default_reduction_for_a_dem_export_and_says_so():
+    """At the default 0.99 the fixture's contacts start 0.08 % interpenetrated (0.99 x 1.0100 x
+    r_i + r_j > d_ij): the default is lowered to the 4-decimal factor that leaves a 1e-4 gap."""
+    from mpfem_fenicsx.meshes.admission import START_GAP, admit_packing
+
+    p = read_packing(YADE_50, validate=False)
+    assert p.scaled(0.99 * NODE_SCALE).max_overlap() > 5e-4  # what the old rule let through
+    a = admit_packing(p, 0.99, NODE_SCALE, target_density=0.92, automatic=True)
+    assert a.automatic and a.radius_factor == 0.9895 and a.overlap == pytest.approx(0.0012)
+    assert p.scaled(a.radius_factor * NODE_SCALE).max_overlap() == 0.0
+    assert p.contact_ratio() / (a.radius_factor * NODE_SCALE) - 1 >= START_GAP
+    assert a.rho0 == pytest.approx(p.solid_fraction * 0.9895**3, rel=1e-14)
+    assert a.notes == ("radius reduction x0.9895 (instead of x0.99) for the packing's 0.12 % "
+                       "overlaps and the particle's nodes at 1.0100 x its radius",)
+
+
+def test_admission_keeps_the_factor_that_works_and_refuses_one_too_large(jammed50):
+    """A generated packing (no overlap) keeps 0.99 (its run is unchanged bit for bit: the same
+    rho0 as V_p / V0 of the reduced radii); a factor that does not work is refused with the
+    largest one that does, automatic or not, when the packing itself does not overlap."""
+    from mpfem_fenicsx.homogenization import solid_volume
+    from mpfem_fenicsx.meshes.admission import admit_packing
+
+    a = admit_packing(jammed50, 0.99, NODE_SCALE, target_density=0.92, automatic=True)
+    assert (a.radius_factor, a.automatic, a.notes) == (0.99, False, ())
+    assert a.rho0 == solid_volume(jammed50.radii * 0.99) / float(np.prod(jammed50.cell))
+    coarse = 1.0226902051510787  # the 4x4 particle's nodes
+    with pytest.raises(ValueError, match=r"^radius_factor 0.99: .* 1.0227 x .* <= 0.9778, more"):
+        admit_packing(jammed50, 0.99, coarse, automatic=True)
+    assert admit_packing(jammed50, 0.9778, coarse).radius_factor == 0.9778
+    dem = read_packing(YADE_50, validate=False)
+    with pytest.raises(ValueError, match=r"radius_factor 0.995: .* <= 0.9896 \(or leave the"):
+        admit_packing(dem, 0.995, NODE_SCALE)
+    assert admit_packing(dem, 0.9896, NODE_SCALE).radius_factor == 0.9896  # the one it names
+
+
+def test_admission_refuses_overlaps_beyond_a_dem_contact_and_unreachable_densities():
+    from mpfem_fenicsx.meshes.admission import admit_packing
+
+    centres = [[0.2, 0.2, 0.2], [0.394, 0.2, 0.2], [0.7, 0.7, 0.7]]
+    p = Packing([1, 1, 1], centres, [0.1, 0.1, 0.1])  # 6 % overlap
+    with pytest.raises(ValueError, match=r"^overlap of particles 0 and 1 \(image shift \[0, 0, 0\]"
+                                         r"\): 6 % of the smaller radius, beyond the 2 % .* <= 0.9603"):
+        admit_packing(p, 0.99, NODE_SCALE, automatic=True)
+    assert admit_packing(p, 0.96, NODE_SCALE).radius_factor == 0.96  # a user's: taken as given
+    ok = read_packing(YADE_50, validate=False)
+    with pytest.raises(ValueError, match=r"target_density = 0.6 is out of range: .* \(0.6133, 1\)"):
+        admit_packing(ok, 0.99, NODE_SCALE, target_density=0.6, automatic=True)
+
+
+def test_lengths_in_metres_get_a_one_line_warning(tmp_path):
+    """A LAMMPS dump in metres read as millimetres: 0.8 um cell, 80 nm radii. Admitted (the rule
+    is scale-free) with a warning that names the fix; none in millimetres."""
+    from mpfem_fenicsx.meshes.admission import admit_packing, metres_warning
+
+    dump = tmp_path / "dump.liggghts"
+    dump.write_text(LAMMPS_DUMP)
+    mm = read_packing(dump)
+    assert metres_warning(mm) is None and admit_packing(mm, 0.99, NODE_SCALE).notes == ()
+    metres = read_packing(dump, length_scale=1e-3)
+    notes = admit_packing(metres, 0.99, NODE_SCALE).notes
+    assert len(notes) == 1 and notes[0] == metres_warning(metres)
+    assert notes[0].startswith("WARNING: the packing's lengths look like metres (largest radius "
+                               "0.0001 mm, cell 0.0008 x 0.0008 x 0.0008 mm)")
+    assert "--length-scale 1000" in notes[0]
+    assert metres_warning(Packing([1, 1, 1], [[0.5] * 3], [5e-4])) is not None  # r under 1 um

@@ -246,7 +246,7 @@ class FanCase:
 
         chapter2 = Case("chapter2", dict(path=self.loading, condition="CLP", target_density=0.95))
         reference = chapter2.compaction_case(out_dir)
-        _, rho0 = initial_packing(reference.packing, reference.mesh, reference.loading.target_density)
+        rho0 = initial_packing(reference.packing, reference.mesh, reference.loading.target_density).rho0
         share = math.log(self.rho_f / rho0) / math.log(0.95 / rho0)
         base = reference.updated(target_density=self.rho_f, gamma=self.gamma,
                                  increments=max(100, round(share * reference.solver.increments)),

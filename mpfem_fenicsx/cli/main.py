@@ -62,8 +62,10 @@ def _parser() -> argparse.ArgumentParser:
                                       "a packing file as a DEM code left it (--input: ours, 'dx dy dz' then 'x y z r' "
                                       "lines; a YADE export.text, '#format x_y_z_r', its cell in a '# dx dy dz = ...' "
                                       "header or --cell; a LAMMPS / LIGGGHTS dump with box bounds and x y z radius "
-                                      "columns), check it (overlaps left after the run's 0.99 radius reduction, "
-                                      "spheres outside the cell) and write it in our format.")
+                                      "columns), check it as a run at the default mesh would "
+                                      "(spheres in the cell, contact overlaps: the radius "
+                                      "reduction that removes them is reported) and write it in "
+                                      "our format.")
     src = pack.add_mutually_exclusive_group(required=True)
     src.add_argument("--particles", type=int, help="number of spheres to generate (>= ~20 for a periodic cell)")
     src.add_argument("--input", help="packing file to check / convert")
@@ -73,10 +75,8 @@ def _parser() -> argparse.ArgumentParser:
     pack.add_argument("--fraction", type=float, default=None,
                       help="stop the generator at this solid fraction (default: jammed)")
     pack.add_argument("--scale", type=float, default=1.0,
-                      help="multiply the input's radii by this factor (e.g. 0.99 for a DEM export with contact "
-                           "overlaps)")
-    pack.add_argument("--tolerance", type=float, default=1e-6,
-                      help="overlap tolerance, relative to the smaller radius of a pair, after the radius reduction")
+                      help="multiply the input's radii by this factor (a run reduces them "
+                           "itself to remove a DEM export's contact overlaps)")
     pack.add_argument("--cell", type=float, nargs=3, default=None, metavar=("DX", "DY", "DZ"),
                       help="periodic cell of the input (mm; e.g. a YADE export without a cell header)")
     pack.add_argument("--length-scale", type=float, default=1.0,
@@ -105,16 +105,16 @@ def _run(args, comm) -> None:
     except CaseError as err:
         raise _Exit(BAD_INPUT, str(err))
     if args.check:
-        if case.packing.file is not None:  # what `run` would refuse while building, before any mesh
-            try:
-                packing, rho0 = initial_packing(case.packing, case.mesh, case.loading.target_density, log=say)
-            except (ValueError, OSError) as err:
-                raise _Exit(BAD_INPUT, f"{args.case}: {err}")
-            packing = f"{packing.num_particles} particles from {case.packing.file}, rho0 {rho0:.4f}"
-        else:
-            packing = f"{case.packing.particles} generated particles"
-        say(f"{args.case}: valid ({packing}, {case.boundary.condition}, {case.loading.path} to "
-            f"{case.loading.target_density}, {case.solver.kind})")
+        try:  # the packing as `run` admits it while building, before any mesh (same message)
+            admitted = initial_packing(case.packing, case.mesh, case.loading.target_density, log=say)
+        except (ValueError, OSError) as err:
+            raise _Exit(BAD_INPUT, f"{args.case}: {err}")
+        source = (f"from {case.packing.file}" if case.packing.file
+                  else f"generated (seed {case.packing.seed})")
+        say(f"{args.case}: valid: {admitted.packing.num_particles} particles {source}, "
+            f"rho0 {admitted.rho0:.4f} (radius reduction x{admitted.radius_factor:g}), "
+            f"{case.boundary.condition}, {case.loading.path} to {case.loading.target_density}, "
+            f"{case.solver.kind}")
         return
     start = time.perf_counter()
     try:
@@ -134,6 +134,8 @@ def _run(args, comm) -> None:
 
 
 def _pack(args, comm) -> None:
+    from ..meshes.admission import admit_packing
+    from ..meshes.cubesphere import unit_ball_hex
     from ..meshes.packing import generate_packing, packing_format, read_packing, write_packing
     from ..case import MeshSection
 
@@ -148,11 +150,12 @@ def _pack(args, comm) -> None:
             say(f"{args.input}: read as {packing_format(args.input)}")
             if args.scale != 1.0:
                 packing = packing.scaled(args.scale)
-            reduction = MeshSection().radius_factor  # what a run does to the radii before meshing
-            packing.validate(overlap_tolerance=args.tolerance, radius_factor=reduction)
-            if packing.max_overlap() > 0:
-                say(f"largest overlap {packing.max_overlap():.3g} of the smaller radius, removed by the run's radius "
-                    f"reduction x{reduction:g}")
+            run = MeshSection()  # the run's defaults: radius reduction, particle mesh
+            particle = unit_ball_hex(*run.subdivisions, run.refinement, exact_volume=run.exact_volume)
+            admitted = admit_packing(packing, run.radius_factor, particle.radius_scale,
+                                     automatic=True)
+            for note in admitted.notes:
+                say(f"{args.input}: {note}")
         else:
             if not 0 < args.r_min <= args.r_max:
                 raise ValueError(f"--r-min = {args.r_min}, --r-max = {args.r_max}: must be 0 < r_min <= r_max (mm)")

@@ -39,6 +39,7 @@ from ..loading import GradientPath, compaction_gradient
 from ..material import ElastoPlastic
 from ..meshes.cubesphere import unit_ball_hex
 from ..meshes import node_particles, particle_mesh, particle_volumes
+from ..meshes.admission import Admission, admit_packing
 from ..meshes.packing import (Duplicates, Packing, assembly_particles, duplicate_particles, generate_packing,
                               packing_format, periodic_pair_realizations, read_packing,
                               write_packing)
@@ -75,12 +76,14 @@ class CompactionResult:
 
 
 def initial_packing(spheres: PackingSection, mesh: MeshSection, target_density: float,
-                    log=None) -> tuple[Packing, float]:
-    """The packing section's spheres (its object, its file, or the generator) and their initial
-    relative density rho0 = V_p / V0 with the meshed radii (``mesh.radius_factor``, thesis eq.
-    2.5), checked before any mesh: spheres in the cell, no overlap left after the radius
-    reduction (a DEM packing's small contact overlaps are accepted; ``log`` reports the largest),
-    and rho0 below ``target_density``. Raises ValueError naming the file, particle or field."""
+                    log=None) -> Admission:
+    """The packing section's spheres (its object, its file, or the generator) admitted for the
+    run by :func:`~mpfem_fenicsx.meshes.admission.admit_packing`, before any mesh: spheres in the
+    cell, no overlap of the spheres through the particle meshes' nodes at the start (the default
+    radius reduction ``mesh.radius_factor`` lowered for a DEM packing's contact overlaps), and
+    the initial relative density rho0 = V_p / V0 with the meshed radii (thesis eq. 2.5) below
+    ``target_density``. ``log`` reports what was decided. Raises ValueError naming the file,
+    particle or field."""
     if spheres.spheres is not None:
         packing = spheres.spheres
     elif spheres.file is not None:
@@ -90,16 +93,13 @@ def initial_packing(spheres: PackingSection, mesh: MeshSection, target_density: 
     else:
         packing = generate_packing(spheres.particles, spheres.r_min, spheres.r_max, seed=spheres.seed,
                                    target_fraction=spheres.fraction)
-    packing.validate(radius_factor=mesh.radius_factor)
-    overlap = packing.max_overlap()
-    if overlap > 0 and log is not None:
-        log(f"packing: largest overlap {overlap:.3g} of the smaller radius, removed by the radius reduction "
-            f"x{mesh.radius_factor:g}")
-    rho0 = solid_volume(packing.radii * mesh.radius_factor) / float(np.prod(packing.cell))
-    if not rho0 < target_density < 1.0:
-        raise ValueError(f"loading.target_density = {target_density} is out of range: must be in "
-                         f"({rho0:.4f}, 1), above the packing's initial relative density V_p / V0 = {rho0:.4f}")
-    return packing, rho0
+    divisions, layers = mesh.subdivisions
+    particle = unit_ball_hex(divisions, layers, mesh.refinement, exact_volume=mesh.exact_volume)
+    admitted = admit_packing(packing, mesh.radius_factor, particle.radius_scale, target_density=target_density,
+                             automatic=mesh.radius_factor == MeshSection.radius_factor)
+    for note in admitted.notes if log is not None else ():
+        log(f"packing: {note}")
+    return admitted
 
 
 @dataclass
@@ -162,16 +162,13 @@ def contact_law(contact: ContactSection, material: ElastoPlastic, h_contact: flo
     return law
 
 
-#: largest overlap (fraction of the smaller radius) of the spheres through the particle meshes'
-#: nodes at the start: round-off of touching spheres, not an interpenetration
-START_OVERLAP_TOLERANCE = 1e-6
-
-
 def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> CompactionModel:
     """Packing, duplicated particles, mesh, bulk problem, constraints and contact of a case: the
     pipeline's stages, each given the sections it needs."""
     mesh_section, boundary = case.mesh, case.boundary
-    packing, rho0 = initial_packing(case.packing, mesh_section, case.loading.target_density, log)
+    # the start-overlap rule and the radius reduction
+    admitted = initial_packing(case.packing, mesh_section, case.loading.target_density, log)
+    packing, rho0 = admitted.packing, admitted.rho0
     n = packing.num_particles
     kind = boundary_kind(boundary.condition)
     duplication_distance = boundary.d_bc_ratio() * float(packing.radii.max())  # mm
@@ -181,7 +178,7 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
         copies = duplicate_particles(packing, duplication_distance, faces=kind.copy_faces,
                                      corners=boundary.corners)
     centres, radii, original, shift = assembly_particles(packing, copies)
-    radii = radii * mesh_section.radius_factor
+    radii = radii * admitted.radius_factor
     is_copy = np.any(shift != 0, axis=1)
     log(f"packing: {n} particles, solid fraction {packing.solid_fraction:.4f}, cell {packing.cell}; "
         f"{int(is_copy.sum())} duplicated particles (d_bc = {duplication_distance:.4g} mm, bc "
@@ -190,18 +187,6 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     solid0 = solid_volume(radii[:n])  # thesis eq. 2.5, initial (meshed) radii
 
     divisions, layers = mesh_section.subdivisions
-    # a volume-exact particle's nodes lie outside its sphere (x1.0100 at 6x6, x1.0227 at 4x4, x1.0406
-    # at 3x3): when that exceeds the radius reduction, neighbours touching in the packing would start
-    # interpenetrating, and the penalty contact would release the overlap's energy in the first
-    # increments, deforming the particles plastically before any loading
-    outer = unit_ball_hex(divisions, layers, mesh_section.refinement,
-                          exact_volume=mesh_section.exact_volume).radius_scale
-    start_overlap = replace(packing, radii=packing.radii * mesh_section.radius_factor * outer).max_overlap()
-    if start_overlap > START_OVERLAP_TOLERANCE:
-        raise ValueError(
-            f"mesh.radius_factor {mesh_section.radius_factor:g}: the particle mesh's nodes lie at {outer:.4f} x the "
-            f"meshed radius, so touching neighbours would start interpenetrating by up to {100 * start_overlap:.2g} % "
-            f"of the smaller radius; use radius_factor <= {1 / outer:.4f}, more divisions or exact_volume = false")
     # surface element edge at a cube-face centre of the smallest particle (equi-angular grid)
     h_contact = float(radii.min()) * np.pi / (2 * divisions * mesh_section.refinement)
     law = contact_law(case.contact, case.material, h_contact)
