@@ -54,8 +54,6 @@ BOUNDARY_KINDS = {k.name: k for k in (
 )}
 #: the names, in the thesis' order
 KINDS = tuple(BOUNDARY_KINDS)
-#: the kinds with a cell gradient's reactions (Schmidt stress, stress control)
-PERIODIC_KINDS = tuple(name for name, kind in BOUNDARY_KINDS.items() if kind.periodic)
 
 
 def boundary_kind(name: str) -> BoundaryKind:

@@ -73,7 +73,6 @@ class AffineConstraint:
         offset = comm.exscan(n_red) or 0
         self.num_reduced_global = comm.allreduce(n_red, op=MPI.SUM)
         self.reduced_range = (offset, offset + n_red)
-        global_offset = imap.local_range[0] * bs
 
         # one row per owned dof: free -> its reduced index; prescribed -> empty; slave -> masters
         counts = free.astype(np.int64)
@@ -105,7 +104,6 @@ class AffineConstraint:
         #: |P|, for the lumped reduced mass
         self._P_abs = PETSc.Mat().createAIJ(sizes, csr=(*csr, np.abs(values)), comm=comm)
         self._P_abs.assemble()
-        self._global_offset = global_offset
         self.g = dolfinx.fem.Function(V, name="prescribed")
 
     # -- vectors ------------------------------------------------------------------------------

@@ -125,7 +125,3 @@ class ContactSurface:
         out = np.empty((self.num_nodes, 3))
         out[self._order] = np.concatenate(parts)
         return out
-
-    def global_dofs(self, nodes: np.ndarray) -> np.ndarray:
-        """Global unrolled dof indices (n, 3) of surface nodes."""
-        return self.blocks[nodes][:, None] * self.bs + np.arange(self.bs)[None, :]
