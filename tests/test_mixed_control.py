@@ -9,6 +9,7 @@ from mpi4py import MPI
 
 from mpfem_fenicsx.loading.mixed import StressControl
 from mpfem_fenicsx.material import LEAD
+from mpfem_fenicsx.meshes.packing import Packing, simple_cubic_packing
 from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 from test_granular import quiet, small_case
 
@@ -151,6 +152,37 @@ def test_consolidation_then_triaxial_on_the_simple_cubic_cell(tmp_path):
         assert np.abs(h.column(f"sigma_schmidt_{i}{i}")[axial] / p0 - 1).max() < 0.02
     assert h.column("sigma_schmidt_33")[-1] > 1.5 * p0
     assert abs(h.column("sigma_schmidt_12")[-1]) < 1e-3 * p0
+
+
+def test_servo_reads_the_reported_volume_stress(tmp_path):
+    """With ``measure="volume"`` the stress the servo reads is the ``sigma_vol_*`` columns' (eq. C.7
+    over V0 det F, F the centroids' least-squares gradient, the density's volume): at every output
+    (servo update and row on the same state) the two agree to round-off. One sphere of the simple
+    cubic cell is moved 1 % of its radius along x: its contacts close one side first, the
+    centroids leave the affine motion and det F departs from the cell's det F0 (rho from
+    rho_imposed), so a stress over V0 det F0 would not agree."""
+    cubic = simple_cubic_packing()
+    centres = np.array(cubic.centres)
+    centres[0, 0] += 0.01 * cubic.radii[0]
+    packing = Packing(cell=cubic.cell, centres=centres, radii=cubic.radii)
+    control = StressControl(duration=4e-4, stress_driven=np.eye(3, dtype=bool), rate=50.0, band=0.5,
+                            target=lambda t: 2.0 * min(t / 2e-4, 1.0) * np.eye(3), measure="volume")
+    seen = {}
+    servo_update = control.update
+
+    def recording_update(t, sigma):
+        seen[t] = np.array(sigma)
+        servo_update(t, sigma)
+
+    control.update = recording_update
+    case = small_case(tmp_path, bc="CLP", control=control, packing=packing, duration=4e-4,
+                      material=replace(LEAD, sigma_0=1e4), increments=400, outputs=4)
+    h = run_compaction(case, MPI.COMM_SELF, log=quiet).history
+    assert h.column("sigma_vol_11")[-1] > 1.0  # the servo compressed the cell
+    assert np.abs(h.column("rho") / h.column("rho_imposed") - 1).max() > 1e-4  # det F != det F0
+    for k, t in enumerate(h.column("time")):
+        reported = np.array([[h.column(f"sigma_vol_{i}{j}")[k] for j in (1, 2, 3)] for i in (1, 2, 3)])
+        np.testing.assert_allclose(seen[t], reported, rtol=1e-12, atol=1e-12 * abs(reported).max())
 
 
 def test_strain_path_replayed_under_stress_control(tmp_path):

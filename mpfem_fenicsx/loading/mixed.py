@@ -5,7 +5,9 @@ Each component of the macroscopic state is either strain-driven (a prescribed ve
 L_ij, 1/s) or stress-driven (a prescribed Cauchy stress sigma_ij(t), MPa, compression > 0 as in
 the histories). The stress-driven components of L are set by a servo on the measured stress (the
 auxiliary nodes' reactions, Schmidt's eq. 2.19, or the volume average of the particles' stress,
-eq. C.7: ``measure``), like the periodic-cell controllers of DEM codes:
+eq. C.7, over the VEP's volume V0 det F, F the centroids' least-squares gradient: ``measure``; the
+history's ``sigma_schmidt_*`` and ``sigma_vol_*`` columns report the same two measures), like the
+periodic-cell controllers of DEM codes:
 
     e_ij = target_ij - sigma_ij                                            (compression > 0)
     L_ij = -rate * clip((e_ij + (1 / integral_time) int e_ij dt) / band, -1, 1)

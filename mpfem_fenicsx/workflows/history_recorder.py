@@ -171,13 +171,21 @@ class HistoryRecorder:
         """Cauchy stress (MPa, tension > 0) of the auxiliary nodes' reactions (eq. 2.14, 2.19)."""
         return piola_to_cauchy(self.model.bcs.macroscopic_force(reaction) / self.cell_volume0, F0)
 
+    def volume_stress(self, F: np.ndarray) -> np.ndarray:
+        """The volume-averaged Cauchy stress (MPa, tension > 0) of eq. C.7, (1/V) sum int sigma dv
+        over the volume's particles, V = V0 det F the volume of the VEP (eq. 2.4): ``F`` the
+        least-squares gradient of the centroids, the volume of rho and of the Love-Weber stress."""
+        return self.volume_stress_integral() / (np.linalg.det(F) * self.cell_volume0)
+
     def measured_stress(self, solver, measure: str) -> np.ndarray:
-        """The Cauchy stress (MPa, tension > 0) a stress servo reads: "schmidt" (the auxiliary
-        nodes' reactions, eq. 2.19) or "volume" (the volume average over the cell, eq. C.7)."""
-        F0 = self.model.path(solver.t)
+        """The Cauchy stress (MPa, tension > 0) a stress servo reads, the one the history reports
+        for the same state: "schmidt" (the auxiliary nodes' reactions, eq. 2.19, the
+        ``sigma_schmidt_*`` columns) or "volume" (:meth:`volume_stress`, the ``sigma_vol_*``
+        columns; it measures the centroids for F)."""
         if measure == "schmidt":
-            return self.schmidt_stress(solver.macroscopic_reaction, F0)
-        return self.volume_stress_integral() / (np.linalg.det(F0) * self.cell_volume0)
+            return self.schmidt_stress(solver.macroscopic_reaction, self.model.path(solver.t))
+        F, _ = least_squares_gradient(self.X0, self.centroids()[: self.n])
+        return self.volume_stress(F)
 
     def _kinematics(self, x: np.ndarray, F0: np.ndarray) -> tuple[dict, np.ndarray]:
         n = self.n
@@ -231,7 +239,7 @@ class HistoryRecorder:
         row, F = self._kinematics(x, F0)
         contacts, sigma_lw = self._contacts(x, F, F0)
         # third measure, from the particles' stress field: (1/V) sum int sigma dv (eq. C.7)
-        sigma_vol = self.volume_stress_integral() / (np.linalg.det(F) * self.cell_volume0)
+        sigma_vol = self.volume_stress(F)
         sigma_s = np.full((3, 3), np.nan)
         if self.periodic:  # Schmidt: reactions conjugate to F0 (auxiliary nodes), eq. 2.14
             sigma_s = self.schmidt_stress(solver.macroscopic_reaction, F0)
