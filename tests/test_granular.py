@@ -439,7 +439,7 @@ def test_implicit_drag_work_is_small_at_the_default_steps(tmp_path):
     assert h.column("E_damp")[-1] < 0.05 * h.column("E_p")[-1]
 
 
-def test_start_overlap_of_a_coarse_volume_exact_particle_is_refused(tmp_path):
+def test_start_overlap_of_coarse_volume_exact_particle_refused(tmp_path):
     """A volume-exact particle's nodes lie outside its sphere (x1.0406 at 3 divisions): beyond the
     radius reduction, touching neighbours would start interpenetrating (a GDF die run on such a mesh
     diverged at step ~150 of 3000; a 24-particle die volume at 4 divisions released 0.086 mJ of

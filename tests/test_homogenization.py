@@ -341,7 +341,7 @@ def test_counting_rules_clp_shells():
     assert np.allclose(sigma, -f / a ** 2 * np.eye(3))
 
 
-def test_coordination_counts_weighted_contacts_per_volume_particle():
+def test_coordination_counts_weighted_contacts_per_particle():
     """3 particles; bodies 3, 4 are copies of 0 and 2. Contacts: 0-1, 1-2, 1-3 (periodic 1-0),
     2-4 (2 with its own image) and a half-weighted pair of realizations 0-2 / 3-4."""
     original = np.array([0, 1, 2, 0, 2])

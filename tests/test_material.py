@@ -28,7 +28,7 @@ def test_eigen_solver_handles_repeated_eigenvalues():
         assert np.allclose(Q.T @ Q, np.eye(3), atol=1e-13)
 
 
-def test_eigen_solver_keeps_the_deviator_of_near_identity_tensors():
+def test_eigen_solver_keeps_deviator_of_near_identity_tensors():
     """b_e near 1 (small elastic strains) with two principal values equal or nearly so, as under
     die loading: the deviatoric part of ln(b_e) / 2, which sets the stress, must come out to
     round-off of its own size, not of b_e's (LAPACK's eigh as the reference)."""
@@ -95,7 +95,7 @@ def _largest_relative_gap(a, b):
     return max(np.abs(a[k] - b[k]).max() / max(np.abs(b[k]).max(), 1e-300) for k in a)
 
 
-def test_series_update_equals_the_eigen_update_along_plastic_flow():
+def test_series_update_equals_eigen_update_along_plastic_flow():
     """Two realizations of the same return mapping: the series path (1/2 ln b_e by artanh, exp by
     Taylor, tensor form) against principal axes (closed-form eigen-decomposition), after plastic
     history, on elastic and plastic trial states, within round-off of the outputs."""
@@ -206,7 +206,7 @@ def test_power_law_first_yield_is_robust():
     assert np.all(m.eps_p_trial > 0)
 
 
-def test_assembled_jacobian_matches_residual_on_distorted_hexahedra():
+def test_jacobian_matches_residual_on_distorted_hexahedra():
     """Consistent Jacobian of the SRI forms on curved (non-affine) cube-sphere cells."""
 
     a = particle_mesh([[0, 0, 0]], [1.0], MPI.COMM_SELF)
@@ -246,7 +246,7 @@ def _mesh_of_kind(kind):
 
 
 @pytest.mark.parametrize("kind", ["cube-sphere Q1", "tetrahedra P2"])
-def test_deformation_gradient_kernel_matches_the_compiled_expression(kind):
+def test_deformation_gradient_kernel_matches_compiled_expression(kind):
     """The threaded F kernel (forms.kinematics) reproduces FFCx's Expression of I + Grad u on
     curved hexahedra and on P2 tetrahedra, for a random displacement and a subset of cells, and
     the problem uses it (the residual packing is handed the kernel's P_dev directly as well)."""
@@ -310,7 +310,7 @@ def test_deviatoric_force_loop_equals_the_compiled_form(kind, subset):
 
 @pytest.mark.parametrize("kind", ["cube-sphere Q1", "tetrahedra P2"])
 @pytest.mark.parametrize("subset", [False, True], ids=["all cells", "a third of the cells"])
-def test_volumetric_and_bulk_viscosity_loops_equal_the_compiled_forms(kind, subset):
+def test_volumetric_and_viscosity_loops_equal_compiled_forms(kind, subset):
     """The residual's volumetric part and the explicit solver's bulk-viscosity force by the numba
     loops at the volumetric points (forms.kinematics.VolumetricForces) and by FFCx's compiled
     forms, at a random displacement and a random velocity whose volumetric rates, of both signs,
@@ -338,7 +338,7 @@ def test_volumetric_and_bulk_viscosity_loops_equal_the_compiled_forms(kind, subs
     assert np.abs(ours - reference).max() <= 1e-12 * np.abs(reference).max()
 
 
-def test_cell_stress_integrals_are_the_stress_the_internal_forces_carry():
+def test_cell_stress_integrals_match_the_internal_forces():
     """``SolidProblem.cell_stress_integrals`` (int sigma dv per cell, the volume-averaged stress of
     thesis eq. C.7) against two independent measures: the analytic Hencky stress of a homogeneous
     stretch times the deformed volume, and, for a non-homogeneous plastic state, the first moment

@@ -397,7 +397,7 @@ def test_force_rupture_analysis(tmp_path):
 
 
 @pytest.mark.heavy
-def test_force_controlled_rupture_where_the_strain_driven_tangent_falls_below_the_servo(tmp_path):
+def test_force_rupture_where_strain_tangent_falls_below_servo(tmp_path):
     """Two realizations of one limit load: the adhesive simple cubic cell (gamma = 1e-2 mJ/mm^2),
     consolidated to 2 MPa and unloaded to 0.2 MPa, pulled along z with the lateral stresses held at
     0.2 MPa, (a) under force control (sigma_33 driven at 6.2 MPa/ms towards -6 MPa) and (b)

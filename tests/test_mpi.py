@@ -68,7 +68,7 @@ if MPI.COMM_WORLD.rank == 0:
 
 
 @pytest.mark.mpi
-def test_two_ranks_reproduce_serial_with_the_consistent_constraint_mass(root, tmp_path):
+def test_two_ranks_match_serial_with_consistent_constraint_mass(root, tmp_path):
     """The explicit solver's consistent reduced mass P^T M P (its Woodbury solve with a distributed
     Cholesky factorization under MPI) on the CLPS simple cubic cell: the 2-rank history equals the
     serial one (measured 2026-11-28: within 6e-14 relative on W_ext, 3e-11 on E_c). At 100

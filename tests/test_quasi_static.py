@@ -80,7 +80,7 @@ def balance(carrier_share, unbalanced_end, rows=10):
                 E_damp=zero, unbalanced=unbalanced)
 
 
-def test_quasi_static_check_reads_the_carrier_and_the_balance_at_rest():
+def test_quasi_static_check_reads_carrier_and_balance_at_rest():
     """The check's two measures, on synthetic energy balances: a run passes with neither, fails
     with work through the carrier (damped CLPS: 31 %) or with a volume out of balance at rest
     (undamped CLPS: 3 % through the carrier but 0.18 out of balance at the end), and a path that

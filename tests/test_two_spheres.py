@@ -53,7 +53,7 @@ def test_newton_converges_quadratically_on_the_faceted_pair(elastic_pair):
         assert factors[-1] < 1e-2 and (norms[1:] / norms[:-1]).min() < 1e-3, factors
 
 
-def test_plastic_adhesive_pair_unloads_through_peeling_to_separation(tmp_path):
+def test_plastic_adhesive_pair_unloads_by_peeling_to_separation(tmp_path):
     """Table 3.2 steel, sigma_c = sigma_y, gamma = 1e-3, alpha forced to 1: load to 0.006 r, then
     separate. On this CI mesh (contact hexahedra 0.025 mm) the adhesive softening is steeper than
     a surface node (h > E* / slope = 0.005 mm): every rim node snaps off, where Newton used to

@@ -193,7 +193,7 @@ def test_size_effect_gap_is_read_against_clp_on_the_same_packing():
     assert gap_status() == "not met"
 
 
-def test_size_effect_must_exceed_the_spread_of_the_50_particle_packings():
+def test_size_effect_must_exceed_spread_of_50_particle_packings():
     """With a second 50-particle packing a quantity "falls with N" only if the 150-particle value
     is below both packings' values: a 150-particle gap to CLP between the two 50-particle gaps is
     not a fall; the sigma_d that falls below both is."""
@@ -386,7 +386,7 @@ def test_reload_study_reads_how_far_the_surfaces_move():
     assert "2.4 vs 2 (+20 %)" in line and line.endswith("yield moves by up to 20 %; w2 not compared |")
 
 
-def test_open_die_yield_surface_read_on_the_same_rate_fan_that_closes_it():
+def test_open_die_surface_read_on_same_rate_fan_that_closes_it():
     """The die trends fall back from the thesis fan's open yield surface to the fan sharing its
     loading that reloads further at the same strain rate and profile, never to one at another
     rate or profile."""
@@ -481,7 +481,7 @@ def test_fan_wall_time_adds_the_killed_processes(tmp_path):
     assert 100.0 <= run.FanClock(tmp_path).total() < 101.0
 
 
-def test_parallel_runs_spawn_one_single_threaded_process_per_case(tmp_path, monkeypatch):
+def test_parallel_runs_spawn_one_single_thread_process_per_case(tmp_path, monkeypatch):
     """`run.py --jobs N`: every case not done runs as its own process of run.py (one numba thread,
     its log in runs/<case>/log.txt); a done case is skipped; a failed one is reported."""
     import run

@@ -113,7 +113,7 @@ def test_fan_outputs_and_closed_yield_surface(fan):
     assert reload["strain_rate_per_s"] * reload["duration_s"] == pytest.approx(case.amplitude_factor * u.h_v_unload)
 
 
-def test_unload_keeps_the_adhesive_contact_surface_and_opens_its_closed_part(fan):
+def test_unload_keeps_adhesive_surface_and_opens_its_closed_part(fan):
     """Gamma counts every loaded contact point, the adhesive ones in tension too; Gamma_closed
     only the compressive (closed) ones. Unloading the adhesive compact leaves its contacts held
     (Gamma nearly unchanged) while their compressive part shrinks, as the thesis' S does during
@@ -130,7 +130,7 @@ def test_unload_keeps_the_adhesive_contact_surface_and_opens_its_closed_part(fan
     assert closed[-1] < 0.9 * closed[0]
 
 
-def test_reload_restarted_with_contact_history_equals_uninterrupted_run(fan, tmp_path):
+def test_restarted_reload_with_contact_history_is_uninterrupted(fan, tmp_path):
     """The fan's reload (load -> checkpoint -> unload -> checkpoint -> restart on a reused model)
     steps exactly as one uninterrupted run of the same path: identical history rows."""
     from mpi4py import MPI
@@ -399,7 +399,7 @@ def test_settle_cut_backs_shorten_the_pseudo_time_step(fan, tmp_path, monkeypatc
     assert abs(settled.sigma_m_unloaded) < abs(u.sigma_m_unloaded)
 
 
-def test_implicit_fan_resumed_from_an_explicit_unload_settles_it_once(fan, tmp_path):
+def test_implicit_fan_resumed_from_explicit_unload_settles_once(fan, tmp_path):
     """An implicit fan sharing an explicit fan's load and unload (validation: same path, other
     reloads) first settles that unload by Newton, then reloads from the settled state; the mark
     survives in its unloaded.json. The reloads are taken as finished (the explicit ones copied,
