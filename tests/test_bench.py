@@ -23,10 +23,9 @@ def test_compaction_benchmark_prints_consistent_phases():
     assert abs(d["s_per_step"] * d["steps"] - d["wall_s"]) <= 1e-3 * d["wall_s"] + 1e-3
     phases = d["phases_s"]
     for name in ("material", "assembly", "contact_search", "contact_forces", "constraints", "update"):
-        assert phases[name] >= 0.0, name
+        assert phases[name] > 0.0, name  # every phase ran (was timed) in the measured steps
     # the timed phases cover the step (nothing large is left untimed) and do not overlap
     assert 0.6 * d["wall_s"] <= sum(phases.values()) <= 1.02 * d["wall_s"] + 1e-3
-    assert phases["material"] > 0 and phases["assembly"] > 0
     assert 0.5 < d["rho"] < 1.0 and d["peak_rss_mb_max"] > 0
 
 

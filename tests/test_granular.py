@@ -90,8 +90,9 @@ def test_constraints_hold_after_compaction(tmp_path, bc):
     # the volume was compacted through compressive contacts: they flattened the particles
     # plastically (a fast, 100-increment run: the contacts may be open at the few outputs)
     h = res.history
-    assert h.column("rho_imposed")[-1] == pytest.approx(0.56, rel=1e-6)
-    assert h.column("rho")[-1] > 0.95 * 0.56
+    # the particles followed the boundary: the centroids' density (V0 det F) meets the target the
+    # boundary imposed (V0 det F0) (measured: within 1.4e-4, CLPS; 1e-5 GDH / GDF; 1e-15 CLP)
+    assert h.column("rho")[-1] == pytest.approx(0.56, rel=1e-3)
     assert h.column("E_p")[-1] > 1e-3  # mJ
     # E_p counts the volume's particles (issue 22 item 6): CLP copies are stiffless shells, the
     # GDH / GDF / CLPS copies are solid and deform outside the volume (E_p_model counts them)
@@ -356,7 +357,8 @@ def test_random_volume_copies_images_and_three_stresses(tmp_path):
         histories.append(run_compaction(case, MPI.COMM_SELF, log=quiet).history)
     copies, images = histories
     loaded = images.column("sigma_m") > 1.0
-    assert loaded.sum() > 10 and images.column("rho_imposed")[-1] == pytest.approx(0.9)
+    assert loaded.sum() > 10
+    assert np.abs(copies.column("rho") / images.column("rho") - 1).max() < 1e-6  # centroids' rho
     assert np.abs(copies.column("sigma_m")[loaded] / images.column("sigma_m")[loaded] - 1).max() < 0.01
     assert np.array_equal(copies.column("n_contacts"), images.column("n_contacts"))
     for h in histories:
