@@ -1,7 +1,7 @@
 """The particles' contact surface, replicated on every rank.
 
 Every rank holds the whole surface (nodes, facets, particle of each facet): surfaces are small
-next to volumes (98 of the 517 nodes of a default particle), and a replicated master surface
+next to volumes (218 of the 561 nodes of a default particle), and a replicated master surface
 makes the search independent of the partition. Each rank *treats as slave* only the surface
 nodes it owns, so every contact point is computed exactly once, and results do not depend on
 the number of ranks beyond round-off.

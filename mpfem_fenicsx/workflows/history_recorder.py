@@ -5,8 +5,10 @@ compaction); strains keep their sign (h_v < 0 in compaction). Units mm, N, MPa, 
 History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C):
 - time (s); rho = V_p / (V0 det F) (eq. 2.4-2.5: V_p = 4/3 pi sum r^3 of the particles' initial,
   meshed radii; F the least-squares gradient of the VEP centroids, eq. 2.2, C.3-C.6);
-  rho_imposed (same with F0, the auxiliary-node gradient); rho_fe (finite-element particle
-  volumes / V0 det F: the faceted mesh holds less solid than the spheres, 6.5 % at 517 nodes);
+  rho_imposed (same with F0, the auxiliary-node gradient); rho_fe (the finite-element particle
+  volumes / V0 det F: rho at the start for volume-exact particles, the default; less with
+  ``exact_volume = false``, whose faceted particles hold less solid than their spheres; it
+  follows the particles' elastic volume change);
 - h_v, h_d, h_tilde_d: Hencky strain invariants of F (eq. 2.3, 2.8-2.9, 4.3-4.4; natural sign,
   h_v < 0 in compaction; Rendulic axis I = z, the die axis); nonaffine: rms distance of the
   volume's centroids from the fitted affine motion F X + c, over the mean radius (-);
