@@ -1,4 +1,4 @@
-"""bench/compaction.py (issue 8): the documented command prints one consistent JSON object, and
+"""bench/compaction.py: the documented command prints one consistent JSON object, and
 bad input exits 2 naming the option (the figures themselves live in bench/README.md)."""
 
 import json

@@ -66,7 +66,7 @@ def test_adhesive_peak_must_open_before_delta_max():
 
 @pytest.mark.parametrize("theta", [0.05, 0.3])
 def test_stored_tangential_traction_rotates_with_contact_frame(theta):
-    """Issue 22 item 8: a sticking point whose normal turns by theta (the contact rolls) keeps its
+    """A sticking point whose normal turns by theta (the contact rolls) keeps its
     tangential traction's magnitude: the stored traction is rotated into the new tangent plane, not
     projected on it (which shrank it by cos theta and released stored shear without any slip)."""
     law = ContactLaw(penalty=1e9, friction=0.1)  # T1 = 100 MPa: stick below 10 MPa

@@ -1,4 +1,4 @@
-"""SPEC §9 case 3 / thesis §3.4.1: the adhesive and frictional contact law on a flat contact."""
+"""Thesis §3.4.1: the adhesive and frictional contact law on a flat contact."""
 
 import sys
 from pathlib import Path

@@ -1,4 +1,4 @@
-"""Granular volumes (issue 4): GDH / GDF / CLPS / CLP constraints, rigid motions, CLP by copies
+"""Granular volumes: GDH / GDF / CLPS / CLP constraints, rigid motions, CLP by copies
 vs CLP by periodic images, on small simple-cubic cells (8 equal spheres, thesis §2.6)."""
 
 
@@ -94,7 +94,7 @@ def test_constraints_hold_after_compaction(tmp_path, bc):
     # boundary imposed (V0 det F0) (measured: within 1.4e-4, CLPS; 1e-5 GDH / GDF; 1e-15 CLP)
     assert h.column("rho")[-1] == pytest.approx(0.56, rel=1e-3)
     assert h.column("E_p")[-1] > 1e-3  # mJ
-    # E_p counts the volume's particles (issue 22 item 6): CLP copies are stiffless shells, the
+    # E_p counts the volume's particles: CLP copies are stiffless shells, the
     # GDH / GDF / CLPS copies are solid and deform outside the volume (E_p_model counts them)
     copies_work = h.column("E_p_model")[-1] - h.column("E_p")[-1]
     if bc == "CLP":
@@ -277,11 +277,11 @@ def test_clp_by_copies_equals_clp_by_images(tmp_path, lattice):
 
 @pytest.mark.parametrize("images", [False, True])
 def test_schmidt_stress_sees_only_the_boundary_forces(tmp_path, images):
-    """Issue 22 item 2: the Schmidt stress is the auxiliary nodes' reaction (thesis eq. 2.14,
+    """The Schmidt stress is the auxiliary nodes' reaction (thesis eq. 2.14,
     2.19), the forces that cross the cell boundary -- not every row of the constraint matrix. One
     particle of the simple cubic cell pushed into its neighbour inside the volume (F0 = I, a state
     out of equilibrium) loads one internal contact and nothing across the faces: Schmidt is zero,
-    Love-Weber is not. Summed over the comoving carriers too (the code before this issue), R was
+    Love-Weber is not. Summed over the comoving carriers too (an earlier version), R was
     f (x) (X_0 - X_4) whatever the state, an algebraic copy of Love-Weber. The volume average of
     the particles' stress (eq. C.7) is zero too: the three measures agree only in equilibrium."""
     from mpfem_fenicsx.homogenization import love_weber_stress
@@ -310,7 +310,7 @@ def test_schmidt_stress_sees_only_the_boundary_forces(tmp_path, images):
 
 @pytest.mark.parametrize("bc", ["CLP", "CLPS"])
 def test_static_anchor_moves_with_its_particle(tmp_path, bc):
-    """Issue 22 item 5: the node a static solver anchors against the free translation follows its
+    """The node a static solver anchors against the free translation follows its
     particle's carrier H (X_c - L/2) like the particle's free nodes. In the carried state (every
     relative motion w = 0) each particle translates rigidly: no internal force anywhere. (Held at
     u = 0, the anchor stretched its particle by H (X_c - L/2) at every step and the implicit
@@ -338,7 +338,7 @@ def test_static_anchor_moves_with_its_particle(tmp_path, bc):
 
 @pytest.mark.heavy  # ~11 min on 2 cores: pytest -m heavy
 def test_random_volume_copies_images_and_three_stresses(tmp_path):
-    """Issue 22 items 1 and 3 on a random packing (not only the symmetric cells): 24 jammed
+    """Copies vs images and the three stresses on a random packing (not only the symmetric cells): 24 jammed
     particles (seed 2; the flagship is seed 1) compacted to rho 0.9 then held at rest, once by
     tied copies and once by periodic images. The two realizations give the same curve (sigma_m within 1 % in every row
     past 1 MPa) and the same force-carrying contacts; near rest the volume average of the
@@ -391,7 +391,7 @@ def coupling_rotations(model) -> np.ndarray:
 
 @pytest.mark.parametrize("equal_rotations", [True, False])
 def test_clps_copies_turn_with_their_originals(tmp_path, equal_rotations):
-    """Issue 22 item 7, thesis eq. 2.16: the reference point of a CLPS copy turns with its
+    """Thesis eq. 2.16: the reference point of a CLPS copy turns with its
     original's. Any motion the constraints allow (random relative motions w, sheared cell) is
     checked with the polar rotation of each coupling's best affine fit: copy and original agree to
     second order in the strain (the rows equate the linearized rotations; halving the motion
@@ -432,7 +432,7 @@ def test_clps_copies_turn_with_their_originals(tmp_path, equal_rotations):
 
 @pytest.mark.heavy  # ~5 min: pytest -m heavy
 def test_implicit_drag_work_is_small_at_the_default_steps(tmp_path):
-    """Issue 22 item 5: the implicit pseudo-time drag that holds particles before contact does
+    """The implicit pseudo-time drag that holds particles before contact does
     work k |dw|^2 per step, i.e. ~1 / steps of the path (measured on this cell: E_damp / E_p = 0.31
     at 10 steps, 0.157 at 20). At the default 100 steps it stays below 5 % of the plastic work."""
     h = run_compaction(small_case(tmp_path, bc="CLP", solver="implicit"), MPI.COMM_SELF, log=quiet).history

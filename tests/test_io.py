@@ -23,7 +23,7 @@ def test_history_round_trip_with_undefined_values(tmp_path):
 
 
 def test_off_screen_render_prints_no_x_server_warning(tmp_path, python):
-    """Every off-screen picture printed VTK's "bad X server connection" warning (issue 25)."""
+    """Every off-screen picture printed VTK's "bad X server connection" warning."""
     import subprocess
 
     script = ("import mpfem_fenicsx, pyvista\n"

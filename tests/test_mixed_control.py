@@ -1,4 +1,4 @@
-"""Mixed strain / stress control through the auxiliary nodes (issue 24): the servo of
+"""Mixed strain / stress control through the auxiliary nodes: the servo of
 loading.mixed.StressControl on the simple cubic cell in the elastic range."""
 
 from dataclasses import replace
@@ -122,7 +122,7 @@ def test_pi_servo_does_not_overshoot_the_end_of_a_ramp():
 
 
 def test_consolidation_then_triaxial_on_the_simple_cubic_cell(tmp_path):
-    """Acceptance 1 of issue 24 and a CI-sized triaxial path: the 8 touching spheres of the simple
+    """Consolidation under stress control and a CI-sized triaxial path: the 8 touching spheres of the simple
     cubic cell (elastic: sigma_0 = 10 GPa). Isotropic consolidation, the three normal stresses
     servo-controlled on the Schmidt stress to p0 = 2 MPa (ramp, then hold to rest): at the end of
     the hold the Schmidt stress meets p0 within 1 %, and so does the volume average of the
@@ -186,7 +186,7 @@ def test_servo_reads_the_reported_volume_stress(tmp_path):
 
 
 def test_strain_path_replayed_under_stress_control(tmp_path):
-    """Acceptance 3 of issue 24: a die compaction (strain-driven, elastic simple cubic cell, then
+    """A die compaction (strain-driven, elastic simple cubic cell, then
     held at rest), then the same cell driven by the three normal Schmidt stresses that compaction
     produced (PI servo). Along the path the replay passes through the strain-driven states (its
     strains at the stress it reached are the strain-driven ones at that stress), and at rest at

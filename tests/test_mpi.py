@@ -1,4 +1,4 @@
-"""SPEC §9 case 8: ``mpirun -n 2`` reproduces the serial results (bulk and contact)."""
+"""``mpirun -n 2`` reproduces the serial results (bulk and contact)."""
 
 import subprocess
 import sys

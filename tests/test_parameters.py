@@ -1,4 +1,4 @@
-"""Parameters defined once (issue 25): every dataclass that declares its fields with
+"""Parameters defined once: every dataclass that declares its fields with
 ``parameter()`` refuses a value just outside each declared bound, with one line naming the
 field, and accepts its defaults."""
 

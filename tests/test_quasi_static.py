@@ -1,4 +1,4 @@
-"""Quasi-static explicit compaction (issue 21): the particle meshes hold their spheres' volume in
+"""Quasi-static explicit compaction: the particle meshes hold their spheres' volume in
 every row, and the default explicit settings end a compaction in equilibrium without an
 end-of-load hook, on a CI-sized random volume.
 

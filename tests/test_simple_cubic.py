@@ -1,4 +1,4 @@
-"""Simple cubic cell (thesis §2.6, issue 5): the homogenization of a whole compaction run checked
+"""Simple cubic cell (thesis §2.6): the homogenization of a whole compaction run checked
 against the exact answers of an ordered packing, isotropic and die loading to rho = 0.95."""
 
 

@@ -43,7 +43,7 @@ def test_implicit_and_explicit_reaction_forces_agree(squeezed):
 
 
 def test_reduced_integration_does_not_lock(squeezed, tmp_path):
-    """Issue 22 item 9: a locked element also keeps its volume, and the force of the tests above
+    """A locked element also keeps its volume, and the force of the tests above
     is only bounded below. Against P2 tetrahedra (quadratic: no locking, a second discretization;
     measured 52.43 / 52.15 N at 30 % with tet_size 0.3 / 0.2 mm, i.e. converged), the SRI hexahedra
     stay below (37.4 N here, 45.1 N once refined: they approach from below, the coarse cap holding

@@ -1,4 +1,4 @@
-"""SPEC §9 case 1: homogeneous uniaxial tension to log strain 0.5 with the lead parameters."""
+"""Homogeneous uniaxial tension to log strain 0.5 with the lead parameters."""
 
 import numpy as np
 import pytest

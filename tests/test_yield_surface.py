@@ -282,7 +282,7 @@ def replace_out(case, out):
 def test_implicit_restart_reproduces_the_uninterrupted_run(tmp_path):
     """Implicit compaction of 8 touching spheres (CLP, adhesive): restarted from a checkpoint, the
     adaptive Newton path (step sizes, cut-backs) and every history value are the uninterrupted
-    run's (SPEC §8: 1e-8 relative; the refreshed tangent at each converged state makes it exact)."""
+    run's (1e-8 relative asked; the refreshed tangent at each converged state makes it exact)."""
     from mpi4py import MPI
 
     from mpfem_fenicsx.meshes.packing import Packing

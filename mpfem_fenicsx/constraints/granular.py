@@ -110,7 +110,8 @@ class GranularBoundaryConditions:
         coupling_radius: reach of the distributing coupling as a fraction of r (thesis: 0.5).
         images: a ContactModel whose periodic images follow the deformed cell, shifts
             F0 (L o s) for the 26 neighbours s (CLP realized by contact with periodic images,
-            SPEC §5; then no copies are needed and only the rigid translation is fixed).
+            beyond the thesis; then no copies are needed and only the rigid translation is
+            fixed).
         anchor: CLP/CLPS only: hold one node against the free rigid translation (needed by a
             static solver; an explicit run conserves momentum and needs none).
         comoving: carry every particle with the homogeneous flow at its centre, H (X_c - L/2)

@@ -1,4 +1,4 @@
-"""Guards of Newton's iterations on the adhesive contact law (thesis §3.3, SPEC §4).
+"""Guards of Newton's iterations on the adhesive contact law (thesis §3.3).
 
 The adhesive law has a fold (softening steeper than a surface node's stiffness) and a kink at
 gap = 0 for a virgin point: on a soft substrate Newton's iterates cycle between adhered and

@@ -287,7 +287,7 @@ class ContactModel:
         """Start (or restart after a cut-back) an increment from the committed state.
 
         An adhesive point that an iterate pulls beyond delta_max loses its memory for the rest of
-        the increment, as the law's erasure is irreversible (SPEC §4). Without this, a node
+        the increment, as the law's erasure is irreversible (alpha reset to 0). Without this, a node
         peeling off a soft substrate re-adheres at the next iterate (the reversible trial law
         sees the committed memory again) and Newton cycles between adhered and separated: when
         the softening slope sigma_c / (delta_max - delta_1) exceeds a surface node's stiffness the

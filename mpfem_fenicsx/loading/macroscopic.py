@@ -1,4 +1,4 @@
-"""Macroscopic loading paths F0(t) of a granular volume (thesis §2.5 and §4.2, SPEC §5).
+"""Macroscopic loading paths F0(t) of a granular volume (thesis §2.5 and §4.2).
 
 Compaction keeps the solid volume (plastic flow is isochoric, elastic change is small), so a
 target relative density rho_f reached from rho_0 needs det F0 = rho_0 / rho_f:

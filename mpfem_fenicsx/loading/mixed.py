@@ -1,5 +1,5 @@
 """Mixed strain / stress control of a periodic volume through its auxiliary nodes (beyond the
-thesis: its perspectives 4-5; issue 24).
+thesis: its perspectives 4-5).
 
 Each component of the macroscopic state is either strain-driven (a prescribed velocity gradient
 L_ij, 1/s) or stress-driven (a prescribed Cauchy stress sigma_ij(t), MPa, compression > 0 as in

@@ -1,4 +1,4 @@
-"""Stress-controlled paths and their servo, declared once (issue 24 paths, issue 25 parameters).
+"""Stress-controlled paths and their servo, declared once (the paths and their parameters).
 
 :class:`ServoSettings` (the PI servo of :class:`~.mixed.StressControl`) and :class:`StressPath`
 (a named path: pressure, triaxial, cycle, lode) declare every field with
@@ -56,7 +56,7 @@ class ServoSettings:
 
 @dataclass
 class StressPath(ServoSettings):
-    """A named stress-controlled path (beyond the thesis, issue 24), every one starting with an
+    """A named stress-controlled path (beyond the thesis), every one starting with an
     isotropic consolidation to ``pressure`` over ``ramp``, held ``hold``:
 
     - pressure: nothing more;

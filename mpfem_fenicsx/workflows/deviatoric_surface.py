@@ -1,4 +1,4 @@
-"""Yield surface in the deviatoric plane by stress-controlled probes (issue 24; beyond the
+"""Yield surface in the deviatoric plane by stress-controlled probes (beyond the
 thesis, whose chapter-4 fans are strain-driven reloads in the (sigma_m, sigma~_d) plane).
 
 Stages (data flow: consolidation -> unload -> checkpoint -> fan of Lode-angle probes -> surface):

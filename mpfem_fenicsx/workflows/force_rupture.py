@@ -1,4 +1,4 @@
-"""Force-controlled rupture of a periodic volume (issue 24; the thesis' perspective 4: rupture
+"""Force-controlled rupture of a periodic volume (the thesis' perspective 4: rupture
 "en pilotage en force", detected by the growth of the kinetic energy).
 
 Stages (data flow: consolidation -> unload -> checkpoint -> stress probe -> rupture points):

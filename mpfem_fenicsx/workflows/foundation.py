@@ -38,7 +38,7 @@ def _log_mass_scaling(solver, log) -> None:
 
 @dataclass(frozen=True)
 class UniaxialCase:
-    """Homogeneous uniaxial tension of a 1 mm cube (SPEC §9 case 1), checked on construction
+    """Homogeneous uniaxial tension of a 1 mm cube (a verification case), checked on construction
     (ValueError naming the field)."""
 
     solver: str = parameter("implicit", "implicit (Newton, adaptive steps) or explicit (central differences, mass "

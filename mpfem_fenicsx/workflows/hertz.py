@@ -1,4 +1,4 @@
-"""Hertz contact of two identical elastic spheres (SPEC §9 case 2), frictionless.
+"""Hertz contact of two identical elastic spheres, frictionless (a verification case).
 
 Spheres of radius r centred at (0, 0, -r) and (0, 0, r), touching at the origin; P1 tetrahedra
 from gmsh, refined around the contact point. Each sphere is driven by a small rigid core (the
@@ -7,7 +7,7 @@ the centres. Reference: F = 4/3 E* sqrt(R) delta^(3/2), E* = E / (2 (1 - nu^2)),
 
 ``HertzCase(solver="explicit")`` runs the same case with central differences (mass scaling to
 ``explicit_increments`` increments, smooth-step approach): slow enough, it should reproduce the
-implicit force-approach curve (issue 3 acceptance, checked by ``demos/hertz.py --solver explicit``,
+implicit force-approach curve (checked by ``demos/hertz.py --solver explicit``,
 too long for CI; measured in ``bench/README.md``, "Single contacts").
 """
 

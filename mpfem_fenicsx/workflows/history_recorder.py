@@ -2,7 +2,7 @@
 and appendix C). Sign convention: reported stresses are positive in compression (sigma_m > 0 in
 compaction); strains keep their sign (h_v < 0 in compaction). Units mm, N, MPa, s, mJ.
 
-History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C):
+History columns (one row per output; thesis §2.3, §4.2, appendix C):
 - time (s); rho = V_p / (V0 det F) (eq. 2.4-2.5: V_p = 4/3 pi sum r^3 of the particles' initial,
   meshed radii; F the least-squares gradient of the VEP centroids, eq. 2.2, C.3-C.6);
   rho_imposed (same with F0, the auxiliary-node gradient); rho_fe (the finite-element particle

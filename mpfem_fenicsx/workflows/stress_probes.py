@@ -1,4 +1,4 @@
-"""Stress-controlled probes from one consolidated state (issue 24): the common first stage of the
+"""Stress-controlled probes from one consolidated state: the common first stage of the
 deviatoric-plane fan (workflows.deviatoric_surface) and of force-controlled rupture
 (workflows.force_rupture).
 

@@ -1,4 +1,4 @@
-"""Two elastoplastic spheres with adhesion (thesis §3.4.2, SPEC §9 case 4) against Mesarovic-Johnson.
+"""Two elastoplastic spheres with adhesion (thesis §3.4.2) against Mesarovic-Johnson.
 
 Identical spheres of radius r (linear-hardening steel, thesis table 3.2) centred at (0, 0, -r)
 and (0, 0, r), frictionless, degree of contact forced to alpha = 1 where contact was made. Two

@@ -1,4 +1,4 @@
-"""Yield, damage and rupture surfaces of a compacted granular volume (thesis chapter 4, SPEC §8).
+"""Yield, damage and rupture surfaces of a compacted granular volume (thesis chapter 4).
 
 Stages (data flow: compaction -> unload -> checkpoint -> fan of reloads -> surfaces):
 1. **load**: the compaction of ``base`` (isotropic or die) to its target density, ending with
