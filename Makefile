@@ -1,7 +1,7 @@
 # Every target bootstraps .venv/ first (Python >= 3.12, DOLFINx 0.11 from PyPI); idempotent.
 PY := .venv/bin/python
 
-.PHONY: bootstrap demo test test-all bench bench-compaction validate clean
+.PHONY: bootstrap demo test test-all lint bench bench-compaction validate clean
 
 bootstrap:
 	@bash scripts/bootstrap.sh
@@ -19,6 +19,9 @@ test: bootstrap  ## the CI suite (serial + mpirun -n 2), heavy cases excluded
 
 test-all: bootstrap  ## also the heavy cases
 	$(PY) -m pytest -m ""
+
+lint: bootstrap  ## ruff: style, imports, docstrings (pyproject.toml [tool.ruff])
+	$(PY) -m ruff check .
 
 # issue-23 validation, e.g. make validate STAGES="die dbc" JOBS=1 (JOBS cases at a time, one core each)
 JOBS ?= 2

@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
+from mpfem_fenicsx.meshes import particle_mesh
 from mpi4py import MPI
 
 from mpfem_fenicsx.contact import ContactLaw, ContactModel
 from mpfem_fenicsx.material import LEAD
-from mpfem_fenicsx.meshes import particle_mesh
 from mpfem_fenicsx.problem import SolidProblem
 
 
@@ -84,7 +84,7 @@ def test_pair_forces_and_centroids():
     pairs = model.pair_forces()
     assert pairs["pairs"].tolist() == [[0, 1], [0, 2]]
     bodies = model.body_forces()
-    for (i, j), f in zip(pairs["pairs"], pairs["force"]):
+    for (i, j), f in zip(pairs["pairs"], pairs["force"], strict=True):
         assert np.allclose(f, bodies[i, j], rtol=1e-10)
     assert np.all(pairs["area"] > 0) and np.all(pairs["points"] > 0)
     assert np.array_equal(pairs["area_closed"], pairs["area"])  # no adhesion: every loaded point compressive
@@ -99,8 +99,9 @@ def test_penetration_is_found_for_a_steep_slave_face():
     100 deg to the base's normal) that are inside the base must be contact points with
     gap = -depth. (A master-facet cut-off at n_m . n_s < -0.2 missed them: they went unseen
     until the penetration was deep, then kicked the die compaction apart.)"""
-    from mpfem_fenicsx.loading import body_dofs
     from mpfem_fenicsx.meshes import box_bodies_mesh
+
+    from mpfem_fenicsx.loading import body_dofs
 
     a = box_bodies_mesh([([-1, -1, -0.5], [1, 1, 0], (8, 8, 1)),  # base, top face z = 0
                          ([0, -0.3, 0], [0.6, 0.3, 0.2], (15, 6, 2))], MPI.COMM_SELF)  # slab, 0.04 mm rows
@@ -121,7 +122,7 @@ def test_penetration_is_found_for_a_steep_slave_face():
     # the steep face's rows at 0.04 mm from the lowest edge are among them
     assert np.any(np.abs(x[inside, 2] + 0.08 - 0.04 * s) < 1e-9)
     pts = model.evaluation.points
-    found = {int(n): g for n, g, m in zip(pts.slave, pts.gap, pts.master_body) if m == 0}
+    found = {int(n): g for n, g, m in zip(pts.slave, pts.gap, pts.master_body, strict=True) if m == 0}
     missing = [int(n) for n in inside if int(n) not in found]
     assert not missing, f"penetrating slab nodes without a contact point: {missing}"
     assert np.allclose([found[int(n)] for n in inside], x[inside, 2], atol=1e-9)

@@ -4,15 +4,18 @@ vs CLP by periodic images, on small simple-cubic cells (8 equal spheres, thesis 
 
 import numpy as np
 import pytest
+from mpfem_fenicsx.meshes import node_particles
+from mpfem_fenicsx.meshes.packing import Packing, simple_cubic_packing
 from mpi4py import MPI
 
 from mpfem_fenicsx.constraints.granular import cubic_weights
-from mpfem_fenicsx.meshes import node_particles
-from mpfem_fenicsx.meshes.packing import Packing, simple_cubic_packing
-from mpfem_fenicsx.workflows.compaction import CompactionCase, build_compaction, damped_bodies, run_compaction
+from mpfem_fenicsx.workflows.compaction import (
+    CompactionCase,
+    build_compaction,
+    damped_bodies,
+    run_compaction,
+)
 from mpfem_fenicsx.workflows.history_recorder import QUASI_STATIC_CHECK_COLUMNS, carrier_share
-
-
 
 
 def quiet(*args):
@@ -31,7 +34,7 @@ def coupling_means(model):
     X = model.problem.V.tabulate_dof_coordinates()
     U = model.problem.u.x.array.reshape(-1, 3)
     means = []
-    for c, r in zip(model.centres, model.radii):
+    for c, r in zip(model.centres, model.radii, strict=True):
         d = np.linalg.norm(X - c, axis=1)
         inside = d <= 0.5 * r
         means.append(cubic_weights(d[inside], 0.5 * r) @ U[inside])
@@ -378,7 +381,7 @@ def coupling_rotations(model) -> np.ndarray:
     X = model.problem.V.tabulate_dof_coordinates()
     x = X + model.problem.u.x.array.reshape(-1, 3)
     rotations = []
-    for c, r in zip(model.centres, model.radii):
+    for c, r in zip(model.centres, model.radii, strict=True):
         d = np.linalg.norm(X - c, axis=1)
         inside = d <= 0.5 * r
         w = cubic_weights(d[inside], 0.5 * r)

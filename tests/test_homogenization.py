@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from mpfem_fenicsx.homogenization import (
-    coordination,
     branch_vectors,
     contact_weights,
+    coordination,
     copy_centroids,
     first_crossing,
-    hencky_strain,
     gradient_fit_noise_hd,
+    hencky_strain,
     least_squares_gradient,
     love_weber_stress,
     piola_to_cauchy,
@@ -280,7 +280,7 @@ def physical_groups(x, original, i, j):
     originals and same branch vector (orientation normalized)."""
     lv = x[j] - x[i]
     keys = []
-    for oi, oj, v in zip(original[i], original[j], lv):
+    for oi, oj, v in zip(original[i], original[j], lv, strict=True):
         if (oi, tuple(np.round(v, 9))) > (oj, tuple(np.round(-v, 9))):
             oi, oj, v = oj, oi, -v
         keys.append((oi, oj) + tuple(np.round(v, 9)))

@@ -3,7 +3,13 @@
 import numpy as np
 import pytest
 
-from mpfem_fenicsx.loading import PROFILES, GradientPath, SmoothRamps, SmoothStep, compaction_gradient
+from mpfem_fenicsx.loading import (
+    PROFILES,
+    GradientPath,
+    SmoothRamps,
+    SmoothStep,
+    compaction_gradient,
+)
 
 
 @pytest.mark.parametrize("name", tuple(PROFILES))
@@ -42,7 +48,10 @@ def test_gradient_path_profile_per_segment():
     unload = np.eye(3) * 1.01
     ramps = GradientPath([(1.0, G), (1.0, unload)], profiles=("smooth-ramps",))
     step = GradientPath([(1.0, G), (1.0, unload)])
-    h = lambda F: np.log(F[0, 0]) / np.log(G[0, 0])  # fraction of the compaction's Hencky strain
+
+    def h(F):  # fraction of the compaction's Hencky strain
+        return np.log(F[0, 0]) / np.log(G[0, 0])
+
     assert h(ramps(0.4)) == pytest.approx(SmoothRamps(1.0)(0.4))
     assert h(step(0.4)) == pytest.approx(SmoothStep(1.0)(0.4))
     # both end each segment at the same gradient; the second segment keeps the smooth step

@@ -2,12 +2,12 @@
 
 import numpy as np
 import pytest
+from mpfem_fenicsx.meshes import particle_mesh
 from mpi4py import MPI
 
 import dolfinx
 
 from mpfem_fenicsx.material import LEAD, STEEL_LINEAR, ElastoPlastic, HenckyJ2, eig_sym3
-from mpfem_fenicsx.meshes import particle_mesh
 from mpfem_fenicsx.problem import SolidProblem
 
 
@@ -65,7 +65,7 @@ def test_eigen_solver_on_tensors_within_rounding_of_the_identity():
         c = rng.choice([1.0, 0.7, 1.3])
         a = c * np.eye(3)
         for (i, j), k in zip([(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)],
-                             rng.integers(-3, 4, 6) * (rng.random(6) < 0.6)):
+                             rng.integers(-3, 4, 6) * (rng.random(6) < 0.6), strict=True):
             a[i, j] += k * eps * c / 2
             a[j, i] = a[i, j]
         matrices.append(a)
@@ -208,7 +208,6 @@ def test_power_law_first_yield_is_robust():
 
 def test_jacobian_matches_residual_on_distorted_hexahedra():
     """Consistent Jacobian of the SRI forms on curved (non-affine) cube-sphere cells."""
-
     a = particle_mesh([[0, 0, 0]], [1.0], MPI.COMM_SELF)
     prob = SolidProblem(a.mesh, LEAD)
     rng = np.random.default_rng(1)

@@ -2,10 +2,9 @@
 
 import numpy as np
 import pytest
-from mpi4py import MPI
-
 from mpfem_fenicsx.meshes import particle_mesh, particle_volumes, unit_ball_hex
 from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS, _orient_positive
+from mpi4py import MPI
 
 
 def test_default_cube_sphere_is_the_thesis_particle():
@@ -66,7 +65,7 @@ def test_many_particles_one_mesh_with_tags():
     x = a.mesh.geometry.x
     a.mesh.topology.create_connectivity(2, 0)
     f2v = a.mesh.topology.connectivity(2, 0)
-    for facet, pid in zip(a.facet_tags.indices, a.facet_tags.values):
+    for facet, pid in zip(a.facet_tags.indices, a.facet_tags.values, strict=True):
         vertices = f2v.links(facet)
         d = np.linalg.norm(x[vertices] - centres[pid], axis=1)
         assert np.allclose(d, radii[pid] * unit_ball_hex().radius_scale, rtol=1e-9)
@@ -90,11 +89,10 @@ def test_gmsh_tetrahedra_p2_volume():
 def test_quarter_sphere_pair_hexahedra_refined_at_the_contact():
     """Two quarter balls (x, y >= 0) of radius 1 centred at z = -1 and z = +1: hexahedra by gmsh
     subdivision, smaller at the contact point, contact tags on the curved surface only."""
-    import ufl
+    from mpfem_fenicsx.meshes.sphere_pair import quarter_sphere_pair
 
     import dolfinx
-
-    from mpfem_fenicsx.meshes.sphere_pair import quarter_sphere_pair
+    import ufl
 
     a = quarter_sphere_pair(1.0, MPI.COMM_SELF, size_min=0.06, size_max=0.4)
     mesh = a.mesh
@@ -127,9 +125,9 @@ def test_quarter_sphere_pair_graded_from_the_contact_cap():
     """grading: the element size is size_min on the contact cap (sphere surface within
     refine_radius of the axis) and grows with the distance from it, into the bulk and along the
     surface."""
-    import dolfinx
-
     from mpfem_fenicsx.meshes.sphere_pair import quarter_sphere_pair
+
+    import dolfinx
 
     size_min, cap = 0.04, 0.15
     graded = quarter_sphere_pair(1.0, MPI.COMM_SELF, size_min=size_min, refine_radius=cap, grading=0.5)
@@ -160,10 +158,10 @@ def test_wedge_sphere_pair_is_one_revolved_layer_of_hexahedra():
     """The wedge: a quadrilateral meridian mesh revolved by ``angle`` (one layer of hexahedra,
     those at the axis with a collapsed edge); its volume is the spheres' share of the angle, the
     facet tags hold only the spherical surfaces, refined to ~size_min / 2 on the contact cap."""
+    from mpfem_fenicsx.meshes.sphere_pair import wedge_sphere_pair
+
     import dolfinx
     import ufl
-
-    from mpfem_fenicsx.meshes.sphere_pair import wedge_sphere_pair
 
     angle, size_min, cap = 3.0, 0.02, 0.2
     wedge = wedge_sphere_pair(1.0, MPI.COMM_SELF, angle=angle, size_min=size_min, cap_radius=cap, grading=0.5)

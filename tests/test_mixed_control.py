@@ -5,11 +5,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from mpfem_fenicsx.meshes.packing import Packing, simple_cubic_packing
 from mpi4py import MPI
 
 from mpfem_fenicsx.loading.mixed import StressControl
 from mpfem_fenicsx.material import LEAD
-from mpfem_fenicsx.meshes.packing import Packing, simple_cubic_packing
 from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 from test_granular import quiet, small_case
 
@@ -273,8 +273,12 @@ def test_deviatoric_fan_analysis(tmp_path):
     of a probe is where E_d first passes E_0 (1 + threshold); the figure is drawn; bad cases are
     refused before any computation."""
     from mpfem_fenicsx.loading.mixed import lode_direction
-    from mpfem_fenicsx.workflows.deviatoric_surface import (DeviatoricSurfaceCase, lode_angle, write_outputs,
-                                                            yield_point)
+    from mpfem_fenicsx.workflows.deviatoric_surface import (
+        DeviatoricSurfaceCase,
+        lode_angle,
+        write_outputs,
+        yield_point,
+    )
 
     for theta in (0.0, 17.0, 60.0, 200.0):
         assert lode_angle(3.0 + 1.7 * lode_direction(np.radians(theta))) == pytest.approx(theta % 360, abs=1e-9)
@@ -306,7 +310,10 @@ def test_deviatoric_fan_on_the_simple_cubic_cell(tmp_path):
     x contacts' flattening spreads the particle sideways). Checked: every probe yields, at the mean
     stress held within 5 % and along its Lode angle within 5 deg, sigma_max > p_load and within
     10 % across the probes, q_y increasing with theta."""
-    from mpfem_fenicsx.workflows.deviatoric_surface import DeviatoricSurfaceCase, run_deviatoric_surface
+    from mpfem_fenicsx.workflows.deviatoric_surface import (
+        DeviatoricSurfaceCase,
+        run_deviatoric_surface,
+    )
 
     base = small_case(tmp_path, bc="CLP", duration=1e-3, increments=1000, outputs=10)
     case = DeviatoricSurfaceCase(base=base, p_load=2.0, p_probe=1.6, q_max=2.2, angles_deg=(0.0, 20.0, 40.0),
@@ -369,8 +376,13 @@ def test_force_rupture_analysis(tmp_path):
     """Force-controlled rupture: E_c / E_d (eq. 4.14) reaches phi_c while the kinetic energy grows,
     W2 (eq. 4.15) turns <= 0 at the stress peak, the path stress is the projection on the path;
     outputs written; bad cases refused before any computation."""
-    from mpfem_fenicsx.workflows.force_rupture import (ForceRuptureCase, phi_quasi_static, rupture_points,
-                                                       rupture_rows, write_outputs)
+    from mpfem_fenicsx.workflows.force_rupture import (
+        ForceRuptureCase,
+        phi_quasi_static,
+        rupture_points,
+        rupture_rows,
+        write_outputs,
+    )
 
     history = synthetic_rupture_history()
     start, final = np.zeros(3), np.array([0.0, 0.0, -6.0])

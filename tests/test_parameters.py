@@ -12,8 +12,8 @@ from mpfem_fenicsx.material import ElastoPlastic
 from mpfem_fenicsx.parameters import Range, parameter_range
 from mpfem_fenicsx.workflows.compaction import CompactionCase
 from mpfem_fenicsx.workflows.deviatoric_surface import DeviatoricSurfaceCase
-from mpfem_fenicsx.workflows.foundation import SqueezeCase, UniaxialCase
 from mpfem_fenicsx.workflows.force_rupture import ForceRuptureCase
+from mpfem_fenicsx.workflows.foundation import SqueezeCase, UniaxialCase
 from mpfem_fenicsx.workflows.hertz import HertzCase
 from mpfem_fenicsx.workflows.stress_probes import StressProbeCase
 from mpfem_fenicsx.workflows.two_spheres import TwoSphereCase

@@ -12,7 +12,11 @@ import pytest
 from mpi4py import MPI
 
 from mpfem_fenicsx.workflows.compaction import CompactionCase, build_compaction, run_compaction
-from mpfem_fenicsx.workflows.history_recorder import QUASI_STATIC_CHECK_COLUMNS, carrier_share, quasi_static_check
+from mpfem_fenicsx.workflows.history_recorder import (
+    QUASI_STATIC_CHECK_COLUMNS,
+    carrier_share,
+    quasi_static_check,
+)
 
 CASE = dict(particles=12, increments=4000, r_min=0.1, r_max=0.1, target_density=0.70, outputs=20, visual=False, checkpoint_every=0)
 

@@ -51,7 +51,7 @@ def explicit_run(tmp_path_factory):
 
 def test_explicit_energy_balance(explicit_run):
     res = explicit_run
-    e = dict(zip(res.energies.columns, res.energies.array()[-1]))
+    e = dict(zip(res.energies.columns, res.energies.array()[-1], strict=True))
     w_ext = e["W_ext"]
     assert w_ext > 0
     assert abs(w_ext - (e["E_int"] + e["E_kin"] + e["E_visc"])) < 0.01 * w_ext

@@ -6,8 +6,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mpfem_fenicsx.homogenization import (first_crossing, hencky_strain, rendulic_strain, strain_invariants,
-                                          uniaxial_strengths)
+from mpfem_fenicsx.homogenization import (
+    first_crossing,
+    hencky_strain,
+    rendulic_strain,
+    strain_invariants,
+    uniaxial_strengths,
+)
 from mpfem_fenicsx.loading import reload_gradient, unload_gradient
 
 
@@ -64,9 +69,8 @@ def fan(tmp_path_factory):
 
     from mpi4py import MPI
 
-    from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase, run_yield_surface
-
     from mpfem_fenicsx.workflows.simple_cubic import simple_cubic_case
+    from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase, run_yield_surface
 
     out = tmp_path_factory.mktemp("fan")
     base = replace(simple_cubic_case("isotropic", target_density=0.70, increments=600, visual=False, outputs=10),
@@ -204,7 +208,6 @@ def test_fan_of_another_amplitude_reuses_the_finished_loading(fan, tmp_path):
 
     from mpfem_fenicsx.io import read_csv
     from mpfem_fenicsx.workflows.yield_surface import run_yield_surface
-
     from validation.run import share_loading
 
     case, _ = fan
@@ -283,9 +286,9 @@ def test_implicit_restart_reproduces_the_uninterrupted_run(tmp_path):
     """Implicit compaction of 8 touching spheres (CLP, adhesive): restarted from a checkpoint, the
     adaptive Newton path (step sizes, cut-backs) and every history value are the uninterrupted
     run's (1e-8 relative asked; the refreshed tangent at each converged state makes it exact)."""
+    from mpfem_fenicsx.meshes.packing import Packing
     from mpi4py import MPI
 
-    from mpfem_fenicsx.meshes.packing import Packing
     from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 
     centres = np.array([(x, y, z) for x in (0.1, 0.3) for y in (0.1, 0.3) for z in (0.1, 0.3)])
@@ -410,7 +413,6 @@ def test_implicit_fan_resumed_from_explicit_unload_settles_once(fan, tmp_path):
     from mpi4py import MPI
 
     from mpfem_fenicsx.workflows.yield_surface import read_unloaded, run_yield_surface
-
     from validation.run import share_loading
 
     case, _ = fan

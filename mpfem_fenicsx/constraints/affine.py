@@ -36,7 +36,7 @@ class CouplingRows:
     coefficients: np.ndarray
 
     @staticmethod
-    def empty() -> "CouplingRows":
+    def empty() -> CouplingRows:
         return CouplingRows(np.zeros(0, np.int32), np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0))
 
 

@@ -59,7 +59,6 @@ from ..meshes import node_particles
 from .affine import AffineConstraint, CouplingRows
 
 
-
 def periodic_lattice() -> np.ndarray:
     """The 27 integer shifts {-1, 0, 1}^3, zero first (periodic images of a cell)."""
     grid = np.array(np.meshgrid(*[[0, -1, 1]] * 3, indexing="ij")).reshape(3, -1).T

@@ -28,7 +28,14 @@ from petsc4py import PETSc
 import dolfinx
 
 from .guards import AdhesiveGuards
-from .kernels import contact_areas, coo_entries, lookup, point_tangents, point_weights, relative_motion
+from .kernels import (
+    contact_areas,
+    coo_entries,
+    lookup,
+    point_tangents,
+    point_weights,
+    relative_motion,
+)
 from .laws import ContactLaw, evaluate_law
 from .search import ContactPoints, ContactSearch, corner_normals, facet_areas, surface_normals
 from .surface import ContactSurface
@@ -47,7 +54,7 @@ class ContactState:
     work: np.ndarray  # frictional work W_f per point, mJ
 
     @staticmethod
-    def empty() -> "ContactState":
+    def empty() -> ContactState:
         return ContactState(np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.zeros(0))
 
 
@@ -71,7 +78,7 @@ class ContactEvaluation:
         return self.points.size
 
     @staticmethod
-    def empty() -> "ContactEvaluation":
+    def empty() -> ContactEvaluation:
         n0 = np.zeros(0)
         return ContactEvaluation(ContactPoints.empty(), np.zeros((0, 5), np.int64), np.zeros((0, 5)), n0,
                                  np.zeros((0, 3)), n0, np.zeros(0, np.int64), np.zeros((0, 3)), 0.0)

@@ -48,7 +48,7 @@ class ContactPoints:
         return self.slave.size
 
     @staticmethod
-    def empty() -> "ContactPoints":
+    def empty() -> ContactPoints:
         i0 = np.zeros(0, np.int64)
         return ContactPoints(i0, i0, i0, np.zeros((0, 2)), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)))
 

@@ -94,7 +94,7 @@ def limit_specific_surface(fans: list[dict], gamma_unloaded: float, scale: float
 
     curves = [{k: away(f, iso_gamma_point(f, g)) for k, f in enumerate(fans)} for g in grid]
     superposed = []
-    for upper, lower in zip(curves[:-1], curves[1:]):
+    for upper, lower in zip(curves[:-1], curves[1:], strict=True):
         common = [k for k in upper if upper[k] is not None and lower[k] is not None]
         moved = max((math.dist(upper[k], lower[k]) for k in common), default=np.inf)
         superposed.append(len(common) >= min_directions and moved <= tolerance * scale)

@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-
 #: the components of a 3 x 3 tensor in history columns, row by row: "11", "12", ..., "33"
 TENSOR_COMPONENTS = tuple(f"{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))
 
@@ -20,7 +19,7 @@ def tensor_columns(prefix: str) -> list[str]:
 
 def tensor_values(prefix: str, tensor) -> dict[str, float]:
     """A (3, 3) tensor as the history values of its columns ``prefix`` + 11 ... 33."""
-    return dict(zip(tensor_columns(prefix), np.asarray(tensor, dtype=float).ravel()))
+    return dict(zip(tensor_columns(prefix), np.asarray(tensor, dtype=float).ravel(), strict=True))
 
 
 def tensor_from_columns(columns, prefix: str) -> np.ndarray:

@@ -85,7 +85,7 @@ def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surf
             surfaces.setdefault(row["kind"], []).append(
                 (float(row["phi"]), float(row["sigma_m"]), float(row["sigma_tilde_d"])))
     fig, axes = plt.subplots(1, 2, figsize=(15, 5.6), constrained_layout=True)
-    for ax, (x, y) in zip(axes, (("h_v", "h_tilde_d"), ("sigma_m", "sigma_tilde_d"))):
+    for ax, (x, y) in zip(axes, (("h_v", "h_tilde_d"), ("sigma_m", "sigma_tilde_d")), strict=True):
         ax.plot(path[x], path[y], "k.-", ms=3, lw=1.2, label="loading + isotropic unload")
         for phi in np.unique(fan["phi"]):
             rows = fan["phi"] == phi
@@ -93,7 +93,7 @@ def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surf
         ax.grid(alpha=0.3)
     # zoom on the unload and the reloads (the loading path runs far off to the left)
     near = np.r_[fan["h_v"], path["h_v"][-1:]], np.r_[fan["h_tilde_d"], path["h_tilde_d"][-1:]]
-    for lim, values in zip((axes[0].set_xlim, axes[0].set_ylim), near):
+    for lim, values in zip((axes[0].set_xlim, axes[0].set_ylim), near, strict=True):
         lo, hi = np.nanmin(values), np.nanmax(values)
         pad = 0.15 * max(hi - lo, 1e-6)
         lim(lo - pad, hi + pad)

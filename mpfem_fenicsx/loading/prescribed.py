@@ -44,7 +44,7 @@ class PrescribedDisplacements:
         #: fixed multipoint rows (e.g. cyclic symmetry), built with the prescribed dofs
         self.couplings: CouplingRows | None = None
 
-    def add(self, dofs: np.ndarray, value: Callable | float = 0.0) -> "PrescribedDisplacements":
+    def add(self, dofs: np.ndarray, value: Callable | float = 0.0) -> PrescribedDisplacements:
         self._groups.append((np.asarray(dofs, dtype=np.int32), value))
         return self
 
@@ -64,7 +64,7 @@ class PrescribedDisplacements:
 
     def values(self, t: float) -> np.ndarray:
         out = np.zeros(self.constraint.prescribed.size)
-        for (dofs, value), (pos, keep) in zip(self._groups, self._positions):
+        for (_, value), (pos, keep) in zip(self._groups, self._positions, strict=True):
             v = value(t) if callable(value) else value
             out[pos] = v[keep] if np.ndim(v) else v
         return out

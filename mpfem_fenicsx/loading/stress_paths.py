@@ -16,7 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..parameters import check_parameters, parameter
-from .mixed import StressControl, lode_direction, normal_stress_path, pressure_control, triaxial_control
+from .mixed import (
+    StressControl,
+    lode_direction,
+    normal_stress_path,
+    pressure_control,
+    triaxial_control,
+)
 
 #: the paths of :class:`StressPath` ("none": no stress control, the strain-driven compaction)
 PATHS = ("none", "pressure", "triaxial", "cycle", "lode")

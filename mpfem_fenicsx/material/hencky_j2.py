@@ -502,8 +502,8 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
         for i in range(3):
             for j in range(3):
                 for k in range(3):
-                    for l in range(3):
-                        Cs[i, j, k, l] = 0.0
+                    for m in range(3):
+                        Cs[i, j, k, m] = 0.0
         for A in range(3):
             for B in range(3):
                 coef = a[A, B]
@@ -511,8 +511,8 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
                     for j in range(3):
                         nAij = Q[i, A] * Q[j, A] * coef
                         for k in range(3):
-                            for l in range(3):
-                                Cs[i, j, k, l] += nAij * Q[k, B] * Q[l, B]
+                            for m in range(3):
+                                Cs[i, j, k, m] += nAij * Q[k, B] * Q[m, B]
         for A in range(3):
             for B in range(3):
                 if A == B:
@@ -522,8 +522,8 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
                     for j in range(3):
                         nAB = theta * Q[i, A] * Q[j, B]
                         for k in range(3):
-                            for l in range(3):
-                                Cs[i, j, k, l] += nAB * (x[B] * Q[k, A] * Q[l, B] + x[A] * Q[k, B] * Q[l, A])
+                            for m in range(3):
+                                Cs[i, j, k, m] += nAB * (x[B] * Q[k, A] * Q[m, B] + x[A] * Q[k, B] * Q[m, A])
         # material tangent A_iJkL = Cs_ijkb Finv_Lb Finv_Jj - P_iL Finv_Jk
         for i in range(3):
             for j in range(3):

@@ -34,7 +34,13 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from ..homogenization import first_crossing, hencky_strain, row_increments, second_order_work, stress_invariants
+from ..homogenization import (
+    first_crossing,
+    hencky_strain,
+    row_increments,
+    second_order_work,
+    stress_invariants,
+)
 from ..io.history import tensor_from_columns
 from ..loading.mixed import normal_stress_path
 from ..parameters import parameter, parameter_of
@@ -100,13 +106,13 @@ def rupture_points(rows: dict, phi_c: float) -> dict[str, dict]:
     points = {}
     position, *values = first_crossing(rows["phi"], phi_c, *series, rising=True)
     if np.isfinite(position):
-        points["phi"] = dict(zip(POINT_COLUMNS[1:], map(float, values)))
+        points["phi"] = dict(zip(POINT_COLUMNS[1:], map(float, values), strict=True))
     positive = np.flatnonzero(rows["W2"] > 0)
     if positive.size:
         k0 = positive[0]
         position, *values = first_crossing(rows["W2"][k0:], 0.0, *(s[k0:] for s in series), rising=False)
         if np.isfinite(position):
-            points["w2"] = dict(zip(POINT_COLUMNS[1:], map(float, values)))
+            points["w2"] = dict(zip(POINT_COLUMNS[1:], map(float, values), strict=True))
     k = int(np.nanargmax(rows["path_stress"]))
     points["peak"] = {c: float(rows[c][k]) for c in POINT_COLUMNS[1:]}
     return points

@@ -23,8 +23,8 @@ from ..io.render import render_deformed
 from ..loading import PrescribedDisplacements, component_dofs
 from ..material import LEAD, ElastoPlastic
 from ..meshes import ParticleVolumes, particle_mesh
-from ..problem import SolidProblem
 from ..parameters import check_parameters, parameter
+from ..problem import SolidProblem
 from ..solvers import SOLVERS, StepControl, create_solver, loading_amplitude, solver_kind
 from ..solvers.explicit import ExplicitSettings
 

@@ -26,8 +26,8 @@ from ..contact.laws import default_penalty
 from ..io import History
 from ..loading import PrescribedDisplacements, component_dofs
 from ..material import ElastoPlastic
-from ..parameters import check_parameters, parameter
 from ..meshes import particle_mesh
+from ..parameters import check_parameters, parameter
 from ..problem import SolidProblem
 from ..solvers import SOLVERS, StepControl, create_solver, loading_amplitude, solver_kind
 from ..solvers.explicit import ExplicitSettings

@@ -66,10 +66,22 @@ import numpy as np
 from mpi4py import MPI
 
 from ..boundary import boundary_kind
-from ..homogenization import (branch_vectors, contact_weights, coordination, dissipated_energy, hencky_strain,
-                              least_squares_gradient, love_weber_stress, piola_to_cauchy, relative_density,
-                              rendulic_strain, rendulic_stress, specific_contact_surface, strain_invariants,
-                              stress_invariants)
+from ..homogenization import (
+    branch_vectors,
+    contact_weights,
+    coordination,
+    dissipated_energy,
+    hencky_strain,
+    least_squares_gradient,
+    love_weber_stress,
+    piola_to_cauchy,
+    relative_density,
+    rendulic_strain,
+    rendulic_stress,
+    specific_contact_surface,
+    strain_invariants,
+    stress_invariants,
+)
 from ..io.history import tensor_columns, tensor_values
 from ..meshes import ParticleCentroids
 

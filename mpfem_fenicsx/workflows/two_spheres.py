@@ -38,17 +38,15 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-import dolfinx
-
+from ..constraints import CouplingRows
 from ..contact import ContactLaw, ContactModel
 from ..contact.laws import default_penalty
 from ..io import History
-from ..constraints import CouplingRows
 from ..loading import PrescribedDisplacements, component_dofs
 from ..material import STEEL_LINEAR, ElastoPlastic
-from ..parameters import check_parameters, parameter
 from ..meshes import node_particles
 from ..meshes.sphere_pair import quarter_sphere_pair, wedge_sphere_pair
+from ..parameters import check_parameters, parameter
 from ..problem import SolidProblem
 from ..solvers import ImplicitSolver, NonConvergence, StepControl
 
@@ -122,7 +120,7 @@ class TwoSphereCase:
 @dataclass
 class TwoSphereResult:
     history: History
-    branch: "UnloadingBranch"  # unloading branch and its deviations from Mesarovic-Johnson
+    branch: UnloadingBranch  # unloading branch and its deviations from Mesarovic-Johnson
     pull_off: float | None  # approach (mm) where the static path ended in a pull-off, or None
     num_dofs: int
     wall_time: float

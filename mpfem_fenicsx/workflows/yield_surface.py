@@ -54,16 +54,28 @@ import numpy as np
 from mpi4py import MPI
 
 from ..boundary import boundary_kind
-from ..homogenization import first_crossing, hencky_strain, row_increments, second_order_work, uniaxial_strengths
-from ..homogenization.surfaces import (MIN_GAMMA_COLLAPSE, default_gamma_levels, iso_gamma_point,
-                                      limit_specific_surface, surface_points, w2_sign_changes)
+from ..homogenization import (
+    first_crossing,
+    hencky_strain,
+    row_increments,
+    second_order_work,
+    uniaxial_strengths,
+)
+from ..homogenization.surfaces import (
+    MIN_GAMMA_COLLAPSE,
+    default_gamma_levels,
+    iso_gamma_point,
+    limit_specific_surface,
+    surface_points,
+    w2_sign_changes,
+)
 from ..io.checkpoint import CheckpointError, resolve_checkpoint
 from ..io.history import read_csv, tensor_from_columns
-from ..parameters import check_parameters, parameter
-from ..solvers import SOLVERS, solver_kind
 from ..io.plots import plot_yield_surface
 from ..loading import PROFILES, reload_gradient, unload_gradient
 from ..meshes.packing import Packing, read_packing
+from ..parameters import check_parameters, parameter
+from ..solvers import SOLVERS, solver_kind
 from .compaction import CompactionCase, CompactionModel, build_compaction, run_compaction
 
 #: fan.csv columns (one row per reload output)
@@ -204,7 +216,7 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print,
     target = case.unload_stress_ratio * sigma_m_c
     guess = 30.0 * max(sigma_m_c, 1e-3 * base.material.sigma_0) / K_solid
     h_d = np.nan
-    for attempt in range(3):
+    for _ in range(3):
         n_p = increments_for(guess)
         probe = run_compaction(replace(base, out_dir=str(out / "unload_probe"), checkpoint_every=0, visual=False,
                                        segments_after=((n_p * dt, unload_gradient(guess)),),
