@@ -87,7 +87,8 @@ def test_pair_forces_and_centroids():
     for (i, j), f in zip(pairs["pairs"], pairs["force"], strict=True):
         assert np.allclose(f, bodies[i, j], rtol=1e-10)
     assert np.all(pairs["area"] > 0) and np.all(pairs["points"] > 0)
-    assert np.array_equal(pairs["area_closed"], pairs["area"])  # no adhesion: every loaded point compressive
+    # no adhesion: every loaded point compressive
+    assert np.array_equal(pairs["area_closed"], pairs["area"])
     centroids = ParticleCentroids(a, prob.u)()
     assert np.allclose(centroids, centres, atol=1e-12)
     branch = centroids[1] - centroids[0]
@@ -104,7 +105,8 @@ def test_penetration_is_found_for_a_steep_slave_face():
     from mpfem_fenicsx.loading import body_dofs
 
     a = box_bodies_mesh([([-1, -1, -0.5], [1, 1, 0], (8, 8, 1)),  # base, top face z = 0
-                         ([0, -0.3, 0], [0.6, 0.3, 0.2], (15, 6, 2))], MPI.COMM_SELF)  # slab, 0.04 mm rows
+                         # slab, 0.04 mm rows
+                         ([0, -0.3, 0], [0.6, 0.3, 0.2], (15, 6, 2))], MPI.COMM_SELF)
     prob = SolidProblem(a.mesh, LEAD, tangent=False)
     theta = np.radians(80.0)
     c, s = np.cos(theta), np.sin(theta)

@@ -55,13 +55,16 @@ def test_coulomb_stick_slip_and_dissipation():
 
 def test_adhesive_peak_must_open_before_delta_max():
     """alpha sigma_c / k >= delta_max leaves no softening branch: rejected, naming the fields."""
-    ContactLaw(penalty=1e9, gamma=1e-2, delta_max=2e-4).require_softening_branch()  # peak at 1e-7 mm: fine
+    # peak at 1e-7 mm: fine
+    ContactLaw(penalty=1e9, gamma=1e-2, delta_max=2e-4).require_softening_branch()
     with pytest.raises(ValueError, match=r"contact.gamma = 0.01 with contact.delta_max = 0.0005 .* must be < "
                                          r"delta_max \(gamma < k delta_max\^2 / 2 = 0.000125 mJ/mm\^2\)"):
-        ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4).require_softening_branch()  # sigma_c / k = 0.04 mm
+        # sigma_c / k = 0.04 mm
+        ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4).require_softening_branch()
     with pytest.raises(ValueError, match="alpha sigma_c / k = 0.02 mm"):
         ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.5).require_softening_branch()
-    ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.0).require_softening_branch()  # no adhesion
+    # no adhesion
+    ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.0).require_softening_branch()
 
 
 @pytest.mark.parametrize("theta", [0.05, 0.3])
@@ -75,7 +78,8 @@ def test_stored_tangential_traction_rotates_with_contact_frame(theta):
     _, Tt, _, _, w = _law(law, [-1e-7], tt=stored, normal=normal)
     assert np.linalg.norm(Tt[0]) == pytest.approx(5.0, rel=1e-12)
     assert Tt[0] @ normal == pytest.approx(0.0, abs=1e-12)  # in the new tangent plane
-    assert Tt[0] == pytest.approx(-5.0 * np.array([np.cos(theta), 0.0, -np.sin(theta)]))  # the rotated vector
+    # the rotated vector
+    assert Tt[0] == pytest.approx(-5.0 * np.array([np.cos(theta), 0.0, -np.sin(theta)]))
     assert w[0] == 0.0
     # a traction along the rotation axis is unchanged
     _, Tt, _, _, _ = _law(law, [-1e-7], tt=(0.0, 3.0, 0.0), normal=normal)

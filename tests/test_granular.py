@@ -294,7 +294,8 @@ def test_schmidt_stress_sees_only_the_boundary_forces(tmp_path, images):
     bcs.apply(0.0)  # F0 = I: no offsets
     X = problem.V.tabulate_dof_coordinates()
     moved = model.original[node_particles(problem.V, model.assembly.cell_tags.values)] == 0
-    assert np.allclose(model.centres[4] - model.centres[0], [0.2, 0.0, 0.0])  # internal x-neighbours
+    # internal x-neighbours
+    assert np.allclose(model.centres[4] - model.centres[0], [0.2, 0.0, 0.0])
     field = np.zeros_like(X)
     field[moved, 0] = 0.004  # mm into particle 4 (its copies too: the ties hold)
     r = residual_at(model, field)

@@ -222,7 +222,8 @@ def test_love_weber_two_particles_hand_computed():
     assert np.allclose(love_weber_stress(-force_on_0_by_1, branch_vectors(x, [1], [0]), V), expected)
     sm, sd = stress_invariants(sigma)
     assert np.isclose(sm, f * d / (3 * V)) and np.isclose(sd, f * d / V)
-    assert np.allclose(reported_stress(sigma)[0, 0], f * d / V)  # thesis eq. 2.6, l = x_alpha - x_beta
+    # thesis eq. 2.6, l = x_alpha - x_beta
+    assert np.allclose(reported_stress(sigma)[0, 0], f * d / V)
 
 
 def test_love_weber_simple_cubic_with_periodic_images():

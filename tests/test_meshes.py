@@ -189,7 +189,8 @@ def test_wedge_sphere_pair_is_one_revolved_layer_of_hexahedra():
     on_cap = radial < 0.8 * cap
     # radial facet length on the cap: quadrilaterals half the triangles' size_min
     mesh.topology.create_connectivity(2, 1)
-    h = dolfinx.cpp.mesh.h(mesh._cpp_object, 2, wedge.facet_tags.indices)  # longest edge (hoop or radial)
+    # longest edge (hoop or radial)
+    h = dolfinx.cpp.mesh.h(mesh._cpp_object, 2, wedge.facet_tags.indices)
     assert on_cap.sum() > 2 * 0.8 * cap / size_min
     assert np.median(h[on_cap]) < 0.8 * size_min
     with pytest.raises(ValueError, match="angle"):

@@ -25,10 +25,13 @@ def test_control_integrates_the_velocity_gradient():
     assert F[-1][2, 2] == pytest.approx(np.exp(-20.0 * 1e-3), rel=1e-12)
     assert F[-1][0, 0] == 1.0  # servo idle: no stress measured yet
     assert np.array_equal(control(times[-2]), F[-2])  # the step before is remembered
-    control.update(1e-3, np.diag([0.0, 2.0, 0.0]))  # sigma_11 below its target of 1 MPa, sigma_22 above
+    # sigma_11 below its target of 1 MPa, sigma_22 above
+    control.update(1e-3, np.diag([0.0, 2.0, 0.0]))
     F2 = control(2e-3)
-    assert F2[0, 0] / F[-1][0, 0] == pytest.approx(np.exp(-50.0 * 1e-3))  # compressed at the full rate
-    assert F2[1, 1] / F[-1][1, 1] == pytest.approx(np.exp(50.0 * 1e-3))  # expanded (error -1 MPa: saturated)
+    # compressed at the full rate
+    assert F2[0, 0] / F[-1][0, 0] == pytest.approx(np.exp(-50.0 * 1e-3))
+    # expanded (error -1 MPa: saturated)
+    assert F2[1, 1] / F[-1][1, 1] == pytest.approx(np.exp(50.0 * 1e-3))
     with pytest.raises(ValueError, match="time must advance"):
         control(0.5e-3)
     with pytest.raises(ValueError, match="stress_driven must be a symmetric"):
@@ -46,7 +49,8 @@ def test_lode_shear_keeps_the_mean_stress():
     for theta in np.radians([0.0, 20.0, 60.0, 137.0]):
         control = lode_shear_control(mean=3.0, q_max=2.0, theta=theta, duration=1e-3, rate=10.0, band=1.0, t0=5e-4)
         sigma = control.target(1e-3)  # half-way
-        m, q = stress_invariants(-sigma)  # the invariants' convention: tension > 0 in, compression > 0 out
+        # the invariants' convention: tension > 0 in, compression > 0 out
+        m, q = stress_invariants(-sigma)
         assert m == pytest.approx(3.0) and q == pytest.approx(1.0)
         assert stress_invariants(-control.target(2e-3))[1] == pytest.approx(2.0)  # held at q_max
         assert stress_invariants(-control.target(4e-4))[1] == pytest.approx(0.0)  # before t0
@@ -387,7 +391,8 @@ def test_force_rupture_analysis(tmp_path):
     history = synthetic_rupture_history()
     start, final = np.zeros(3), np.array([0.0, 0.0, -6.0])
     rows = rupture_rows(history, 0.5e-3, start, final, w2_window=0)
-    assert rows["time"].size == 39 and rows["path_stress"][24] == pytest.approx(3.0)  # row 25 of the history
+    # row 25 of the history
+    assert rows["time"].size == 39 and rows["path_stress"][24] == pytest.approx(3.0)
     assert rows["phi"][0] == pytest.approx(1e-4) and phi_quasi_static(rows) == pytest.approx(1e-4)
     points = rupture_points(rows, phi_c=1e-3)
     # E_c / E_d = 1e-4 100^((k - 20) / 6) reaches 1e-3 at k = 23 (+ 0.0 rows)
@@ -430,7 +435,8 @@ def test_force_rupture_where_strain_tangent_falls_below_servo(tmp_path):
     points, rows = result["points"], result["rows"]
     assert result["phi_quasi_static"] < 0.1 * case.phi_c and np.nanmax(rows["phi"]) > 3 * case.phi_c
     assert points["phi"]["time"] < points["w2"]["time"]
-    row_step = np.linalg.norm(np.subtract(case.final_stress, case.p_probe)) / case.rows_per_probe  # MPa per row
+    # MPa per row
+    row_step = np.linalg.norm(np.subtract(case.final_stress, case.p_probe)) / case.rows_per_probe
     assert abs(points["w2"]["path_stress"] - points["peak"]["path_stress"]) < row_step
     # (b) strain-driven from the same consolidated state (a new consolidation: the same run)
     state = consolidate(replace(case, out_dir=str(tmp_path / "strain")), MPI.COMM_SELF, log=quiet)
@@ -443,10 +449,12 @@ def test_force_rupture_where_strain_tangent_falls_below_servo(tmp_path):
     after = h.column("time") > state.time * (1 + 1e-12)
     tension, h33 = -h.column("sigma_schmidt_33")[after], np.log(h.column("F33")[after])
     K_t = np.diff(tension) / np.diff(h33)  # MPa, between rows
-    limit = 6.2 / 1e-3 / case.servo()["rate"]  # MPa: the stress rate asked over the servo's largest strain rate
+    # MPa: the stress rate asked over the servo's largest strain rate
+    limit = 6.2 / 1e-3 / case.servo()["rate"]
     k = int(np.argmax((K_t < limit) & (np.arange(K_t.size) > 0)))
     assert k > 0 and K_t[k - 1] >= limit, K_t
-    knee = tension[k] + (tension[k + 1] - tension[k]) * 0.5  # the stress across the row where K_t crosses
+    # the stress across the row where K_t crosses
+    knee = tension[k] + (tension[k + 1] - tension[k]) * 0.5
     assert -points["phi"]["sigma_33"] == pytest.approx(knee, rel=0.05), (points["phi"], knee, K_t)
 
 

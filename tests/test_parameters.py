@@ -48,11 +48,13 @@ def test_every_declared_bound_is_enforced(cls):
         for value in just_outside(allowed):
             with pytest.raises(ValueError, match=rf"{name} = .*(out of range|not allowed)"):
                 replace(default, **{name: value})
-        if allowed.kind is float and allowed.low is not None:  # the bound itself, if closed, is allowed
+        # the bound itself, if closed, is allowed
+        if allowed.kind is float and allowed.low is not None:
             if not allowed.open_low and (allowed.high is None or allowed.low <= allowed.high):
                 try:
                     replace(default, **{name: float(allowed.low)})
-                except ValueError as err:  # a rule between fields may still refuse it, not the range
+                # a rule between fields may still refuse it, not the range
+                except ValueError as err:
                     assert "out of range" not in str(err), err
 
 

@@ -49,16 +49,19 @@ def test_report_writes_summary_and_tables(tmp_path):
     assert by_case[("die_CLP", "sigma_m at rho 0.95 (MPa)")]["status"] == "met"
     assert by_case[("die_GDF", "sigma_m at rho 0.95 (MPa)")]["status"] == "not met"  # 7.0 vs 9.7
     assert by_case[("die", "ordering CLP > CLPS > GDF")]["status"] == "met"
-    slow = by_case[("die_CLPS_n12000", "sigma_m at rho 0.95 (MPa), 12000 increments")]  # the increments stage
+    # the increments stage
+    slow = by_case[("die_CLPS_n12000", "sigma_m at rho 0.95 (MPa), 12000 increments")]
     assert slow["ours"] == pytest.approx(11.5) and slow["status"] == "met"
     assert by_case[("die_CLP", "sigma_m Schmidt / Love-Weber, end")]["status"] == "met"
-    assert by_case[("die_CLP", "sigma_m volume average / Love-Weber, end")]["status"] == "not met"  # 3 % > 2 %
+    # 3 % > 2 %
+    assert by_case[("die_CLP", "sigma_m volume average / Love-Weber, end")]["status"] == "not met"
     # stress paths at equal pressure: GDF's sigma_d 1.5x CLP's is not "alike" (thesis fig. 2.24d)
     path = by_case[("die_GDF", "sigma_d / CLP's at equal sigma_m (thesis: alike)")]
     assert path["ours"] == pytest.approx(1.5) and path["status"] == "not met"
     assert by_case[("die_CLPS", "sigma_d / CLP's at equal sigma_m (thesis: alike)")]["status"] == "met"
     gap = by_case[("die_GDF", "sigma_m below CLP at the end (fraction)")]
-    assert gap["ours"] == pytest.approx(1 - 7.0 / 12.6) and gap["status"] == "not met"  # 44 % > 20 %
+    # 44 % > 20 %
+    assert gap["ours"] == pytest.approx(1 - 7.0 / 12.6) and gap["status"] == "not met"
     summary = (here / "summary.csv").read_text().splitlines()
     assert summary[0] == "case,quantity,thesis,ours,deviation,status" and len(summary) == 1 + len(rows)
     text = (here / "README.md").read_text()
@@ -79,7 +82,8 @@ def test_report_writes_summary_and_tables(tmp_path):
     # d_bc: a verdict on the two finished CLPS runs (1.0 and the die run at 2.5 with the d_bc runs'
     # lumped mass, not the die stage's consistent-mass run), naming the missing ones
     assert by_case[("dbc_CLPS", "stable d_bc / r_max")]["ours"] == 2.5
-    assert "2.5: 5.10 / 7.35 / 8.94 / (10.00)" in text  # die_CLPS_lumped_mass (10 MPa at the end), not die_CLPS
+    # die_CLPS_lumped_mass (10 MPa at the end), not die_CLPS
+    assert "2.5: 5.10 / 7.35 / 8.94 / (10.00)" in text
     assert "| 2.5 (the largest run: not shown stable), 1.5 / 2 r_max not run yet | 1: " in text
     # the same verdict at equal rho of eq. 2.4 (here the imposed one), read without the end
     assert by_case[("dbc_CLPS", "stable d_bc / r_max at equal rho (eq. 2.4)")]["ours"] == 2.5
@@ -256,7 +260,8 @@ def test_die_ordering_reads_the_quasi_static_run():
         return next(r for r in rows if "ordering" in r["quantity"])["status"], lines[-1]
 
     status, line = ordering()
-    assert status == "not met" and "`die_CLPS` (5.90 MPa)" in line  # the slow run fails its check too
+    # the slow run fails its check too
+    assert status == "not met" and "`die_CLPS` (5.90 MPa)" in line
     done["die_CLPS_n12000"] = _synthetic_run(11.0, 0.03)
     status, line = ordering()
     assert status == "met" and "`die_CLPS_n12000` (11.00 MPa)" in line
@@ -296,7 +301,8 @@ def test_gamma_rows_compare_every_definition():
     assert by[("isotropic_CLP_gamma1e-2", "Gamma at rho_f 0.95 (mm^-1)")]["status"] == "not met"
     line = next(x for x in lines if x.startswith("| isotropic | 0.95 |"))
     assert line.endswith("| +0.0 % | met | 10.50 |") and "3.15 | 3.50 | 46.80" in line
-    assert not any(r["case"] == "isotropic_GDF" for r in rows)  # the no-adhesion run is shown, not compared
+    # the no-adhesion run is shown, not compared
+    assert not any(r["case"] == "isotropic_GDF" for r in rows)
     assert any(x.startswith("| die | 0.89 | 39.8 | not run yet | not run yet | not run yet") and
                x.endswith("| not run yet |") for x in lines)
 
@@ -337,7 +343,8 @@ def test_fan_rows_and_trends_on_synthetic_fans():
             "fan_isotropic_0.87_gamma0": _ellipse_fan(fans["fan_isotropic_0.87_gamma0"], (3.5, 0.0), 3.0, 2.0, 0.0)}
     rows, lines = report.fan_rows(done)
     by = {r["case"]: r for r in rows}
-    assert by["fan_isotropic_0.87"]["status"] == "met" and by["fan_die_0.82"]["status"] == "not met"  # 10 vs 24.9
+    # 10 vs 24.9
+    assert by["fan_isotropic_0.87"]["status"] == "met" and by["fan_die_0.82"]["status"] == "not met"
     assert "fan_isotropic_0.87_gamma0" not in by  # no thesis row without adhesion
     _, trends = report.trend_lines(done)
     assert [line.rsplit("|", 2)[-2].strip() for line in trends[2:]] == ["shown"] * 4
@@ -400,10 +407,12 @@ def test_open_die_surface_read_on_same_rate_fan_that_closes_it():
         done[name]["summary"]["reload"] = {"strain_rate_per_s": rate}
     by_name = {n: done.get(n) for n in fans}
     assert report.closed_yield_fan(by_name, "fan_die_0.82") == wide
-    done[wide]["summary"]["reload"]["profile"] = "smooth-ramps"  # same mean rate, another history of it
+    # same mean rate, another history of it
+    done[wide]["summary"]["reload"]["profile"] = "smooth-ramps"
     assert report.closed_yield_fan({n: done.get(n) for n in fans}, "fan_die_0.82") == "fan_die_0.82"
     done[wide]["summary"]["reload"]["profile"] = "smooth-step"
-    done[wide]["summary"]["reload"] = {"strain_rate_per_s": 69.0}  # twice as fast: not the same yield
+    # twice as fast: not the same yield
+    done[wide]["summary"]["reload"] = {"strain_rate_per_s": 69.0}
     assert report.closed_yield_fan({n: done.get(n) for n in fans}, "fan_die_0.82") == "fan_die_0.82"
 
 
@@ -442,7 +451,8 @@ def test_die_clp_density_definition_on_a_small_volume(tmp_path):
     CI-sized subset (2026-11-28: 3.328 faceted vs 3.414 MPa exact, -2.5 %)."""
     exact = _die_compaction(tmp_path, "exact", bc="CLP", increments=1500)
     faceted = _die_compaction(tmp_path, "faceted", bc="CLP", increments=1500, exact_volume=False)
-    assert faceted["rho_fe"][0] < 0.95 * exact["rho_fe"][0]  # the inscribed particle holds less solid
+    # the inscribed particle holds less solid
+    assert faceted["rho_fe"][0] < 0.95 * exact["rho_fe"][0]
     a = _band_mean(exact, "sigma_m", 0.68, 0.76, "rho_fe")
     b = _band_mean(faceted, "sigma_m", 0.68, 0.76, "rho_fe")
     assert b == pytest.approx(a, rel=0.05)
@@ -451,7 +461,8 @@ def test_die_clp_density_definition_on_a_small_volume(tmp_path):
     assert a > 1.3 * b
 
 
-@pytest.mark.heavy  # three 24-particle runs with copies, ~32 min beside other runs: pytest -m heavy -k stiffest -rP
+# three 24-particle runs with copies, ~32 min beside other runs: pytest -m heavy -k stiffest -rP
+@pytest.mark.heavy
 @pytest.mark.timeout(5400)
 def test_die_periodic_volume_is_the_stiffest_on_a_small_volume(tmp_path):
     """Thesis §2.7 at reduced size: over the constant-rate part of a die compaction (mean sigma_m
@@ -520,7 +531,8 @@ def test_list_tells_where_a_killed_run_resumes(tmp_path, monkeypatch):
         checkpoint = tmp_path / "die_CLPS_n12000" / "checkpoints" / f"step{step:07d}"
         checkpoint.mkdir(parents=True)
         (checkpoint / "meta.json").write_text(json.dumps({"step": step}))
-    (tmp_path / "die_CLPS_n12000" / "checkpoints" / "step0000900").mkdir()  # killed while writing it
+    # killed while writing it
+    (tmp_path / "die_CLPS_n12000" / "checkpoints" / "step0000900").mkdir()
     assert run.run_state(CASES["die_CLP"]) == "done"
     assert run.run_state(CASES["die_GDF"]) == "to run"
     assert run.run_state(CASES["die_CLPS_n12000"]) == "resumes at step 600 of 12000"

@@ -433,7 +433,8 @@ def test_implicit_fan_resumed_from_explicit_unload_settles_once(fan, tmp_path):
     assert not any(m.startswith("[settle]") for m in messages)  # once
 
 
-@pytest.mark.heavy  # ~8 min on 2 threads alone, 29 min on one beside other work (4 implicit reloads of 20 Newton steps)
+# ~8 min on 2 threads alone, 29 min on one beside other work (4 implicit reloads of 20 Newton steps)
+@pytest.mark.heavy
 def test_implicit_fan_needs_no_w2_filter(fan, tmp_path):
     """The fan of the fixture with implicit reloads: closed yield polygon near the explicit one
     (within 25 % of its size: the explicit 200-increment reloads lag dynamically), and raw W2

@@ -142,8 +142,10 @@ class GranularBoundaryConditions:
         self.anchor_carrier = np.zeros(3)  # its prescribed displacement is H anchor_carrier (mm)
         self._nodes = nodes
         self._centres = centres
-        self._rows: list[tuple] = []  # (slave blocks, masters (k, m) blocks, coeffs, G (k, 3, 9)): per component
-        self._dof_rows: list[tuple] = []  # (slave dofs (k,), master dofs (k, m), coeffs, G (k, 9)): unrolled
+        # (slave blocks, masters (k, m) blocks, coeffs, G (k, 3, 9)): per component
+        self._rows: list[tuple] = []
+        # (slave dofs (k,), master dofs (k, m), coeffs, G (k, 9)): unrolled
+        self._dof_rows: list[tuple] = []
         self._prescribed: list[tuple] = []  # (blocks, G (k, 9)) for all 3 components
 
         by_particle = np.argsort(nodes.particle, kind="stable")

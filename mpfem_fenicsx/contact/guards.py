@@ -81,7 +81,8 @@ class AdhesiveGuards:
             pos, known = lookup(last_keys, keys)
             was_softening = known & (normal_branch(last_branch[pos]) == SOFTENING)
             softening = normal_branch(branch) == SOFTENING
-            back = keys[was_softening & (normal_branch(branch) <= ADHESIVE_LOADING)]  # not on to separation
+            # not on to separation
+            back = keys[was_softening & (normal_branch(branch) <= ADHESIVE_LOADING)]
             if back.size:
                 self.separated = np.union1d(self.separated, back[np.isin(back, self.returned)])
                 self.returned = np.union1d(self.returned, back)

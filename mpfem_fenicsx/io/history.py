@@ -70,7 +70,8 @@ class History:
                 writer = csv.writer(fh)
                 writer.writerow(self.columns)
                 for row in self.rows:
-                    writer.writerow(["" if np.isnan(v) else repr(v) for v in row])  # NaN: not defined
+                    # NaN: not defined
+                    writer.writerow(["" if np.isnan(v) else repr(v) for v in row])
         return self.path
 
 

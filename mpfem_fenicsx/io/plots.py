@@ -112,7 +112,8 @@ def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surf
         else:
             marker, colour, label = styles[kind]
         complete = len(p) == np.unique(fan["phi"]).size  # a closed curve: every reload crossed
-        if kind == "w2" or not complete:  # points only: joining a partial set would draw false chords
+        # points only: joining a partial set would draw false chords
+        if kind == "w2" or not complete:
             ax.plot(p[:, 1], p[:, 2], marker[0], color=colour, ms=5, label=f"{label} ({len(p)} reloads)")
         else:
             closed = np.vstack([p, p[:1]])

@@ -171,7 +171,8 @@ class StressControl:
         self._filtered = None if state["filtered"] is None else np.array(state["filtered"], dtype=float)
         self._integral = np.array(state["integral"], dtype=float)
         self._t_update = state["t_update"]
-        self._trend = np.array(state.get("trend", np.zeros((3, 3))), dtype=float)  # older checkpoints: none
+        # older checkpoints: none
+        self._trend = np.array(state.get("trend", np.zeros((3, 3))), dtype=float)
         self._target_before = np.array(state.get("target_before", np.zeros((3, 3))), dtype=float)
         self._target_rate = np.array(state.get("target_rate", np.zeros((3, 3))), dtype=float)
 
@@ -339,7 +340,8 @@ def triaxial_control(confining: float, consolidation: float, hold: float, axial_
     lateral[axis, axis] = False
     shortening = np.zeros((3, 3))
     ramp_in = axial_ramp * axial_time
-    shortening[axis, axis] = -axial_strain / (axial_time - 0.5 * ramp_in)  # the ramp-in loses half its length
+    # the ramp-in loses half its length
+    shortening[axis, axis] = -axial_strain / (axial_time - 0.5 * ramp_in)
 
     # the consolidation ramp's end rounded (rounded_waypoints) like the axial rate's start
     consolidated = rounded_waypoints([0.0, consolidation, start_axial + axial_time], [0.0, confining, confining],

@@ -481,7 +481,8 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
         dev2 = 0.0
         for A in range(3):
             dev2 += (eps_e[A] - tr_e / 3.0) ** 2
-        psi[qp] = mu * dev2  # deviatoric part only: the volumetric energy follows the volumetric rule
+        # deviatoric part only: the volumetric energy follows the volumetric rule
+        psi[qp] = mu * dev2
 
         _mul_abt(M2, Finv, P_dev[qp])  # P_dev = dev(tau) F^-T
         if not want_tangent:

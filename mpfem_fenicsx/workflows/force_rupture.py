@@ -55,7 +55,8 @@ POINT_COLUMNS = ("criterion", "time", "sigma_11", "sigma_22", "sigma_33", "sigma
 class ForceRuptureCase(StressProbeCase):
     """A stress probe to rupture from the consolidated state of :class:`StressProbeCase`."""
 
-    p_probe: float = parameter_of(StressProbeCase, "p_probe", default=0.2)  # the probe starts lightly loaded
+    # the probe starts lightly loaded
+    p_probe: float = parameter_of(StressProbeCase, "p_probe", default=0.2)
     final_stress: tuple = (0.0, 0.0, -5.0)  # MPa (compression > 0): uniaxial tension along z
     phi_c: float = parameter(1e-3, "rupture threshold on E_c / E_d (eq. 4.14) (-)", low=0, high=1, open_low=True,
                              open_high=True)

@@ -127,7 +127,8 @@ class QuasiStaticCheck:
     """The quasi-static check of an explicit run (:func:`quasi_static_check`)."""
 
     carrier_share: float  # E_carrier / W_ext at the end (cumulative, -)
-    unbalanced_at_rest: float  # out-of-balance ratio of the last row (-), NaN when the path ends in motion
+    # out-of-balance ratio of the last row (-), NaN when the path ends in motion
+    unbalanced_at_rest: float
 
     @property
     def passed(self) -> bool:

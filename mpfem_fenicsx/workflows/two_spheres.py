@@ -80,7 +80,8 @@ class TwoSphereCase:
     penalty: float | None = None
     load_steps: int = parameter(10, "implicit steps of the loading", low=1)
     unload_steps: int = parameter(40, "implicit steps of the unloading (0: loading only)", low=0)
-    unload_to: float = 0.016  # final centre approach / r (past separation: elastic recovery ~1.5e-3 r)
+    # final centre approach / r (past separation: elastic recovery ~1.5e-3 r)
+    unload_to: float = 0.016
     material: ElastoPlastic = STEEL_LINEAR
 
     def __post_init__(self):

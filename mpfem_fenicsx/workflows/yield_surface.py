@@ -145,7 +145,8 @@ class Unloaded:
     """State after stages 1-2 (what every reload needs)."""
 
     checkpoint: str  # checkpoint the reloads restart from (end of the unload, or of the settle)
-    segments: tuple  # ((duration s, increment gradient), ...) after the loading: the unload [, hold]
+    # ((duration s, increment gradient), ...) after the loading: the unload [, hold]
+    segments: tuple
     h_v_unload: float  # imposed volumetric strain of the unload (> 0: expansion)
     E_0: float  # dissipated energy at the end of the unload (mJ)
     sigma_m_loaded: float  # MPa
@@ -156,7 +157,8 @@ class Unloaded:
     increments_per_strain: float  # the compaction's increments per unit |h_v|, x slowdown
     dt: float  # the compaction's increment (s)
     packing: Packing  # the loaded volume's packing (every reload rebuilds the same model)
-    settled: bool = False  # the checkpoint is the implicit settle's static equilibrium (implicit fans)
+    # the checkpoint is the implicit settle's static equilibrium (implicit fans)
+    settled: bool = False
 
 
 def _newest_checkpoint(directory: Path) -> str | None:
@@ -366,7 +368,8 @@ def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, l
             if resume and (out / "unloaded.json").exists():
                 unloaded = read_unloaded(out, with_packing=True)
                 log(f"[resume] load and unload finished: reloads from {unloaded.checkpoint}")
-                if solver_kind(case.solver).static and not unloaded.settled:  # an explicit fan's unload
+                # an explicit fan's unload
+                if solver_kind(case.solver).static and not unloaded.settled:
                     unloaded, model = settle(case, unloaded, alone, log)
                     write_unloaded(out, unloaded)
             else:
