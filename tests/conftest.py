@@ -32,9 +32,18 @@ def python() -> str:
 # `make test` hands whole files to its workers (their module fixtures are built once), in
 # collection order: a heavy file handed out last leaves the other core idle for minutes. Hand out
 # the heaviest first (longest-processing-time order; measured runs: bench/README.md, CI table).
-HEAVIEST_FILES_FIRST = ("test_two_spheres", "test_yield_surface", "test_simple_cubic", "test_quasi_static",
-                        "test_mixed_control", "test_granular", "test_validation", "test_sphere_squeeze",
-                        "test_hertz", "test_cli")
+HEAVIEST_FILES_FIRST = (
+    "test_two_spheres",
+    "test_yield_surface",
+    "test_simple_cubic",
+    "test_quasi_static",
+    "test_mixed_control",
+    "test_granular",
+    "test_validation",
+    "test_sphere_squeeze",
+    "test_hertz",
+    "test_cli",
+)
 
 
 # The 900 s timeout (pyproject.toml) guards the CI suite; a heavy case runs by hand, often on

@@ -8,10 +8,24 @@ from mpfem_fenicsx.contact.laws import ContactLaw, evaluate_law
 
 def _law(law, gap, smax=0.0, slip=(0.0, 0.0, 0.0), tt=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)):
     n = len(gap)
-    out = [np.empty(n), np.empty((n, 3)), np.empty(n), np.empty(n), np.empty(n), np.empty(n, np.int64)]
-    evaluate_law(np.asarray(gap, float), np.tile(slip, (n, 1)).astype(float), np.tile(normal, (n, 1)).astype(float),
-                 np.zeros(n), np.full(n, smax, float), np.tile(tt, (n, 1)).astype(float),
-                 *law.kernel_parameters(), *out)
+    out = [
+        np.empty(n),
+        np.empty((n, 3)),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n, np.int64),
+    ]
+    evaluate_law(
+        np.asarray(gap, float),
+        np.tile(slip, (n, 1)).astype(float),
+        np.tile(normal, (n, 1)).astype(float),
+        np.zeros(n),
+        np.full(n, smax, float),
+        np.tile(tt, (n, 1)).astype(float),
+        *law.kernel_parameters(),
+        *out,
+    )
     T1, Tt, alpha, smax_new, dissipation, branch = out
     return T1, Tt, alpha, smax_new, dissipation
 
@@ -19,7 +33,11 @@ def _law(law, gap, smax=0.0, slip=(0.0, 0.0, 0.0), tt=(0.0, 0.0, 0.0), normal=(0
 def test_normal_law_branches_and_memory():
     law = ContactLaw(penalty=1e9, friction=0.0, gamma=1e-2, delta_max=2e-4, asperity_yield=200.0)
     T1, _, alpha, smax, _ = _law(law, [-6e-7])  # T1 = 600 = p0: alpha = 1/2
-    assert T1[0] == pytest.approx(600.0) and alpha[0] == pytest.approx(0.5) and smax[0] == pytest.approx(600.0)
+    assert (
+        T1[0] == pytest.approx(600.0)
+        and alpha[0] == pytest.approx(0.5)
+        and smax[0] == pytest.approx(600.0)
+    )
     d1 = 0.5 * law.sigma_c / law.penalty
     gaps = [0.5 * d1, d1, 0.5 * (d1 + law.delta_max), law.delta_max, 2 * law.delta_max]
     T1, _, alpha, smax, _ = _law(law, gaps, smax=600.0)
@@ -57,12 +75,17 @@ def test_adhesive_peak_must_open_before_delta_max():
     """alpha sigma_c / k >= delta_max leaves no softening branch: rejected, naming the fields."""
     # peak at 1e-7 mm: fine
     ContactLaw(penalty=1e9, gamma=1e-2, delta_max=2e-4).require_softening_branch()
-    with pytest.raises(ValueError, match=r"contact.gamma = 0.01 with contact.delta_max = 0.0005 .* must be < "
-                                         r"delta_max \(gamma < k delta_max\^2 / 2 = 0.000125 mJ/mm\^2\)"):
+    with pytest.raises(
+        ValueError,
+        match=r"contact.gamma = 0.01 with contact.delta_max = 0.0005 .* must be < "
+        r"delta_max \(gamma < k delta_max\^2 / 2 = 0.000125 mJ/mm\^2\)",
+    ):
         # sigma_c / k = 0.04 mm
         ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4).require_softening_branch()
     with pytest.raises(ValueError, match="alpha sigma_c / k = 0.02 mm"):
-        ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.5).require_softening_branch()
+        ContactLaw(
+            penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.5
+        ).require_softening_branch()
     # no adhesion
     ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.0).require_softening_branch()
 

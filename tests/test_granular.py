@@ -23,8 +23,18 @@ def quiet(*args):
 
 
 def small_case(tmp_path, **kw) -> CompactionCase:
-    options = dict(packing=simple_cubic_packing(), target_density=0.56, increments=100, outputs=3, visual=False,
-                   duration=1e-4, out_dir=str(tmp_path), d_bc=0.8, images=False, exact_volume=False)
+    options = dict(
+        packing=simple_cubic_packing(),
+        target_density=0.56,
+        increments=100,
+        outputs=3,
+        visual=False,
+        duration=1e-4,
+        out_dir=str(tmp_path),
+        d_bc=0.8,
+        images=False,
+        exact_volume=False,
+    )
     options.update(kw)
     return CompactionCase(**options)
 
@@ -139,9 +149,20 @@ def test_gdf_volume_takes_its_work_through_the_boundary(tmp_path):
     test reads the carrier only."""
     from mpfem_fenicsx.meshes.packing import generate_packing
 
-    case = CompactionCase(packing=generate_packing(16, 0.12, 0.147, seed=3), loading="die", bc="GDF", d_bc=1.0,
-                          target_density=0.75, increments=1600, outputs=10, divisions=3, exact_volume=False,
-                          visual=False, checkpoint_every=0, out_dir=str(tmp_path))
+    case = CompactionCase(
+        packing=generate_packing(16, 0.12, 0.147, seed=3),
+        loading="die",
+        bc="GDF",
+        d_bc=1.0,
+        target_density=0.75,
+        increments=1600,
+        outputs=10,
+        divisions=3,
+        exact_volume=False,
+        visual=False,
+        checkpoint_every=0,
+        out_dir=str(tmp_path),
+    )
     h = run_compaction(case, MPI.COMM_SELF, log=quiet).history
     share = carrier_share({k: h.column(k) for k in QUASI_STATIC_CHECK_COLUMNS})
     loaded = h.column("sigma_m") > 0.3
@@ -186,7 +207,9 @@ def test_consistent_constraint_mass(tmp_path, bc):
       (P^T R = 0: the reduced equations of motion hold exactly); the lumped mass leaves one."""
     runs = {}
     for mass in ("lumped", "consistent"):
-        res = run_compaction(small_case(tmp_path / mass, bc=bc, constraint_mass=mass), MPI.COMM_SELF, log=quiet)
+        res = run_compaction(
+            small_case(tmp_path / mass, bc=bc, constraint_mass=mass), MPI.COMM_SELF, log=quiet
+        )
         solver = res.solver
         free_reaction = solver.constraint.create_reduced_vector()
         R = solver.f_int.duplicate()
@@ -196,14 +219,22 @@ def test_consistent_constraint_mass(tmp_path, bc):
         solver.constraint.restrict(solver.f_int, r)
         miss, weight = _gravity_response(solver)
         runs[mass] = (res, weight / solver.total_mass, free_reaction.norm() / r.norm(), miss)
-    (_, lumped_weight, lumped_residual, lumped_miss), (_, weight, residual, miss) = runs["lumped"], runs["consistent"]
+    (_, lumped_weight, lumped_residual, lumped_miss), (_, weight, residual, miss) = (
+        runs["lumped"],
+        runs["consistent"],
+    )
     assert weight == pytest.approx(1.0, rel=1e-9)
     assert miss < 1e-9  # unit gravity: a uniform unit acceleration
     assert residual < 1e-9
     sigma = {k: np.array(v[0].history.column("sigma_m")) for k, v in runs.items()}
     if bc == "CLP":
         assert lumped_weight == pytest.approx(1.0, rel=1e-9)
-        assert np.allclose(sigma["consistent"], sigma["lumped"], rtol=1e-8, atol=1e-10 * np.abs(sigma["lumped"]).max())
+        assert np.allclose(
+            sigma["consistent"],
+            sigma["lumped"],
+            rtol=1e-8,
+            atol=1e-10 * np.abs(sigma["lumped"]).max(),
+        )
     else:
         assert lumped_weight > 1.5
         assert lumped_miss > 0.3  # the heavy coupling nodes lag
@@ -233,7 +264,9 @@ def face_centred_cubic(r: float = 0.1) -> Packing:
     and (1/4, 1/2, 3/4) L also touches across the lattice shift (1, 0, -1), whose mixed signs the
     half-face copies of CLP realize only as a copy-copy pair."""
     cell = 2.0 * np.sqrt(2.0) * r
-    centres = cell * np.array([[0.25, 0.0, 0.25], [0.75, 0.5, 0.25], [0.75, 0.0, 0.75], [0.25, 0.5, 0.75]])
+    centres = cell * np.array(
+        [[0.25, 0.0, 0.25], [0.75, 0.5, 0.25], [0.75, 0.0, 0.75], [0.25, 0.5, 0.75]]
+    )
     return Packing(cell=np.full(3, cell), centres=centres, radii=np.full(4, r))
 
 
@@ -252,9 +285,17 @@ def test_clp_by_copies_equals_clp_by_images(tmp_path, lattice):
     packing = simple_cubic_packing() if lattice == "simple cubic" else face_centred_cubic()
     results = []
     for images in (False, True):
-        model = build_compaction(small_case(tmp_path, bc="CLP", images=images, packing=packing,
-                                            target_density=0.8 if lattice != "simple cubic" else 0.56),
-                                 MPI.COMM_SELF, log=quiet)
+        model = build_compaction(
+            small_case(
+                tmp_path,
+                bc="CLP",
+                images=images,
+                packing=packing,
+                target_density=0.8 if lattice != "simple cubic" else 0.56,
+            ),
+            MPI.COMM_SELF,
+            log=quiet,
+        )
         problem, bcs, contact = model.problem, model.bcs, model.contact
         bcs.gradient = lambda t: F0
         bcs.apply(0.0)
@@ -267,8 +308,14 @@ def test_clp_by_copies_equals_clp_by_images(tmp_path, lattice):
         r_red = bcs.constraint.create_reduced_vector()
         bcs.constraint.restrict(r, r_red)
         free_nodes = bcs.constraint.free[::3] // 3
-        results.append((X[free_nodes], r_red.array.reshape(-1, 3).copy(), bcs.macroscopic_force(r.array),
-                        contact.count(compressive_only=True)))
+        results.append(
+            (
+                X[free_nodes],
+                r_red.array.reshape(-1, 3).copy(),
+                bcs.macroscopic_force(r.array),
+                contact.count(compressive_only=True),
+            )
+        )
     (Xa, ra, Ra, na), (Xb, rb, Rb, nb) = results
     assert na >= 24 and na == nb  # every contact of the lattice, across the faces too, is loaded
     dist, j = cKDTree(Xb).query(Xa)
@@ -289,7 +336,9 @@ def test_schmidt_stress_sees_only_the_boundary_forces(tmp_path, images):
     the particles' stress (eq. C.7) is zero too: the three measures agree only in equilibrium."""
     from mpfem_fenicsx.homogenization import love_weber_stress
 
-    model = build_compaction(small_case(tmp_path, bc="CLP", images=images), MPI.COMM_SELF, log=quiet)
+    model = build_compaction(
+        small_case(tmp_path, bc="CLP", images=images), MPI.COMM_SELF, log=quiet
+    )
     problem, bcs, contact = model.problem, model.bcs, model.contact
     bcs.apply(0.0)  # F0 = I: no offsets
     X = problem.V.tabulate_dof_coordinates()
@@ -303,7 +352,9 @@ def test_schmidt_stress_sees_only_the_boundary_forces(tmp_path, images):
     loaded = np.linalg.norm(pf["force"], axis=1) > 1e-6
     assert [sorted(p) for p in pf["pairs"][loaded]] == [[0, 4]]  # one internal contact
     volume = float(np.prod(model.packing.cell))
-    sigma_lw = love_weber_stress(pf["force"][loaded], (model.centres[4] - model.centres[0])[None, :], volume)
+    sigma_lw = love_weber_stress(
+        pf["force"][loaded], (model.centres[4] - model.centres[0])[None, :], volume
+    )
     assert abs(sigma_lw[0, 0]) > 1e-3  # MPa: Love-Weber sees the contact
     R = bcs.macroscopic_force(r.array)
     assert np.abs(R).max() < 1e-9 * abs(sigma_lw[0, 0]) * volume
@@ -319,7 +370,9 @@ def test_static_anchor_moves_with_its_particle(tmp_path, bc):
     relative motion w = 0) each particle translates rigidly: no internal force anywhere. (Held at
     u = 0, the anchor stretched its particle by H (X_c - L/2) at every step and the implicit
     pseudo-time drag reacted on it.)"""
-    model = build_compaction(small_case(tmp_path, bc=bc, solver="implicit"), MPI.COMM_SELF, log=quiet)
+    model = build_compaction(
+        small_case(tmp_path, bc=bc, solver="implicit"), MPI.COMM_SELF, log=quiet
+    )
     problem, bcs = model.problem, model.bcs
     assert bcs.anchor_block is not None
     F0 = np.diag([0.97, 0.98, 0.96])
@@ -356,14 +409,25 @@ def test_random_volume_copies_images_and_three_stresses(tmp_path):
     packing = generate_packing(24, 0.082, 0.147, seed=2)
     histories = []
     for images in (False, True):
-        case = CompactionCase(packing=packing, target_density=0.9, increments=3000, hold=0.3, outputs=40,
-                              images=images, visual=False, checkpoint_every=0, out_dir=str(tmp_path / str(images)))
+        case = CompactionCase(
+            packing=packing,
+            target_density=0.9,
+            increments=3000,
+            hold=0.3,
+            outputs=40,
+            images=images,
+            visual=False,
+            checkpoint_every=0,
+            out_dir=str(tmp_path / str(images)),
+        )
         histories.append(run_compaction(case, MPI.COMM_SELF, log=quiet).history)
     copies, images = histories
     loaded = images.column("sigma_m") > 1.0
     assert loaded.sum() > 10
     assert np.abs(copies.column("rho") / images.column("rho") - 1).max() < 1e-6  # centroids' rho
-    assert np.abs(copies.column("sigma_m")[loaded] / images.column("sigma_m")[loaded] - 1).max() < 0.01
+    assert (
+        np.abs(copies.column("sigma_m")[loaded] / images.column("sigma_m")[loaded] - 1).max() < 0.01
+    )
     assert np.array_equal(copies.column("n_contacts"), images.column("n_contacts"))
     for h in histories:
         assert h.column("unbalanced")[-1] < 0.02  # at rest
@@ -401,8 +465,9 @@ def test_clps_copies_turn_with_their_originals(tmp_path, equal_rotations):
     second order in the strain (the rows equate the linearized rotations; halving the motion
     divides the gap by 4), while the copies of eq. 2.15 alone turn freely. A finite rigid rotation
     of the whole cell (F0 = R, 29 degrees) satisfies the constraints exactly and strains nothing."""
-    model = build_compaction(small_case(tmp_path, bc="CLPS", equal_rotations=equal_rotations), MPI.COMM_SELF,
-                             log=quiet)
+    model = build_compaction(
+        small_case(tmp_path, bc="CLPS", equal_rotations=equal_rotations), MPI.COMM_SELF, log=quiet
+    )
     bcs, problem = model.bcs, model.problem
     copies = np.flatnonzero(model.is_copy)
     F0 = np.diag([0.97, 0.98, 0.96])
@@ -424,7 +489,9 @@ def test_clps_copies_turn_with_their_originals(tmp_path, equal_rotations):
     assert gaps[0] < 0.2 * turns[0] and gaps[1] < gaps[0] / 3.5
     # finite rigid rotation of the cell: every node at R X (about the cell centre), no force
     a = 0.5
-    rotation = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    rotation = np.array(
+        [[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]]
+    )
     bcs.gradient = lambda t: rotation
     bcs.apply(0.0)
     X = problem.V.tabulate_dof_coordinates()
@@ -439,7 +506,9 @@ def test_implicit_drag_work_is_small_at_the_default_steps(tmp_path):
     """The implicit pseudo-time drag that holds particles before contact does
     work k |dw|^2 per step, i.e. ~1 / steps of the path (measured on this cell: E_damp / E_p = 0.31
     at 10 steps, 0.157 at 20). At the default 100 steps it stays below 5 % of the plastic work."""
-    h = run_compaction(small_case(tmp_path, bc="CLP", solver="implicit"), MPI.COMM_SELF, log=quiet).history
+    h = run_compaction(
+        small_case(tmp_path, bc="CLP", solver="implicit"), MPI.COMM_SELF, log=quiet
+    ).history
     assert CompactionCase().steps == 100
     assert h.column("E_p")[-1] > 1e-4  # mJ: the cell did yield
     assert h.column("E_damp")[-1] < 0.05 * h.column("E_p")[-1]
@@ -452,9 +521,16 @@ def test_start_overlap_of_coarse_volume_exact_particle_refused(tmp_path):
     penalty energy before any loading). The build refuses it, naming the radius_factor that avoids
     it, before meshing; the thesis particle (6x6, nodes at x1.0100) with the default 0.99 builds,
     and so does the 3-division one at the radius_factor the message gives."""
-    with pytest.raises(ValueError, match=r"radius_factor 0.99: .* 1.0406 x .* radius_factor <= 0.9610"):
+    with pytest.raises(
+        ValueError, match=r"radius_factor 0.99: .* 1.0406 x .* radius_factor <= 0.9610"
+    ):
         build_compaction(small_case(tmp_path, exact_volume=True, radius_factor=0.99, divisions=3),
                          MPI.COMM_SELF, log=quiet)
-    build_compaction(small_case(tmp_path, exact_volume=True, radius_factor=0.961, divisions=3), MPI.COMM_SELF,
-                     log=quiet)
-    build_compaction(small_case(tmp_path, exact_volume=True, radius_factor=0.99), MPI.COMM_SELF, log=quiet)
+    build_compaction(
+        small_case(tmp_path, exact_volume=True, radius_factor=0.961, divisions=3),
+        MPI.COMM_SELF,
+        log=quiet,
+    )
+    build_compaction(
+        small_case(tmp_path, exact_volume=True, radius_factor=0.99), MPI.COMM_SELF, log=quiet
+    )

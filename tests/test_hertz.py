@@ -14,7 +14,9 @@ from mpfem_fenicsx.workflows.hertz import HertzCase, run_hertz
 @pytest.fixture(scope="module")
 def hertz(tmp_path_factory):
     case = HertzCase(size_min=0.01, steps=10)
-    return case, run_hertz(case, tmp_path_factory.mktemp("hertz"), MPI.COMM_SELF, log=lambda *a: None)
+    return case, run_hertz(
+        case, tmp_path_factory.mktemp("hertz"), MPI.COMM_SELF, log=lambda *a: None
+    )
 
 
 def test_force_follows_hertz(hertz):

@@ -101,7 +101,9 @@ def test_least_squares_rank_deficient_raises():
     X = rng.standard_normal((3, 3))
     with pytest.raises(ValueError, match="at least 4"):
         least_squares_gradient(X, X)
-    planar = np.column_stack([rng.standard_normal((10, 2)), np.zeros(10)]) @ rotation([1, 2, 3], 0.7).T
+    planar = (
+        np.column_stack([rng.standard_normal((10, 2)), np.zeros(10)]) @ rotation([1, 2, 3], 0.7).T
+    )
     with pytest.raises(ValueError, match="coplanar"):
         least_squares_gradient(planar, planar)
     line = np.outer(np.linspace(0, 1, 6), [1.0, 2.0, 3.0])
@@ -219,7 +221,9 @@ def test_love_weber_two_particles_hand_computed():
     expected[0, 0] = -f * d / V  # compressive, mechanics convention
     assert np.allclose(sigma, expected)
     # the same contact listed the other way round gives the same tensor
-    assert np.allclose(love_weber_stress(-force_on_0_by_1, branch_vectors(x, [1], [0]), V), expected)
+    assert np.allclose(
+        love_weber_stress(-force_on_0_by_1, branch_vectors(x, [1], [0]), V), expected
+    )
     sm, sd = stress_invariants(sigma)
     assert np.isclose(sm, f * d / (3 * V)) and np.isclose(sd, f * d / V)
     # thesis eq. 2.6, l = x_alpha - x_beta
@@ -262,8 +266,11 @@ def simple_cubic_assembly(n, a, shifts):
     X = a * (idx + 0.5)
     centres, original, shift = [X], [np.arange(len(X))], [np.zeros((len(X), 3), int)]
     for s, layer in shifts:
-        sel = np.flatnonzero(np.all(idx[:, np.flatnonzero(s)] == layer, axis=1)) if layer is not None \
+        sel = (
+            np.flatnonzero(np.all(idx[:, np.flatnonzero(s)] == layer, axis=1))
+            if layer is not None
             else np.arange(len(X))
+        )
         centres.append(X[sel] + n * a * np.asarray(s))
         original.append(sel)
         shift.append(np.tile(s, (sel.size, 1)))
@@ -416,7 +423,9 @@ def test_specific_contact_surface():
     assert np.isclose(specific_contact_surface(1.0, V0, F), 1.0 / (V0 * np.linalg.det(F)))
     assert np.isclose(specific_contact_surface(areas, V0, F), 1.0 / (V0 * np.linalg.det(F)))
     w = np.array([1.0, 0.5, 0.5, 0.0])
-    assert np.isclose(specific_contact_surface(areas, V0, F, weights=w), 0.35 / (V0 * np.linalg.det(F)))
+    assert np.isclose(
+        specific_contact_surface(areas, V0, F, weights=w), 0.35 / (V0 * np.linalg.det(F))
+    )
 
 
 def test_first_crossing_interpolates():

@@ -58,7 +58,9 @@ def test_gradient_path_profile_per_segment():
     for t in (1.0, 2.0):
         assert np.allclose(ramps(t), step(t))
     assert np.allclose(ramps(1.5), step(1.5))
-    with pytest.raises(ValueError, match="profile must be one of smooth-step, smooth-ramps, got 'linear'"):
+    with pytest.raises(
+        ValueError, match="profile must be one of smooth-step, smooth-ramps, got 'linear'"
+    ):
         GradientPath([(1.0, G)], profiles=("linear",))
     with pytest.raises(ValueError, match="2 profiles for 1 segments"):
         GradientPath([(1.0, G)], profiles=("smooth-step", "smooth-step"))
@@ -70,13 +72,17 @@ def test_compaction_case_profiles_its_further_segments():
     from mpfem_fenicsx.workflows.compaction import CompactionCase, loading_path
 
     unload = (1e-4, np.eye(3) * 1.01)
-    case = CompactionCase(hold=0.5, segments_after=(unload,), segment_profiles=("smooth-ramps",), visual=False)
+    case = CompactionCase(
+        hold=0.5, segments_after=(unload,), segment_profiles=("smooth-ramps",), visual=False
+    )
     path = loading_path(case, 0.6)
     t0 = case.duration * 1.5  # the unload starts after the compaction and its hold
     fraction = np.log(path(t0 + 0.4e-4)[0, 0] / path(t0)[0, 0]) / np.log(1.01)
     assert fraction == pytest.approx(SmoothRamps(1e-4)(0.4e-4))
     assert np.allclose(path(case.duration * 1.25), path(case.duration))  # the hold holds
-    with pytest.raises(ValueError, match="segment_profiles must name one of smooth-step, smooth-ramps"):
+    with pytest.raises(
+        ValueError, match="segment_profiles must name one of smooth-step, smooth-ramps"
+    ):
         CompactionCase(segments_after=(unload,), segment_profiles=("linear",))
     with pytest.raises(ValueError, match="for at most the 0 segments_after"):
         CompactionCase(segment_profiles=("smooth-ramps",))

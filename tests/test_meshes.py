@@ -27,7 +27,9 @@ def test_particle_mesh_holds_its_sphere_volume(name):
     the surface nodes lie outside r by the scale, the facet centres inside."""
     divisions, layers = RESOLUTIONS[name]
     radii = np.array([1.0, 0.5])
-    a = particle_mesh([[0, 0, 0], [3.0, 0, 0]], radii, MPI.COMM_SELF, divisions=divisions, layers=layers)
+    a = particle_mesh(
+        [[0, 0, 0], [3.0, 0, 0]], radii, MPI.COMM_SELF, divisions=divisions, layers=layers
+    )
     exact = 4.0 / 3.0 * np.pi * radii ** 3
     assert np.allclose(particle_volumes(a), exact, rtol=1e-10)
     ball = unit_ball_hex(divisions, layers)
@@ -113,7 +115,9 @@ def test_quarter_sphere_pair_hexahedra_refined_at_the_contact():
     centre = np.where(a.facet_tags.values[:, None] == 0, [0, 0, -1.0], [0, 0, 1.0])
     assert np.abs(np.linalg.norm(mid - centre, axis=1) - 1.0).max() < 0.01
     # local refinement: cells near the contact point much smaller than far away
-    h = dolfinx.cpp.mesh.h(mesh._cpp_object, 3, np.arange(mesh.topology.index_map(3).size_local, dtype=np.int32))
+    h = dolfinx.cpp.mesh.h(
+        mesh._cpp_object, 3, np.arange(mesh.topology.index_map(3).size_local, dtype=np.int32)
+    )
     mid_cells = dolfinx.mesh.compute_midpoints(mesh, 3, np.arange(h.size, dtype=np.int32))
     near = np.linalg.norm(mid_cells, axis=1) < 0.1
     far = np.linalg.norm(mid_cells, axis=1) > 1.0
@@ -130,7 +134,9 @@ def test_quarter_sphere_pair_graded_from_the_contact_cap():
     import dolfinx
 
     size_min, cap = 0.04, 0.15
-    graded = quarter_sphere_pair(1.0, MPI.COMM_SELF, size_min=size_min, refine_radius=cap, grading=0.5)
+    graded = quarter_sphere_pair(
+        1.0, MPI.COMM_SELF, size_min=size_min, refine_radius=cap, grading=0.5
+    )
     mesh = graded.mesh
     mesh.topology.create_connectivity(2, 3)
     facets = graded.facet_tags.indices
@@ -144,7 +150,9 @@ def test_quarter_sphere_pair_graded_from_the_contact_cap():
     away = (rho > cap + 0.3) & (rho < cap + 0.4)
     assert np.median(h[away]) > 2.5 * np.median(h[on_cap])
     # and the bulk coarsens with the depth under the cap (the ball keeps size_min down to 0.15 r)
-    hc = dolfinx.cpp.mesh.h(mesh._cpp_object, 3, np.arange(mesh.topology.index_map(3).size_local, dtype=np.int32))
+    hc = dolfinx.cpp.mesh.h(
+        mesh._cpp_object, 3, np.arange(mesh.topology.index_map(3).size_local, dtype=np.int32)
+    )
     xc = dolfinx.mesh.compute_midpoints(mesh, 3, np.arange(hc.size, dtype=np.int32))
     depth = 1.0 - np.linalg.norm(xc - np.where(xc[:, 2:] < 0, [0, 0, -1.0], [0, 0, 1.0]), axis=1)
     deep = (np.hypot(xc[:, 0], xc[:, 1]) < 0.1) & (depth > 0.08) & (depth < 0.12)
@@ -164,7 +172,9 @@ def test_wedge_sphere_pair_is_one_revolved_layer_of_hexahedra():
     import ufl
 
     angle, size_min, cap = 3.0, 0.02, 0.2
-    wedge = wedge_sphere_pair(1.0, MPI.COMM_SELF, angle=angle, size_min=size_min, cap_radius=cap, grading=0.5)
+    wedge = wedge_sphere_pair(
+        1.0, MPI.COMM_SELF, angle=angle, size_min=size_min, cap_radius=cap, grading=0.5
+    )
     mesh = wedge.mesh
     assert mesh.topology.cell_name() == "hexahedron"
     volume = dolfinx.fem.assemble_scalar(dolfinx.fem.form(1.0 * ufl.dx(domain=mesh)))

@@ -18,8 +18,14 @@ def test_control_integrates_the_velocity_gradient():
     """Strain-driven components follow F0(t) = exp(L t) exactly; the servo's components move
     against the stress error, saturating at ``rate``; time only advances."""
     L = np.diag([0.0, 0.0, -20.0])
-    control = StressControl(duration=1e-3, stress_driven=np.diag([True, True, False]),
-                            target=lambda t: np.eye(3), rate=50.0, band=0.5, velocity_gradient=lambda t: L)
+    control = StressControl(
+        duration=1e-3,
+        stress_driven=np.diag([True, True, False]),
+        target=lambda t: np.eye(3),
+        rate=50.0,
+        band=0.5,
+        velocity_gradient=lambda t: L,
+    )
     times = np.linspace(0.0, 1e-3, 11)
     F = [control(t) for t in times]
     assert F[-1][2, 2] == pytest.approx(np.exp(-20.0 * 1e-3), rel=1e-12)
@@ -35,7 +41,13 @@ def test_control_integrates_the_velocity_gradient():
     with pytest.raises(ValueError, match="time must advance"):
         control(0.5e-3)
     with pytest.raises(ValueError, match="stress_driven must be a symmetric"):
-        StressControl(duration=1.0, stress_driven=np.triu(np.ones((3, 3), bool)), target=lambda t: 0, rate=1, band=1)
+        StressControl(
+            duration=1.0,
+            stress_driven=np.triu(np.ones((3, 3), bool)),
+            target=lambda t: 0,
+            rate=1,
+            band=1,
+        )
     with pytest.raises(ValueError, match="control .* needs bc CLP or CLPS"):
         CompactionCase(bc="GDF", control=control)
 
@@ -47,7 +59,9 @@ def test_lode_shear_keeps_the_mean_stress():
     from mpfem_fenicsx.loading.mixed import lode_shear_control
 
     for theta in np.radians([0.0, 20.0, 60.0, 137.0]):
-        control = lode_shear_control(mean=3.0, q_max=2.0, theta=theta, duration=1e-3, rate=10.0, band=1.0, t0=5e-4)
+        control = lode_shear_control(
+            mean=3.0, q_max=2.0, theta=theta, duration=1e-3, rate=10.0, band=1.0, t0=5e-4
+        )
         sigma = control.target(1e-3)  # half-way
         # the invariants' convention: tension > 0 in, compression > 0 out
         m, q = stress_invariants(-sigma)
@@ -60,14 +74,22 @@ def test_lode_shear_keeps_the_mean_stress():
     assert s60[0] == pytest.approx(s60[1]) and s60[1] > s60[2]
 
 
-def servo_on_a_linear_plant(K, drift, integral_time, filter_time=0.0, noise=0.0, T=0.02, dt=1e-5, ramp=0.0):
+def servo_on_a_linear_plant(
+    K, drift, integral_time, filter_time=0.0, noise=0.0, T=0.02, dt=1e-5, ramp=0.0
+):
     """Error history (MPa) of a servo holding sigma_11 at 1 MPa (+ ``ramp`` t) on a model medium
     whose stress is sigma_11 = K (-ln F11) + drift t (+ white noise of amplitude ``noise`` in the
     measure)."""
     rng = np.random.default_rng(0)
-    control = StressControl(duration=T, stress_driven=np.diag([True, False, False]), rate=50.0, band=0.5,
-                            target=lambda t: (1.0 + ramp * t) * np.eye(3), integral_time=integral_time,
-                            filter_time=filter_time)
+    control = StressControl(
+        duration=T,
+        stress_driven=np.diag([True, False, False]),
+        rate=50.0,
+        band=0.5,
+        target=lambda t: (1.0 + ramp * t) * np.eye(3),
+        integral_time=integral_time,
+        filter_time=filter_time,
+    )
     errors = []
     for t in np.arange(0.0, T, dt):
         sigma = K * -np.log(control(t)[0, 0]) + drift * t
@@ -97,8 +119,14 @@ def test_pi_servo_follows_a_drifting_stress():
     filtered = servo_on_a_linear_plant(K, D, integral_time=4 * tau, filter_time=tau, ramp=100.0)
     assert np.abs(filtered[len(filtered) // 2:]).max() < 0.05 * 100.0 * tau
     with pytest.raises(ValueError, match="integral_time must be > 0"):
-        StressControl(duration=1.0, stress_driven=np.eye(3, dtype=bool), target=lambda t: 0, rate=1, band=1,
-                      integral_time=0.0)
+        StressControl(
+            duration=1.0,
+            stress_driven=np.eye(3, dtype=bool),
+            target=lambda t: 0,
+            rate=1,
+            band=1,
+            integral_time=0.0,
+        )
 
 
 def test_pi_servo_does_not_overshoot_the_end_of_a_ramp():
@@ -108,8 +136,15 @@ def test_pi_servo_does_not_overshoot_the_end_of_a_ramp():
     integral is scaled with the target's rate: the stress settles within 1 % of the target."""
     E, H, R, t_ramp = 4000.0, 100.0, 2000.0, 1e-3
     target = lambda t: min(R * t, R * t_ramp) * np.eye(3)  # noqa: E731
-    control = StressControl(duration=2e-3, stress_driven=np.diag([True, False, False]), rate=100.0, band=0.5,
-                            target=target, integral_time=1e-4, filter_time=1e-5)
+    control = StressControl(
+        duration=2e-3,
+        stress_driven=np.diag([True, False, False]),
+        rate=100.0,
+        band=0.5,
+        target=target,
+        integral_time=1e-4,
+        filter_time=1e-5,
+    )
     plastic, errors, times = 0.0, [], np.arange(0.0, 2e-3, 2e-7)
     for t in times:
         strain = -np.log(control(t)[0, 0])
@@ -139,11 +174,25 @@ def test_consolidation_then_triaxial_on_the_simple_cubic_cell(tmp_path):
     def mask(t):
         return np.eye(3, dtype=bool) if t < consolidation else np.diag([True, True, False])
 
-    control = StressControl(duration=T, stress_driven=mask, rate=50.0, band=0.5,
-                            target=lambda t: p0 * min(t / (0.3 * T), 1.0) * np.eye(3),
-                            velocity_gradient=lambda t: np.diag([0.0, 0.0, -10.0]) if t >= consolidation else np.zeros((3, 3)))
-    case = small_case(tmp_path, bc="CLP", control=control, material=replace(LEAD, sigma_0=1e4), duration=T,
-                      increments=2000, outputs=40)
+    control = StressControl(
+        duration=T,
+        stress_driven=mask,
+        rate=50.0,
+        band=0.5,
+        target=lambda t: p0 * min(t / (0.3 * T), 1.0) * np.eye(3),
+        velocity_gradient=lambda t: (
+            np.diag([0.0, 0.0, -10.0]) if t >= consolidation else np.zeros((3, 3))
+        ),
+    )
+    case = small_case(
+        tmp_path,
+        bc="CLP",
+        control=control,
+        material=replace(LEAD, sigma_0=1e4),
+        duration=T,
+        increments=2000,
+        outputs=40,
+    )
     h = run_compaction(case, MPI.COMM_SELF, log=quiet).history
     t = h.column("time")
     held = np.flatnonzero((t > 0.4 * T) & (t <= consolidation + 1e-12))
@@ -185,7 +234,9 @@ def test_servo_reads_the_reported_volume_stress(tmp_path):
     assert h.column("sigma_vol_11")[-1] > 1.0  # the servo compressed the cell
     assert np.abs(h.column("rho") / h.column("rho_imposed") - 1).max() > 1e-4  # det F != det F0
     for k, t in enumerate(h.column("time")):
-        reported = np.array([[h.column(f"sigma_vol_{i}{j}")[k] for j in (1, 2, 3)] for i in (1, 2, 3)])
+        reported = np.array(
+            [[h.column(f"sigma_vol_{i}{j}")[k] for j in (1, 2, 3)] for i in (1, 2, 3)]
+        )
         np.testing.assert_allclose(seen[t], reported, rtol=1e-12, atol=1e-12 * abs(reported).max())
 
 
@@ -197,20 +248,51 @@ def test_strain_path_replayed_under_stress_control(tmp_path):
     the end its strains are the strain-driven ones, within 2 % of the axial strain."""
     T = 1e-3
     material = replace(LEAD, sigma_0=1e4)
-    strain = run_compaction(small_case(tmp_path / "strain", bc="CLP", loading="die", target_density=0.53,
-                                       material=material, duration=T, increments=1000, outputs=20, hold=0.5),
-                            MPI.COMM_SELF, log=quiet).history
+    strain = run_compaction(
+        small_case(
+            tmp_path / "strain",
+            bc="CLP",
+            loading="die",
+            target_density=0.53,
+            material=material,
+            duration=T,
+            increments=1000,
+            outputs=20,
+            hold=0.5,
+        ),
+        MPI.COMM_SELF,
+        log=quiet,
+    ).history
     t = np.concatenate([[0.0], strain.column("time")])
-    recorded = np.vstack([np.zeros(3), np.column_stack([strain.column(f"sigma_schmidt_{i}{i}") for i in (1, 2, 3)])])
+    recorded = np.vstack(
+        [np.zeros(3), np.column_stack([strain.column(f"sigma_schmidt_{i}{i}") for i in (1, 2, 3)])]
+    )
 
     def target(s):
         return np.diag([np.interp(s, t, recorded[:, i]) for i in range(3)])
 
     peak = recorded[:, 2].max()
-    control = StressControl(duration=t[-1], stress_driven=np.eye(3, dtype=bool), target=target, rate=100.0,
-                            band=0.1 * peak, integral_time=2e-4)
-    replay = run_compaction(small_case(tmp_path / "replay", bc="CLP", control=control, material=material, duration=T,
-                                       increments=1000, outputs=20), MPI.COMM_SELF, log=quiet).history
+    control = StressControl(
+        duration=t[-1],
+        stress_driven=np.eye(3, dtype=bool),
+        target=target,
+        rate=100.0,
+        band=0.1 * peak,
+        integral_time=2e-4,
+    )
+    replay = run_compaction(
+        small_case(
+            tmp_path / "replay",
+            bc="CLP",
+            control=control,
+            material=material,
+            duration=T,
+            increments=1000,
+            outputs=20,
+        ),
+        MPI.COMM_SELF,
+        log=quiet,
+    ).history
     h_strain = [np.log(strain.column(f"F{i}{i}")) for i in (1, 2, 3)]
     h_replay = [np.log(replay.column(f"F{i}{i}")) for i in (1, 2, 3)]
     scale = abs(h_strain[2][-1])
@@ -222,7 +304,9 @@ def test_strain_path_replayed_under_stress_control(tmp_path):
     sigma = replay.column("sigma_schmidt_33")
     on_path = (replay.column("time") <= T) & (sigma > 0.2 * peak) & (sigma < 0.95 * peak)
     assert on_path.sum() >= 5
-    expected = np.interp(sigma[on_path], strain.column("sigma_schmidt_33")[loading], h_strain[2][loading])
+    expected = np.interp(
+        sigma[on_path], strain.column("sigma_schmidt_33")[loading], h_strain[2][loading]
+    )
     assert np.abs(h_replay[2][on_path] - expected).max() < 0.02 * scale
 
 
@@ -232,11 +316,25 @@ def test_stress_controlled_run_restarts_bit_for_bit(tmp_path):
     from mpfem_fenicsx.io.checkpoint import CheckpointError
 
     def case(out):
-        control = StressControl(duration=4e-4, stress_driven=np.eye(3, dtype=bool), rate=50.0, band=0.5,
-                                target=lambda t: 2.0 * min(t / 2e-4, 1.0) * np.eye(3), integral_time=1e-4,
-                                filter_time=5e-6)
-        return small_case(out, bc="CLP", control=control, material=replace(LEAD, sigma_0=1e4), duration=4e-4,
-                          increments=400, outputs=4, checkpoint_every=2)
+        control = StressControl(
+            duration=4e-4,
+            stress_driven=np.eye(3, dtype=bool),
+            rate=50.0,
+            band=0.5,
+            target=lambda t: 2.0 * min(t / 2e-4, 1.0) * np.eye(3),
+            integral_time=1e-4,
+            filter_time=5e-6,
+        )
+        return small_case(
+            out,
+            bc="CLP",
+            control=control,
+            material=replace(LEAD, sigma_0=1e4),
+            duration=4e-4,
+            increments=400,
+            outputs=4,
+            checkpoint_every=2,
+        )
 
     a = run_compaction(case(tmp_path / "a"), MPI.COMM_SELF, log=quiet).history
     restarted = run_compaction(case(tmp_path / "b"), MPI.COMM_SELF, log=quiet,
@@ -244,21 +342,49 @@ def test_stress_controlled_run_restarts_bit_for_bit(tmp_path):
     b = restarted.history
     # the restarted run's wall time goes on from the killed run's (history rows and result)
     import json
-    before = json.loads((tmp_path / "a" / "checkpoints" / "step0000200" / "meta.json").read_text())["wall_time"]
+
+    before = json.loads((tmp_path / "a" / "checkpoints" / "step0000200" / "meta.json").read_text())[
+        "wall_time"
+    ]
     assert restarted.wall_time >= b.column("wall_time")[-1] > before
     assert a.column("sigma_schmidt_11")[-1] > 0.5  # the servo compressed the cell
     for name in ("F11", "F33", "sigma_schmidt_11", "sigma_vol_22", "rho"):
         np.testing.assert_array_equal(a.column(name), b.column(name), err_msg=name)
     # a stress path continuing a strain-driven compaction from its checkpoint: it starts at the
     # checkpoint's gradient, and the pressure it holds is met
-    strain_driven = small_case(tmp_path / "c", bc="CLP", material=replace(LEAD, sigma_0=1e4), target_density=0.52,
-                               duration=4e-4, increments=400, outputs=2, checkpoint_every=1)
+    strain_driven = small_case(
+        tmp_path / "c",
+        bc="CLP",
+        material=replace(LEAD, sigma_0=1e4),
+        target_density=0.52,
+        duration=4e-4,
+        increments=400,
+        outputs=2,
+        checkpoint_every=1,
+    )
     c = run_compaction(strain_driven, MPI.COMM_SELF, log=quiet).history
-    held = StressControl(duration=8e-4, stress_driven=np.eye(3, dtype=bool), rate=50.0, band=0.5,
-                         target=lambda t: c.column("sigma_schmidt_11")[-1] * np.eye(3), integral_time=1e-4)
-    d = run_compaction(small_case(tmp_path / "d", bc="CLP", control=held, material=replace(LEAD, sigma_0=1e4),
-                                  duration=4e-4, increments=400, outputs=4), MPI.COMM_SELF, log=quiet,
-                       restart=tmp_path / "c" / "checkpoints" / "step0000400").history
+    held = StressControl(
+        duration=8e-4,
+        stress_driven=np.eye(3, dtype=bool),
+        rate=50.0,
+        band=0.5,
+        target=lambda t: c.column("sigma_schmidt_11")[-1] * np.eye(3),
+        integral_time=1e-4,
+    )
+    d = run_compaction(
+        small_case(
+            tmp_path / "d",
+            bc="CLP",
+            control=held,
+            material=replace(LEAD, sigma_0=1e4),
+            duration=4e-4,
+            increments=400,
+            outputs=4,
+        ),
+        MPI.COMM_SELF,
+        log=quiet,
+        restart=tmp_path / "c" / "checkpoints" / "step0000400",
+    ).history
     new = d.column("time") > 4e-4 * (1 + 1e-9)  # the rows after the restart (the history goes on)
     assert new.sum() == 2 and np.array_equal(d.column("F33")[~new], c.column("F33"))
     strain = abs(c.column("F33")[-1] - 1)
@@ -285,9 +411,17 @@ def test_deviatoric_fan_analysis(tmp_path):
     )
 
     for theta in (0.0, 17.0, 60.0, 200.0):
-        assert lode_angle(3.0 + 1.7 * lode_direction(np.radians(theta))) == pytest.approx(theta % 360, abs=1e-9)
-    rows = {"sigma_m": np.full(5, 1.0), "q": np.array([0.0, 0.5, 1.0, 1.5, 2.0]), "lode_deg": np.full(5, 30.0),
-            "E_d": np.array([1.0, 1.0, 1.001, 1.005, 1.02]), "time": np.arange(5.0), "theta_deg": np.full(5, 30.0)}
+        assert lode_angle(3.0 + 1.7 * lode_direction(np.radians(theta))) == pytest.approx(
+            theta % 360, abs=1e-9
+        )
+    rows = {
+        "sigma_m": np.full(5, 1.0),
+        "q": np.array([0.0, 0.5, 1.0, 1.5, 2.0]),
+        "lode_deg": np.full(5, 30.0),
+        "E_d": np.array([1.0, 1.0, 1.001, 1.005, 1.02]),
+        "time": np.arange(5.0),
+        "theta_deg": np.full(5, 30.0),
+    }
     m, q, lode = yield_point(rows, E_0=1.0, threshold=3e-3)
     assert q == pytest.approx(1.0 + 0.5 * (0.003 - 0.001) / 0.004) and m == 1.0 and lode == 30.0
     assert yield_point(rows, E_0=1.0, threshold=0.5) is None
@@ -320,8 +454,15 @@ def test_deviatoric_fan_on_the_simple_cubic_cell(tmp_path):
     )
 
     base = small_case(tmp_path, bc="CLP", duration=1e-3, increments=1000, outputs=10)
-    case = DeviatoricSurfaceCase(base=base, p_load=2.0, p_probe=1.6, q_max=2.2, angles_deg=(0.0, 20.0, 40.0),
-                                 rows_per_probe=40, out_dir=str(tmp_path / "fan"))
+    case = DeviatoricSurfaceCase(
+        base=base,
+        p_load=2.0,
+        p_probe=1.6,
+        q_max=2.2,
+        angles_deg=(0.0, 20.0, 40.0),
+        rows_per_probe=40,
+        out_dir=str(tmp_path / "fan"),
+    )
     result = run_deviatoric_surface(case, MPI.COMM_SELF, log=quiet)
     assert len(result["points"]) == 3
     sigma_max = []
@@ -340,20 +481,34 @@ def test_stress_path_waypoints():
     linearly and are held after the last; pressure_control is such a path; bad waypoints refused."""
     from mpfem_fenicsx.loading.mixed import normal_stress_path, pressure_control
 
-    path = normal_stress_path([0.0, 1.0, 2.0, 3.0], [[0, 0, 0], [2, 2, 2], [0.5, 0.5, 0.5], [3, 3, 4]],
-                              rate=1.0, band=1.0)
-    assert np.allclose(np.diag(path.target(0.5)), 1.0) and np.allclose(np.diag(path.target(1.5)), 1.25)
-    assert np.allclose(np.diag(path.target(2.5)), [1.75, 1.75, 2.25]) and np.allclose(np.diag(path.target(9)), [3, 3, 4])
-    assert path.duration == 3.0 and np.count_nonzero(path.target(2.5) - np.diag(np.diag(path.target(2.5)))) == 0
+    path = normal_stress_path(
+        [0.0, 1.0, 2.0, 3.0], [[0, 0, 0], [2, 2, 2], [0.5, 0.5, 0.5], [3, 3, 4]], rate=1.0, band=1.0
+    )
+    assert np.allclose(np.diag(path.target(0.5)), 1.0) and np.allclose(
+        np.diag(path.target(1.5)), 1.25
+    )
+    assert np.allclose(np.diag(path.target(2.5)), [1.75, 1.75, 2.25]) and np.allclose(
+        np.diag(path.target(9)), [3, 3, 4]
+    )
+    assert (
+        path.duration == 3.0
+        and np.count_nonzero(path.target(2.5) - np.diag(np.diag(path.target(2.5)))) == 0
+    )
     ramp = pressure_control(2.0, 1.0, 0.5, rate=1.0, band=1.0, unload_to=1.0, unload=0.5)
     assert ramp.duration == 2.5
-    assert [ramp.target(t)[0, 0] for t in (0.5, 1.2, 1.75, 2.4)] == pytest.approx([1.0, 2.0, 1.5, 1.0])
+    assert [ramp.target(t)[0, 0] for t in (0.5, 1.2, 1.75, 2.4)] == pytest.approx(
+        [1.0, 2.0, 1.5, 1.0]
+    )
     # the corners are rounded over 10 % of the shorter segment: C1, off the corner by |rate change| w / 8
     rounded = [np.diag(path.target(t))[0] for t in (0.95, 0.9999, 1.0, 1.0001, 1.05)]
     assert rounded[0] == pytest.approx(1.9) and rounded[4] == pytest.approx(1.925)
     assert rounded[2] == pytest.approx(2.0 - 3.5 * 0.1 / 8) and abs(rounded[3] - rounded[1]) < 1e-3
-    for times, stresses, match in (([0, 1, 1], [0, 1, 2], "increase strictly"), ([0, 1], [0, 1, 2], "one"),
-                                   ([0, np.nan], [0, 1], "finite"), ([-1, 1], [0, 1], "start >= 0")):
+    for times, stresses, match in (
+        ([0, 1, 1], [0, 1, 2], "increase strictly"),
+        ([0, 1], [0, 1, 2], "one"),
+        ([0, np.nan], [0, 1], "finite"),
+        ([-1, 1], [0, 1], "start >= 0"),
+    ):
         with pytest.raises(ValueError, match=match):
             normal_stress_path(times, stresses, rate=1.0, band=1.0)
 
@@ -397,7 +552,9 @@ def test_force_rupture_analysis(tmp_path):
     points = rupture_points(rows, phi_c=1e-3)
     # E_c / E_d = 1e-4 100^((k - 20) / 6) reaches 1e-3 at k = 23 (+ 0.0 rows)
     assert points["phi"]["time"] == pytest.approx(history.column("time")[23], rel=1e-9)
-    assert points["peak"]["sigma_33"] == pytest.approx(-3.0) and points["peak"]["sigma_m"] == pytest.approx(-1.0)
+    assert points["peak"]["sigma_33"] == pytest.approx(-3.0) and points["peak"][
+        "sigma_m"
+    ] == pytest.approx(-1.0)
     assert points["w2"]["path_stress"] > 2.9 and points["w2"]["time"] >= points["peak"]["time"]
     assert points["phi"]["time"] < points["w2"]["time"]
     assert "phi" not in rupture_points(rows, phi_c=0.5)
@@ -429,8 +586,14 @@ def test_force_rupture_where_strain_tangent_falls_below_servo(tmp_path):
     from mpfem_fenicsx.workflows.stress_probes import consolidate, run_probe
 
     base = small_case(tmp_path, bc="CLP", duration=1e-3, increments=1000, outputs=10, gamma=1e-2)
-    case = ForceRuptureCase(base=base, p_load=2.0, p_probe=0.2, final_stress=(0.2, 0.2, -6.0), rows_per_probe=40,
-                            out_dir=str(tmp_path / "force"))
+    case = ForceRuptureCase(
+        base=base,
+        p_load=2.0,
+        p_probe=0.2,
+        final_stress=(0.2, 0.2, -6.0),
+        rows_per_probe=40,
+        out_dir=str(tmp_path / "force"),
+    )
     result = run_force_rupture(case, MPI.COMM_SELF, log=quiet)
     points, rows = result["points"], result["rows"]
     assert result["phi_quasi_static"] < 0.1 * case.phi_c and np.nanmax(rows["phi"]) > 3 * case.phi_c
@@ -441,11 +604,21 @@ def test_force_rupture_where_strain_tangent_falls_below_servo(tmp_path):
     # (b) strain-driven from the same consolidated state (a new consolidation: the same run)
     state = consolidate(replace(case, out_dir=str(tmp_path / "strain")), MPI.COMM_SELF, log=quiet)
     rate, strain = 5.0, 0.012
-    pull = StressControl(duration=state.time + strain / rate, stress_driven=np.diag([True, True, False]),
-                         target=lambda t: 0.2 * np.eye(3), velocity_gradient=lambda t: np.diag([0.0, 0.0, rate]),
-                         **case.servo())
-    h = run_probe(replace(case, probe=strain / rate / 1e-3, rows_per_probe=20), state, pull, "pull", MPI.COMM_SELF,
-                  log=quiet)
+    pull = StressControl(
+        duration=state.time + strain / rate,
+        stress_driven=np.diag([True, True, False]),
+        target=lambda t: 0.2 * np.eye(3),
+        velocity_gradient=lambda t: np.diag([0.0, 0.0, rate]),
+        **case.servo(),
+    )
+    h = run_probe(
+        replace(case, probe=strain / rate / 1e-3, rows_per_probe=20),
+        state,
+        pull,
+        "pull",
+        MPI.COMM_SELF,
+        log=quiet,
+    )
     after = h.column("time") > state.time * (1 + 1e-12)
     tension, h33 = -h.column("sigma_schmidt_33")[after], np.log(h.column("F33")[after])
     K_t = np.diff(tension) / np.diff(h33)  # MPa, between rows
@@ -465,7 +638,12 @@ def test_force_rupture_demo_refuses_bad_input():
     from pathlib import Path
 
     demo = Path(__file__).parents[1] / "demos" / "force_rupture.py"
-    for args, words in ((["--gamma", "0"], "without adhesion"), (["--final", "1", "2"], "expected 3"),
-                        (["--p-probe", "5"], "p_probe must be in")):
-        run = subprocess.run([sys.executable, str(demo), *args], capture_output=True, text=True, timeout=300)
+    for args, words in (
+        (["--gamma", "0"], "without adhesion"),
+        (["--final", "1", "2"], "expected 3"),
+        (["--p-probe", "5"], "p_probe must be in"),
+    ):
+        run = subprocess.run(
+            [sys.executable, str(demo), *args], capture_output=True, text=True, timeout=300
+        )
         assert run.returncode == 2 and words in run.stderr, (args, run.stderr)

@@ -38,7 +38,10 @@ def test_two_ranks_reproduce_serial(case, root, tmp_path):
     demo, args, csvs, rtol = CASES[case]
     script = str(root / "demos" / demo)
     _run([sys.executable, script, *args, "--out", str(tmp_path / "serial")], root)
-    out = _run([str(MPIRUN), "-n", "2", sys.executable, script, *args, "--out", str(tmp_path / "mpi")], root)
+    out = _run(
+        [str(MPIRUN), "-n", "2", sys.executable, script, *args, "--out", str(tmp_path / "mpi")],
+        root,
+    )
     for csv in csvs:
         serial = read_csv(tmp_path / "serial" / csv)
         parallel = read_csv(tmp_path / "mpi" / csv)
@@ -48,7 +51,14 @@ def test_two_ranks_reproduce_serial(case, root, tmp_path):
             # a column that is round-off (e.g. an off-diagonal stress) is compared with the
             # magnitude of its family (sigma11..33, F11..33, ...)
             family = name.rstrip("0123456789_")
-            scale = max(np.nanmax(np.abs(serial[k])) for k in serial if k.rstrip("0123456789_") == family) + 1e-30
+            scale = (
+                max(
+                    np.nanmax(np.abs(serial[k]))
+                    for k in serial
+                    if k.rstrip("0123456789_") == family
+                )
+                + 1e-30
+            )
             assert np.abs(serial[name] - parallel[name]).max() <= rtol * scale, (csv, name, out)
 
 
@@ -79,8 +89,13 @@ def test_two_ranks_match_serial_with_consistent_constraint_mass(root, tmp_path):
 
     script = tmp_path / "run.py"
     script.write_text(CONSISTENT_MASS_RUN)
-    serial = json.loads(_run([sys.executable, str(script), str(tmp_path / "serial")], root).splitlines()[-1])
-    mpi = json.loads(_run([str(MPIRUN), "-n", "2", sys.executable, str(script), str(tmp_path / "mpi")],
-                          root).splitlines()[-1])
+    serial = json.loads(
+        _run([sys.executable, str(script), str(tmp_path / "serial")], root).splitlines()[-1]
+    )
+    mpi = json.loads(
+        _run(
+            [str(MPIRUN), "-n", "2", sys.executable, str(script), str(tmp_path / "mpi")], root
+        ).splitlines()[-1]
+    )
     for name, values in serial.items():
         assert np.abs(np.subtract(values, mpi[name])).max() <= 1e-9 * np.abs(values).max(), name

@@ -19,15 +19,29 @@ from mpfem_fenicsx.workflows.stress_probes import StressProbeCase
 from mpfem_fenicsx.workflows.two_spheres import TwoSphereCase
 from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase
 
-DECLARED = (CompactionCase, ElastoPlastic, HertzCase, TwoSphereCase, UniaxialCase, SqueezeCase, ServoSettings,
-            StressPath, StressProbeCase, DeviatoricSurfaceCase, ForceRuptureCase, YieldSurfaceCase)
+DECLARED = (
+    CompactionCase,
+    ElastoPlastic,
+    HertzCase,
+    TwoSphereCase,
+    UniaxialCase,
+    SqueezeCase,
+    ServoSettings,
+    StressPath,
+    StressProbeCase,
+    DeviatoricSurfaceCase,
+    ForceRuptureCase,
+    YieldSurfaceCase,
+)
 #: a valid instance of the classes whose defaults alone are not one
 VALID = {ForceRuptureCase: lambda: ForceRuptureCase(base=CompactionCase(gamma=1e-2))}
 
 
 def just_outside(allowed: Range) -> list:
     """Values a check must refuse: just below / above the bounds, and a non-choice."""
-    step = 1 if allowed.kind is int else 1e-9 * max(1.0, abs(allowed.low or 0), abs(allowed.high or 0))
+    step = (
+        1 if allowed.kind is int else 1e-9 * max(1.0, abs(allowed.low or 0), abs(allowed.high or 0))
+    )
     values = []
     if allowed.low is not None:
         values.append(allowed.low if allowed.open_low else allowed.low - step)
@@ -61,10 +75,19 @@ def test_every_declared_bound_is_enforced(cls):
 def test_a_range_reads_in_words():
     r = Range("Coulomb friction coefficient mu (-)", float, 0, 2)
     assert r.allowed() == ">= 0 and <= 2" and r.problem(1.0) is None
-    assert r.problem(3.0) == "is out of range: must be >= 0 and <= 2 [Coulomb friction coefficient mu (-)]"
+    assert (
+        r.problem(3.0)
+        == "is out of range: must be >= 0 and <= 2 [Coulomb friction coefficient mu (-)]"
+    )
     assert r.problem(float("nan")) == "must be a finite number"
-    assert Range("x", str, choices=("a", "b")).problem("c") == "is not allowed: must be one of 'a', 'b'"
-    assert Range("x", float, optional=True).problem(None) is None and Range("x", float).problem(None) == "is required"
+    assert (
+        Range("x", str, choices=("a", "b")).problem("c")
+        == "is not allowed: must be one of 'a', 'b'"
+    )
+    assert (
+        Range("x", float, optional=True).problem(None) is None
+        and Range("x", float).problem(None) == "is required"
+    )
 
 
 def test_shared_parameters_are_declared_once():
@@ -76,4 +99,6 @@ def test_shared_parameters_are_declared_once():
     assert len(control) >= 15
     for key in control:
         assert key.range == parameter_range(StressPath, key.name), key.name
-    assert parameter_range(ForceRuptureCase, "p_probe") == parameter_range(StressProbeCase, "p_probe")
+    assert parameter_range(ForceRuptureCase, "p_probe") == parameter_range(
+        StressProbeCase, "p_probe"
+    )

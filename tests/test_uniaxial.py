@@ -12,8 +12,12 @@ from mpfem_fenicsx.workflows.foundation import UniaxialCase, run_uniaxial
 @pytest.fixture(scope="module", params=["implicit", "explicit"])
 def uniaxial(request, tmp_path_factory):
     out = tmp_path_factory.mktemp(request.param)
-    return request.param, run_uniaxial(UniaxialCase(solver=request.param, log_strain=0.5), out_dir=out,
-                                       comm=MPI.COMM_SELF, log=lambda *a: None)
+    return request.param, run_uniaxial(
+        UniaxialCase(solver=request.param, log_strain=0.5),
+        out_dir=out,
+        comm=MPI.COMM_SELF,
+        log=lambda *a: None,
+    )
 
 
 def test_true_stress_follows_hardening_law(uniaxial):
@@ -45,8 +49,12 @@ def test_csv_contract(uniaxial):
 
 @pytest.fixture(scope="module")
 def explicit_run(tmp_path_factory):
-    return run_uniaxial(UniaxialCase(solver="explicit", log_strain=0.5), out_dir=tmp_path_factory.mktemp("energy"),
-                        comm=MPI.COMM_SELF, log=lambda *a: None)
+    return run_uniaxial(
+        UniaxialCase(solver="explicit", log_strain=0.5),
+        out_dir=tmp_path_factory.mktemp("energy"),
+        comm=MPI.COMM_SELF,
+        log=lambda *a: None,
+    )
 
 
 def test_explicit_energy_balance(explicit_run):

@@ -11,7 +11,10 @@ from validation.cases import STAGE_CONSTRAINT_MASS, STAGES, THESIS_DIE_SIGMA_M
 
 
 def test_at_density_interpolates_the_loading_branch():
-    h = {"rho_imposed": np.array([0.6, 0.9, 0.96, 0.95]), "sigma_m": np.array([0.0, 6.0, 12.0, 11.0])}
+    h = {
+        "rho_imposed": np.array([0.6, 0.9, 0.96, 0.95]),
+        "sigma_m": np.array([0.0, 6.0, 12.0, 11.0]),
+    }
     assert report.at_density(h, "sigma_m", 0.93, "rho_imposed") == pytest.approx(9.0)
     assert np.isnan(report.at_density(h, "sigma_m", 0.97, "rho_imposed"))  # never reached
 
@@ -31,18 +34,65 @@ def test_report_writes_summary_and_tables(tmp_path):
     (here / "README.md").write_text(readme)
     runs = tmp_path / "runs"
     rho = np.linspace(0.6, 0.95, 8)
-    columns = ["time", "rho", "rho_imposed", "rho_fe", "sigma_m", "sigma_schmidt_11", "sigma_schmidt_22", "sigma_schmidt_33",
-               "sigma_vol_m", "h_v", "h_d", "unbalanced", "W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp",
-               "sigma_d"]
-    for name, scale in (("die_CLP", 12.6), ("die_CLPS", 11.0), ("die_GDF", 7.0), ("die_CLPS_n12000", 11.5),
-                        ("die_CLPS_lumped_mass", 10.0), ("dbc_CLPS_1", 7.0), ("dbc_CLPS_1_n12000", 9.0)):
+    columns = [
+        "time",
+        "rho",
+        "rho_imposed",
+        "rho_fe",
+        "sigma_m",
+        "sigma_schmidt_11",
+        "sigma_schmidt_22",
+        "sigma_schmidt_33",
+        "sigma_vol_m",
+        "h_v",
+        "h_d",
+        "unbalanced",
+        "W_ext",
+        "E_int",
+        "E_visc",
+        "E_contact",
+        "E_c",
+        "E_damp",
+        "sigma_d",
+    ]
+    for name, scale in (
+        ("die_CLP", 12.6),
+        ("die_CLPS", 11.0),
+        ("die_GDF", 7.0),
+        ("die_CLPS_n12000", 11.5),
+        ("die_CLPS_lumped_mass", 10.0),
+        ("dbc_CLPS_1", 7.0),
+        ("dbc_CLPS_1_n12000", 9.0),
+    ):
         (runs / name).mkdir(parents=True)
         sigma = scale * ((rho - 0.6) / 0.35) ** 2
         h_v = -np.log(rho / 0.6)
-        rows = np.column_stack([rho, rho, rho, 0.97 * rho, sigma, sigma, sigma, sigma, 1.03 * sigma, h_v, 0.05 * np.abs(h_v),
-                                0.01 + 0 * rho, sigma, 1.1 * sigma, 0 * rho, 0 * rho, 0 * rho, 0.1 * sigma,
-                                (0.6 if name == "die_GDF" else 0.4) * sigma])
-        np.savetxt(runs / name / "history.csv", rows, delimiter=",", header=",".join(columns), comments="")
+        rows = np.column_stack(
+            [
+                rho,
+                rho,
+                rho,
+                0.97 * rho,
+                sigma,
+                sigma,
+                sigma,
+                sigma,
+                1.03 * sigma,
+                h_v,
+                0.05 * np.abs(h_v),
+                0.01 + 0 * rho,
+                sigma,
+                1.1 * sigma,
+                0 * rho,
+                0 * rho,
+                0 * rho,
+                0.1 * sigma,
+                (0.6 if name == "die_GDF" else 0.4) * sigma,
+            ]
+        )
+        np.savetxt(
+            runs / name / "history.csv", rows, delimiter=",", header=",".join(columns), comments=""
+        )
         (runs / name / "done").write_text("60\n")
     rows = report.write_report(runs, here)
     by_case = {(r["case"], r["quantity"]): r for r in rows}
@@ -58,17 +108,23 @@ def test_report_writes_summary_and_tables(tmp_path):
     # stress paths at equal pressure: GDF's sigma_d 1.5x CLP's is not "alike" (thesis fig. 2.24d)
     path = by_case[("die_GDF", "sigma_d / CLP's at equal sigma_m (thesis: alike)")]
     assert path["ours"] == pytest.approx(1.5) and path["status"] == "not met"
-    assert by_case[("die_CLPS", "sigma_d / CLP's at equal sigma_m (thesis: alike)")]["status"] == "met"
+    assert (
+        by_case[("die_CLPS", "sigma_d / CLP's at equal sigma_m (thesis: alike)")]["status"] == "met"
+    )
     gap = by_case[("die_GDF", "sigma_m below CLP at the end (fraction)")]
     # 44 % > 20 %
     assert gap["ours"] == pytest.approx(1 - 7.0 / 12.6) and gap["status"] == "not met"
     summary = (here / "summary.csv").read_text().splitlines()
-    assert summary[0] == "case,quantity,thesis,ours,deviation,status" and len(summary) == 1 + len(rows)
+    assert summary[0] == "case,quantity,thesis,ours,deviation,status" and len(summary) == 1 + len(
+        rows
+    )
     text = (here / "README.md").read_text()
     assert "| CLP | 12.6 | 12.60 |" in text and "| GDH | (none) | not run yet" in text
     # its carrier takes 20 % of W_ext: the quasi-static check fails, whatever the thesis deviation
-    assert ("| CLPS | 12000 | consistent | 8.45 / 10.28 | 11.50 (0.950) | 11.50 | 0.01 | 20 % | failed (20 % / 0.01) "
-            "| +1.8 % | met |") in text
+    assert (
+        "| CLPS | 12000 | consistent | 8.45 / 10.28 | 11.50 (0.950) | 11.50 | 0.01 | 20 % | failed (20 % / 0.01) "
+        "| +1.8 % | met |"
+    ) in text
     assert "| GDF | 12000 | lumped | not run yet" in text
     # the lumped-mass variants of the die CLPS run (consistent mass), listed after it
     lumped = by_case[("die_CLPS_lumped_mass", "sigma_m at rho 0.95 (MPa), lumped mass")]
@@ -87,11 +143,16 @@ def test_report_writes_summary_and_tables(tmp_path):
     assert "| 2.5 (the largest run: not shown stable), 1.5 / 2 r_max not run yet | 1: " in text
     # the same verdict at equal rho of eq. 2.4 (here the imposed one), read without the end
     assert by_case[("dbc_CLPS", "stable d_bc / r_max at equal rho (eq. 2.4)")]["ours"] == 2.5
-    assert ("; 2.5: 5.10 / 7.35 / 8.94 | 2.5 (the largest run: not shown stable), 1.5 / 2 r_max not run yet | 1.5 "
-            "| not met / not met |") in text
+    assert (
+        "; 2.5: 5.10 / 7.35 / 8.94 | 2.5 (the largest run: not shown stable), 1.5 / 2 r_max not run yet | 1.5 "
+        "| not met / not met |"
+    ) in text
     assert "not run yet" in text  # the gamma stage
     # the overview: per table its compared numbers met and its stages' runs (60 s each)
-    assert "| Die compaction, sigma_m at rho 0.95 (§2.7) | 3 of 4 | 3 of 5 (0.1) | `die_GDH`, `die_CLP_exact_volume` |" in text
+    assert (
+        "| Die compaction, sigma_m at rho 0.95 (§2.7) | 3 of 4 | 3 of 5 (0.1) | `die_GDH`, `die_CLP_exact_volume` |"
+        in text
+    )
     assert ("| The explicit runs' rate: increments and reduced mass | 2 of 2 | 3 of 6 (0.1) | "
             "`die_CLPS_lumped_mass_n12000`, `die_GDF_n12000`, `isotropic_CLPS_n12000` |") in text
     assert "| CLPS, isotropic | 6000 | consistent | not run yet" in text
@@ -120,13 +181,18 @@ def test_isotropic_drift_is_read_above_the_centroid_fit_noise():
     from mpfem_fenicsx.meshes.packing import Packing
 
     rng = np.random.default_rng(0)
-    packing = Packing(cell=[1.0, 1.0, 1.0], centres=rng.uniform(0.0, 1.0, (50, 3)), radii=np.full(50, 0.1))
+    packing = Packing(
+        cell=[1.0, 1.0, 1.0], centres=rng.uniform(0.0, 1.0, (50, 3)), radii=np.full(50, 0.1)
+    )
     rho = np.linspace(0.6, 0.95, 15)
     h_v = -np.log(rho / 0.6)
     nonaffine = 0.5 * np.abs(h_v)  # scatter growing with the strain, in mean radii
     history = {"rho_imposed": rho, "h_v": h_v, "nonaffine": nonaffine, "sigma_m": 20 * np.abs(h_v)}
     noise = report.drift_noise({"history": history, "packing": packing})
-    assert np.all(noise[1:] > 0) and np.isnan(report.drift_noise({"history": history, "packing": None})).all()
+    assert (
+        np.all(noise[1:] > 0)
+        and np.isnan(report.drift_noise({"history": history, "packing": None})).all()
+    )
 
     def drift_row(bc, h_d):
         run = {"history": dict(history, h_d=h_d), "packing": packing}
@@ -136,7 +202,10 @@ def test_isotropic_drift_is_read_above_the_centroid_fit_noise():
     assert drift_row("CLP", noise)["ours"] == pytest.approx(0.0, abs=1e-12)
     assert drift_row("CLP", noise)["status"] == "met"
     drifting = np.sqrt(noise ** 2 + (0.05 * h_v) ** 2)
-    assert drift_row("CLP", drifting)["ours"] == pytest.approx(0.05) and drift_row("CLP", drifting)["status"] == "not met"
+    assert (
+        drift_row("CLP", drifting)["ours"] == pytest.approx(0.05)
+        and drift_row("CLP", drifting)["status"] == "not met"
+    )
     gdf = drift_row("GDF", np.sqrt(noise ** 2 + (0.07 * h_v) ** 2))
     assert gdf["ours"] == pytest.approx(0.07) and gdf["status"] == "met"
 
@@ -152,15 +221,22 @@ def test_size_effect_on_h_d_is_read_above_the_fit_noise():
     h_v = -np.log(rho / 0.6)
     runs = {}
     for name, n in (("isotropic_GDF", 50), ("size_GDF_150", 150), ("isotropic_CLP", 50)):
-        packing = Packing(cell=np.full(3, (n / 50) ** (1 / 3)), centres=rng.uniform(0.0, (n / 50) ** (1 / 3), (n, 3)),
-                          radii=np.full(n, 0.1))
+        packing = Packing(
+            cell=np.full(3, (n / 50) ** (1 / 3)),
+            centres=rng.uniform(0.0, (n / 50) ** (1 / 3), (n, 3)),
+            radii=np.full(n, 0.1),
+        )
         history = {"rho": rho, "rho_imposed": rho, "h_v": h_v, "nonaffine": 0.5 * np.abs(h_v),
                    "sigma_m": 20 * np.abs(h_v), "sigma_d": 0 * rho + 0.1 * n ** -0.5}
         runs[name] = {"history": history, "packing": packing}
         runs[name]["noise"] = report.drift_noise(runs[name])
 
     def falls(drift_50, drift_150):
-        for name, drift in (("isotropic_GDF", drift_50), ("size_GDF_150", drift_150), ("isotropic_CLP", drift_50)):
+        for name, drift in (
+            ("isotropic_GDF", drift_50),
+            ("size_GDF_150", drift_150),
+            ("isotropic_CLP", drift_50),
+        ):
             run = runs[name]
             run["history"]["h_d"] = np.sqrt(run["noise"] ** 2 + (drift * h_v) ** 2)
         rows, _ = report.size_rows(runs)
@@ -180,8 +256,16 @@ def test_size_effect_gap_is_read_against_clp_on_the_same_packing():
     h_v = -np.log(rho / 0.6)
 
     def run(level):
-        return {"history": {"rho": rho, "rho_imposed": rho, "h_v": h_v, "h_d": 0 * rho, "sigma_m": level * h_v,
-                            "sigma_d": 0 * rho + 0.1}}
+        return {
+            "history": {
+                "rho": rho,
+                "rho_imposed": rho,
+                "h_v": h_v,
+                "h_d": 0 * rho,
+                "sigma_m": level * h_v,
+                "sigma_d": 0 * rho + 0.1,
+            }
+        }
 
     runs = {"isotropic_GDF": run(18.0), "isotropic_CLP": run(20.0), "size_GDF_150": run(17.0)}
 
@@ -205,8 +289,16 @@ def test_size_effect_must_exceed_spread_of_50_particle_packings():
     h_v = -np.log(rho / 0.6)
 
     def run(level, sigma_d=0.1):
-        return {"history": {"rho": rho, "rho_imposed": rho, "h_v": h_v, "h_d": 0 * rho, "sigma_m": level * h_v,
-                            "sigma_d": 0 * rho + sigma_d}}
+        return {
+            "history": {
+                "rho": rho,
+                "rho_imposed": rho,
+                "h_v": h_v,
+                "h_d": 0 * rho,
+                "sigma_m": level * h_v,
+                "sigma_d": 0 * rho + sigma_d,
+            }
+        }
 
     runs = {"isotropic_GDF": run(18.0, 0.3), "isotropic_CLP": run(20.0),
             "size_GDF_150": run(17.0, 0.1), "size_CLP_150": run(18.0)}  # gaps 10 % and 5.6 %
@@ -240,10 +332,15 @@ def _synthetic_run(end: float, carrier_share: float) -> dict:
 def test_isotropic_rate_variant_is_listed_not_compared():
     """The isotropic CLPS at 12 000 increments sits in the rate table beside its 6000-increment
     run, not compared with the thesis' die values."""
-    done = {"isotropic_CLPS": _synthetic_run(13.2, 0.01), "isotropic_CLPS_n12000": _synthetic_run(13.5, 0.01)}
+    done = {
+        "isotropic_CLPS": _synthetic_run(13.2, 0.01),
+        "isotropic_CLPS_n12000": _synthetic_run(13.5, 0.01),
+    }
     rows, lines = report.increments_rows(done)
     assert not any(r["case"].startswith("isotropic") for r in rows)
-    line = next(line for line in lines if line.startswith("| CLPS, isotropic | 12000 | consistent |"))
+    line = next(
+        line for line in lines if line.startswith("| CLPS, isotropic | 12000 | consistent |")
+    )
     assert "| 13.50 |" in line and "(not in the thesis)" in line
 
 
@@ -310,15 +407,32 @@ def test_gamma_rows_compare_every_definition():
 def _ellipse_fan(case, centre, a, b, angle_deg, nphi=12, compressive=3.0, tensile=1.0, gamma_l=5.0):
     """A synthetic finished fan: yield points on an ellipse (semi-axes a > b MPa, major axis at
     ``angle_deg`` from the sigma_m axis), sampled at uneven angles, and its summary."""
-    t = np.linspace(0, 2 * np.pi, nphi, endpoint=False) + 0.3 * np.sin(np.linspace(0, 2 * np.pi, nphi, endpoint=False))
+    t = np.linspace(0, 2 * np.pi, nphi, endpoint=False) + 0.3 * np.sin(
+        np.linspace(0, 2 * np.pi, nphi, endpoint=False)
+    )
     q = np.radians(angle_deg)
     x, y = a * np.cos(t), b * np.sin(t)
-    pts = np.column_stack([t, centre[0] + x * np.cos(q) - y * np.sin(q), centre[1] + x * np.sin(q) + y * np.cos(q)])
-    return {"case": case, "wall_s": 60.0, "surfaces": {"yield": pts, f"gamma_{gamma_l:.6g}": pts * [1, 1.1, 1.1]},
-            "unloaded": {"sigma_m_loaded": 5.0, "sigma_m_unloaded": 0.25, "Gamma_unloaded": 2 * gamma_l},
-            "summary": {"Gamma_limit_per_mm": gamma_l, "points": {"yield": nphi},
-                        "uniaxial_MPa": {"yield": {"compressive": compressive, "tensile": 0.5 * tensile},
-                                         f"gamma_{gamma_l:.6g}": {"compressive": 2 * compressive, "tensile": tensile}}}}
+    pts = np.column_stack(
+        [t, centre[0] + x * np.cos(q) - y * np.sin(q), centre[1] + x * np.sin(q) + y * np.cos(q)]
+    )
+    return {
+        "case": case,
+        "wall_s": 60.0,
+        "surfaces": {"yield": pts, f"gamma_{gamma_l:.6g}": pts * [1, 1.1, 1.1]},
+        "unloaded": {
+            "sigma_m_loaded": 5.0,
+            "sigma_m_unloaded": 0.25,
+            "Gamma_unloaded": 2 * gamma_l,
+        },
+        "summary": {
+            "Gamma_limit_per_mm": gamma_l,
+            "points": {"yield": nphi},
+            "uniaxial_MPa": {
+                "yield": {"compressive": compressive, "tensile": 0.5 * tensile},
+                f"gamma_{gamma_l:.6g}": {"compressive": 2 * compressive, "tensile": tensile},
+            },
+        },
+    }
 
 
 def test_surface_axis_of_a_rotated_ellipse():
@@ -334,13 +448,41 @@ def test_fan_rows_and_trends_on_synthetic_fans():
     """Gamma_l rows against table 4.2 and the four trends, shown on fans built to show them and
     not shown on fans built not to."""
     fans = {c.name: c for c in report.STAGES["fans"]}
-    done = {"fan_isotropic_0.79": _ellipse_fan(fans["fan_isotropic_0.79"], (1.0, 0.0), 2.0, 1.5, 0.0,
-                                                       compressive=2.0, tensile=0.8, gamma_l=17.0),
-            "fan_isotropic_0.87": _ellipse_fan(fans["fan_isotropic_0.87"], (1.5, 0.0), 3.0, 2.0, 0.0,
-                                                       compressive=3.0, tensile=1.2, gamma_l=27.0),
-            "fan_die_0.82": _ellipse_fan(fans["fan_die_0.82"], (1.5, 1.0), 3.0, 1.5, 25.0,
-                                                 compressive=2.5, tensile=1.0, gamma_l=10.0),
-            "fan_isotropic_0.87_gamma0": _ellipse_fan(fans["fan_isotropic_0.87_gamma0"], (3.5, 0.0), 3.0, 2.0, 0.0)}
+    done = {
+        "fan_isotropic_0.79": _ellipse_fan(
+            fans["fan_isotropic_0.79"],
+            (1.0, 0.0),
+            2.0,
+            1.5,
+            0.0,
+            compressive=2.0,
+            tensile=0.8,
+            gamma_l=17.0,
+        ),
+        "fan_isotropic_0.87": _ellipse_fan(
+            fans["fan_isotropic_0.87"],
+            (1.5, 0.0),
+            3.0,
+            2.0,
+            0.0,
+            compressive=3.0,
+            tensile=1.2,
+            gamma_l=27.0,
+        ),
+        "fan_die_0.82": _ellipse_fan(
+            fans["fan_die_0.82"],
+            (1.5, 1.0),
+            3.0,
+            1.5,
+            25.0,
+            compressive=2.5,
+            tensile=1.0,
+            gamma_l=10.0,
+        ),
+        "fan_isotropic_0.87_gamma0": _ellipse_fan(
+            fans["fan_isotropic_0.87_gamma0"], (3.5, 0.0), 3.0, 2.0, 0.0
+        ),
+    }
     rows, lines = report.fan_rows(done)
     by = {r["case"]: r for r in rows}
     # 10 vs 24.9
@@ -357,7 +499,9 @@ def test_fan_rows_and_trends_on_synthetic_fans():
     assert [line.rsplit("|", 2)[-2].strip() for line in trends[2:]] == ["not shown"] * 4
     # tension held without adhesion too: not the adhesion's effect
     done["fan_isotropic_0.87"] = _ellipse_fan(fans["fan_isotropic_0.87"], (1.5, 0.0), 3.0, 2.0, 0.0)
-    done["fan_isotropic_0.87_gamma0"] = _ellipse_fan(fans["fan_isotropic_0.87_gamma0"], (2.5, 0.0), 3.0, 2.0, 0.0)
+    done["fan_isotropic_0.87_gamma0"] = _ellipse_fan(
+        fans["fan_isotropic_0.87_gamma0"], (2.5, 0.0), 3.0, 2.0, 0.0
+    )
     assert report.trend_lines(done)[1][2].endswith("| not shown |")
     _, trends = report.trend_lines({})
     assert all("not run yet" in line for line in trends[2:])
@@ -371,18 +515,42 @@ def test_reload_study_reads_how_far_the_surfaces_move():
     slow = "fan_isotropic_0.79_n1200"
     assert fans[slow].shares_loading_with == "fan_isotropic_0.79" and not fans[slow].is_thesis_fan
     # each variant against its reference if it names one, else the thesis fan sharing its loading
-    assert [fans[n].compared_with for n in (slow, "fan_isotropic_0.79_ramps", "fan_isotropic_0.79_A3_n800_ramps",
-                                            "fan_die_0.82_A3_n800", "fan_isotropic_0.79")] == \
-        ["fan_isotropic_0.79", "fan_isotropic_0.79", "fan_isotropic_0.79_ramps", "fan_die_0.82", None]
+    assert [
+        fans[n].compared_with
+        for n in (
+            slow,
+            "fan_isotropic_0.79_ramps",
+            "fan_isotropic_0.79_A3_n800_ramps",
+            "fan_die_0.82_A3_n800",
+            "fan_isotropic_0.79",
+        )
+    ] == [
+        "fan_isotropic_0.79",
+        "fan_isotropic_0.79",
+        "fan_isotropic_0.79_ramps",
+        "fan_die_0.82",
+        None,
+    ]
     assert fans["fan_isotropic_0.79_A3_n800_ramps"].shares_loading_with == "fan_isotropic_0.79"
     # a reference is a fan of the stage that shares the loading
     for case in fans.values():
-        assert case.compared_with is None or fans[case.compared_with].shares_loading_with in (None, case.shares_loading_with)
-        assert case.compared_with is None or (fans[case.compared_with].loading, fans[case.compared_with].rho_f,
-                                              fans[case.compared_with].gamma) == (case.loading, case.rho_f, case.gamma)
-    done = {"fan_isotropic_0.79": _ellipse_fan(fans["fan_isotropic_0.79"], (0.25, 0.0), 2.0, 1.5, 0.0,
-                                               compressive=2.0, tensile=0.8),
-            slow: _ellipse_fan(fans[slow], (0.25, 0.0), 2.04, 1.53, 0.0, compressive=2.04, tensile=0.81)}
+        assert case.compared_with is None or fans[case.compared_with].shares_loading_with in (
+            None,
+            case.shares_loading_with,
+        )
+        assert case.compared_with is None or (
+            fans[case.compared_with].loading,
+            fans[case.compared_with].rho_f,
+            fans[case.compared_with].gamma,
+        ) == (case.loading, case.rho_f, case.gamma)
+    done = {
+        "fan_isotropic_0.79": _ellipse_fan(
+            fans["fan_isotropic_0.79"], (0.25, 0.0), 2.0, 1.5, 0.0, compressive=2.0, tensile=0.8
+        ),
+        slow: _ellipse_fan(
+            fans[slow], (0.25, 0.0), 2.04, 1.53, 0.0, compressive=2.04, tensile=0.81
+        ),
+    }
     done[slow]["summary"]["reload"] = {"amplitude": 2.45e-3, "steps": 1200, "duration_s": 2e-4,
                                        "strain_rate_per_s": 12.25}
     line = next(x for x in report.reload_study_lines(done)[1] if x.startswith(f"| {slow} |"))
@@ -390,7 +558,9 @@ def test_reload_study_reads_how_far_the_surfaces_move():
     assert line.endswith("yield within 2.0 %; w2 not compared |")
     done[slow] = _ellipse_fan(fans[slow], (0.25, 0.0), 2.4, 1.8, 0.0, compressive=2.4, tensile=0.8)
     line = next(x for x in report.reload_study_lines(done)[1] if x.startswith(f"| {slow} |"))
-    assert "2.4 vs 2 (+20 %)" in line and line.endswith("yield moves by up to 20 %; w2 not compared |")
+    assert "2.4 vs 2 (+20 %)" in line and line.endswith(
+        "yield moves by up to 20 %; w2 not compared |"
+    )
 
 
 def test_open_die_surface_read_on_same_rate_fan_that_closes_it():
@@ -428,16 +598,35 @@ def _die_compaction(tmp_path, name, **options):
 
     from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 
-    base = dict(particles=24, seed=1, loading="die", target_density=0.85, divisions=4, radius_factor=0.975, outputs=20,
-                visual=False, checkpoint_every=0, out_dir=str(tmp_path / name))
-    history = run_compaction(CompactionCase(**{**base, **options}), MPI.COMM_SELF, log=lambda *a: None).history
+    base = dict(
+        particles=24,
+        seed=1,
+        loading="die",
+        target_density=0.85,
+        divisions=4,
+        radius_factor=0.975,
+        outputs=20,
+        visual=False,
+        checkpoint_every=0,
+        out_dir=str(tmp_path / name),
+    )
+    history = run_compaction(
+        CompactionCase(**{**base, **options}), MPI.COMM_SELF, log=lambda *a: None
+    ).history
     return {name: history.column(name) for name in history.columns}
 
 
 def _band_mean(history, column, lo, hi, density, points=17):
     """Mean of ``column`` over ``density`` in [lo, hi] (``points`` interpolated): a 24-particle
     curve jumps by +-7 % from row to row as contacts form, a band averages those jumps out."""
-    return float(np.mean([report.at_density(history, column, rho, density) for rho in np.linspace(lo, hi, points)]))
+    return float(
+        np.mean(
+            [
+                report.at_density(history, column, rho, density)
+                for rho in np.linspace(lo, hi, points)
+            ]
+        )
+    )
 
 
 def test_die_clp_density_definition_on_a_small_volume(tmp_path):

@@ -37,7 +37,9 @@ class CouplingRows:
 
     @staticmethod
     def empty() -> CouplingRows:
-        return CouplingRows(np.zeros(0, np.int32), np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0))
+        return CouplingRows(
+            np.zeros(0, np.int32), np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        )
 
 
 class AffineConstraint:
@@ -62,8 +64,11 @@ class AffineConstraint:
         couplings = couplings or CouplingRows.empty()
         self.couplings = couplings
         self.slaves = np.asarray(couplings.slaves, dtype=np.int32)
-        if self.slaves.size and (self.slaves.max() >= self.num_owned or np.intersect1d(self.slaves, dofs).size
-                                 or np.unique(self.slaves).size != self.slaves.size):
+        if self.slaves.size and (
+            self.slaves.max() >= self.num_owned
+            or np.intersect1d(self.slaves, dofs).size
+            or np.unique(self.slaves).size != self.slaves.size
+        ):
             raise ValueError("coupling slaves must be distinct owned dofs that are not prescribed")
         free = np.ones(self.num_owned, dtype=bool)
         free[self.prescribed] = False

@@ -48,7 +48,9 @@ class AdhesiveGuards:
             gone = np.isin(keys, self.separated)
             alpha_n[gone], smax_n[gone] = 0.0, 0.0
 
-    def track(self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray, T1: np.ndarray) -> np.ndarray:
+    def track(
+        self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray, T1: np.ndarray
+    ) -> np.ndarray:
         """After the law at an iterate (branch codes ``branch``, normal tractions ``T1``): snap-in,
         then peeling; returns the mask of the points whose softening slope the tangent holds at
         zero."""
@@ -93,7 +95,9 @@ class AdhesiveGuards:
                 held = reentered & np.isin(keys, self.returned)
         return held
 
-    def track_snap_in(self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray, T1: np.ndarray) -> None:
+    def track_snap_in(
+        self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray, T1: np.ndarray
+    ) -> None:
         """Snap-in of the adhesive law at the edge of a growing contact.
 
         A virgin point (no memory) at the edge of a contact that grows on a soft (plastic)

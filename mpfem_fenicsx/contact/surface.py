@@ -35,14 +35,18 @@ class ContactSurface:
         owned_nodes: surface nodes whose dof block this rank owns (its slave nodes).
     """
 
-    def __init__(self, V: dolfinx.fem.FunctionSpace, facet_tags: dolfinx.mesh.MeshTags, num_bodies: int):
+    def __init__(
+        self, V: dolfinx.fem.FunctionSpace, facet_tags: dolfinx.mesh.MeshTags, num_bodies: int
+    ):
         mesh = V.mesh
         comm = mesh.comm
         self.comm = comm
         self.V = V
         self.num_bodies = num_bodies
         if V.element.basix_element.degree != 1:
-            raise NotImplementedError("contact surfaces need a degree-1 displacement space (Q1 or P1)")
+            raise NotImplementedError(
+                "contact surfaces need a degree-1 displacement space (Q1 or P1)"
+            )
         tdim = mesh.topology.dim
         mesh.topology.create_connectivity(tdim - 1, tdim)
         mesh.topology.create_connectivity(tdim, tdim - 1)
@@ -103,7 +107,9 @@ class ContactSurface:
         flat = self.facets[:, :nv].ravel()
         order = np.argsort(flat, kind="stable")
         self.node_facets = (order // nv).astype(np.int64)
-        self.node_facet_ptr = np.searchsorted(flat[order], np.arange(self.blocks.size + 1)).astype(np.int64)
+        self.node_facet_ptr = np.searchsorted(flat[order], np.arange(self.blocks.size + 1)).astype(
+            np.int64
+        )
 
         # local access: which surface nodes this rank owns, and their local dof blocks
         lo, hi = imap.local_range

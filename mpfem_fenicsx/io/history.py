@@ -26,7 +26,9 @@ def tensor_from_columns(columns, prefix: str) -> np.ndarray:
     """(n, 3, 3) tensors from the columns ``prefix`` + 11 ... 33 of a mapping of column arrays
     (``read_csv``) or of anything with a ``column(name)`` method (a :class:`History`)."""
     get = columns.column if hasattr(columns, "column") else columns.__getitem__
-    return np.stack([np.asarray(get(c), dtype=float) for c in tensor_columns(prefix)], axis=-1).reshape(-1, 3, 3)
+    return np.stack(
+        [np.asarray(get(c), dtype=float) for c in tensor_columns(prefix)], axis=-1
+    ).reshape(-1, 3, 3)
 
 
 class History:
@@ -80,5 +82,7 @@ def read_csv(path: str | Path) -> dict[str, np.ndarray]:
     with open(path) as fh:
         reader = csv.reader(fh)
         header = next(reader)
-        data = np.array([[float(v) if v else np.nan for v in row] for row in reader], dtype=float).reshape(-1, len(header))
+        data = np.array(
+            [[float(v) if v else np.nan for v in row] for row in reader], dtype=float
+        ).reshape(-1, len(header))
     return {name: data[:, i] for i, name in enumerate(header)}

@@ -59,8 +59,10 @@ class SmoothRamps:
         if not self.t1 > self.t0:
             raise ValueError(f"SmoothRamps needs t1 > t0, got t0={self.t0}, t1={self.t1}")
         if not (0.0 < self.rise and 0.0 < self.fall and self.rise + self.fall <= 1.0):
-            raise ValueError(f"SmoothRamps needs rise > 0, fall > 0 and rise + fall <= 1, got rise={self.rise}, "
-                             f"fall={self.fall}")
+            raise ValueError(
+                f"SmoothRamps needs rise > 0, fall > 0 and rise + fall <= 1, got rise={self.rise}, "
+                f"fall={self.fall}"
+            )
 
     @property
     def plateau(self) -> float:

@@ -89,7 +89,9 @@ class GradientPath:
             if not duration > 0:
                 raise ValueError(f"segment {k}: duration must be > 0 s, got {duration}")
             if G.shape != (3, 3) or not np.linalg.det(G) > 0:
-                raise ValueError(f"segment {k}: increment gradient must be a 3x3 matrix with det > 0")
+                raise ValueError(
+                    f"segment {k}: increment gradient must be a 3x3 matrix with det > 0"
+                )
             self._knots.append(self._knots[-1] + duration)
             shape = PROFILES[self.profiles[k] if k < len(self.profiles) else "smooth-step"]
             self._amplitudes.append(shape(self._knots[-1], self._knots[-2]))

@@ -51,7 +51,9 @@ class PrescribedDisplacements:
     @property
     def prescribed_dofs(self) -> np.ndarray:
         """All dofs of the groups added so far (local unrolled indices)."""
-        return np.concatenate([d for d, _ in self._groups]) if self._groups else np.zeros(0, np.int32)
+        return (
+            np.concatenate([d for d, _ in self._groups]) if self._groups else np.zeros(0, np.int32)
+        )
 
     def build(self) -> AffineConstraint:
         self.constraint = AffineConstraint(self.V, self.prescribed_dofs, self.couplings)

@@ -308,7 +308,14 @@ def _sym_norm2(a):
 @numba.njit(cache=True, inline="always")
 def _sym_axpi(alpha, a, c):
     """alpha a + c 1."""
-    return (alpha * a[0] + c, alpha * a[1] + c, alpha * a[2] + c, alpha * a[3], alpha * a[4], alpha * a[5])
+    return (
+        alpha * a[0] + c,
+        alpha * a[1] + c,
+        alpha * a[2] + c,
+        alpha * a[3],
+        alpha * a[4],
+        alpha * a[5],
+    )
 
 
 @numba.njit(cache=True, inline="always")
@@ -343,7 +350,9 @@ def _half_log_near_identity(b):
     c4 = x[3] * x[5] - x[4] * s1
     c5 = x[3] * x[4] - s0 * x[5]
     inv_det = 1.0 / (s0 * c0 + x[3] * c3 + x[4] * c4)
-    y = _sym_mul(x, (c0 * inv_det, c1 * inv_det, c2 * inv_det, c3 * inv_det, c4 * inv_det, c5 * inv_det))
+    y = _sym_mul(
+        x, (c0 * inv_det, c1 * inv_det, c2 * inv_det, c3 * inv_det, c4 * inv_det, c5 * inv_det)
+    )
     z = _sym_mul(y, y)
     r2 = _sym_norm2(y)
     # the series' terms y^(2k+1)/(2k+1) from k = 1; keep them while r^(2k+1) > tolerance
@@ -431,9 +440,33 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
         _mul_ab(f, M1, be)
         b = (be[0, 0], be[1, 1], be[2, 2], 0.5 * (be[0, 1] + be[1, 0]), 0.5 * (be[0, 2] + be[2, 0]),
              0.5 * (be[1, 2] + be[2, 1]))
-        if not want_tangent and _sym_norm2(_sym_axpi(1.0, b, -1.0)) <= SERIES_RADIUS * SERIES_RADIUS:
-            _update_point_by_series(qp, b, Finv, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law,
-                                    P_dev, cp_inv_new, eps_p_new, tau, dissipation, psi, M1, M2, M3, C)
+        if (
+            not want_tangent
+            and _sym_norm2(_sym_axpi(1.0, b, -1.0)) <= SERIES_RADIUS * SERIES_RADIUS
+        ):
+            _update_point_by_series(
+                qp,
+                b,
+                Finv,
+                cp_inv_n,
+                eps_p_n,
+                mu,
+                bulk,
+                s0,
+                modulus,
+                exponent,
+                law,
+                P_dev,
+                cp_inv_new,
+                eps_p_new,
+                tau,
+                dissipation,
+                psi,
+                M1,
+                M2,
+                M3,
+                C,
+            )
             continue
         eig_sym3(be, x, Q)
 
@@ -494,7 +527,9 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
                 a[A, B] = 2.0 * mu * beta * ((1.0 if A == B else 0.0) - 1.0 / 3.0)
         if plastic:
             p = p_n + dgamma
-            slope = _yield_and_slope(p, _hardening_power(p, exponent, law), s0, modulus, exponent, law)[1]
+            slope = _yield_and_slope(
+                p, _hardening_power(p, exponent, law), s0, modulus, exponent, law
+            )[1]
             coef = 6.0 * mu * mu * (dgamma / q_tr - 1.0 / (three_mu + slope))
             for A in range(3):
                 for B in range(3):
@@ -524,7 +559,9 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
                         nAB = theta * Q[i, A] * Q[j, B]
                         for k in range(3):
                             for m in range(3):
-                                Cs[i, j, k, m] += nAB * (x[B] * Q[k, A] * Q[m, B] + x[A] * Q[k, B] * Q[m, A])
+                                Cs[i, j, k, m] += nAB * (
+                                    x[B] * Q[k, A] * Q[m, B] + x[A] * Q[k, B] * Q[m, A]
+                                )
         # material tangent A_iJkL = Cs_ijkb Finv_Lb Finv_Jj - P_iL Finv_Jk
         for i in range(3):
             for j in range(3):
@@ -575,9 +612,42 @@ def return_mapping(F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law, w
         a = np.empty((3, 3))
         Cs = np.empty((3, 3, 3, 3))
         D = np.empty((3, 3, 3, 3))
-        _update_range(chunk * _CHUNK, min(nq, (chunk + 1) * _CHUNK), F, cp_inv_n, eps_p_n, mu, bulk, s0,
-                      modulus, exponent, law, want_tangent, P_dev, A_dev, cp_inv_new, eps_p_new, tau,
-                      dissipation, psi, Finv, C, be, x, Q, eps_tr, s_tr, s, eps_e, M1, M2, M3, a, Cs, D)
+        _update_range(
+            chunk * _CHUNK,
+            min(nq, (chunk + 1) * _CHUNK),
+            F,
+            cp_inv_n,
+            eps_p_n,
+            mu,
+            bulk,
+            s0,
+            modulus,
+            exponent,
+            law,
+            want_tangent,
+            P_dev,
+            A_dev,
+            cp_inv_new,
+            eps_p_new,
+            tau,
+            dissipation,
+            psi,
+            Finv,
+            C,
+            be,
+            x,
+            Q,
+            eps_tr,
+            s_tr,
+            s,
+            eps_e,
+            M1,
+            M2,
+            M3,
+            a,
+            Cs,
+            D,
+        )
 
 
 class HenckyJ2:
@@ -626,11 +696,17 @@ class HenckyJ2:
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """Committed plastic state (C_p^-1, eps_p, plastic work) of this rank's points (for checkpoints)."""
-        return {"cp_inv": self.cp_inv.copy(), "eps_p": self.eps_p.copy(), "plastic_work": self.plastic_work.copy()}
+        return {
+            "cp_inv": self.cp_inv.copy(),
+            "eps_p": self.eps_p.copy(),
+            "plastic_work": self.plastic_work.copy(),
+        }
 
     def load_state(self, data: dict[str, np.ndarray]) -> None:
         if data["eps_p"].shape != self.eps_p.shape:
-            raise ValueError(f"material state has {data['eps_p'].size} points, expected {self.num_points}")
+            raise ValueError(
+                f"material state has {data['eps_p'].size} points, expected {self.num_points}"
+            )
         self.cp_inv[:] = data["cp_inv"]
         self.eps_p[:] = data["eps_p"]
         # checkpoints written before the per-point tally: the work so far is not known per point

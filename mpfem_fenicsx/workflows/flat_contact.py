@@ -55,10 +55,16 @@ class FlatContactCase:
 
 def _setup(case: FlatContactCase, nu: float, comm, tangent: bool = True):
     h = case.height
-    assembly = box_bodies_mesh([([0, 0, -0.1], [1, 1, 0], (1, 1, 1)), ([0, 0, 0], [1, 1, h], (1, 1, 1))], comm)
-    material = ElastoPlastic(E=case.E, nu=nu, sigma_0=1e9, hardening="linear", K=0.0, H=0.0, density=7.8e-9)
+    assembly = box_bodies_mesh(
+        [([0, 0, -0.1], [1, 1, 0], (1, 1, 1)), ([0, 0, 0], [1, 1, h], (1, 1, 1))], comm
+    )
+    material = ElastoPlastic(
+        E=case.E, nu=nu, sigma_0=1e9, hardening="linear", K=0.0, H=0.0, density=7.8e-9
+    )
     problem = SolidProblem(assembly.mesh, material, tangent=tangent)
-    contact = ContactModel(problem.V, assembly.facet_tags, 2, case.law(), search_distance=2 * case.delta_max)
+    contact = ContactModel(
+        problem.V, assembly.facet_tags, 2, case.law(), search_distance=2 * case.delta_max
+    )
     base = body_dofs(problem.V, assembly.cell_tags, 0)
     block = set(body_dofs(problem.V, assembly.cell_tags, 1).tolist())
 
@@ -92,7 +98,9 @@ def _traction(contact: ContactModel) -> tuple[float, float, float]:
     return gap, t1, alpha
 
 
-def run_normal(case: FlatContactCase, out_dir: Path, comm: MPI.Comm, steps_per_unit: int = 40) -> History:
+def run_normal(
+    case: FlatContactCase, out_dir: Path, comm: MPI.Comm, steps_per_unit: int = 40
+) -> History:
     problem, contact, base, block_dofs = _setup(case, case.nu, comm)
     E, nu = case.E, case.nu
     M = E * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
@@ -152,8 +160,9 @@ def run_tangential(case: FlatContactCase, out_dir: Path, comm: MPI.Comm, steps_p
     return history, u3c, tau_c
 
 
-def run_normal_explicit(case: FlatContactCase, out_dir: Path, comm: MPI.Comm, duration: float = 2e-4,
-                        steps: int = 4000):
+def run_normal_explicit(
+    case: FlatContactCase, out_dir: Path, comm: MPI.Comm, duration: float = 2e-4, steps: int = 4000
+):
     """Explicit counterpart of the compression half of :func:`run_normal` (smooth step to
     T1 = 3 sigma_y). Returns (history, energies)."""
     from ..loading import SmoothStep
@@ -168,21 +177,27 @@ def run_normal_explicit(case: FlatContactCase, out_dir: Path, comm: MPI.Comm, du
     bcs.add(block_dofs(lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], 1.0), 0))
     bcs.add(block_dofs(lambda x: np.isclose(x[1], 0.0) | np.isclose(x[1], 1.0), 1))
     bcs.add(block_dofs(lambda x: np.isclose(x[2], case.height), 2), lambda t: u_c * amplitude(t))
-    history = History(out_dir / "normal_explicit.csv", ["time", "delta_mm", "T1_MPa", "alpha"], comm)
+    history = History(
+        out_dir / "normal_explicit.csv", ["time", "delta_mm", "T1_MPa", "alpha"], comm
+    )
 
     def record(s):
         gap, t1, alpha = _traction(contact)
         history.append(time=s.t, delta_mm=gap, T1_MPa=t1, alpha=alpha)
 
-    solver = ExplicitSolver(problem, bcs, ExplicitSettings(t_end=duration, target_dt=duration / steps),
-                            contact=contact)
+    solver = ExplicitSolver(
+        problem, bcs, ExplicitSettings(t_end=duration, target_dt=duration / steps), contact=contact
+    )
     solver.run(record, outputs=50)
     history.write()
     return history, solver.energies
 
 
-def run_flat_contact(case: FlatContactCase = FlatContactCase(), out_dir: str | Path = "results/flat_contact",
-                     comm: MPI.Comm = MPI.COMM_WORLD):
+def run_flat_contact(
+    case: FlatContactCase = FlatContactCase(),
+    out_dir: str | Path = "results/flat_contact",
+    comm: MPI.Comm = MPI.COMM_WORLD,
+):
     out_dir = Path(out_dir)
     normal = run_normal(case, out_dir, comm)
     tangential, u3c, tau_c = run_tangential(case, out_dir, comm)

@@ -88,14 +88,39 @@ from ..meshes import ParticleCentroids
 #: the history's columns, in file order, by group
 KINEMATICS = ["time", "rho", "rho_imposed", "rho_fe", "h_v", "h_d", "h_tilde_d", "nonaffine"]
 STRESS_INVARIANTS = ["sigma_m", "sigma_d", "sigma_tilde_d"]
-TENSORS = {"F": "least-squares gradient of the centroids", "sigma": "Love-Weber stress",
-           "sigma_schmidt_": "Schmidt stress (periodic conditions)", "sigma_vol_": "volume-averaged stress"}
+TENSORS = {
+    "F": "least-squares gradient of the centroids",
+    "sigma": "Love-Weber stress",
+    "sigma_schmidt_": "Schmidt stress (periodic conditions)",
+    "sigma_vol_": "volume-averaged stress",
+}
 CONTACTS = ["n_contacts", "Z", "rattlers", "Gamma", "Gamma_model", "Gamma_closed"]
-ENERGIES = ["E_p", "E_f", "E_d", "E_p_model", "E_d_model", "E_c", "E_int", "E_el", "E_contact", "E_visc", "E_damp",
-            "E_mass", "W_ext"]
+ENERGIES = [
+    "E_p",
+    "E_f",
+    "E_d",
+    "E_p_model",
+    "E_d_model",
+    "E_c",
+    "E_int",
+    "E_el",
+    "E_contact",
+    "E_visc",
+    "E_damp",
+    "E_mass",
+    "W_ext",
+]
 QUASI_STATIC = ["unbalanced", "E_c_over_E_int"]
-COLUMNS = (KINEMATICS + STRESS_INVARIANTS + [c for prefix in TENSORS for c in tensor_columns(prefix)]
-           + ["sigma_vol_m"] + CONTACTS + ENERGIES + QUASI_STATIC + ["wall_time"])
+COLUMNS = (
+    KINEMATICS
+    + STRESS_INVARIANTS
+    + [c for prefix in TENSORS for c in tensor_columns(prefix)]
+    + ["sigma_vol_m"]
+    + CONTACTS
+    + ENERGIES
+    + QUASI_STATIC
+    + ["wall_time"]
+)
 
 #: limits of the quasi-static check: the share of the work through the comoving carrier at the end
 #: (cumulative), and the out-of-balance ratio of the last row with the path at rest. They separate
@@ -106,7 +131,16 @@ COLUMNS = (KINEMATICS + STRESS_INVARIANTS + [c for prefix in TENSORS for c in te
 CARRIER_SHARE_LIMIT = 0.1
 UNBALANCED_AT_REST_LIMIT = 0.05
 #: the history columns the check reads (the energy balance's and the out-of-balance ratio)
-QUASI_STATIC_CHECK_COLUMNS = ("W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp", "E_mass", "unbalanced")
+QUASI_STATIC_CHECK_COLUMNS = (
+    "W_ext",
+    "E_int",
+    "E_visc",
+    "E_contact",
+    "E_c",
+    "E_damp",
+    "E_mass",
+    "unbalanced",
+)
 
 
 def carrier_share(history) -> np.ndarray:
@@ -117,7 +151,15 @@ def carrier_share(history) -> np.ndarray:
     column name -> array (a ``read_csv`` dict, or ``{c: History.column(c)}``)."""
     h = history
     mass_scaling = np.nan_to_num(h["E_mass"], nan=0.0) if "E_mass" in h else 0.0
-    carrier = h["E_int"] + h["E_visc"] + h["E_contact"] + h["E_c"] + h["E_damp"] - h["W_ext"] - mass_scaling
+    carrier = (
+        h["E_int"]
+        + h["E_visc"]
+        + h["E_contact"]
+        + h["E_c"]
+        + h["E_damp"]
+        - h["W_ext"]
+        - mass_scaling
+    )
     with np.errstate(divide="ignore", invalid="ignore"):  # W_ext = 0 before the first contact
         return carrier / h["W_ext"]
 
@@ -151,8 +193,14 @@ def quasi_static_check(history, at_rest: bool = True) -> QuasiStaticCheck:
     """Quasi-static check of an explicit compaction from its history (column name -> array): the
     last row's :func:`carrier_share` (the whole run's work) and, when the path ends at rest
     (``at_rest``: every smooth profile of ``loading``), the last row's ``unbalanced``."""
-    share = float(carrier_share(history)[-1]) if len(history["W_ext"]) and history["W_ext"][-1] > 0 else 0.0
-    unbalanced = float(history["unbalanced"][-1]) if at_rest and len(history["unbalanced"]) else float("nan")
+    share = (
+        float(carrier_share(history)[-1])
+        if len(history["W_ext"]) and history["W_ext"][-1] > 0
+        else 0.0
+    )
+    unbalanced = (
+        float(history["unbalanced"][-1]) if at_rest and len(history["unbalanced"]) else float("nan")
+    )
     return QuasiStaticCheck(share, unbalanced)
 
 
@@ -206,15 +254,24 @@ class HistoryRecorder:
         n = self.n
         F, c = least_squares_gradient(self.X0, x[:n])
         # rms distance of the centroids from the best affine motion, over the mean radius
-        nonaffine = float(np.sqrt(np.mean(np.sum((x[:n] - self.X0 @ F.T - c) ** 2, axis=1)))) / self.mean_radius
+        nonaffine = (
+            float(np.sqrt(np.mean(np.sum((x[:n] - self.X0 @ F.T - c) ** 2, axis=1))))
+            / self.mean_radius
+        )
         h = hencky_strain(F)
         h_v, h_d = strain_invariants(h)
         volume = np.linalg.det(F) * self.cell_volume0
         solid0 = self.model.solid_volume0
-        return dict(rho=relative_density(solid0, self.cell_volume0, F),
-                    rho_imposed=relative_density(solid0, self.cell_volume0, F0),
-                    rho_fe=float(self.centroids.volumes[:n].sum()) / volume, h_v=h_v, h_d=h_d,
-                    h_tilde_d=rendulic_strain(h)[1], nonaffine=nonaffine, **tensor_values("F", F)), F
+        return dict(
+            rho=relative_density(solid0, self.cell_volume0, F),
+            rho_imposed=relative_density(solid0, self.cell_volume0, F0),
+            rho_fe=float(self.centroids.volumes[:n].sum()) / volume,
+            h_v=h_v,
+            h_d=h_d,
+            h_tilde_d=rendulic_strain(h)[1],
+            nonaffine=nonaffine,
+            **tensor_values("F", F),
+        ), F
 
     def _contacts(self, x: np.ndarray, F: np.ndarray, F0: np.ndarray) -> tuple[dict, np.ndarray]:
         """Love-Weber over the model's contacts with the appendix-C counting weights, and the
@@ -223,17 +280,25 @@ class HistoryRecorder:
         pf = model.contact.pair_forces()
         pairs = pf["pairs"]
         image = np.rint(np.linalg.solve(F0, pf["shift"].T).T / model.packing.cell).astype(np.int64)
-        weights = contact_weights(pairs[:, 0], pairs[:, 1], model.original, model.shift, model.case.bc, image)
+        weights = contact_weights(
+            pairs[:, 0], pairs[:, 1], model.original, model.shift, model.case.bc, image
+        )
         volume = np.linalg.det(F) * self.cell_volume0
-        sigma_lw = love_weber_stress(pf["force"], branch_vectors(x, pairs[:, 0], pairs[:, 1], pf["shift"]),
-                                     volume, weights)  # tension > 0
+        sigma_lw = love_weber_stress(
+            pf["force"], branch_vectors(x, pairs[:, 0], pairs[:, 1], pf["shift"]), volume, weights
+        )  # tension > 0
         carrying = pf["points"] > 0  # pairs within the search distance may carry no force
-        n_contacts, mean_z, rattlers = coordination(pairs[carrying, 0], pairs[carrying, 1], model.original,
-                                                    weights[carrying], self.n)
-        return dict(n_contacts=n_contacts, Z=mean_z, rattlers=rattlers,
-                    Gamma=specific_contact_surface(pf["area"], self.cell_volume0, F, weights),
-                    Gamma_model=specific_contact_surface(pf["area"], self.cell_volume0, F),
-                    Gamma_closed=specific_contact_surface(pf["area_closed"], self.cell_volume0, F, weights)), sigma_lw
+        n_contacts, mean_z, rattlers = coordination(
+            pairs[carrying, 0], pairs[carrying, 1], model.original, weights[carrying], self.n
+        )
+        return dict(
+            n_contacts=n_contacts,
+            Z=mean_z,
+            rattlers=rattlers,
+            Gamma=specific_contact_surface(pf["area"], self.cell_volume0, F, weights),
+            Gamma_model=specific_contact_surface(pf["area"], self.cell_volume0, F),
+            Gamma_closed=specific_contact_surface(pf["area_closed"], self.cell_volume0, F, weights),
+        ), sigma_lw
 
     def _energies(self, solver) -> dict:
         """The solver's energies; E_p of the volume's particles (the solver tallies the whole
@@ -260,13 +325,28 @@ class HistoryRecorder:
             sigma_s = self.schmidt_stress(solver.macroscopic_reaction, F0)
         energies = self._energies(solver)
         sigma_m, sigma_d = stress_invariants(sigma_lw)
-        if not (np.isfinite(row["rho"]) and np.isfinite(sigma_lw).all() and np.isfinite(energies["E_p_model"])):
-            raise FloatingPointError(f"non-finite state at step {solver.step} (t={solver.t:.4g} s): rho={row['rho']}, "
-                                     f"sigma_m={sigma_m}")
-        row.update(time=solver.t, sigma_m=sigma_m, sigma_d=sigma_d, sigma_tilde_d=rendulic_stress(sigma_lw)[1],
-                   **tensor_values("sigma", -sigma_lw), **tensor_values("sigma_schmidt_", -sigma_s),
-                   **tensor_values("sigma_vol_", -sigma_vol), sigma_vol_m=stress_invariants(sigma_vol)[0],
-                   **contacts, **energies, unbalanced=solver.unbalanced_ratio(),
-                   E_c_over_E_int=energies["E_c"] / energies["E_int"] if energies["E_int"] > 0 else np.nan,
-                   wall_time=wall_time)
+        if not (
+            np.isfinite(row["rho"])
+            and np.isfinite(sigma_lw).all()
+            and np.isfinite(energies["E_p_model"])
+        ):
+            raise FloatingPointError(
+                f"non-finite state at step {solver.step} (t={solver.t:.4g} s): rho={row['rho']}, "
+                f"sigma_m={sigma_m}"
+            )
+        row.update(
+            time=solver.t,
+            sigma_m=sigma_m,
+            sigma_d=sigma_d,
+            sigma_tilde_d=rendulic_stress(sigma_lw)[1],
+            **tensor_values("sigma", -sigma_lw),
+            **tensor_values("sigma_schmidt_", -sigma_s),
+            **tensor_values("sigma_vol_", -sigma_vol),
+            sigma_vol_m=stress_invariants(sigma_vol)[0],
+            **contacts,
+            **energies,
+            unbalanced=solver.unbalanced_ratio(),
+            E_c_over_E_int=energies["E_c"] / energies["E_int"] if energies["E_int"] > 0 else np.nan,
+            wall_time=wall_time,
+        )
         return row
