@@ -260,8 +260,8 @@ def test_rigid_translation_gives_zero_stress(tmp_path, bc):
 
 
 def face_centred_cubic(r: float = 0.1) -> Packing:
-    """4 touching spheres of an FCC lattice, offset by (1/4, 0, 1/4) L: the pair at (3/4, 1/2, 1/4) L
-    and (1/4, 1/2, 3/4) L also touches across the lattice shift (1, 0, -1), whose mixed signs the
+    """4 touching spheres of an FCC lattice, offset by (1/4, 0, 1/4) L: the pair at (3/4, 1/2, 1/4)
+    L and (1/4, 1/2, 3/4) L also touches across the lattice shift (1, 0, -1), whose mixed signs the
     half-face copies of CLP realize only as a copy-copy pair."""
     cell = 2.0 * np.sqrt(2.0) * r
     centres = cell * np.array(
@@ -395,15 +395,16 @@ def test_static_anchor_moves_with_its_particle(tmp_path, bc):
 
 @pytest.mark.heavy  # ~11 min on 2 cores: pytest -m heavy
 def test_random_volume_copies_images_and_three_stresses(tmp_path):
-    """Copies vs images and the three stresses on a random packing (not only the symmetric cells): 24 jammed
-    particles (seed 2; the flagship is seed 1) compacted to rho 0.9 then held at rest, once by
-    tied copies and once by periodic images. The two realizations give the same curve (sigma_m within 1 % in every row
-    past 1 MPa) and the same force-carrying contacts; near rest the volume average of the
-    particles' stress agrees with Love-Weber within 2 % and the auxiliary-node Schmidt stress within
-    5 %. Measured (2026-11-24): copies vs images 7e-7 in sigma_m, 4e-10 in rho, contacts equal;
-    end (unbalanced 0.018) Love-Weber 10.745, volume average 10.743, Schmidt 11.114 MPa (+3.4 %: the
-    first moment of the residual out-of-balance forces; the flagship at 6000 increments and
-    unbalanced 0.0086 reads 0.25 %). The centroids' rho ends at 0.870 for rho_imposed 0.9."""
+    """Copies vs images and the three stresses on a random packing (not only the symmetric cells):
+    24 jammed particles (seed 2; the flagship is seed 1) compacted to rho 0.9 then held at rest,
+    once by tied copies and once by periodic images. The two realizations give the same curve
+    (sigma_m within 1 % in every row past 1 MPa) and the same force-carrying contacts; near rest the
+    volume average of the particles' stress agrees with Love-Weber within 2 % and the auxiliary-node
+    Schmidt stress within 5 %. Measured (2026-11-24): copies vs images 7e-7 in sigma_m, 4e-10 in
+    rho, contacts equal; end (unbalanced 0.018) Love-Weber 10.745, volume average 10.743, Schmidt
+    11.114 MPa (+3.4 %: the first moment of the residual out-of-balance forces; the flagship at 6000
+    increments and unbalanced 0.0086 reads 0.25 %). The centroids' rho ends at 0.870 for rho_imposed
+    0.9."""
     from mpfem_fenicsx.meshes.packing import generate_packing
 
     packing = generate_packing(24, 0.082, 0.147, seed=2)

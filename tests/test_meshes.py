@@ -16,7 +16,8 @@ def test_default_cube_sphere_is_the_thesis_particle():
     assert ball.surface_nodes.size == 218
     # orientation: re-orienting changes nothing, i.e. every Jacobian is already positive
     assert np.array_equal(_orient_positive(ball.points, ball.cells), ball.cells)
-    # named resolutions: the chapter-4 O-grid (1 934 nodes with the reference node) and the old default
+    # named resolutions: the chapter-4 O-grid (1 934 nodes with the reference node) and the
+    # old default
     assert unit_ball_hex(*RESOLUTIONS["chapter4"]).num_nodes == 1933
     assert unit_ball_hex(*RESOLUTIONS["coarse"]).num_nodes == 517
 

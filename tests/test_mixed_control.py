@@ -161,10 +161,10 @@ def test_pi_servo_does_not_overshoot_the_end_of_a_ramp():
 
 
 def test_consolidation_then_triaxial_on_the_simple_cubic_cell(tmp_path):
-    """Consolidation under stress control and a CI-sized triaxial path: the 8 touching spheres of the simple
-    cubic cell (elastic: sigma_0 = 10 GPa). Isotropic consolidation, the three normal stresses
-    servo-controlled on the Schmidt stress to p0 = 2 MPa (ramp, then hold to rest): at the end of
-    the hold the Schmidt stress meets p0 within 1 %, and so does the volume average of the
+    """Consolidation under stress control and a CI-sized triaxial path: the 8 touching spheres of
+    the simple cubic cell (elastic: sigma_0 = 10 GPa). Isotropic consolidation, the three normal
+    stresses servo-controlled on the Schmidt stress to p0 = 2 MPa (ramp, then hold to rest): at the
+    end of the hold the Schmidt stress meets p0 within 1 %, and so does the volume average of the
     particles' Cauchy stress (eq. C.7, over the hold's last rows: the elastic particles ring about
     equilibrium), a measure the servo never sees. Then axial compression (F33 strain-driven) at
     constant lateral stress: sigma11, sigma22 stay within 2 % of p0 while sigma33 rises."""
@@ -499,7 +499,8 @@ def test_stress_path_waypoints():
     assert [ramp.target(t)[0, 0] for t in (0.5, 1.2, 1.75, 2.4)] == pytest.approx(
         [1.0, 2.0, 1.5, 1.0]
     )
-    # the corners are rounded over 10 % of the shorter segment: C1, off the corner by |rate change| w / 8
+    # the corners are rounded over 10 % of the shorter segment: C1, off the corner by
+    # |rate change| w / 8
     rounded = [np.diag(path.target(t))[0] for t in (0.95, 0.9999, 1.0, 1.0001, 1.05)]
     assert rounded[0] == pytest.approx(1.9) and rounded[4] == pytest.approx(1.925)
     assert rounded[2] == pytest.approx(2.0 - 3.5 * 0.1 / 8) and abs(rounded[3] - rounded[1]) < 1e-3
@@ -515,7 +516,8 @@ def test_stress_path_waypoints():
 
 def synthetic_rupture_history(n=40):
     """A probe's history as a stress path meets its strength: the axial tension rises linearly to
-    3 MPa at row 25, then drops while the axial strain accelerates; E_c grows 100-fold from row 20."""
+    3 MPa at row 25, then drops while the axial strain accelerates; E_c grows 100-fold from row
+    20."""
     from types import SimpleNamespace
 
     t = 1e-3 + 1e-5 * np.arange(n)

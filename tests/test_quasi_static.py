@@ -3,9 +3,9 @@ every row, and the default explicit settings end a compaction in equilibrium wit
 end-of-load hook, on a CI-sized random volume.
 
 Case: 12 equal spheres (r = 0.1 mm, a seeded jammed periodic packing), CLP by periodic images,
-the default mesh, damping and profile, 4000 increments, compacted from rho 0.616 to 0.70 (~2 min). The
-loading-rate study of the flagship is bench/convergence.py (figures in bench/README.md); the same
-comparison on this volume (N = 2000 vs 4000) is a heavy test."""
+the default mesh, damping and profile, 4000 increments, compacted from rho 0.616 to 0.70 (~2 min).
+The loading-rate study of the flagship is bench/convergence.py (figures in bench/README.md); the
+same comparison on this volume (N = 2000 vs 4000) is a heavy test."""
 
 import numpy as np
 import pytest

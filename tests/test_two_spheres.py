@@ -62,7 +62,8 @@ def test_plastic_adhesive_pair_unloads_by_peeling_to_separation(tmp_path):
     cycle adhered <-> open until dt_min. Now every increment converges, the pair pulls (F < 0)
     before it separates, and the unloading branch F(a) stays near Mesarovic-Johnson. Tolerance:
     the contact radius moves by whole rings of nodes (h / a0 ~ 0.3 here), 8 % of F0 rms
-    (measured 5.3 % over 9 samples; 5.4 % over the full 0.02 r case, see the workflow's docstring)."""
+    (measured 5.3 % over 9 samples; 5.4 % over the full 0.02 r case, see the workflow's
+    docstring)."""
     case = TwoSphereCase(ratio=1.0, size_min=0.05, approach=0.006, load_steps=3, unload_steps=12,
                          unload_to=0.0048)
     res = run_two_spheres(case, tmp_path, MPI.COMM_SELF, log=lambda *a: None)

@@ -5,10 +5,10 @@ Reduced operators: K_red = P^T K P (``Mat.PtAP``), r_red = P^T r, lumped reduced
 M_red = |P|^T (M |P| 1), the row sums of |P|^T M |P| (M lumped): the usual row-sum lumping for
 injections and ties; for a distributing coupling, which hands the slave's stiffness to all its
 masters, it hands them the slave's mass in proportion, which keeps the explicit stable increment
-of the unconstrained mesh (a diagonal lumping does not: measured divergence). Prescribed (Dirichlet) dofs are rows of P with no entry and
-their value in g; multipoint couplings (periodic ties, distributing couplings, ``CouplingRows``)
-are rows with several entries: u_s = sum_k c_k u_k + g_s, the masters k being free dofs on any
-rank.
+of the unconstrained mesh (a diagonal lumping does not: measured divergence). Prescribed (Dirichlet)
+dofs are rows of P with no entry and their value in g; multipoint couplings (periodic ties,
+distributing couplings, ``CouplingRows``) are rows with several entries: u_s = sum_k c_k u_k + g_s,
+the masters k being free dofs on any rank.
 """
 
 from __future__ import annotations

@@ -8,7 +8,8 @@ g = G vec(H) (vec(H)[3 i + j] = H_ij), so that
 
 and the generalized force conjugate to H (the "auxiliary nodes" reactions of the thesis) is
 R = G^T r_full (N mm) over the constraint rows: W_ext = R : dH, hence the Schmidt first Piola
-stress P = R / V0 with V0 the reference cell volume (eq. 2.14 and the virtual-work argument of §2.3).
+stress P = R / V0 with V0 the reference cell volume (eq. 2.14 and the virtual-work argument of
+§2.3).
 
 Kinds (``kind``):
 - ``GDH`` (eq. 2.12-2.13): the reference point (centre X_c) of every particle, originals and

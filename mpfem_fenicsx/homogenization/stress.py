@@ -29,7 +29,8 @@ def reported_stress(sigma) -> np.ndarray:
 
 
 def stress_invariants(sigma):
-    """(sigma_m, sigma_d) in MPa of Cauchy stress(es) given in the mechanics convention (tension > 0).
+    """(sigma_m, sigma_d) in MPa of Cauchy stress(es) given in the mechanics
+    convention (tension > 0).
 
     sigma_m = -tr(sigma)/3: mean stress, thesis eq. 2.10 / 4.1 (sigma_m = tr/3 of the
     compression-positive tensor), > 0 in compaction.

@@ -12,7 +12,8 @@ def _quintic_ramp(u: float) -> float:
 
 @dataclass(frozen=True)
 class SmoothStep:
-    """Abaqus SMOOTH STEP between (t0, 0) and (t1, 1): a = 10 s^3 - 15 s^4 + 6 s^5, s = (t-t0)/(t1-t0).
+    """Abaqus SMOOTH STEP between (t0, 0) and (t1, 1): a = 10 s^3 - 15 s^4 + 6 s^5,
+    s = (t-t0)/(t1-t0).
 
     Zero velocity and acceleration at both knots, which keeps explicit runs quasi-static.
     """

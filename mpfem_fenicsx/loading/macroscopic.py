@@ -46,8 +46,8 @@ def unload_gradient(h_v: float) -> np.ndarray:
 
 
 def reload_gradient(phi: float, amplitude: float, axis: int = 2) -> np.ndarray:
-    """Reload increment gradient F^r = diag(exp h^r) of thesis eq. 4.8-4.9 in direction ``phi`` (rad)
-    of the Rendulic strain plane, axis I = ``axis`` (default z, the die axis):
+    """Reload increment gradient F^r = diag(exp h^r) of thesis eq. 4.8-4.9 in direction ``phi``
+    (rad) of the Rendulic strain plane, axis I = ``axis`` (default z, the die axis):
     h_I = -A (cos phi / 3 + sin phi), h_II = h_III = -A (cos phi / 3 - sin phi / 2), so that the
     compression-positive volumetric and signed deviatoric strains are A cos phi and A sin phi
     (h_v = -A cos phi, h~_d = -A sin phi in the natural sign of the histories): phi = 0 is

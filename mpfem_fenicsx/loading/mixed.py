@@ -27,9 +27,9 @@ measured stress first (exponential moving average): the explicit pseudo-dynamics
 about the quasi-static value. An average lags a stress ramped at R MPa/s by R filter_time, so a
 servo holding the average on a ramped target would hold the stress that far ahead of it; the
 filter also tracks the average's own rate, low-passed over the same time, and the servo reads
-average + filter_time x rate: no lag on a ramp. The gradient is integrated from the servo's velocity gradient,
-F0(t + dt) = exp(L dt) F0(t); off-diagonal stress-driven components use the symmetric part (no
-spin).
+average + filter_time x rate: no lag on a ramp. The gradient is integrated from the servo's velocity
+gradient, F0(t + dt) = exp(L dt) F0(t); off-diagonal stress-driven components use the symmetric part
+(no spin).
 
 The control is a gradient path t -> F0(t) (``GranularBoundaryConditions.gradient``); the
 workflow calls :meth:`StressControl.update` with the measured stress every ``every`` explicit

@@ -401,7 +401,8 @@ def _update_point_by_series(qp, b, Finv, cp_inv_n, eps_p_n, mu, bulk, s0, modulu
     dgamma, plastic, work = _plastic_multiplier(q_tr, p_n, three_mu, s0, modulus, exponent, law)
     beta = 1.0 - three_mu * dgamma / q_tr if plastic else 1.0
     if plastic:
-        # dev eps_e = beta dev eps^trial, tr eps_e = tr eps^trial: b_e = e^(2 vol / 3) exp(2 beta dev)
+        # dev eps_e = beta dev eps^trial, tr eps_e = tr eps^trial:
+        # b_e = e^(2 vol / 3) exp(2 beta dev)
         e = _exp_near_zero(_sym_axpi(2.0 * beta, dev, 0.0))
         scale = np.exp(2.0 * vol / 3.0)
         _sym_to_full(_sym_axpi(scale, e, 0.0), M1)

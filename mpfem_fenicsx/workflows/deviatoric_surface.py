@@ -9,16 +9,17 @@ Stages (data flow: consolidation -> unload -> checkpoint -> fan of Lode-angle pr
 2. **probes** (``out/probe_<deg>``): from that checkpoint, each probe keeps sigma_m = ``p_probe``
    and ramps the von Mises stress q along the Lode angle theta (loading.mixed.lode_shear_control),
    with the servo's state and the contact history carried over;
-3. **surface**: the yield point of a probe is where E_d first reaches E_0 (1 + ``dissipation_threshold``)
+3. **surface**: the yield point of a probe is where E_d first reaches
+E_0 (1 + ``dissipation_threshold``)
    (the iso-dissipation criterion of thesis §4.2.2), interpolated between history rows in the
    measured (Schmidt) stress. Angles 0-60 degrees cover the deviatoric plane of an isotropic
    state by symmetry (compression and extension differ, so the sector is [0, 60] and not less).
 
 Outputs in ``out_dir``: ``fan.csv`` (theta_deg, time, sigma_m, q, lode_deg, E_d: the probes'
-rows), ``surface.csv`` (theta_deg, sigma_m, q, lode_deg of each yield point), ``deviatoric_surface.png``
-(the deviatoric plane, the points mirrored to the full circle, and the principal-stress view).
-MPa, compression > 0; theta = 0 is triaxial compression along x, 60 degrees triaxial extension
-along z (loading.mixed.lode_direction).
+rows), ``surface.csv`` (theta_deg, sigma_m, q, lode_deg of each yield point),
+``deviatoric_surface.png`` (the deviatoric plane, the points mirrored to the full circle, and the
+principal-stress view). MPa, compression > 0; theta = 0 is triaxial compression along x, 60 degrees
+triaxial extension along z (loading.mixed.lode_direction).
 """
 
 from __future__ import annotations

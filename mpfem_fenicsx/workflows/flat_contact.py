@@ -4,8 +4,9 @@ A rigid base (all nodes fixed) and an elastic block of height h (one hexahedron,
 contact area) resting on it; the block's top face is driven.
 
 Normal test: lateral faces on rollers (uniaxial strain), compress until T1 = 3 sigma_y (asperity
-yield sigma_y, p0 = 3 sigma_y, so alpha = 0.5), unload, then pull apart beyond delta_max. Expected: alpha
-= 0.5 at the end of compression, peak tension alpha sigma_c = 0.5 sigma_c, T1 = 0 from delta_max.
+yield sigma_y, p0 = 3 sigma_y, so alpha = 0.5), unload, then pull apart beyond delta_max. Expected:
+alpha = 0.5 at the end of compression, peak tension alpha sigma_c = 0.5 sigma_c, T1 = 0 from
+delta_max.
 
 Tangential test (block with nu = 0, so that compressing it does not pre-load the frictional
 interface through Poisson's expansion): compress to T1 = 3 sigma_y, then drive the top face
@@ -108,7 +109,8 @@ def run_normal(
     u_open = 1.5 * case.delta_max
     h = case.height
     u_peak = 2.0 * (0.5 * case.law().sigma_c * h / M)  # past the tension peak (elastic block)
-    # pseudo-time path: compress on [0, 1], unload on [1, 2], cross the peak on [2, 3], open on [3, 4]
+    # pseudo-time path: compress on [0, 1], unload on [1, 2], cross the peak on [2, 3],
+    # open on [3, 4]
     def uz(t):
         return float(np.interp(t, [0.0, 1.0, 2.0, 3.0, 4.0], [0.0, u_c, 0.0, u_peak, u_open]))
 

@@ -51,10 +51,10 @@ History columns (one row per output; thesis §2.3, §4.2, appendix C):
 - wall_time (s).
 
 Quasi-static check of an explicit run (:func:`quasi_static_check`, logged at its end): the
-explicit energy balance is exact, W_ext + E_mass = E_int + E_visc + E_contact + E_c + E_damp + E_carrier,
-where E_carrier is the work of the damping and of the particles' inertia through the imposed
-flow's offsets (``solvers.explicit``). On a quasi-static path it vanishes and a path brought to
-rest leaves the volume in balance; a share of the work through the carrier or an out-of-balance
+explicit energy balance is exact, W_ext + E_mass = E_int + E_visc + E_contact + E_c + E_damp +
+E_carrier, where E_carrier is the work of the damping and of the particles' inertia through the
+imposed flow's offsets (``solvers.explicit``). On a quasi-static path it vanishes and a path brought
+to rest leaves the volume in balance; a share of the work through the carrier or an out-of-balance
 volume at rest means the stress still depends on the loading rate (more increments move it).
 """
 
@@ -221,7 +221,8 @@ class HistoryRecorder:
         # one memory layout: a restart reproduces the BLAS round-off
         self.X0 = np.ascontiguousarray(self.centroids()[: self.n] if reference_centroids is None
                                        else reference_centroids, dtype=float)
-        # the particles of the volume (originals; CLP copies are stiffless, GDH/GDF/CLPS copies lie outside)
+        # the particles of the volume (originals; CLP copies are stiffless, GDH/GDF/CLPS copies lie
+        # outside)
         problem = model.problem
         self.volume_cells = model.assembly.cell_tags.values[: problem.num_cells] < self.n
 

@@ -73,8 +73,9 @@ class TwoSphereCase:
         low=0,
         open_low=True,
     )
-    #: None: ball refinement around the contact point; a number: size_min on the contact cap, growing
-    #: by ``grading`` per unit distance from it (``meshes.sphere_pair``), for fine contact meshes
+    #: None: ball refinement around the contact point; a number: size_min on the contact cap,
+    #: growing by ``grading`` per unit distance from it (``meshes.sphere_pair``), for fine contact
+    #: meshes
     grading: float | None = parameter(
         None,
         "refine the contact cap only: element size grows by this per unit "

@@ -35,9 +35,9 @@ Outputs in ``out_dir``: ``fan.csv`` (one row per reload output: phi, sigma_m, si
 h_v, h_tilde_d, E_d, Gamma, W2), ``surfaces.csv`` (kind, phi, sigma_m, sigma_tilde_d; kind in
 yield | gamma_<value> | w2; the limit iso-Gamma curve Gamma_l among the gamma kinds),
 ``uniaxial.csv`` (kind, compressive_MPa, tensile_MPa), ``summary.json`` (E_0, Gamma_l, points
-per surface, raw W2 sign changes per reload, the reloads' discretization), ``yield_surface.png`` and the stage directories with their histories and checkpoints.
-Units mm, N, MPa, mJ; reported stresses compression > 0, strains natural sign (h_v < 0 in
-compaction).
+per surface, raw W2 sign changes per reload, the reloads' discretization), ``yield_surface.png`` and
+the stage directories with their histories and checkpoints. Units mm, N, MPa, mJ; reported stresses
+compression > 0, strains natural sign (h_v < 0 in compaction).
 """
 
 from __future__ import annotations
@@ -492,11 +492,11 @@ def fan_rows(
 
 def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print,
                       resume: bool = False) -> dict:
-    """Stages 1-4; returns (on every rank) {"unloaded", "points", "uniaxial", "wall_time", "reload_wall"}.
-    ``resume``: continue a killed fan in ``case.out_dir`` (same case): stages 1-2 are skipped if
-    they finished (``unloaded.json``), else the loading continues from its newest checkpoint;
-    finished reloads (a ``done`` file in ``reload_<k>/``) are not repeated. The wall times then
-    count this run only."""
+    """Stages 1-4; returns (on every rank) {"unloaded", "points", "uniaxial", "wall_time",
+    "reload_wall"}. ``resume``: continue a killed fan in ``case.out_dir`` (same case): stages 1-2
+    are skipped if they finished (``unloaded.json``), else the loading continues from its newest
+    checkpoint; finished reloads (a ``done`` file in ``reload_<k>/``) are not repeated. The wall
+    times then count this run only."""
     start = time.perf_counter()
     out = Path(case.out_dir)
     alone = comm.Split(color=comm.rank, key=0)  # each rank on its own communicator
