@@ -57,7 +57,8 @@ KINDS = tuple(BOUNDARY_KINDS)
 
 
 def boundary_kind(name: str) -> BoundaryKind:
-    """The :class:`BoundaryKind` of a name (case-insensitive); ValueError naming the allowed ones."""
+    """The :class:`BoundaryKind` of a name (case-insensitive); ValueError naming the allowed
+    ones."""
     kind = BOUNDARY_KINDS.get(str(name).upper())
     if kind is None:
         raise ValueError(f"bc must be one of {', '.join(KINDS)}, got {name!r}")

@@ -447,7 +447,8 @@ def test_package_does_not_import_fe_stack(root):
         pkg.__path__ = [{str(root / "mpfem_fenicsx")!r}]
         sys.modules["mpfem_fenicsx"] = pkg  # skip the top-level __init__ (it loads dolfinx_solver)
         import mpfem_fenicsx.homogenization
-        bad = [m for m in sys.modules if m.split(".")[0] in ("dolfinx", "petsc4py", "mpi4py", "ufl")]
+        compiled = ("dolfinx", "petsc4py", "mpi4py", "ufl")
+        bad = [m for m in sys.modules if m.split(".")[0] in compiled]
         assert not bad, bad
     """)
     subprocess.run([sys.executable, "-c", code], check=True, timeout=60)

@@ -77,7 +77,8 @@ def test_plastic_adhesive_pair_unloads_by_peeling_to_separation(tmp_path):
     # 15 increments: measured 17-19 converged (a few cut-backs); before, cut-backs to dt_min
     assert len(res.newton_iterations) <= 25
     print(
-        f"rms {res.error_rms:.4f} e {res.error:.4f} (grid {res.grid_points}) samples {res.a_unload.size} F_min {force.min():.4f} "
+        f"rms {res.error_rms:.4f} e {res.error:.4f} (grid {res.grid_points}) samples "
+        f"{res.a_unload.size} F_min {force.min():.4f} "
         f"increments {len(res.newton_iterations)} its {res.newton_iterations}"
     )
 
@@ -135,6 +136,7 @@ def test_adhesive_wedge_unloads_along_mesarovic_johnson(tmp_path):
     assert res.error < 0.05, (res.error, res.grid_points, res.error_rms)
     assert res.error_rms < 0.04
     print(
-        f"e {res.error:.4f} on {res.grid_points} radii, rms {res.error_rms:.4f} over {res.a_unload.size} samples, "
+        f"e {res.error:.4f} on {res.grid_points} radii, rms {res.error_rms:.4f} over "
+        f"{res.a_unload.size} samples, "
         f"increments {len(res.newton_iterations)}, {res.wall_time:.0f} s"
     )

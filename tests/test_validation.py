@@ -122,7 +122,8 @@ def test_report_writes_summary_and_tables(tmp_path):
     assert "| CLP | 12.6 | 12.60 |" in text and "| GDH | (none) | not run yet" in text
     # its carrier takes 20 % of W_ext: the quasi-static check fails, whatever the thesis deviation
     assert (
-        "| CLPS | 12000 | consistent | 8.45 / 10.28 | 11.50 (0.950) | 11.50 | 0.01 | 20 % | failed (20 % / 0.01) "
+        "| CLPS | 12000 | consistent | 8.45 / 10.28 | 11.50 (0.950) | 11.50 | 0.01 | 20 % | failed "
+        "(20 % / 0.01) "
         "| +1.8 % | met |"
     ) in text
     assert "| GDF | 12000 | lumped | not run yet" in text
@@ -144,13 +145,15 @@ def test_report_writes_summary_and_tables(tmp_path):
     # the same verdict at equal rho of eq. 2.4 (here the imposed one), read without the end
     assert by_case[("dbc_CLPS", "stable d_bc / r_max at equal rho (eq. 2.4)")]["ours"] == 2.5
     assert (
-        "; 2.5: 5.10 / 7.35 / 8.94 | 2.5 (the largest run: not shown stable), 1.5 / 2 r_max not run yet | 1.5 "
+        "; 2.5: 5.10 / 7.35 / 8.94 | 2.5 (the largest run: not shown stable), 1.5 / 2 r_max not "
+        "run yet | 1.5 "
         "| not met / not met |"
     ) in text
     assert "not run yet" in text  # the gamma stage
     # the overview: per table its compared numbers met and its stages' runs (60 s each)
     assert (
-        "| Die compaction, sigma_m at rho 0.95 (§2.7) | 3 of 4 | 3 of 5 (0.1) | `die_GDH`, `die_CLP_exact_volume` |"
+        "| Die compaction, sigma_m at rho 0.95 (§2.7) | 3 of 4 | 3 of 5 (0.1) | `die_GDH`, "
+        "`die_CLP_exact_volume` |"
         in text
     )
     assert ("| The explicit runs' rate: increments and reduced mass | 2 of 2 | 3 of 6 (0.1) | "

@@ -18,7 +18,8 @@ from mpfem_fenicsx.loading import reload_gradient, unload_gradient
 
 @pytest.mark.parametrize("phi", np.linspace(0, 2 * np.pi, 9)[:-1])
 def test_reload_gradient_follows_eq_4_8(phi):
-    """h_v = -A cos phi and h~_d = -A sin phi (natural sign; A cos phi, A sin phi compression > 0)."""
+    """h_v = -A cos phi and h~_d = -A sin phi (natural sign; A cos phi, A sin phi compression >
+    0)."""
     A = 0.012
     h = hencky_strain(reload_gradient(phi, A))
     h_v, _ = strain_invariants(h)

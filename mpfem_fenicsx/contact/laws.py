@@ -74,7 +74,8 @@ class ContactLaw:
         alpha = 1.0 if self.alpha_forced is None else self.alpha_forced
         if alpha * self.sigma_c / self.penalty >= self.delta_max:
             raise ValueError(
-                f"contact.gamma = {self.gamma!r} with contact.delta_max = {self.delta_max!r} and penalty "
+                f"contact.gamma = {self.gamma!r} with contact.delta_max = {self.delta_max!r} and "
+                "penalty "
                 f"{self.penalty:.4g} N/mm^3: the adhesive peak opening alpha sigma_c / k = "
                 f"{alpha * self.sigma_c / self.penalty:.3g} mm must be < delta_max (gamma < "
                 f"k delta_max^2 / 2 = {self.penalty * self.delta_max**2 / 2:.3g} mJ/mm^2)"

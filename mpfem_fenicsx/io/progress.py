@@ -50,7 +50,8 @@ class Progress:
         eta = (now - self._start) / done * (1.0 - fraction) if done > 1e-12 else float("nan")
         filled = int(round(self.width * fraction))
         line = (
-            f"[{'#' * filled}{'.' * (self.width - filled)}] {100 * fraction:5.1f} %  step {step}/{total}  "
+            f"[{'#' * filled}{'.' * (self.width - filled)}] {100 * fraction:5.1f} %  step "
+            f"{step}/{total}  "
             f"rho {rho:.4f}  sigma_m {sigma_m:.3f} MPa  "
             f"ETA {format_seconds(eta) if eta == eta else '--'}" + (f"  {extra}" if extra else "")
         )

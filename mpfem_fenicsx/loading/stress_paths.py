@@ -103,7 +103,8 @@ class StressPath(ServoSettings):
         "none",
         "stress-controlled path replacing the compaction (CLP or CLPS, explicit): "
         "pressure = isotropic pressure ramp to `pressure`, then held; triaxial = the same "
-        "consolidation, then axial compression along z at constant lateral stress; cycle = the same "
+        "consolidation, then axial compression along z at constant lateral stress; cycle = the "
+        "same "
         "consolidation, unload to `unload_to`, reload to `reload_to` (each ramp `ramp`, each hold "
         "`hold`); lode = the same consolidation, then the von Mises stress ramped to `q_max` along "
         "`lode_angle` at constant mean stress over `shear_time`",
@@ -185,7 +186,8 @@ class StressPath(ServoSettings):
             reload_to = self.pressure if self.reload_to is None else self.reload_to
             if not self.unload_to < self.pressure or not reload_to > self.unload_to:
                 raise ValueError(
-                    f"unload_to must be below pressure = {self.pressure} MPa and reload_to above it, "
+                    f"unload_to must be below pressure = {self.pressure} MPa and reload_to above "
+                    "it, "
                     f"got unload_to = {self.unload_to}, reload_to = {reload_to}"
                 )
 

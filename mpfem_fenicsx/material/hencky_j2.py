@@ -192,7 +192,8 @@ def _mul_abt(a, b, out):
 
 @numba.njit(cache=True, inline="always")
 def _store_cp_inv(be, Finv, M, C, out):
-    """out = the 6 components of C_p^-1 = F^-1 b_e F^-T (its two triangles averaged); M, C scratch."""
+    """out = the 6 components of C_p^-1 = F^-1 b_e F^-T (its two triangles averaged); M, C
+    scratch."""
     _mul_abt(be, Finv, M)
     _mul_ab(Finv, M, C)
     out[0] = C[0, 0]
@@ -696,7 +697,8 @@ class HenckyJ2:
         self.plastic_work += self.dissipation
 
     def state_dict(self) -> dict[str, np.ndarray]:
-        """Committed plastic state (C_p^-1, eps_p, plastic work) of this rank's points (for checkpoints)."""
+        """Committed plastic state (C_p^-1, eps_p, plastic work) of this rank's points (for
+        checkpoints)."""
         return {
             "cp_inv": self.cp_inv.copy(),
             "eps_p": self.eps_p.copy(),

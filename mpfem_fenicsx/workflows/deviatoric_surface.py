@@ -78,7 +78,8 @@ def lode_angle(sigma: np.ndarray) -> float:
 
 
 def probe_rows(history, theta_deg: float, t_start: float) -> dict[str, np.ndarray]:
-    """fan.csv rows of one probe's history (rows after ``t_start``): Schmidt sigma_m, q, Lode angle."""
+    """fan.csv rows of one probe's history (rows after ``t_start``): Schmidt sigma_m, q, Lode
+    angle."""
     t = history.column("time")
     keep = t > t_start * (1 + 1e-12)
     sigma = np.stack(

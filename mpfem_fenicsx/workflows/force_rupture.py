@@ -173,7 +173,8 @@ def rupture_points(rows: dict, phi_c: float) -> dict[str, dict]:
 
 
 def phi_quasi_static(rows: dict) -> float:
-    """The level of E_c / E_d under the quasi-static part of the probe (median over its first half)."""
+    """The level of E_c / E_d under the quasi-static part of the probe (median over its first
+    half)."""
     return float(np.nanmedian(rows["phi"][: max(1, rows["phi"].size // 2)]))
 
 

@@ -77,7 +77,8 @@ class HertzCase:
         check_parameters(self, prefix="HertzCase.")
         if self.size_min > self.size:
             raise ValueError(
-                f"HertzCase.size_min = {self.size_min} must be <= size = {self.size} (relative to r)"
+                f"HertzCase.size_min = {self.size_min} must be <= size = {self.size} (relative to "
+                "r)"
             )
 
     def hertz_force(self, delta):
@@ -156,8 +157,10 @@ def run_hertz(
         history.append(delta_mm=delta, force_N=force, force_hertz_N=float(case.hertz_force(delta)))
         iterations.append(s.snes.getIterationNumber() if kind.static else 0)  # Newton's
         log(
-            f"  delta/r = {delta / r:.5f}: F = {force:.4f} N, Hertz {case.hertz_force(delta):.4f} N "
-            f"({100 * (force / case.hertz_force(delta) - 1):+.2f} %), {contact.count(True)} contact points, "
+            f"  delta/r = {delta / r:.5f}: F = {force:.4f} N, Hertz {case.hertz_force(delta):.4f} "
+            "N "
+            f"({100 * (force / case.hertz_force(delta) - 1):+.2f} %), {contact.count(True)} "
+            "contact points, "
             f"{iterations[-1]} Newton iterations"
         )
 
@@ -177,7 +180,8 @@ def run_hertz(
     )
     if not kind.static:
         log(
-            f"  explicit: dt = {s.dt:.3g} s (unscaled {s.dt_stable_unscaled:.3g} s), {explicit_increments} "
+            f"  explicit: dt = {s.dt:.3g} s (unscaled {s.dt_stable_unscaled:.3g} s), "
+            f"{explicit_increments} "
             "increments"
         )
     s.run_path(record, outputs=case.rows, log=log)

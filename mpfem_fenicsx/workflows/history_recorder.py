@@ -182,7 +182,8 @@ class QuasiStaticCheck:
         found = (f"{100 * self.carrier_share:.1f} % of the work through the comoving carrier "
                  f"(limit {100 * CARRIER_SHARE_LIMIT:.0f} %)")
         if np.isfinite(self.unbalanced_at_rest):
-            found += f", out of balance {self.unbalanced_at_rest:.2g} at rest (limit {UNBALANCED_AT_REST_LIMIT:g})"
+            found += (f", out of balance {self.unbalanced_at_rest:.2g} at rest "
+                      f"(limit {UNBALANCED_AT_REST_LIMIT:g})")
         if self.passed:
             return f"quasi-static check passed: {found}"
         return (f"quasi-static check FAILED: {found}: the stress depends on the loading rate; "

@@ -69,7 +69,8 @@ class StressProbeCase(ServoSettings):
             or not solver_kind(self.base.solver).stress_control
         ):
             raise ValueError(
-                f"base: a stress-controlled probe needs bc CLP or CLPS and the explicit solver, got "
+                "base: a stress-controlled probe needs bc CLP or CLPS and the explicit solver, "
+                "got "
                 f"{self.base.bc!r} / {self.base.solver!r}"
             )
         if not self.p_probe < self.p_load:

@@ -234,7 +234,8 @@ def run_two_spheres(
         )
         log(
             f"  t={s.t:.3f} approach/r={approach(s.t) / r:.5f} F={history.rows[-1][2]:.4f} N "
-            f"a={history.rows[-1][3]:.4f} mm points={history.rows[-1][4]:.0f} its={s.snes.getIterationNumber()}"
+            f"a={history.rows[-1][3]:.4f} mm points={history.rows[-1][4]:.0f} "
+            f"its={s.snes.getIterationNumber()}"
         )
 
     start = time.perf_counter()
@@ -259,8 +260,10 @@ def run_two_spheres(
             raise
         pull_off = float(last[1])
         log(
-            f"  pull-off: the static unloading path ends at approach {pull_off:.5g} mm, F = {last[2]:.4g} N, "
-            f"a = {last[3]:.4g} mm (the remaining contact snaps; a dynamic solver would follow the jump)"
+            f"  pull-off: the static unloading path ends at approach {pull_off:.5g} mm, F = "
+            f"{last[2]:.4g} N, "
+            f"a = {last[3]:.4g} mm (the remaining contact snaps; a dynamic solver would follow the "
+            "jump)"
         )
     history.write()
     return TwoSphereResult(

@@ -236,7 +236,8 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print,
     quiet = _quiet(log)
     restart = _newest_checkpoint(out / "load") if resume else None
     log(
-        f"[load] {base.loading} compaction to rho = {base.target_density} ({base.increments} increments)"
+        f"[load] {base.loading} compaction to rho = {base.target_density} ({base.increments} "
+        "increments)"
         + (f", continued from {restart}" if restart else "")
     )
     loaded = run_compaction(
@@ -259,7 +260,8 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print,
     t_c = float(h.column("time")[-1])
     load_checkpoint_dir = str(resolve_checkpoint(out / "load"))
     log(
-        f"[load] rho = {h.column('rho')[-1]:.4f}, sigma_m = {sigma_m_c:.4g} MPa, h_v = {-h_v_c:.4g}; "
+        f"[load] rho = {h.column('rho')[-1]:.4f}, sigma_m = {sigma_m_c:.4g} MPa, h_v = "
+        f"{-h_v_c:.4g}; "
         f"{loaded.wall_time:.0f} s"
     )
 
@@ -354,7 +356,8 @@ def load_and_unload(case: YieldSurfaceCase, comm: MPI.Comm, log=print,
 
 
 def write_unloaded(out_dir: str | Path, unloaded: Unloaded) -> None:
-    """``out_dir/unloaded.json``, which ``read_unloaded`` reads back (the packing stays in load/)."""
+    """``out_dir/unloaded.json``, which ``read_unloaded`` reads back (the packing stays in
+    load/)."""
     state = {k: v for k, v in vars(unloaded).items() if k not in ("packing", "segments")}
     state["segments"] = [[d, G.tolist()] for d, G in unloaded.segments]
     (Path(out_dir) / "unloaded.json").write_text(json.dumps(state, indent=1))
@@ -419,7 +422,8 @@ def settle(
     hs = held.history
     E_0 = float(hs.column("E_d")[-1])
     log(
-        f"[settle] implicit equilibrium of the unloaded state: sigma_m {unloaded.sigma_m_unloaded:.4g} -> "
+        "[settle] implicit equilibrium of the unloaded state: sigma_m "
+        f"{unloaded.sigma_m_unloaded:.4g} -> "
         f"{hs.column('sigma_m')[-1]:.4g} MPa, E_d {unloaded.E_0:.5g} -> {E_0:.5g} mJ "
         f"({held.wall_time:.0f} s)"
     )
@@ -436,7 +440,8 @@ def settle(
 
 
 def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> CompactionCase:
-    """The compaction case of reload ``k`` (direction phi_k), to restart from the unload checkpoint."""
+    """The compaction case of reload ``k`` (direction phi_k), to restart from the unload
+    checkpoint."""
     duration, n_r = _reload_duration(case, unloaded)
     segments = (
         *unloaded.segments,
@@ -526,7 +531,8 @@ def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, l
         finished = Path(reload.out_dir) / "done"
         if resume and finished.exists():
             log(
-                f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg: done before"
+                f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg: done "
+                "before"
             )
             continue
         if model is None:  # one model per rank, reused by all its reloads
@@ -534,7 +540,8 @@ def run_yield_surface(case: YieldSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, l
         run_compaction(reload, alone, quiet, restart=unloaded.checkpoint, model=model)
         finished.write_text(f"{time.perf_counter() - t0:.0f}\n")
         log(
-            f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg on rank {comm.rank}: "
+            f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg on rank "
+            f"{comm.rank}: "
             f"{time.perf_counter() - t0:.0f} s"
         )
     _sleeping_barrier(comm)
@@ -642,7 +649,8 @@ def surfaces(case: YieldSurfaceCase, unloaded: Unloaded | None = None, log=print
         )
     )
     log(
-        f"[surfaces] raw W2 sign changes per reload ({case.solver}): median {np.median(sign_changes):.0f}, "
+        f"[surfaces] raw W2 sign changes per reload ({case.solver}): median "
+        f"{np.median(sign_changes):.0f}, "
         f"max {max(sign_changes)}"
     )
     plot_yield_surface(
