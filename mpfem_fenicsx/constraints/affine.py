@@ -37,6 +37,7 @@ class CouplingRows:
 
     @staticmethod
     def empty() -> CouplingRows:
+        """No couplings."""
         return CouplingRows(
             np.zeros(0, np.int32), np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0)
         )
@@ -113,6 +114,7 @@ class AffineConstraint:
 
     # -- vectors ------------------------------------------------------------------------------
     def create_reduced_vector(self) -> PETSc.Vec:
+        """A PETSc vector of the reduced (free) unknowns."""
         return self.P.createVecRight()
 
     def set_prescribed(self, values: np.ndarray) -> None:

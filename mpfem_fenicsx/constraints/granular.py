@@ -390,9 +390,11 @@ class GranularBoundaryConditions:
 
     # -- PrescribedDisplacements interface (used by the solvers) -------------------------------
     def build(self) -> AffineConstraint:
+        """The affine constraint u = P u_red + g of these conditions."""
         return self.constraint
 
     def displacement_gradient(self, t: float) -> np.ndarray:
+        """H(t) = F0(t) - I (3, 3) of the loading path at time t (s)."""
         F0 = np.asarray(self.gradient(t), dtype=float)
         return F0 - np.eye(3)
 

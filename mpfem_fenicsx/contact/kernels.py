@@ -15,6 +15,7 @@ from .search import FACING, project_point
 
 @numba.njit(cache=True)
 def shape(nv, xi, eta, out):
+    """Shape functions at (xi, eta) of a facet with ``nv`` vertices (4: Q1, 3: P1) into ``out``."""
     if nv == 4:
         out[0] = (1 - xi) * (1 - eta)
         out[1] = xi * (1 - eta)

@@ -92,6 +92,8 @@ class ContactLaw:
         return 2.0 * self.gamma / self.delta_max
 
     def kernel_parameters(self):
+        """The law's numbers as the compiled kernels take them (normal and tangential penalty,
+        friction, sigma_c, delta_max, p0, forced alpha or -1)."""
         kt = self.penalty if self.tangential_penalty is None else self.tangential_penalty
         forced = -1.0 if self.alpha_forced is None else float(self.alpha_forced)
         return (self.penalty, kt, self.friction, self.sigma_c, self.delta_max, self.p0, forced)

@@ -55,6 +55,7 @@ class ContactState:
 
     @staticmethod
     def empty() -> ContactState:
+        """No contact points."""
         return ContactState(
             np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.zeros(0)
         )
@@ -77,10 +78,12 @@ class ContactEvaluation:
 
     @property
     def size(self) -> int:
+        """Number of contact points of this rank."""
         return self.points.size
 
     @staticmethod
     def empty() -> ContactEvaluation:
+        """No contact points, zero forces."""
         n0 = np.zeros(0)
         return ContactEvaluation(
             ContactPoints.empty(),
@@ -347,6 +350,8 @@ class ContactModel:
         self.guards.reset()
 
     def commit(self, u: dolfinx.fem.Function) -> None:
+        """End of an increment at ``u``: the trial history becomes the committed one, the
+        frictional work of the increment is added (summed over ranks)."""
         self.state = self.trial
         self.begin_increment()
         self.U_committed = self.surface.gather(u)

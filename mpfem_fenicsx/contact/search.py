@@ -45,10 +45,12 @@ class ContactPoints:
 
     @property
     def size(self) -> int:
+        """Number of slave points."""
         return self.slave.size
 
     @staticmethod
     def empty() -> ContactPoints:
+        """No slave points."""
         i0 = np.zeros(0, np.int64)
         return ContactPoints(
             i0, i0, i0, np.zeros((0, 2)), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3))

@@ -122,6 +122,7 @@ class ContactSurface:
 
     @property
     def num_nodes(self) -> int:
+        """Number of surface nodes (all ranks)."""
         return self.blocks.size
 
     def gather(self, u: dolfinx.fem.Function) -> np.ndarray:

@@ -47,6 +47,7 @@ class History:
         self.flush_every_row = flush_every_row
 
     def append(self, **values) -> None:
+        """Add a row: one value per column, by name (ValueError naming the missing or unknown)."""
         missing = set(self.columns) - set(values)
         unknown = set(values) - set(self.columns)
         if missing or unknown:
@@ -56,9 +57,11 @@ class History:
             self.write()
 
     def array(self) -> np.ndarray:
+        """The rows as an (n, columns) array."""
         return np.array(self.rows, dtype=float).reshape(-1, len(self.columns))
 
     def column(self, name: str) -> np.ndarray:
+        """The values (n,) of the column ``name``."""
         return self.array()[:, self.columns.index(name)]
 
     def tensor(self, prefix: str) -> np.ndarray:
@@ -66,6 +69,7 @@ class History:
         return tensor_from_columns(self, prefix)
 
     def write(self) -> Path:
+        """Write the CSV (rank 0; NaN as an empty field) and return its path."""
         if self.comm.rank == 0:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             with open(self.path, "w", newline="") as fh:

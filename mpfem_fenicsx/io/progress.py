@@ -42,6 +42,7 @@ class Progress:
     def update(
         self, fraction: float, step: int, total: int, *, rho: float, sigma_m: float, extra: str = ""
     ) -> str:
+        """Print the progress line (rank 0, when enabled) and return it."""
         fraction = min(max(fraction, 0.0), 1.0)
         now = time.perf_counter()
         if self._start is None:

@@ -26,10 +26,12 @@ class SmoothStep:
             raise ValueError(f"SmoothStep needs t1 > t0, got t0={self.t0}, t1={self.t1}")
 
     def __call__(self, t: float) -> float:
+        """Amplitude in [0, 1] at time ``t`` (s)."""
         s = min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
         return _quintic_ramp(s)
 
     def rate(self, t: float) -> float:
+        """d amplitude / dt (1/s) at time ``t`` (s)."""
         s = min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
         return 30.0 * s * s * (1.0 - s) ** 2 / (self.t1 - self.t0)
 
@@ -71,6 +73,7 @@ class SmoothRamps:
         return 1.0 / (1.0 - 0.5 * (self.rise + self.fall))
 
     def __call__(self, t: float) -> float:
+        """Amplitude in [0, 1] at time ``t`` (s)."""
         s = min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
         v = self.plateau
         if s < self.rise:
@@ -80,6 +83,7 @@ class SmoothRamps:
         return v * (0.5 * self.rise + s - self.rise)
 
     def rate(self, t: float) -> float:
+        """d amplitude / dt (1/s) at time ``t`` (s)."""
         s = min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
         u = min(s / self.rise, (1.0 - s) / self.fall, 1.0)
         return self.plateau * _quintic_ramp(u) / (self.t1 - self.t0)
@@ -97,7 +101,9 @@ class Ramp:
     t0: float = 0.0
 
     def __call__(self, t: float) -> float:
+        """Amplitude in [0, 1] at time ``t`` (s)."""
         return min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
 
     def rate(self, t: float) -> float:
+        """d amplitude / dt (1/s) at time ``t`` (s)."""
         return 1.0 / (self.t1 - self.t0) if self.t0 <= t <= self.t1 else 0.0

@@ -100,6 +100,7 @@ class GradientPath:
 
     @property
     def duration(self) -> float:
+        """End time of the last segment (s)."""
         return self._knots[-1]
 
     @property
@@ -108,6 +109,7 @@ class GradientPath:
         return list(self._knots)
 
     def __call__(self, t: float) -> np.ndarray:
+        """F0 (3, 3) at time ``t`` (s); held at the last segment's end after it."""
         k = int(np.searchsorted(self._knots, t, side="right")) - 1
         if k >= len(self.segments):
             return self._ends[-1].copy()

@@ -126,6 +126,7 @@ class StressControl:
 
     @property
     def knots(self) -> list[float]:
+        """The path's start and end times (s)."""
         return [0.0, self.duration]
 
     def _velocity_gradient(self, t: float) -> np.ndarray:

@@ -45,6 +45,7 @@ class PrescribedDisplacements:
         self.couplings: CouplingRows | None = None
 
     def add(self, dofs: np.ndarray, value: Callable | float = 0.0) -> PrescribedDisplacements:
+        """Prescribe ``dofs`` to ``value`` (mm): a number, an array, or t -> either."""
         self._groups.append((np.asarray(dofs, dtype=np.int32), value))
         return self
 
@@ -56,6 +57,7 @@ class PrescribedDisplacements:
         )
 
     def build(self) -> AffineConstraint:
+        """The affine constraint of the prescribed dofs and the couplings."""
         self.constraint = AffineConstraint(self.V, self.prescribed_dofs, self.couplings)
         prescribed = self.constraint.prescribed
         self._positions = []
@@ -65,6 +67,7 @@ class PrescribedDisplacements:
         return self.constraint
 
     def values(self, t: float) -> np.ndarray:
+        """Values (mm) of the constraint's prescribed dofs at time ``t`` (s)."""
         out = np.zeros(self.constraint.prescribed.size)
         for (_, value), (pos, keep) in zip(self._groups, self._positions, strict=True):
             v = value(t) if callable(value) else value
@@ -72,4 +75,5 @@ class PrescribedDisplacements:
         return out
 
     def apply(self, t: float) -> None:
+        """Set the prescribed values of time ``t`` (s) in the constraint."""
         self.constraint.set_prescribed(self.values(t))

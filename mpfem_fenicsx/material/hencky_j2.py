@@ -706,6 +706,7 @@ class HenckyJ2:
         }
 
     def load_state(self, data: dict[str, np.ndarray]) -> None:
+        """Restore :meth:`state` (ValueError when the number of points differs)."""
         if data["eps_p"].shape != self.eps_p.shape:
             raise ValueError(
                 f"material state has {data['eps_p'].size} points, expected {self.num_points}"

@@ -36,14 +36,17 @@ class ElastoPlastic:
 
     @property
     def mu(self) -> float:
+        """Shear modulus (MPa)."""
         return self.E / (2.0 * (1.0 + self.nu))
 
     @property
     def lmbda(self) -> float:
+        """Lame's first parameter (MPa)."""
         return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
 
     @property
     def bulk(self) -> float:
+        """Bulk modulus (MPa)."""
         return self.E / (3.0 * (1.0 - 2.0 * self.nu))
 
     @property

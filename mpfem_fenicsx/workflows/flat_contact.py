@@ -36,6 +36,8 @@ from ..solvers import ImplicitSolver, StepControl
 
 @dataclass(frozen=True)
 class FlatContactCase:
+    """The flat-contact check's block, contact law and loads (MPa, mm, mJ/mm^2)."""
+
     E: float = 200000.0  # MPa
     nu: float = 0.3
     height: float = 0.1  # block height h, mm (thin: stiffer than the adhesive softening slope)
@@ -50,6 +52,7 @@ class FlatContactCase:
         return 4.0 * self.gamma / self.sigma_y
 
     def law(self) -> ContactLaw:
+        """The contact law of the case."""
         return ContactLaw(penalty=self.penalty, friction=self.mu, gamma=self.gamma,
                           delta_max=self.delta_max, asperity_yield=self.sigma_y)
 
@@ -102,6 +105,7 @@ def _traction(contact: ContactModel) -> tuple[float, float, float]:
 def run_normal(
     case: FlatContactCase, out_dir: Path, comm: MPI.Comm, steps_per_unit: int = 40
 ) -> History:
+    """The normal test: its history (written to ``out_dir``)."""
     problem, contact, base, block_dofs = _setup(case, case.nu, comm)
     E, nu = case.E, case.nu
     M = E * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
@@ -132,6 +136,8 @@ def run_normal(
 
 
 def run_tangential(case: FlatContactCase, out_dir: Path, comm: MPI.Comm, steps_per_unit: int = 40):
+    """The tangential test: its history (written to ``out_dir``), the slip onset u3c (mm)
+    and the friction limit tau_c (MPa)."""
     problem, contact, base, block_dofs = _setup(case, 0.0, comm)
     h = case.height
     u_c = _compression(case, case.E, 3.0 * case.sigma_y)
@@ -200,6 +206,7 @@ def run_flat_contact(
     out_dir: str | Path = "results/flat_contact",
     comm: MPI.Comm = MPI.COMM_WORLD,
 ):
+    """Both tests: (normal history, tangential history, u3c, tau_c)."""
     out_dir = Path(out_dir)
     normal = run_normal(case, out_dir, comm)
     tangential, u3c, tau_c = run_tangential(case, out_dir, comm)

@@ -113,6 +113,8 @@ def _mean_over_points(problem: SolidProblem, values: np.ndarray) -> float:
 
 @dataclass
 class UniaxialResult:
+    """The uniaxial test's curve: log strain, true stress (MPa, tension > 0), plastic strain."""
+
     log_strain: np.ndarray
     true_stress: np.ndarray  # MPa, tension > 0
     eps_p: np.ndarray
@@ -206,6 +208,8 @@ def run_uniaxial(case: UniaxialCase = UniaxialCase(), out_dir: str | Path = "res
 
 @dataclass
 class SqueezeResult:
+    """The sphere squeeze's history, initial volume (mm^3) and wall time (s)."""
+
     history: History
     initial_volume: float
     wall_time: float

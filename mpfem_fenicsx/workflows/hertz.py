@@ -35,6 +35,8 @@ from ..solvers.explicit import ExplicitSettings
 
 @dataclass(frozen=True)
 class HertzCase:
+    """The Hertz case: spheres, mesh, contact penalty and approach (MPa, mm)."""
+
     E: float = parameter(200000.0, "Young's modulus of both spheres (MPa)", low=0, open_low=True)
     nu: float = parameter(0.3, "Poisson's ratio (-)", low=0, high=0.5, open_high=True)
     radius: float = parameter(1.0, "sphere radius r (mm)", low=0, open_low=True)
@@ -82,12 +84,15 @@ class HertzCase:
             )
 
     def hertz_force(self, delta):
+        """Hertz force (N) at the centre approach ``delta`` (mm)."""
         e_star = self.E / (2.0 * (1.0 - self.nu ** 2))
         return 4.0 / 3.0 * e_star * np.sqrt(self.radius / 2.0) * np.asarray(delta) ** 1.5
 
 
 @dataclass
 class HertzResult:
+    """The Hertz run's force-approach history, its number of dofs and wall time (s)."""
+
     history: History
     num_dofs: int
     wall_time: float
@@ -101,6 +106,7 @@ def run_hertz(
     petsc_options: dict | None = None,
     log=print,
 ) -> HertzResult:
+    """Run the Hertz case; the force-approach history is written to ``out_dir``."""
     solver, explicit_increments, explicit_time = (
         case.solver,
         case.explicit_increments,

@@ -174,6 +174,7 @@ class QuasiStaticCheck:
 
     @property
     def passed(self) -> bool:
+        """Both measures within their limits (a NaN out-of-balance ratio passes)."""
         return bool(abs(self.carrier_share) <= CARRIER_SHARE_LIMIT
                     and not self.unbalanced_at_rest > UNBALANCED_AT_REST_LIMIT)
 

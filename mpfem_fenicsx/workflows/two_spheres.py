@@ -53,6 +53,8 @@ from ..solvers import ImplicitSolver, NonConvergence, StepControl
 
 @dataclass(frozen=True)
 class TwoSphereCase:
+    """The two-sphere case: material, adhesion ratio, mesh and load steps (MPa, mm)."""
+
     ratio: float = parameter(
         1.0, "sigma_c / sigma_y: adhesive strength over the yield stress (-)", low=0, open_low=True
     )
@@ -115,17 +117,21 @@ class TwoSphereCase:
 
     @property
     def sigma_c(self) -> float:
+        """Adhesive strength sigma_c = ratio sigma_0 (MPa)."""
         return self.ratio * self.material.sigma_0
 
     @property
     def delta_max(self) -> float:
+        """Separation length delta_max = 2 gamma / sigma_c (mm)."""
         return 2.0 * self.gamma / self.sigma_c
 
     @property
     def e_star(self) -> float:
+        """E* = E / (2 (1 - nu^2)) of two identical spheres (MPa)."""
         return self.material.E / (2.0 * (1.0 - self.material.nu ** 2))
 
     def law(self) -> ContactLaw:
+        """The contact law: no friction, alpha forced to 1."""
         penalty = self.penalty or default_penalty(
             self.material.E, 0.5 * self.size_min * self.radius
         )
@@ -133,6 +139,8 @@ class TwoSphereCase:
                           alpha_forced=1.0)
 
     def mesarovic_johnson(self, a, a0, F0):
+        """Mesarovic-Johnson unloading force (N) at contact radius ``a`` (mm) from the
+        loaded state (a0 mm, F0 N)."""
         a = np.asarray(a, dtype=float)
         p0 = F0 / (np.pi * a0 ** 2)
         s = np.clip(a / a0, 0.0, 1.0)
@@ -142,6 +150,8 @@ class TwoSphereCase:
 
 @dataclass
 class TwoSphereResult:
+    """The two-sphere run's history and its unloading branch."""
+
     history: History
     branch: UnloadingBranch  # unloading branch and its deviations from Mesarovic-Johnson
     pull_off: float | None  # approach (mm) where the static path ended in a pull-off, or None
@@ -168,6 +178,7 @@ def run_two_spheres(
     petsc_options: dict | None = None,
     log=print,
 ) -> TwoSphereResult:
+    """Run the two-sphere case (load, then unload); the history is written to ``out_dir``."""
     r = case.radius
     if case.model == "wedge":
         assembly = wedge_sphere_pair(r, comm, angle=case.wedge_angle, size_min=case.size_min,
@@ -279,6 +290,8 @@ def run_two_spheres(
 
 @dataclass
 class UnloadingBranch:
+    """The unloading branch against Mesarovic-Johnson (mm, N) and its errors (eq. 3.21)."""
+
     a0: float  # contact radius (mm) at the end of loading
     F0: float  # force (N) there
     a: np.ndarray  # contact radius (mm) of the unloading samples with 0 < a < a0

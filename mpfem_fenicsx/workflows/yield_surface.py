@@ -178,6 +178,7 @@ class YieldSurfaceCase:
 
     @property
     def phis(self) -> np.ndarray:
+        """The reload directions phi_k = 2 pi k / nphi (rad)."""
         return 2.0 * np.pi * np.arange(self.nphi) / self.nphi
 
 
