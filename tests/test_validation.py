@@ -675,7 +675,7 @@ def test_die_periodic_volume_is_the_stiffest_on_a_small_volume(tmp_path):
 
 def test_fan_wall_time_adds_the_killed_processes(tmp_path):
     """A resumed fan's wall time starts from what the killed process had logged (wall_s)."""
-    import run
+    from validation import run
 
     (tmp_path / "wall_s").write_text("100.0\n")
     said = []
@@ -687,7 +687,7 @@ def test_fan_wall_time_adds_the_killed_processes(tmp_path):
 def test_parallel_runs_spawn_one_single_thread_process_per_case(tmp_path, monkeypatch):
     """`run.py --jobs N`: every case not done runs as its own process of run.py (one numba thread,
     its log in runs/<case>/log.txt); a done case is skipped; a failed one is reported."""
-    import run
+    from validation import run
 
     monkeypatch.setattr(run, "RUNS", tmp_path)
     (tmp_path / "die_CLP").mkdir()
@@ -712,7 +712,7 @@ def test_list_tells_where_a_killed_run_resumes(tmp_path, monkeypatch):
     """`run.py --list`: done, to run, or the step of the newest complete checkpoint."""
     import json
 
-    import run
+    from validation import run
 
     from validation.cases import CASES
 
