@@ -1,7 +1,7 @@
 # Every target bootstraps .venv/ first (Python >= 3.12, DOLFINx 0.11 from PyPI); idempotent.
 PY := .venv/bin/python
 
-.PHONY: bootstrap demo test test-all docs bench bench-compaction validate clean
+.PHONY: bootstrap demo test test-all docs lint bench bench-compaction validate clean
 
 bootstrap:
 	@bash scripts/bootstrap.sh
@@ -23,6 +23,9 @@ test-all: bootstrap  ## also the heavy cases
 # the documentation site (Sphinx + MyST) -> docs/_build/html/index.html; any warning fails it
 docs: bootstrap  ## the documentation site, built without warnings
 	.venv/bin/sphinx-build -W --keep-going -b html docs docs/_build/html
+
+lint: bootstrap  ## ruff: style, imports, docstrings (pyproject.toml [tool.ruff])
+	$(PY) -m ruff check .
 
 # the validation campaign, e.g. make validate STAGES="die dbc" JOBS=1 (JOBS cases at a time, one core each)
 JOBS ?= 2

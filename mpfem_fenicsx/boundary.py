@@ -54,12 +54,11 @@ BOUNDARY_KINDS = {k.name: k for k in (
 )}
 #: the names, in the thesis' order
 KINDS = tuple(BOUNDARY_KINDS)
-#: the kinds with a cell gradient's reactions (Schmidt stress, stress control)
-PERIODIC_KINDS = tuple(name for name, kind in BOUNDARY_KINDS.items() if kind.periodic)
 
 
 def boundary_kind(name: str) -> BoundaryKind:
-    """The :class:`BoundaryKind` of a name (case-insensitive); ValueError naming the allowed ones."""
+    """The :class:`BoundaryKind` of a name (case-insensitive); ValueError naming the allowed
+    ones."""
     kind = BOUNDARY_KINDS.get(str(name).upper())
     if kind is None:
         raise ValueError(f"bc must be one of {', '.join(KINDS)}, got {name!r}")

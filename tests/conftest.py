@@ -32,9 +32,18 @@ def python() -> str:
 # `make test` hands whole files to its workers (their module fixtures are built once), in
 # collection order: a heavy file handed out last leaves the other core idle for minutes. Hand out
 # the heaviest first (longest-processing-time order; measured runs: bench/README.md, CI table).
-HEAVIEST_FILES_FIRST = ("test_two_spheres", "test_yield_surface", "test_simple_cubic", "test_quasi_static",
-                        "test_mixed_control", "test_granular", "test_validation", "test_sphere_squeeze",
-                        "test_hertz", "test_cli")
+HEAVIEST_FILES_FIRST = (
+    "test_two_spheres",
+    "test_yield_surface",
+    "test_simple_cubic",
+    "test_quasi_static",
+    "test_mixed_control",
+    "test_granular",
+    "test_validation",
+    "test_sphere_squeeze",
+    "test_hertz",
+    "test_cli",
+)
 
 
 # The 900 s timeout (pyproject.toml) guards the CI suite; a heavy case runs by hand, often on
@@ -44,7 +53,8 @@ HEAVY_TIMEOUT_S = 3600
 
 def pytest_collection_modifyitems(items):
     rank = {name: i for i, name in enumerate(HEAVIEST_FILES_FIRST)}
-    items.sort(key=lambda item: rank.get(item.path.stem, len(rank)))  # stable: a file's own order kept
+    # stable: a file's own order kept
+    items.sort(key=lambda item: rank.get(item.path.stem, len(rank)))
     for item in items:
         if item.get_closest_marker("heavy") and not item.get_closest_marker("timeout"):
             item.add_marker(pytest.mark.timeout(HEAVY_TIMEOUT_S))

@@ -1,4 +1,4 @@
-"""bench/compaction.py (issue 8): the documented command prints one consistent JSON object, and
+"""bench/compaction.py: the documented command prints one consistent JSON object, and
 bad input exits 2 naming the option (the figures themselves live in bench/README.md)."""
 
 import json
@@ -10,11 +10,25 @@ BENCH = Path(__file__).resolve().parents[1] / "bench" / "compaction.py"
 
 
 def _run(*args):
-    return subprocess.run([sys.executable, str(BENCH), *args], capture_output=True, text=True, timeout=600)
+    return subprocess.run(
+        [sys.executable, str(BENCH), *args], capture_output=True, text=True, timeout=600
+    )
 
 
 def test_compaction_benchmark_prints_consistent_phases():
-    out = _run("--particles", "24", "--bc", "CLP", "--copies", "--increments", "20", "--warmup", "4", "--steps", "3")
+    out = _run(
+        "--particles",
+        "24",
+        "--bc",
+        "CLP",
+        "--copies",
+        "--increments",
+        "20",
+        "--warmup",
+        "4",
+        "--steps",
+        "3",
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     d = json.loads(out.stdout.strip().splitlines()[-1])
     assert d["ranks"] == 1 and d["steps"] == 3 and d["mode"] == "short"
@@ -22,11 +36,17 @@ def test_compaction_benchmark_prints_consistent_phases():
     assert 0 < d["free_dofs"] < d["dofs"]  # CLP: the copies' dofs are tied to the originals
     assert abs(d["s_per_step"] * d["steps"] - d["wall_s"]) <= 1e-3 * d["wall_s"] + 1e-3
     phases = d["phases_s"]
-    for name in ("material", "assembly", "contact_search", "contact_forces", "constraints", "update"):
-        assert phases[name] >= 0.0, name
+    for name in (
+        "material",
+        "assembly",
+        "contact_search",
+        "contact_forces",
+        "constraints",
+        "update",
+    ):
+        assert phases[name] > 0.0, name  # every phase ran (was timed) in the measured steps
     # the timed phases cover the step (nothing large is left untimed) and do not overlap
     assert 0.6 * d["wall_s"] <= sum(phases.values()) <= 1.02 * d["wall_s"] + 1e-3
-    assert phases["material"] > 0 and phases["assembly"] > 0
     assert 0.5 < d["rho"] < 1.0 and d["peak_rss_mb_max"] > 0
 
 

@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
+from mpfem_fenicsx.meshes import particle_mesh
 from mpi4py import MPI
 
 from mpfem_fenicsx.contact import ContactLaw, ContactModel
 from mpfem_fenicsx.material import LEAD
-from mpfem_fenicsx.meshes import particle_mesh
 from mpfem_fenicsx.problem import SolidProblem
 
 
@@ -53,7 +53,9 @@ def test_periodic_image_contact_equals_direct_contact():
     offset = np.array([1.94, 0.07, 0.03])  # generic: no node-on-node tie between the poles
     direct = _model([[0, 0, 0], offset], [1.0, 1.0]).body_forces()[0, 1]
     shifts = np.array([[0, 0, 0], [cell, 0, 0], [-cell, 0, 0]], dtype=float)
-    image = _model([[0, 0, 0], offset - [cell, 0, 0]], [1.0, 1.0], shifts=shifts).body_forces()[0, 1]
+    image = _model([[0, 0, 0], offset - [cell, 0, 0]], [1.0, 1.0], shifts=shifts).body_forces()[
+        0, 1
+    ]
     assert np.linalg.norm(direct) > 0
     assert np.allclose(image, direct, rtol=1e-8, atol=1e-9 * np.linalg.norm(direct))
 
@@ -68,7 +70,9 @@ def test_search_distance_must_cover_delta_max():
     a = particle_mesh([[0, 0, 0], [2.5, 0, 0]], [1.0, 1.0], MPI.COMM_SELF)
     prob = SolidProblem(a.mesh, LEAD, tangent=False)
     with pytest.raises(ValueError, match="delta_max"):
-        ContactModel(prob.V, a.facet_tags, 2, ContactLaw(gamma=1e-3, delta_max=0.5), search_distance=0.1)
+        ContactModel(
+            prob.V, a.facet_tags, 2, ContactLaw(gamma=1e-3, delta_max=0.5), search_distance=0.1
+        )
 
 
 def test_pair_forces_and_centroids():
@@ -79,15 +83,18 @@ def test_pair_forces_and_centroids():
     centres = np.array([[0, 0, 0], [1.94, 0.07, 0.03], [0, 1.95, 0.02]])
     a = particle_mesh(centres, [1.0, 1.0, 1.0], MPI.COMM_SELF)
     prob = SolidProblem(a.mesh, LEAD, tangent=False)
-    model = ContactModel(prob.V, a.facet_tags, 3, ContactLaw(penalty=1e6, friction=0.0), search_distance=0.1)
+    model = ContactModel(
+        prob.V, a.facet_tags, 3, ContactLaw(penalty=1e6, friction=0.0), search_distance=0.1
+    )
     model.evaluate(prob.u)
     pairs = model.pair_forces()
     assert pairs["pairs"].tolist() == [[0, 1], [0, 2]]
     bodies = model.body_forces()
-    for (i, j), f in zip(pairs["pairs"], pairs["force"]):
+    for (i, j), f in zip(pairs["pairs"], pairs["force"], strict=True):
         assert np.allclose(f, bodies[i, j], rtol=1e-10)
     assert np.all(pairs["area"] > 0) and np.all(pairs["points"] > 0)
-    assert np.array_equal(pairs["area_closed"], pairs["area"])  # no adhesion: every loaded point compressive
+    # no adhesion: every loaded point compressive
+    assert np.array_equal(pairs["area_closed"], pairs["area"])
     centroids = ParticleCentroids(a, prob.u)()
     assert np.allclose(centroids, centres, atol=1e-12)
     branch = centroids[1] - centroids[0]
@@ -99,11 +106,13 @@ def test_penetration_is_found_for_a_steep_slave_face():
     100 deg to the base's normal) that are inside the base must be contact points with
     gap = -depth. (A master-facet cut-off at n_m . n_s < -0.2 missed them: they went unseen
     until the penetration was deep, then kicked the die compaction apart.)"""
-    from mpfem_fenicsx.loading import body_dofs
     from mpfem_fenicsx.meshes import box_bodies_mesh
 
+    from mpfem_fenicsx.loading import body_dofs
+
     a = box_bodies_mesh([([-1, -1, -0.5], [1, 1, 0], (8, 8, 1)),  # base, top face z = 0
-                         ([0, -0.3, 0], [0.6, 0.3, 0.2], (15, 6, 2))], MPI.COMM_SELF)  # slab, 0.04 mm rows
+                         # slab, 0.04 mm rows
+                         ([0, -0.3, 0], [0.6, 0.3, 0.2], (15, 6, 2))], MPI.COMM_SELF)
     prob = SolidProblem(a.mesh, LEAD, tangent=False)
     theta = np.radians(80.0)
     c, s = np.cos(theta), np.sin(theta)
@@ -113,7 +122,9 @@ def test_penetration_is_found_for_a_steep_slave_face():
     blocks = body_dofs(prob.V, a.cell_tags, 1, component=0) // 3
     u = prob.u.x.array.reshape(-1, 3)
     u[blocks] = X[blocks] @ R.T + lift - X[blocks]
-    model = ContactModel(prob.V, a.facet_tags, 2, ContactLaw(penalty=1e6, friction=0.0), search_distance=0.1)
+    model = ContactModel(
+        prob.V, a.facet_tags, 2, ContactLaw(penalty=1e6, friction=0.0), search_distance=0.1
+    )
     model.evaluate(prob.u)
     surf = model.surface
     x = surf.X + surf.gather(prob.u)
@@ -121,7 +132,9 @@ def test_penetration_is_found_for_a_steep_slave_face():
     # the steep face's rows at 0.04 mm from the lowest edge are among them
     assert np.any(np.abs(x[inside, 2] + 0.08 - 0.04 * s) < 1e-9)
     pts = model.evaluation.points
-    found = {int(n): g for n, g, m in zip(pts.slave, pts.gap, pts.master_body) if m == 0}
+    found = {
+        int(n): g for n, g, m in zip(pts.slave, pts.gap, pts.master_body, strict=True) if m == 0
+    }
     missing = [int(n) for n in inside if int(n) not in found]
     assert not missing, f"penetrating slab nodes without a contact point: {missing}"
     assert np.allclose([found[int(n)] for n in inside], x[inside, 2], atol=1e-9)

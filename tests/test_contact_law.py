@@ -8,10 +8,24 @@ from mpfem_fenicsx.contact.laws import ContactLaw, evaluate_law
 
 def _law(law, gap, smax=0.0, slip=(0.0, 0.0, 0.0), tt=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)):
     n = len(gap)
-    out = [np.empty(n), np.empty((n, 3)), np.empty(n), np.empty(n), np.empty(n), np.empty(n, np.int64)]
-    evaluate_law(np.asarray(gap, float), np.tile(slip, (n, 1)).astype(float), np.tile(normal, (n, 1)).astype(float),
-                 np.zeros(n), np.full(n, smax, float), np.tile(tt, (n, 1)).astype(float),
-                 *law.kernel_parameters(), *out)
+    out = [
+        np.empty(n),
+        np.empty((n, 3)),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n, np.int64),
+    ]
+    evaluate_law(
+        np.asarray(gap, float),
+        np.tile(slip, (n, 1)).astype(float),
+        np.tile(normal, (n, 1)).astype(float),
+        np.zeros(n),
+        np.full(n, smax, float),
+        np.tile(tt, (n, 1)).astype(float),
+        *law.kernel_parameters(),
+        *out,
+    )
     T1, Tt, alpha, smax_new, dissipation, branch = out
     return T1, Tt, alpha, smax_new, dissipation
 
@@ -19,7 +33,11 @@ def _law(law, gap, smax=0.0, slip=(0.0, 0.0, 0.0), tt=(0.0, 0.0, 0.0), normal=(0
 def test_normal_law_branches_and_memory():
     law = ContactLaw(penalty=1e9, friction=0.0, gamma=1e-2, delta_max=2e-4, asperity_yield=200.0)
     T1, _, alpha, smax, _ = _law(law, [-6e-7])  # T1 = 600 = p0: alpha = 1/2
-    assert T1[0] == pytest.approx(600.0) and alpha[0] == pytest.approx(0.5) and smax[0] == pytest.approx(600.0)
+    assert (
+        T1[0] == pytest.approx(600.0)
+        and alpha[0] == pytest.approx(0.5)
+        and smax[0] == pytest.approx(600.0)
+    )
     d1 = 0.5 * law.sigma_c / law.penalty
     gaps = [0.5 * d1, d1, 0.5 * (d1 + law.delta_max), law.delta_max, 2 * law.delta_max]
     T1, _, alpha, smax, _ = _law(law, gaps, smax=600.0)
@@ -55,18 +73,26 @@ def test_coulomb_stick_slip_and_dissipation():
 
 def test_adhesive_peak_must_open_before_delta_max():
     """alpha sigma_c / k >= delta_max leaves no softening branch: rejected, naming the fields."""
-    ContactLaw(penalty=1e9, gamma=1e-2, delta_max=2e-4).require_softening_branch()  # peak at 1e-7 mm: fine
-    with pytest.raises(ValueError, match=r"contact.gamma = 0.01 with contact.delta_max = 0.0005 .* must be < "
-                                         r"delta_max \(gamma < k delta_max\^2 / 2 = 0.000125 mJ/mm\^2\)"):
-        ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4).require_softening_branch()  # sigma_c / k = 0.04 mm
+    # peak at 1e-7 mm: fine
+    ContactLaw(penalty=1e9, gamma=1e-2, delta_max=2e-4).require_softening_branch()
+    with pytest.raises(
+        ValueError,
+        match=r"contact.gamma = 0.01 with contact.delta_max = 0.0005 .* must be < "
+        r"delta_max \(gamma < k delta_max\^2 / 2 = 0.000125 mJ/mm\^2\)",
+    ):
+        # sigma_c / k = 0.04 mm
+        ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4).require_softening_branch()
     with pytest.raises(ValueError, match="alpha sigma_c / k = 0.02 mm"):
-        ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.5).require_softening_branch()
-    ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.0).require_softening_branch()  # no adhesion
+        ContactLaw(
+            penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.5
+        ).require_softening_branch()
+    # no adhesion
+    ContactLaw(penalty=1e3, gamma=1e-2, delta_max=5e-4, alpha_forced=0.0).require_softening_branch()
 
 
 @pytest.mark.parametrize("theta", [0.05, 0.3])
-def test_stored_tangential_traction_rotates_with_the_contact_frame(theta):
-    """Issue 22 item 8: a sticking point whose normal turns by theta (the contact rolls) keeps its
+def test_stored_tangential_traction_rotates_with_contact_frame(theta):
+    """A sticking point whose normal turns by theta (the contact rolls) keeps its
     tangential traction's magnitude: the stored traction is rotated into the new tangent plane, not
     projected on it (which shrank it by cos theta and released stored shear without any slip)."""
     law = ContactLaw(penalty=1e9, friction=0.1)  # T1 = 100 MPa: stick below 10 MPa
@@ -75,7 +101,8 @@ def test_stored_tangential_traction_rotates_with_the_contact_frame(theta):
     _, Tt, _, _, w = _law(law, [-1e-7], tt=stored, normal=normal)
     assert np.linalg.norm(Tt[0]) == pytest.approx(5.0, rel=1e-12)
     assert Tt[0] @ normal == pytest.approx(0.0, abs=1e-12)  # in the new tangent plane
-    assert Tt[0] == pytest.approx(-5.0 * np.array([np.cos(theta), 0.0, -np.sin(theta)]))  # the rotated vector
+    # the rotated vector
+    assert Tt[0] == pytest.approx(-5.0 * np.array([np.cos(theta), 0.0, -np.sin(theta)]))
     assert w[0] == 0.0
     # a traction along the rotation axis is unchanged
     _, Tt, _, _, _ = _law(law, [-1e-7], tt=(0.0, 3.0, 0.0), normal=normal)

@@ -1,4 +1,4 @@
-"""SPEC §9 case 3 / thesis §3.4.1: the adhesive and frictional contact law on a flat contact."""
+"""Thesis §3.4.1: the adhesive and frictional contact law on a flat contact."""
 
 import sys
 from pathlib import Path
@@ -29,7 +29,9 @@ def test_degree_of_contact(checks):
 def test_adhesive_opening(checks):
     case, c = checks
     assert c["sigma_c_MPa"] == pytest.approx(case.sigma_y / 2)
-    assert c["peak_tension_from_softening_line_MPa"] == pytest.approx(0.5 * c["sigma_c_MPa"], rel=0.02)
+    assert c["peak_tension_from_softening_line_MPa"] == pytest.approx(
+        0.5 * c["sigma_c_MPa"], rel=0.02
+    )
     assert c["peak_tension_MPa"] == pytest.approx(0.5 * c["sigma_c_MPa"], rel=0.02)
     assert c["zero_crossing_of_softening_mm"] == pytest.approx(case.delta_max, rel=0.02)
     assert c["max_abs_T1_beyond_delta_max"] == 0.0
@@ -104,8 +106,12 @@ def test_contact_history_survives_a_restart(tmp_path):
     bcs.add(block_dofs(lambda x: x[2] > 0.5 * case.height, 0)).add(
         block_dofs(lambda x: x[2] > 0.5 * case.height, 1)).add(top, lambda t: u_c * t)
     ImplicitSolver(p1, bcs, contact=c1).run(StepControl(t_end=1.0, dt=0.25, dt_max=0.25))
-    np.savez(tmp_path / "state.npz", u=p1.u.x.array, **{f"c_{k}": v for k, v in c1.state_dict().items()},
-             **{f"m_{k}": v for k, v in p1.material.state_dict().items()})
+    np.savez(
+        tmp_path / "state.npz",
+        u=p1.u.x.array,
+        **{f"c_{k}": v for k, v in c1.state_dict().items()},
+        **{f"m_{k}": v for k, v in p1.material.state_dict().items()},
+    )
     data = np.load(tmp_path / "state.npz")
     p2.u.x.array[:] = data["u"]
     c2.load_state({k[2:]: data[k] for k in data.files if k.startswith("c_")})

@@ -1,4 +1,4 @@
-"""SPEC §9 case 2: Hertz contact of two identical elastic spheres, frictionless (implicit).
+"""Hertz contact of two identical elastic spheres, frictionless (implicit).
 
 CI size: contact element size 0.01 r (the demo uses 0.005 r and stays within 3 %). The smallest
 approach, delta/r = 5e-4, has a contact radius of 1.6 elements; from delta/r = 1e-3 on the
@@ -14,7 +14,9 @@ from mpfem_fenicsx.workflows.hertz import HertzCase, run_hertz
 @pytest.fixture(scope="module")
 def hertz(tmp_path_factory):
     case = HertzCase(size_min=0.01, steps=10)
-    return case, run_hertz(case, tmp_path_factory.mktemp("hertz"), MPI.COMM_SELF, log=lambda *a: None)
+    return case, run_hertz(
+        case, tmp_path_factory.mktemp("hertz"), MPI.COMM_SELF, log=lambda *a: None
+    )
 
 
 def test_force_follows_hertz(hertz):

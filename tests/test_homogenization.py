@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from mpfem_fenicsx.homogenization import (
-    coordination,
     branch_vectors,
     contact_weights,
+    coordination,
     copy_centroids,
     first_crossing,
-    hencky_strain,
     gradient_fit_noise_hd,
+    hencky_strain,
     least_squares_gradient,
     love_weber_stress,
     piola_to_cauchy,
@@ -101,7 +101,9 @@ def test_least_squares_rank_deficient_raises():
     X = rng.standard_normal((3, 3))
     with pytest.raises(ValueError, match="at least 4"):
         least_squares_gradient(X, X)
-    planar = np.column_stack([rng.standard_normal((10, 2)), np.zeros(10)]) @ rotation([1, 2, 3], 0.7).T
+    planar = (
+        np.column_stack([rng.standard_normal((10, 2)), np.zeros(10)]) @ rotation([1, 2, 3], 0.7).T
+    )
     with pytest.raises(ValueError, match="coplanar"):
         least_squares_gradient(planar, planar)
     line = np.outer(np.linspace(0, 1, 6), [1.0, 2.0, 3.0])
@@ -219,10 +221,13 @@ def test_love_weber_two_particles_hand_computed():
     expected[0, 0] = -f * d / V  # compressive, mechanics convention
     assert np.allclose(sigma, expected)
     # the same contact listed the other way round gives the same tensor
-    assert np.allclose(love_weber_stress(-force_on_0_by_1, branch_vectors(x, [1], [0]), V), expected)
+    assert np.allclose(
+        love_weber_stress(-force_on_0_by_1, branch_vectors(x, [1], [0]), V), expected
+    )
     sm, sd = stress_invariants(sigma)
     assert np.isclose(sm, f * d / (3 * V)) and np.isclose(sd, f * d / V)
-    assert np.allclose(reported_stress(sigma)[0, 0], f * d / V)  # thesis eq. 2.6, l = x_alpha - x_beta
+    # thesis eq. 2.6, l = x_alpha - x_beta
+    assert np.allclose(reported_stress(sigma)[0, 0], f * d / V)
 
 
 def test_love_weber_simple_cubic_with_periodic_images():
@@ -261,8 +266,11 @@ def simple_cubic_assembly(n, a, shifts):
     X = a * (idx + 0.5)
     centres, original, shift = [X], [np.arange(len(X))], [np.zeros((len(X), 3), int)]
     for s, layer in shifts:
-        sel = np.flatnonzero(np.all(idx[:, np.flatnonzero(s)] == layer, axis=1)) if layer is not None \
+        sel = (
+            np.flatnonzero(np.all(idx[:, np.flatnonzero(s)] == layer, axis=1))
+            if layer is not None
             else np.arange(len(X))
+        )
         centres.append(X[sel] + n * a * np.asarray(s))
         original.append(sel)
         shift.append(np.tile(s, (sel.size, 1)))
@@ -280,7 +288,7 @@ def physical_groups(x, original, i, j):
     originals and same branch vector (orientation normalized)."""
     lv = x[j] - x[i]
     keys = []
-    for oi, oj, v in zip(original[i], original[j], lv):
+    for oi, oj, v in zip(original[i], original[j], lv, strict=True):
         if (oi, tuple(np.round(v, 9))) > (oj, tuple(np.round(-v, 9))):
             oi, oj, v = oj, oi, -v
         keys.append((oi, oj) + tuple(np.round(v, 9)))
@@ -341,7 +349,7 @@ def test_counting_rules_clp_shells():
     assert np.allclose(sigma, -f / a ** 2 * np.eye(3))
 
 
-def test_coordination_counts_weighted_contacts_per_volume_particle():
+def test_coordination_counts_weighted_contacts_per_particle():
     """3 particles; bodies 3, 4 are copies of 0 and 2. Contacts: 0-1, 1-2, 1-3 (periodic 1-0),
     2-4 (2 with its own image) and a half-weighted pair of realizations 0-2 / 3-4."""
     original = np.array([0, 1, 2, 0, 2])
@@ -415,7 +423,9 @@ def test_specific_contact_surface():
     assert np.isclose(specific_contact_surface(1.0, V0, F), 1.0 / (V0 * np.linalg.det(F)))
     assert np.isclose(specific_contact_surface(areas, V0, F), 1.0 / (V0 * np.linalg.det(F)))
     w = np.array([1.0, 0.5, 0.5, 0.0])
-    assert np.isclose(specific_contact_surface(areas, V0, F, weights=w), 0.35 / (V0 * np.linalg.det(F)))
+    assert np.isclose(
+        specific_contact_surface(areas, V0, F, weights=w), 0.35 / (V0 * np.linalg.det(F))
+    )
 
 
 def test_first_crossing_interpolates():
@@ -437,7 +447,8 @@ def test_package_does_not_import_fe_stack(root):
         pkg.__path__ = [{str(root / "mpfem_fenicsx")!r}]
         sys.modules["mpfem_fenicsx"] = pkg  # skip the top-level __init__ (it loads dolfinx_solver)
         import mpfem_fenicsx.homogenization
-        bad = [m for m in sys.modules if m.split(".")[0] in ("dolfinx", "petsc4py", "mpi4py", "ufl")]
+        compiled = ("dolfinx", "petsc4py", "mpi4py", "ufl")
+        bad = [m for m in sys.modules if m.split(".")[0] in compiled]
         assert not bad, bad
     """)
     subprocess.run([sys.executable, "-c", code], check=True, timeout=60)

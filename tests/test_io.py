@@ -23,7 +23,7 @@ def test_history_round_trip_with_undefined_values(tmp_path):
 
 
 def test_off_screen_render_prints_no_x_server_warning(tmp_path, python):
-    """Every off-screen picture printed VTK's "bad X server connection" warning (issue 25)."""
+    """Every off-screen picture printed VTK's "bad X server connection" warning."""
     import subprocess
 
     script = ("import mpfem_fenicsx, pyvista\n"
@@ -32,7 +32,9 @@ def test_off_screen_render_prints_no_x_server_warning(tmp_path, python):
               "grid.cell_data['von Mises (MPa)'] = range(grid.n_cells)\n"
               f"render_grid(grid, {str(tmp_path / 'sphere.png')!r})\n")
     env = {k: v for k, v in __import__("os").environ.items() if k != "DISPLAY"}
-    proc = subprocess.run([python, "-c", script], capture_output=True, text=True, timeout=300, env=env)
+    proc = subprocess.run(
+        [python, "-c", script], capture_output=True, text=True, timeout=300, env=env
+    )
     assert proc.returncode == 0, proc.stderr[-800:]
     assert (tmp_path / "sphere.png").stat().st_size > 1000
     assert "X server" not in proc.stderr and "WARN" not in proc.stderr, proc.stderr[-800:]

@@ -3,7 +3,13 @@
 import numpy as np
 import pytest
 
-from mpfem_fenicsx.loading import PROFILES, GradientPath, SmoothRamps, SmoothStep, compaction_gradient
+from mpfem_fenicsx.loading import (
+    PROFILES,
+    GradientPath,
+    SmoothRamps,
+    SmoothStep,
+    compaction_gradient,
+)
 
 
 @pytest.mark.parametrize("name", tuple(PROFILES))
@@ -42,14 +48,19 @@ def test_gradient_path_profile_per_segment():
     unload = np.eye(3) * 1.01
     ramps = GradientPath([(1.0, G), (1.0, unload)], profiles=("smooth-ramps",))
     step = GradientPath([(1.0, G), (1.0, unload)])
-    h = lambda F: np.log(F[0, 0]) / np.log(G[0, 0])  # fraction of the compaction's Hencky strain
+
+    def h(F):  # fraction of the compaction's Hencky strain
+        return np.log(F[0, 0]) / np.log(G[0, 0])
+
     assert h(ramps(0.4)) == pytest.approx(SmoothRamps(1.0)(0.4))
     assert h(step(0.4)) == pytest.approx(SmoothStep(1.0)(0.4))
     # both end each segment at the same gradient; the second segment keeps the smooth step
     for t in (1.0, 2.0):
         assert np.allclose(ramps(t), step(t))
     assert np.allclose(ramps(1.5), step(1.5))
-    with pytest.raises(ValueError, match="profile must be one of smooth-step, smooth-ramps, got 'linear'"):
+    with pytest.raises(
+        ValueError, match="profile must be one of smooth-step, smooth-ramps, got 'linear'"
+    ):
         GradientPath([(1.0, G)], profiles=("linear",))
     with pytest.raises(ValueError, match="2 profiles for 1 segments"):
         GradientPath([(1.0, G)], profiles=("smooth-step", "smooth-step"))
@@ -61,13 +72,19 @@ def test_compaction_case_profiles_its_further_segments():
     from mpfem_fenicsx.workflows.compaction import CompactionCase, loading_path
 
     unload = (1e-4, np.eye(3) * 1.01)
-    case = CompactionCase.build(hold=0.5, segments_after=(unload,), segment_profiles=("smooth-ramps",), visual=False)
+    case = CompactionCase.build(
+        hold=0.5, segments_after=(unload,), segment_profiles=("smooth-ramps",), visual=False
+    )
     path = loading_path(case.loading, 0.6)
     t0 = case.loading.duration * 1.5  # the unload starts after the compaction and its hold
     fraction = np.log(path(t0 + 0.4e-4)[0, 0] / path(t0)[0, 0]) / np.log(1.01)
     assert fraction == pytest.approx(SmoothRamps(1e-4)(0.4e-4))
-    assert np.allclose(path(case.loading.duration * 1.25), path(case.loading.duration))  # the hold holds
-    with pytest.raises(ValueError, match="segment_profiles must name one of smooth-step, smooth-ramps"):
+    assert np.allclose(
+        path(case.loading.duration * 1.25), path(case.loading.duration)
+    )  # the hold holds
+    with pytest.raises(
+        ValueError, match="segment_profiles must name one of smooth-step, smooth-ramps"
+    ):
         CompactionCase.build(segments_after=(unload,), segment_profiles=("linear",))
     with pytest.raises(ValueError, match="for at most the 0 segments_after"):
         CompactionCase.build(segment_profiles=("smooth-ramps",))

@@ -2,12 +2,12 @@
 
 import numpy as np
 import pytest
+from mpfem_fenicsx.meshes import particle_mesh
 from mpi4py import MPI
 
 import dolfinx
 
 from mpfem_fenicsx.material import LEAD, STEEL_LINEAR, ElastoPlastic, HenckyJ2, eig_sym3
-from mpfem_fenicsx.meshes import particle_mesh
 from mpfem_fenicsx.problem import SolidProblem
 
 
@@ -17,7 +17,12 @@ def _random_F(rng, n, amplitude):
 
 def test_eigen_solver_handles_repeated_eigenvalues():
     rng = np.random.default_rng(0)
-    for eigenvalues in ([1.0, 1.0, 1.0], [2.0, 2.0, 0.5], [3.0, 1e-3, 1e-3], [1.0, 1.0 + 1e-12, 4.0]):
+    for eigenvalues in (
+        [1.0, 1.0, 1.0],
+        [2.0, 2.0, 0.5],
+        [3.0, 1e-3, 1e-3],
+        [1.0, 1.0 + 1e-12, 4.0],
+    ):
         R, _ = np.linalg.qr(rng.standard_normal((3, 3)))
         a = R @ np.diag(eigenvalues) @ R.T
         w = np.empty(3)
@@ -28,7 +33,7 @@ def test_eigen_solver_handles_repeated_eigenvalues():
         assert np.allclose(Q.T @ Q, np.eye(3), atol=1e-13)
 
 
-def test_eigen_solver_keeps_the_deviator_of_near_identity_tensors():
+def test_eigen_solver_keeps_deviator_of_near_identity_tensors():
     """b_e near 1 (small elastic strains) with two principal values equal or nearly so, as under
     die loading: the deviatoric part of ln(b_e) / 2, which sets the stress, must come out to
     round-off of its own size, not of b_e's (LAPACK's eigh as the reference)."""
@@ -59,13 +64,20 @@ def test_eigen_solver_on_tensors_within_rounding_of_the_identity():
     runs, 2026-11-27: the first matrix below). No exception, and a decomposition to rounding."""
     rng = np.random.default_rng(2)
     eps = np.finfo(float).eps
-    matrices = [np.array([[0.99999999999999978, 0.0, -1.1102230246251565e-16], [0.0, 0.99999999999999989, 0.0],
-                          [-1.1102230246251565e-16, 0.0, 0.99999999999999978]])]
+    matrices = [
+        np.array(
+            [
+                [0.99999999999999978, 0.0, -1.1102230246251565e-16],
+                [0.0, 0.99999999999999989, 0.0],
+                [-1.1102230246251565e-16, 0.0, 0.99999999999999978],
+            ]
+        )
+    ]
     for _ in range(20000):
         c = rng.choice([1.0, 0.7, 1.3])
         a = c * np.eye(3)
         for (i, j), k in zip([(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)],
-                             rng.integers(-3, 4, 6) * (rng.random(6) < 0.6)):
+                             rng.integers(-3, 4, 6) * (rng.random(6) < 0.6), strict=True):
             a[i, j] += k * eps * c / 2
             a[j, i] = a[i, j]
         matrices.append(a)
@@ -86,8 +98,16 @@ def _updates_by_both_paths(material, F, cp_inv=None, eps_p=None):
         if cp_inv is not None:
             m.load_state({"cp_inv": cp_inv, "eps_p": eps_p})
         m.update(F, tangent=tangent)
-        results.append({"P_dev": m.P_dev.copy(), "tau": m.tau.copy(), "cp_inv": m.cp_inv_trial.copy(),
-                        "eps_p": m.eps_p_trial.copy(), "dissipation": m.dissipation.copy(), "psi": m.psi.copy()})
+        results.append(
+            {
+                "P_dev": m.P_dev.copy(),
+                "tau": m.tau.copy(),
+                "cp_inv": m.cp_inv_trial.copy(),
+                "eps_p": m.eps_p_trial.copy(),
+                "dissipation": m.dissipation.copy(),
+                "psi": m.psi.copy(),
+            }
+        )
     return results
 
 
@@ -95,7 +115,7 @@ def _largest_relative_gap(a, b):
     return max(np.abs(a[k] - b[k]).max() / max(np.abs(b[k]).max(), 1e-300) for k in a)
 
 
-def test_series_update_equals_the_eigen_update_along_plastic_flow():
+def test_series_update_equals_eigen_update_along_plastic_flow():
     """Two realizations of the same return mapping: the series path (1/2 ln b_e by artanh, exp by
     Taylor, tensor form) against principal axes (closed-form eigen-decomposition), after plastic
     history, on elastic and plastic trial states, within round-off of the outputs."""
@@ -123,7 +143,9 @@ def test_series_update_to_the_edge_of_its_radius():
     rng = np.random.default_rng(8)
     material = ElastoPlastic(E=10.0, sigma_0=1e3)  # elastic throughout
     F = []
-    for radius in np.concatenate([[0.0, 1e-15, 1e-9, 1e-5], np.linspace(0.02, 1.3 * SERIES_RADIUS, 200)]):
+    for radius in np.concatenate(
+        [[0.0, 1e-15, 1e-9, 1e-5], np.linspace(0.02, 1.3 * SERIES_RADIUS, 200)]
+    ):
         R, _ = np.linalg.qr(rng.standard_normal((3, 3)))
         d = rng.standard_normal(3)
         b = R @ np.diag(1.0 + radius * d / np.linalg.norm(d)) @ R.T  # |b - 1| = radius
@@ -206,9 +228,8 @@ def test_power_law_first_yield_is_robust():
     assert np.all(m.eps_p_trial > 0)
 
 
-def test_assembled_jacobian_matches_residual_on_distorted_hexahedra():
+def test_jacobian_matches_residual_on_distorted_hexahedra():
     """Consistent Jacobian of the SRI forms on curved (non-affine) cube-sphere cells."""
-
     a = particle_mesh([[0, 0, 0]], [1.0], MPI.COMM_SELF)
     prob = SolidProblem(a.mesh, LEAD)
     rng = np.random.default_rng(1)
@@ -242,11 +263,13 @@ def _mesh_of_kind(kind):
 
     if kind.startswith("cube"):
         return particle_mesh([[0, 0, 0], [2.1, 0, 0]], [1.0, 1.0], MPI.COMM_SELF).mesh, None
-    return dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 2, 3, 2, dolfinx.mesh.CellType.tetrahedron), 2
+    return dolfinx.mesh.create_unit_cube(
+        MPI.COMM_SELF, 2, 3, 2, dolfinx.mesh.CellType.tetrahedron
+    ), 2
 
 
 @pytest.mark.parametrize("kind", ["cube-sphere Q1", "tetrahedra P2"])
-def test_deformation_gradient_kernel_matches_the_compiled_expression(kind):
+def test_deformation_gradient_kernel_matches_compiled_expression(kind):
     """The threaded F kernel (forms.kinematics) reproduces FFCx's Expression of I + Grad u on
     curved hexahedra and on P2 tetrahedra, for a random displacement and a subset of cells, and
     the problem uses it (the residual packing is handed the kernel's P_dev directly as well)."""
@@ -310,7 +333,7 @@ def test_deviatoric_force_loop_equals_the_compiled_form(kind, subset):
 
 @pytest.mark.parametrize("kind", ["cube-sphere Q1", "tetrahedra P2"])
 @pytest.mark.parametrize("subset", [False, True], ids=["all cells", "a third of the cells"])
-def test_volumetric_and_bulk_viscosity_loops_equal_the_compiled_forms(kind, subset):
+def test_volumetric_and_viscosity_loops_equal_compiled_forms(kind, subset):
     """The residual's volumetric part and the explicit solver's bulk-viscosity force by the numba
     loops at the volumetric points (forms.kinematics.VolumetricForces) and by FFCx's compiled
     forms, at a random displacement and a random velocity whose volumetric rates, of both signs,
@@ -326,7 +349,9 @@ def test_volumetric_and_bulk_viscosity_loops_equal_the_compiled_forms(kind, subs
     reference = _internal_force(prob)
     assert np.abs(ours - reference).max() <= 1e-13 * np.abs(reference).max()
 
-    solver = ExplicitSolver(prob, PrescribedDisplacements(prob.V), ExplicitSettings(t_end=1e-5, target_dt=1e-7))
+    solver = ExplicitSolver(
+        prob, PrescribedDisplacements(prob.V), ExplicitSettings(t_end=1e-5, target_dt=1e-7)
+    )
     assert solver._viscous_loop
     rate = solver._rate_scale()  # |tr grad_x v| at which both terms are equal
     solver.velocity.x.array[:] = rate * 0.05 * rng.standard_normal(solver.velocity.x.array.size)
@@ -338,7 +363,7 @@ def test_volumetric_and_bulk_viscosity_loops_equal_the_compiled_forms(kind, subs
     assert np.abs(ours - reference).max() <= 1e-12 * np.abs(reference).max()
 
 
-def test_cell_stress_integrals_are_the_stress_the_internal_forces_carry():
+def test_cell_stress_integrals_match_the_internal_forces():
     """``SolidProblem.cell_stress_integrals`` (int sigma dv per cell, the volume-averaged stress of
     thesis eq. C.7) against two independent measures: the analytic Hencky stress of a homogeneous
     stretch times the deformed volume, and, for a non-homogeneous plastic state, the first moment
@@ -355,7 +380,9 @@ def test_cell_stress_integrals_are_the_stress_the_internal_forces_carry():
     # SRI: the deviatoric stress on the 8-point volume, the pressure on the one-point volume (1.2 %
     # smaller on the curved cube-sphere cells: the internal forces carry this stress, not tau V8)
     volume_8 = prob.point_volumes.sum()
-    volume_1 = dolfinx.fem.assemble_scalar(dolfinx.fem.form(dolfinx.fem.Constant(mesh, 1.0) * prob.dx_vol))
+    volume_1 = dolfinx.fem.assemble_scalar(
+        dolfinx.fem.form(dolfinx.fem.Constant(mesh, 1.0) * prob.dx_vol)
+    )
     expected = 2 * elastic.mu * (h - h.mean()) * volume_8 + elastic.bulk * h.sum() * volume_1
     assert np.allclose(total, np.diag(expected), rtol=1e-9, atol=1e-9 * np.abs(expected).max())
 
@@ -363,7 +390,9 @@ def test_cell_stress_integrals_are_the_stress_the_internal_forces_carry():
     rng = np.random.default_rng(5)
     u = np.zeros_like(X)
     u[:, 2] = -0.08 * X[:, 2]  # squeezed past yield, plus a non-affine wobble
-    plastic.u.x.array[:] = (u + 0.01 * np.sin(3 * X[:, [1, 2, 0]]) + 1e-3 * rng.standard_normal(X.shape)).ravel()
+    plastic.u.x.array[:] = (
+        u + 0.01 * np.sin(3 * X[:, [1, 2, 0]]) + 1e-3 * rng.standard_normal(X.shape)
+    ).ravel()
     plastic.update_material()
     assert plastic.material.eps_p_trial.max() > 0.01
     f = plastic.create_vector()

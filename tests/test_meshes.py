@@ -2,10 +2,9 @@
 
 import numpy as np
 import pytest
-from mpi4py import MPI
-
 from mpfem_fenicsx.meshes import particle_mesh, particle_volumes, unit_ball_hex
 from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS, _orient_positive
+from mpi4py import MPI
 
 
 def test_default_cube_sphere_is_the_thesis_particle():
@@ -17,7 +16,8 @@ def test_default_cube_sphere_is_the_thesis_particle():
     assert ball.surface_nodes.size == 218
     # orientation: re-orienting changes nothing, i.e. every Jacobian is already positive
     assert np.array_equal(_orient_positive(ball.points, ball.cells), ball.cells)
-    # named resolutions: the chapter-4 O-grid (1 934 nodes with the reference node) and the old default
+    # named resolutions: the chapter-4 O-grid (1 934 nodes with the reference node) and the
+    # old default
     assert unit_ball_hex(*RESOLUTIONS["chapter4"]).num_nodes == 1933
     assert unit_ball_hex(*RESOLUTIONS["coarse"]).num_nodes == 517
 
@@ -28,7 +28,9 @@ def test_particle_mesh_holds_its_sphere_volume(name):
     the surface nodes lie outside r by the scale, the facet centres inside."""
     divisions, layers = RESOLUTIONS[name]
     radii = np.array([1.0, 0.5])
-    a = particle_mesh([[0, 0, 0], [3.0, 0, 0]], radii, MPI.COMM_SELF, divisions=divisions, layers=layers)
+    a = particle_mesh(
+        [[0, 0, 0], [3.0, 0, 0]], radii, MPI.COMM_SELF, divisions=divisions, layers=layers
+    )
     exact = 4.0 / 3.0 * np.pi * radii ** 3
     assert np.allclose(particle_volumes(a), exact, rtol=1e-10)
     ball = unit_ball_hex(divisions, layers)
@@ -66,7 +68,7 @@ def test_many_particles_one_mesh_with_tags():
     x = a.mesh.geometry.x
     a.mesh.topology.create_connectivity(2, 0)
     f2v = a.mesh.topology.connectivity(2, 0)
-    for facet, pid in zip(a.facet_tags.indices, a.facet_tags.values):
+    for facet, pid in zip(a.facet_tags.indices, a.facet_tags.values, strict=True):
         vertices = f2v.links(facet)
         d = np.linalg.norm(x[vertices] - centres[pid], axis=1)
         assert np.allclose(d, radii[pid] * unit_ball_hex().radius_scale, rtol=1e-9)
@@ -90,11 +92,10 @@ def test_gmsh_tetrahedra_p2_volume():
 def test_quarter_sphere_pair_hexahedra_refined_at_the_contact():
     """Two quarter balls (x, y >= 0) of radius 1 centred at z = -1 and z = +1: hexahedra by gmsh
     subdivision, smaller at the contact point, contact tags on the curved surface only."""
-    import ufl
+    from mpfem_fenicsx.meshes.sphere_pair import quarter_sphere_pair
 
     import dolfinx
-
-    from mpfem_fenicsx.meshes.sphere_pair import quarter_sphere_pair
+    import ufl
 
     a = quarter_sphere_pair(1.0, MPI.COMM_SELF, size_min=0.06, size_max=0.4)
     mesh = a.mesh
@@ -115,7 +116,9 @@ def test_quarter_sphere_pair_hexahedra_refined_at_the_contact():
     centre = np.where(a.facet_tags.values[:, None] == 0, [0, 0, -1.0], [0, 0, 1.0])
     assert np.abs(np.linalg.norm(mid - centre, axis=1) - 1.0).max() < 0.01
     # local refinement: cells near the contact point much smaller than far away
-    h = dolfinx.cpp.mesh.h(mesh._cpp_object, 3, np.arange(mesh.topology.index_map(3).size_local, dtype=np.int32))
+    h = dolfinx.cpp.mesh.h(
+        mesh._cpp_object, 3, np.arange(mesh.topology.index_map(3).size_local, dtype=np.int32)
+    )
     mid_cells = dolfinx.mesh.compute_midpoints(mesh, 3, np.arange(h.size, dtype=np.int32))
     near = np.linalg.norm(mid_cells, axis=1) < 0.1
     far = np.linalg.norm(mid_cells, axis=1) > 1.0
@@ -127,12 +130,14 @@ def test_quarter_sphere_pair_graded_from_the_contact_cap():
     """grading: the element size is size_min on the contact cap (sphere surface within
     refine_radius of the axis) and grows with the distance from it, into the bulk and along the
     surface."""
-    import dolfinx
-
     from mpfem_fenicsx.meshes.sphere_pair import quarter_sphere_pair
 
+    import dolfinx
+
     size_min, cap = 0.04, 0.15
-    graded = quarter_sphere_pair(1.0, MPI.COMM_SELF, size_min=size_min, refine_radius=cap, grading=0.5)
+    graded = quarter_sphere_pair(
+        1.0, MPI.COMM_SELF, size_min=size_min, refine_radius=cap, grading=0.5
+    )
     mesh = graded.mesh
     mesh.topology.create_connectivity(2, 3)
     facets = graded.facet_tags.indices
@@ -146,7 +151,9 @@ def test_quarter_sphere_pair_graded_from_the_contact_cap():
     away = (rho > cap + 0.3) & (rho < cap + 0.4)
     assert np.median(h[away]) > 2.5 * np.median(h[on_cap])
     # and the bulk coarsens with the depth under the cap (the ball keeps size_min down to 0.15 r)
-    hc = dolfinx.cpp.mesh.h(mesh._cpp_object, 3, np.arange(mesh.topology.index_map(3).size_local, dtype=np.int32))
+    hc = dolfinx.cpp.mesh.h(
+        mesh._cpp_object, 3, np.arange(mesh.topology.index_map(3).size_local, dtype=np.int32)
+    )
     xc = dolfinx.mesh.compute_midpoints(mesh, 3, np.arange(hc.size, dtype=np.int32))
     depth = 1.0 - np.linalg.norm(xc - np.where(xc[:, 2:] < 0, [0, 0, -1.0], [0, 0, 1.0]), axis=1)
     deep = (np.hypot(xc[:, 0], xc[:, 1]) < 0.1) & (depth > 0.08) & (depth < 0.12)
@@ -160,13 +167,15 @@ def test_wedge_sphere_pair_is_one_revolved_layer_of_hexahedra():
     """The wedge: a quadrilateral meridian mesh revolved by ``angle`` (one layer of hexahedra,
     those at the axis with a collapsed edge); its volume is the spheres' share of the angle, the
     facet tags hold only the spherical surfaces, refined to ~size_min / 2 on the contact cap."""
+    from mpfem_fenicsx.meshes.sphere_pair import wedge_sphere_pair
+
     import dolfinx
     import ufl
 
-    from mpfem_fenicsx.meshes.sphere_pair import wedge_sphere_pair
-
     angle, size_min, cap = 3.0, 0.02, 0.2
-    wedge = wedge_sphere_pair(1.0, MPI.COMM_SELF, angle=angle, size_min=size_min, cap_radius=cap, grading=0.5)
+    wedge = wedge_sphere_pair(
+        1.0, MPI.COMM_SELF, angle=angle, size_min=size_min, cap_radius=cap, grading=0.5
+    )
     mesh = wedge.mesh
     assert mesh.topology.cell_name() == "hexahedron"
     volume = dolfinx.fem.assemble_scalar(dolfinx.fem.form(1.0 * ufl.dx(domain=mesh)))
@@ -191,7 +200,8 @@ def test_wedge_sphere_pair_is_one_revolved_layer_of_hexahedra():
     on_cap = radial < 0.8 * cap
     # radial facet length on the cap: quadrilaterals half the triangles' size_min
     mesh.topology.create_connectivity(2, 1)
-    h = dolfinx.cpp.mesh.h(mesh._cpp_object, 2, wedge.facet_tags.indices)  # longest edge (hoop or radial)
+    # longest edge (hoop or radial)
+    h = dolfinx.cpp.mesh.h(mesh._cpp_object, 2, wedge.facet_tags.indices)
     assert on_cap.sum() > 2 * 0.8 * cap / size_min
     assert np.median(h[on_cap]) < 0.8 * size_min
     with pytest.raises(ValueError, match="angle"):

@@ -1,7 +1,6 @@
 """Conformal (Moebius) refinement of the cube-sphere towards a contact point."""
 
 import numpy as np
-
 from mpfem_fenicsx.meshes.cubesphere import _orient_positive, mobius_ball, unit_ball_hex
 
 

@@ -1,20 +1,33 @@
-"""Quasi-static explicit compaction (issue 21): the particle meshes hold their spheres' volume in
+"""Quasi-static explicit compaction: the particle meshes hold their spheres' volume in
 every row, and the default explicit settings end a compaction in equilibrium without an
 end-of-load hook, on a CI-sized random volume.
 
 Case: 12 equal spheres (r = 0.1 mm, a seeded jammed periodic packing), CLP by periodic images,
-the default mesh, damping and profile, 4000 increments, compacted from rho 0.616 to 0.70 (~2 min). The
-loading-rate study of the flagship is bench/convergence.py (figures in bench/README.md); the same
-comparison on this volume (N = 2000 vs 4000) is a heavy test."""
+the default mesh, damping and profile, 4000 increments, compacted from rho 0.616 to 0.70 (~2 min).
+The loading-rate study of the flagship is bench/convergence.py (figures in bench/README.md); the
+same comparison on this volume (N = 2000 vs 4000) is a heavy test."""
 
 import numpy as np
 import pytest
 from mpi4py import MPI
 
 from mpfem_fenicsx.workflows.compaction import CompactionCase, build_compaction, run_compaction
-from mpfem_fenicsx.workflows.history_recorder import QUASI_STATIC_CHECK_COLUMNS, carrier_share, quasi_static_check
+from mpfem_fenicsx.workflows.history_recorder import (
+    QUASI_STATIC_CHECK_COLUMNS,
+    carrier_share,
+    quasi_static_check,
+)
 
-CASE = dict(particles=12, increments=4000, r_min=0.1, r_max=0.1, target_density=0.70, outputs=20, visual=False, checkpoint_every=0)
+CASE = dict(
+    particles=12,
+    increments=4000,
+    r_min=0.1,
+    r_max=0.1,
+    target_density=0.70,
+    outputs=20,
+    visual=False,
+    checkpoint_every=0,
+)
 
 
 def quiet(*args, **kwargs):
@@ -29,7 +42,9 @@ def sigma_at(h, rho):
 
 
 def compaction(tmp_path, **kw):
-    return run_compaction(CompactionCase.build(directory=str(tmp_path), **{**CASE, **kw}), MPI.COMM_SELF, quiet).history
+    return run_compaction(
+        CompactionCase.build(directory=str(tmp_path), **{**CASE, **kw}), MPI.COMM_SELF, quiet
+    ).history
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +55,9 @@ def history(tmp_path_factory):
 def test_model_solid_fraction_is_the_spheres(tmp_path):
     """Finite-element volumes (DOLFINx integral over the particles) = the spheres' volumes the
     relative density counts (thesis eq. 2.4-2.5), on the flagship packing with its two radii."""
-    model = build_compaction(CompactionCase.build(visual=False, directory=str(tmp_path)), MPI.COMM_SELF, log=quiet)
+    model = build_compaction(
+        CompactionCase.build(visual=False, directory=str(tmp_path)), MPI.COMM_SELF, log=quiet
+    )
     assert model.rho0_fe == pytest.approx(model.rho0, rel=1e-9)
 
 
@@ -76,11 +93,18 @@ def balance(carrier_share, unbalanced_end, rows=10):
     zero = np.zeros(rows)
     unbalanced = np.full(rows, 0.2)
     unbalanced[-1] = unbalanced_end
-    return dict(W_ext=w_ext, E_int=(1 + carrier_share) * w_ext, E_visc=zero, E_contact=zero, E_c=zero,
-                E_damp=zero, unbalanced=unbalanced)
+    return dict(
+        W_ext=w_ext,
+        E_int=(1 + carrier_share) * w_ext,
+        E_visc=zero,
+        E_contact=zero,
+        E_c=zero,
+        E_damp=zero,
+        unbalanced=unbalanced,
+    )
 
 
-def test_quasi_static_check_reads_the_carrier_and_the_balance_at_rest():
+def test_quasi_static_check_reads_carrier_and_balance_at_rest():
     """The check's two measures, on synthetic energy balances: a run passes with neither, fails
     with work through the carrier (damped CLPS: 31 %) or with a volume out of balance at rest
     (undamped CLPS: 3 % through the carrier but 0.18 out of balance at the end), and a path that
@@ -100,8 +124,11 @@ def test_compaction_passes_its_quasi_static_check(history, tmp_path):
     columns = {c: history.column(c) for c in QUASI_STATIC_CHECK_COLUMNS}
     assert quasi_static_check(columns).passed
     lines = []
-    fast = run_compaction(CompactionCase.build(directory=str(tmp_path), **{**CASE, "increments": 400}), MPI.COMM_SELF,
-                          lambda line="", **kw: lines.append(line))
+    fast = run_compaction(
+        CompactionCase.build(directory=str(tmp_path), **{**CASE, "increments": 400}),
+        MPI.COMM_SELF,
+        lambda line="", **kw: lines.append(line),
+    )
     # measured 2026-11-26: out of balance 0.80 at rest, sigma_m 17 % below its peak at the end
     # (1000 increments: 0.13, 11 %; 4000: 0.0067, 3 %); the carrier takes -3 % / -2.5 % / -0.5 %
     assert not fast.quasi_static.passed and fast.quasi_static.unbalanced_at_rest > 0.2

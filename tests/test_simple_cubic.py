@@ -1,4 +1,4 @@
-"""Simple cubic cell (thesis §2.6, issue 5): the homogenization of a whole compaction run checked
+"""Simple cubic cell (thesis §2.6): the homogenization of a whole compaction run checked
 against the exact answers of an ordered packing, isotropic and die loading to rho = 0.95."""
 
 
@@ -24,15 +24,18 @@ def simple_cubic():
 
 @pytest.mark.parametrize("loading", ["isotropic", "die"])
 def test_simple_cubic_homogenization(simple_cubic, loading, tmp_path):
-    case = simple_cubic.simple_cubic_case(loading, increments=INCREMENTS[loading], out_dir=str(tmp_path), visual=False,
-                                          outputs=20)
+    case = simple_cubic.simple_cubic_case(
+        loading, increments=INCREMENTS[loading], out_dir=str(tmp_path), visual=False, outputs=20
+    )
     res = run_compaction(case, MPI.COMM_SELF, log=lambda *a: None)
     chk = simple_cubic.checks(res)
     h = res.history
     assert chk["rho"][-1] == pytest.approx(0.95, abs=2e-3)
     # rho from the centroids' least-squares F (eq. 2.17) against rho_imposed from the constraints'
     # F0: two measures of the cell's volume (it was compared with pi / (6 det F), the same formula)
-    assert np.max(np.abs(h.column("rho") - h.column("rho_imposed")) / h.column("rho_imposed")) < 1e-6
+    assert (
+        np.max(np.abs(h.column("rho") - h.column("rho_imposed")) / h.column("rho_imposed")) < 1e-6
+    )
     # the motion of the centroids stays affine: least squares = auxiliary-node Hencky strain
     for a, b in simple_cubic.COMPONENTS:
         name = f"{a + 1}{b + 1}"
@@ -57,9 +60,15 @@ def test_simple_cubic_homogenization(simple_cubic, loading, tmp_path):
     else:
         assert s33 > s11 > 0 and h.column("sigma_tilde_d")[-1] > 0 and h.column("h_tilde_d")[-1] < 0
     # energies: dissipation = plasticity (+ friction), contacts grow, specific surface > 0
-    assert h.column("E_d")[-1] == pytest.approx(h.column("E_p")[-1] + h.column("E_f")[-1], rel=1e-12)
+    assert h.column("E_d")[-1] == pytest.approx(
+        h.column("E_p")[-1] + h.column("E_f")[-1], rel=1e-12
+    )
     assert h.column("E_p")[-1] > 0 and h.column("Gamma")[-1] > 0
     # force-carrying contacts: none at the start (the 0.99-shrunk spheres are 2 um apart, inside the
     # search distance), the 24 of the lattice at the end (Z = 6 for every particle)
     assert h.column("n_contacts")[0] == 0 and h.column("rattlers")[0] == 8
-    assert h.column("n_contacts")[-1] == 24 and h.column("Z")[-1] == 6 and h.column("rattlers")[-1] == 0
+    assert (
+        h.column("n_contacts")[-1] == 24
+        and h.column("Z")[-1] == 6
+        and h.column("rattlers")[-1] == 0
+    )

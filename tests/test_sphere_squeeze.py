@@ -12,7 +12,9 @@ from mpfem_fenicsx.workflows.foundation import SqueezeCase, run_sphere_squeeze
 def squeezed(tmp_path_factory):
     out = tmp_path_factory.mktemp("squeeze")
     quiet = lambda *a: None  # noqa: E731
-    implicit = run_sphere_squeeze(SqueezeCase(solver="implicit"), out_dir=out, comm=MPI.COMM_SELF, log=quiet)
+    implicit = run_sphere_squeeze(
+        SqueezeCase(solver="implicit"), out_dir=out, comm=MPI.COMM_SELF, log=quiet
+    )
     explicit = run_sphere_squeeze(SqueezeCase(solver="explicit", explicit_steps=6000), out_dir=out,
                                   comm=MPI.COMM_SELF, log=quiet)
     return implicit.history, explicit.history
@@ -43,7 +45,7 @@ def test_implicit_and_explicit_reaction_forces_agree(squeezed):
 
 
 def test_reduced_integration_does_not_lock(squeezed, tmp_path):
-    """Issue 22 item 9: a locked element also keeps its volume, and the force of the tests above
+    """A locked element also keeps its volume, and the force of the tests above
     is only bounded below. Against P2 tetrahedra (quadratic: no locking, a second discretization;
     measured 52.43 / 52.15 N at 30 % with tet_size 0.3 / 0.2 mm, i.e. converged), the SRI hexahedra
     stay below (37.4 N here, 45.1 N once refined: they approach from below, the coarse cap holding
@@ -51,10 +53,15 @@ def test_reduced_integration_does_not_lock(squeezed, tmp_path):
     73.2 N once refined (rising: locking does not go away with the mesh)."""
     implicit, _ = squeezed
     quiet = lambda *a: None  # noqa: E731
-    p2 = run_sphere_squeeze(SqueezeCase(cell_type="tetrahedron", tet_order=2), out_dir=tmp_path, comm=MPI.COMM_SELF,
-                            log=quiet).history
-    full = run_sphere_squeeze(SqueezeCase(full_integration=True), out_dir=tmp_path, comm=MPI.COMM_SELF,
-                              log=quiet).history
+    p2 = run_sphere_squeeze(
+        SqueezeCase(cell_type="tetrahedron", tet_order=2),
+        out_dir=tmp_path,
+        comm=MPI.COMM_SELF,
+        log=quiet,
+    ).history
+    full = run_sphere_squeeze(
+        SqueezeCase(full_integration=True), out_dir=tmp_path, comm=MPI.COMM_SELF, log=quiet
+    ).history
     f_sri, f_p2, f_full = (h.column("force_N")[-1] for h in (implicit, p2, full))
     assert f_p2 == pytest.approx(52.3, rel=0.02)  # the reference itself (measured above)
     assert 0.6 * f_p2 < f_sri < 1.0 * f_p2  # below the non-locking reference, not far

@@ -1,4 +1,4 @@
-"""SPEC §9 case 1: homogeneous uniaxial tension to log strain 0.5 with the lead parameters."""
+"""Homogeneous uniaxial tension to log strain 0.5 with the lead parameters."""
 
 import numpy as np
 import pytest
@@ -12,8 +12,12 @@ from mpfem_fenicsx.workflows.foundation import UniaxialCase, run_uniaxial
 @pytest.fixture(scope="module", params=["implicit", "explicit"])
 def uniaxial(request, tmp_path_factory):
     out = tmp_path_factory.mktemp(request.param)
-    return request.param, run_uniaxial(UniaxialCase(solver=request.param, log_strain=0.5), out_dir=out,
-                                       comm=MPI.COMM_SELF, log=lambda *a: None)
+    return request.param, run_uniaxial(
+        UniaxialCase(solver=request.param, log_strain=0.5),
+        out_dir=out,
+        comm=MPI.COMM_SELF,
+        log=lambda *a: None,
+    )
 
 
 def test_true_stress_follows_hardening_law(uniaxial):
@@ -45,13 +49,17 @@ def test_csv_contract(uniaxial):
 
 @pytest.fixture(scope="module")
 def explicit_run(tmp_path_factory):
-    return run_uniaxial(UniaxialCase(solver="explicit", log_strain=0.5), out_dir=tmp_path_factory.mktemp("energy"),
-                        comm=MPI.COMM_SELF, log=lambda *a: None)
+    return run_uniaxial(
+        UniaxialCase(solver="explicit", log_strain=0.5),
+        out_dir=tmp_path_factory.mktemp("energy"),
+        comm=MPI.COMM_SELF,
+        log=lambda *a: None,
+    )
 
 
 def test_explicit_energy_balance(explicit_run):
     res = explicit_run
-    e = dict(zip(res.energies.columns, res.energies.array()[-1]))
+    e = dict(zip(res.energies.columns, res.energies.array()[-1], strict=True))
     w_ext = e["W_ext"]
     assert w_ext > 0
     assert abs(w_ext - (e["E_int"] + e["E_kin"] + e["E_visc"])) < 0.01 * w_ext

@@ -11,7 +11,10 @@ from validation.cases import STAGE_CONSTRAINT_MASS, STAGES, THESIS_DIE_SIGMA_M
 
 
 def test_at_density_interpolates_the_loading_branch():
-    h = {"rho_imposed": np.array([0.6, 0.9, 0.96, 0.95]), "sigma_m": np.array([0.0, 6.0, 12.0, 11.0])}
+    h = {
+        "rho_imposed": np.array([0.6, 0.9, 0.96, 0.95]),
+        "sigma_m": np.array([0.0, 6.0, 12.0, 11.0]),
+    }
     assert report.at_density(h, "sigma_m", 0.93, "rho_imposed") == pytest.approx(9.0)
     assert np.isnan(report.at_density(h, "sigma_m", 0.97, "rho_imposed"))  # never reached
 
@@ -31,46 +34,103 @@ def test_report_writes_summary_and_tables(tmp_path):
     (here / "README.md").write_text(readme)
     runs = tmp_path / "runs"
     rho = np.linspace(0.6, 0.95, 8)
-    columns = ["time", "rho", "rho_imposed", "rho_fe", "sigma_m", "sigma_schmidt_11", "sigma_schmidt_22", "sigma_schmidt_33",
-               "sigma_vol_m", "h_v", "h_d", "unbalanced", "W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp",
-               "sigma_d"]
-    for name, scale in (("die_CLP", 12.6), ("die_CLPS", 11.0), ("die_GDF", 7.0), ("die_CLPS_n12000", 11.5),
-                        ("die_CLPS_lumped_mass", 10.0), ("dbc_CLPS_1", 7.0), ("dbc_CLPS_1_n12000", 9.0)):
+    columns = [
+        "time",
+        "rho",
+        "rho_imposed",
+        "rho_fe",
+        "sigma_m",
+        "sigma_schmidt_11",
+        "sigma_schmidt_22",
+        "sigma_schmidt_33",
+        "sigma_vol_m",
+        "h_v",
+        "h_d",
+        "unbalanced",
+        "W_ext",
+        "E_int",
+        "E_visc",
+        "E_contact",
+        "E_c",
+        "E_damp",
+        "sigma_d",
+    ]
+    for name, scale in (
+        ("die_CLP", 12.6),
+        ("die_CLPS", 11.0),
+        ("die_GDF", 7.0),
+        ("die_CLPS_n12000", 11.5),
+        ("die_CLPS_lumped_mass", 10.0),
+        ("dbc_CLPS_1", 7.0),
+        ("dbc_CLPS_1_n12000", 9.0),
+    ):
         (runs / name).mkdir(parents=True)
         sigma = scale * ((rho - 0.6) / 0.35) ** 2
         h_v = -np.log(rho / 0.6)
-        rows = np.column_stack([rho, rho, rho, 0.97 * rho, sigma, sigma, sigma, sigma, 1.03 * sigma, h_v, 0.05 * np.abs(h_v),
-                                0.01 + 0 * rho, sigma, 1.1 * sigma, 0 * rho, 0 * rho, 0 * rho, 0.1 * sigma,
-                                (0.6 if name == "die_GDF" else 0.4) * sigma])
-        np.savetxt(runs / name / "history.csv", rows, delimiter=",", header=",".join(columns), comments="")
+        rows = np.column_stack(
+            [
+                rho,
+                rho,
+                rho,
+                0.97 * rho,
+                sigma,
+                sigma,
+                sigma,
+                sigma,
+                1.03 * sigma,
+                h_v,
+                0.05 * np.abs(h_v),
+                0.01 + 0 * rho,
+                sigma,
+                1.1 * sigma,
+                0 * rho,
+                0 * rho,
+                0 * rho,
+                0.1 * sigma,
+                (0.6 if name == "die_GDF" else 0.4) * sigma,
+            ]
+        )
+        np.savetxt(
+            runs / name / "history.csv", rows, delimiter=",", header=",".join(columns), comments=""
+        )
         (runs / name / "done").write_text("60\n")
     rows = report.write_report(runs, here)
     by_case = {(r["case"], r["quantity"]): r for r in rows}
     assert by_case[("die_CLP", "sigma_m at rho 0.95 (MPa)")]["status"] == "met"
     assert by_case[("die_GDF", "sigma_m at rho 0.95 (MPa)")]["status"] == "not met"  # 7.0 vs 9.7
     assert by_case[("die", "ordering CLP > CLPS > GDF")]["status"] == "met"
-    slow = by_case[("die_CLPS_n12000", "sigma_m at rho 0.95 (MPa), 12000 increments")]  # the increments stage
+    # the increments stage
+    slow = by_case[("die_CLPS_n12000", "sigma_m at rho 0.95 (MPa), 12000 increments")]
     assert slow["ours"] == pytest.approx(11.5) and slow["status"] == "met"
     assert by_case[("die_CLP", "sigma_m Schmidt / Love-Weber, end")]["status"] == "met"
-    assert by_case[("die_CLP", "sigma_m volume average / Love-Weber, end")]["status"] == "not met"  # 3 % > 2 %
+    # 3 % > 2 %
+    assert by_case[("die_CLP", "sigma_m volume average / Love-Weber, end")]["status"] == "not met"
     # stress paths at equal pressure: GDF's sigma_d 1.5x CLP's is not "alike" (thesis fig. 2.24d)
     path = by_case[("die_GDF", "sigma_d / CLP's at equal sigma_m (thesis: alike)")]
     assert path["ours"] == pytest.approx(1.5) and path["status"] == "not met"
-    assert by_case[("die_CLPS", "sigma_d / CLP's at equal sigma_m (thesis: alike)")]["status"] == "met"
+    assert (
+        by_case[("die_CLPS", "sigma_d / CLP's at equal sigma_m (thesis: alike)")]["status"] == "met"
+    )
     gap = by_case[("die_GDF", "sigma_m below CLP at the end (fraction)")]
-    assert gap["ours"] == pytest.approx(1 - 7.0 / 12.6) and gap["status"] == "not met"  # 44 % > 20 %
+    # 44 % > 20 %
+    assert gap["ours"] == pytest.approx(1 - 7.0 / 12.6) and gap["status"] == "not met"
     summary = (here / "summary.csv").read_text().splitlines()
-    assert summary[0] == "case,quantity,thesis,ours,deviation,status" and len(summary) == 1 + len(rows)
+    assert summary[0] == "case,quantity,thesis,ours,deviation,status" and len(summary) == 1 + len(
+        rows
+    )
     text = (here / "README.md").read_text()
     assert "| CLP | 12.6 | 12.60 |" in text and "| GDH | (none) | not run yet" in text
     # its carrier takes 20 % of W_ext: the quasi-static check fails, whatever the thesis deviation
-    assert ("| CLPS | 12000 | consistent | 8.45 / 10.28 | 11.50 (0.950) | 11.50 | 0.01 | 20 % | failed (20 % / 0.01) "
-            "| +1.8 % | met |") in text
+    assert (
+        "| CLPS | 12000 | consistent | 8.45 / 10.28 | 11.50 (0.950) | 11.50 | 0.01 | 20 % | failed "
+        "(20 % / 0.01) "
+        "| +1.8 % | met |"
+    ) in text
     assert "| GDF | 12000 | lumped | not run yet" in text
     # the lumped-mass variants of the die CLPS run (consistent mass), listed after it
     lumped = by_case[("die_CLPS_lumped_mass", "sigma_m at rho 0.95 (MPa), lumped mass")]
     assert lumped["ours"] == pytest.approx(10.0) and "| CLPS | 12000 | lumped | not run yet" in text
-    increments_block = text[text.index("BEGIN increments"):text.index("END increments")]
+    increments_block = text[text.index("BEGIN increments") : text.index("END increments")]
     assert increments_block.count("| CLPS | 6000 | consistent |") == 1
     # the same question at another d_bc: in the table, not compared with the thesis' 2.5 r_max value
     assert "| CLPS at d_bc 1 r_max | 12000 | lumped | 6.61 / 8.04 | 9.00 (0.950) | 9.00 |" in text
@@ -79,17 +139,26 @@ def test_report_writes_summary_and_tables(tmp_path):
     # d_bc: a verdict on the two finished CLPS runs (1.0 and the die run at 2.5 with the d_bc runs'
     # lumped mass, not the die stage's consistent-mass run), naming the missing ones
     assert by_case[("dbc_CLPS", "stable d_bc / r_max")]["ours"] == 2.5
-    assert "2.5: 5.10 / 7.35 / 8.94 / (10.00)" in text  # die_CLPS_lumped_mass (10 MPa at the end), not die_CLPS
+    # die_CLPS_lumped_mass (10 MPa at the end), not die_CLPS
+    assert "2.5: 5.10 / 7.35 / 8.94 / (10.00)" in text
     assert "| 2.5 (the largest run: not shown stable), 1.5 / 2 r_max not run yet | 1: " in text
     # the same verdict at equal rho of eq. 2.4 (here the imposed one), read without the end
     assert by_case[("dbc_CLPS", "stable d_bc / r_max at equal rho (eq. 2.4)")]["ours"] == 2.5
-    assert ("; 2.5: 5.10 / 7.35 / 8.94 | 2.5 (the largest run: not shown stable), 1.5 / 2 r_max not run yet | 1.5 "
-            "| not met / not met |") in text
+    assert (
+        "; 2.5: 5.10 / 7.35 / 8.94 | 2.5 (the largest run: not shown stable), 1.5 / 2 r_max not "
+        "run yet | 1.5 "
+        "| not met / not met |"
+    ) in text
     assert "not run yet" in text  # the gamma stage
     # the overview: per table its compared numbers met and its stages' runs (60 s each)
-    assert "| Die compaction, sigma_m at rho 0.95 (§2.7) | 3 of 4 | 3 of 5 (0.1) | `die_GDH`, `die_CLP_exact_volume` |" in text
-    assert ("| The explicit runs' rate: increments and reduced mass | 2 of 2 | 3 of 6 (0.1) | "
-            "`die_CLPS_lumped_mass_n12000`, `die_GDF_n12000`, `isotropic_CLPS_n12000` |") in text
+    assert (
+        "| Die compaction, sigma_m at rho 0.95 (§2.7) | 3 of 4 | 3 of 5 (0.1) | `die_GDH`, "
+        "`die_CLP_exact_volume` |" in text
+    )
+    assert (
+        "| The explicit runs' rate: increments and reduced mass | 2 of 2 | 3 of 6 (0.1) | "
+        "`die_CLPS_lumped_mass_n12000`, `die_GDF_n12000`, `isotropic_CLPS_n12000` |"
+    ) in text
     assert "| CLPS, isotropic | 6000 | consistent | not run yet" in text
     for figure in ("die_sigma_m", "periodic", "dbc", "size", "stress_measures", "gamma"):
         assert (here / "figures" / f"{figure}.png").stat().st_size > 1000, figure
@@ -103,7 +172,7 @@ def test_stages_name_every_thesis_condition():
 def test_divergence_is_the_last_crossing():
     """CLP softer than GDF at small strains, stiffer past h_v = -0.17 (thesis fig. 2.25a)."""
     h_v = -np.linspace(0.0, 0.4, 81)
-    periodic = {"h_v": h_v, "sigma_m": 100 * h_v ** 2}
+    periodic = {"h_v": h_v, "sigma_m": 100 * h_v**2}
     other = {"h_v": h_v[::2], "sigma_m": 17 * np.abs(h_v[::2])}  # crosses at |h_v| = 0.17
     assert report.divergence_hv(periodic, other) == pytest.approx(-0.17, abs=1e-3)
     assert np.isnan(report.divergence_hv(other, periodic))  # ends below: never rises above
@@ -116,13 +185,18 @@ def test_isotropic_drift_is_read_above_the_centroid_fit_noise():
     from mpfem_fenicsx.meshes.packing import Packing
 
     rng = np.random.default_rng(0)
-    packing = Packing(cell=[1.0, 1.0, 1.0], centres=rng.uniform(0.0, 1.0, (50, 3)), radii=np.full(50, 0.1))
+    packing = Packing(
+        cell=[1.0, 1.0, 1.0], centres=rng.uniform(0.0, 1.0, (50, 3)), radii=np.full(50, 0.1)
+    )
     rho = np.linspace(0.6, 0.95, 15)
     h_v = -np.log(rho / 0.6)
     nonaffine = 0.5 * np.abs(h_v)  # scatter growing with the strain, in mean radii
     history = {"rho_imposed": rho, "h_v": h_v, "nonaffine": nonaffine, "sigma_m": 20 * np.abs(h_v)}
     noise = report.drift_noise({"history": history, "packing": packing})
-    assert np.all(noise[1:] > 0) and np.isnan(report.drift_noise({"history": history, "packing": None})).all()
+    assert (
+        np.all(noise[1:] > 0)
+        and np.isnan(report.drift_noise({"history": history, "packing": None})).all()
+    )
 
     def drift_row(bc, h_d):
         run = {"history": dict(history, h_d=h_d), "packing": packing}
@@ -131,9 +205,12 @@ def test_isotropic_drift_is_read_above_the_centroid_fit_noise():
 
     assert drift_row("CLP", noise)["ours"] == pytest.approx(0.0, abs=1e-12)
     assert drift_row("CLP", noise)["status"] == "met"
-    drifting = np.sqrt(noise ** 2 + (0.05 * h_v) ** 2)
-    assert drift_row("CLP", drifting)["ours"] == pytest.approx(0.05) and drift_row("CLP", drifting)["status"] == "not met"
-    gdf = drift_row("GDF", np.sqrt(noise ** 2 + (0.07 * h_v) ** 2))
+    drifting = np.sqrt(noise**2 + (0.05 * h_v) ** 2)
+    assert (
+        drift_row("CLP", drifting)["ours"] == pytest.approx(0.05)
+        and drift_row("CLP", drifting)["status"] == "not met"
+    )
+    gdf = drift_row("GDF", np.sqrt(noise**2 + (0.07 * h_v) ** 2))
     assert gdf["ours"] == pytest.approx(0.07) and gdf["status"] == "met"
 
 
@@ -148,15 +225,28 @@ def test_size_effect_on_h_d_is_read_above_the_fit_noise():
     h_v = -np.log(rho / 0.6)
     runs = {}
     for name, n in (("isotropic_GDF", 50), ("size_GDF_150", 150), ("isotropic_CLP", 50)):
-        packing = Packing(cell=np.full(3, (n / 50) ** (1 / 3)), centres=rng.uniform(0.0, (n / 50) ** (1 / 3), (n, 3)),
-                          radii=np.full(n, 0.1))
-        history = {"rho": rho, "rho_imposed": rho, "h_v": h_v, "nonaffine": 0.5 * np.abs(h_v),
-                   "sigma_m": 20 * np.abs(h_v), "sigma_d": 0 * rho + 0.1 * n ** -0.5}
+        packing = Packing(
+            cell=np.full(3, (n / 50) ** (1 / 3)),
+            centres=rng.uniform(0.0, (n / 50) ** (1 / 3), (n, 3)),
+            radii=np.full(n, 0.1),
+        )
+        history = {
+            "rho": rho,
+            "rho_imposed": rho,
+            "h_v": h_v,
+            "nonaffine": 0.5 * np.abs(h_v),
+            "sigma_m": 20 * np.abs(h_v),
+            "sigma_d": 0 * rho + 0.1 * n**-0.5,
+        }
         runs[name] = {"history": history, "packing": packing}
         runs[name]["noise"] = report.drift_noise(runs[name])
 
     def falls(drift_50, drift_150):
-        for name, drift in (("isotropic_GDF", drift_50), ("size_GDF_150", drift_150), ("isotropic_CLP", drift_50)):
+        for name, drift in (
+            ("isotropic_GDF", drift_50),
+            ("size_GDF_150", drift_150),
+            ("isotropic_CLP", drift_50),
+        ):
             run = runs[name]
             run["history"]["h_d"] = np.sqrt(run["noise"] ** 2 + (drift * h_v) ** 2)
         rows, _ = report.size_rows(runs)
@@ -176,8 +266,16 @@ def test_size_effect_gap_is_read_against_clp_on_the_same_packing():
     h_v = -np.log(rho / 0.6)
 
     def run(level):
-        return {"history": {"rho": rho, "rho_imposed": rho, "h_v": h_v, "h_d": 0 * rho, "sigma_m": level * h_v,
-                            "sigma_d": 0 * rho + 0.1}}
+        return {
+            "history": {
+                "rho": rho,
+                "rho_imposed": rho,
+                "h_v": h_v,
+                "h_d": 0 * rho,
+                "sigma_m": level * h_v,
+                "sigma_d": 0 * rho + 0.1,
+            }
+        }
 
     runs = {"isotropic_GDF": run(18.0), "isotropic_CLP": run(20.0), "size_GDF_150": run(17.0)}
 
@@ -193,7 +291,7 @@ def test_size_effect_gap_is_read_against_clp_on_the_same_packing():
     assert gap_status() == "not met"
 
 
-def test_size_effect_must_exceed_the_spread_of_the_50_particle_packings():
+def test_size_effect_must_exceed_spread_of_50_particle_packings():
     """With a second 50-particle packing a quantity "falls with N" only if the 150-particle value
     is below both packings' values: a 150-particle gap to CLP between the two 50-particle gaps is
     not a fall; the sigma_d that falls below both is."""
@@ -201,11 +299,23 @@ def test_size_effect_must_exceed_the_spread_of_the_50_particle_packings():
     h_v = -np.log(rho / 0.6)
 
     def run(level, sigma_d=0.1):
-        return {"history": {"rho": rho, "rho_imposed": rho, "h_v": h_v, "h_d": 0 * rho, "sigma_m": level * h_v,
-                            "sigma_d": 0 * rho + sigma_d}}
+        return {
+            "history": {
+                "rho": rho,
+                "rho_imposed": rho,
+                "h_v": h_v,
+                "h_d": 0 * rho,
+                "sigma_m": level * h_v,
+                "sigma_d": 0 * rho + sigma_d,
+            }
+        }
 
-    runs = {"isotropic_GDF": run(18.0, 0.3), "isotropic_CLP": run(20.0),
-            "size_GDF_150": run(17.0, 0.1), "size_CLP_150": run(18.0)}  # gaps 10 % and 5.6 %
+    runs = {
+        "isotropic_GDF": run(18.0, 0.3),
+        "isotropic_CLP": run(20.0),
+        "size_GDF_150": run(17.0, 0.1),
+        "size_CLP_150": run(18.0),
+    }  # gaps 10 % and 5.6 %
 
     def status(word):
         rows, lines = report.size_rows(runs)
@@ -227,19 +337,34 @@ def _synthetic_run(end: float, carrier_share: float) -> dict:
     rho = np.linspace(0.6, 0.95, 15)
     sigma = end * ((rho - 0.6) / 0.35) ** 2
     w = np.linspace(0.0, 5.0, rho.size)
-    history = {"rho": rho, "rho_imposed": rho, "rho_fe": 0.97 * rho, "sigma_m": sigma, "W_ext": w,
-               "E_int": (1 + carrier_share) * w, "E_visc": 0 * w, "E_contact": 0 * w, "E_c": 0 * w,
-               "E_damp": 0 * w, "unbalanced": 0 * w + 0.01}
+    history = {
+        "rho": rho,
+        "rho_imposed": rho,
+        "rho_fe": 0.97 * rho,
+        "sigma_m": sigma,
+        "W_ext": w,
+        "E_int": (1 + carrier_share) * w,
+        "E_visc": 0 * w,
+        "E_contact": 0 * w,
+        "E_c": 0 * w,
+        "E_damp": 0 * w,
+        "unbalanced": 0 * w + 0.01,
+    }
     return {"history": history, "wall_s": 60.0}
 
 
 def test_isotropic_rate_variant_is_listed_not_compared():
     """The isotropic CLPS at 12 000 increments sits in the rate table beside its 6000-increment
     run, not compared with the thesis' die values."""
-    done = {"isotropic_CLPS": _synthetic_run(13.2, 0.01), "isotropic_CLPS_n12000": _synthetic_run(13.5, 0.01)}
+    done = {
+        "isotropic_CLPS": _synthetic_run(13.2, 0.01),
+        "isotropic_CLPS_n12000": _synthetic_run(13.5, 0.01),
+    }
     rows, lines = report.increments_rows(done)
     assert not any(r["case"].startswith("isotropic") for r in rows)
-    line = next(line for line in lines if line.startswith("| CLPS, isotropic | 12000 | consistent |"))
+    line = next(
+        line for line in lines if line.startswith("| CLPS, isotropic | 12000 | consistent |")
+    )
     assert "| 13.50 |" in line and "(not in the thesis)" in line
 
 
@@ -248,15 +373,20 @@ def test_die_ordering_reads_the_quasi_static_run():
     quasi-static check and its run with more increments passes it: a CLPS end lost to the ramp's
     deceleration (30 % of the work through the carrier) is replaced by its slower repeat; a
     slower repeat that fails too is not."""
-    done = {"die_CLP": _synthetic_run(13.6, 0.01), "die_CLPS": _synthetic_run(5.9, 0.31),
-            "die_GDF": _synthetic_run(10.6, 0.02), "die_CLPS_n12000": _synthetic_run(11.0, 0.30)}
+    done = {
+        "die_CLP": _synthetic_run(13.6, 0.01),
+        "die_CLPS": _synthetic_run(5.9, 0.31),
+        "die_GDF": _synthetic_run(10.6, 0.02),
+        "die_CLPS_n12000": _synthetic_run(11.0, 0.30),
+    }
 
     def ordering():
         rows, lines = report.die_rows(done)
         return next(r for r in rows if "ordering" in r["quantity"])["status"], lines[-1]
 
     status, line = ordering()
-    assert status == "not met" and "`die_CLPS` (5.90 MPa)" in line  # the slow run fails its check too
+    # the slow run fails its check too
+    assert status == "not met" and "`die_CLPS` (5.90 MPa)" in line
     done["die_CLPS_n12000"] = _synthetic_run(11.0, 0.03)
     status, line = ordering()
     assert status == "met" and "`die_CLPS_n12000` (11.00 MPa)" in line
@@ -279,7 +409,6 @@ def test_stable_dbc_is_where_the_tail_settles():
     assert report.stable_dbc([1.5, 2.0, 2.5], [[np.nan, np.nan], [8.1, np.nan], [8.2, 10.3]]) == 2.0
 
 
-
 def test_gamma_rows_compare_every_definition():
     """Table 4.2 rows: the CLP volume's Gamma and the GDF model's Gamma / Gamma_model at each rho_f;
     the status line follows Gamma_model (the thesis' footnote-4 definition)."""
@@ -287,32 +416,57 @@ def test_gamma_rows_compare_every_definition():
     gdf = {"rho_imposed": rho, "Gamma": 10 * (rho - 0.6), "Gamma_model": 46.8 * (rho - 0.6) / 0.35}
     clp = {"rho_imposed": rho, "Gamma": 9 * (rho - 0.6)}
     dry = {"rho_imposed": rho, "Gamma": 5 * (rho - 0.6), "Gamma_model": 30 * (rho - 0.6)}
-    rows, lines = report.gamma_rows({"isotropic_GDF_gamma1e-2": {"history": gdf},
-                                     "isotropic_CLP_gamma1e-2": {"history": clp},
-                                     "isotropic_GDF": {"history": dry}})
+    rows, lines = report.gamma_rows(
+        {
+            "isotropic_GDF_gamma1e-2": {"history": gdf},
+            "isotropic_CLP_gamma1e-2": {"history": clp},
+            "isotropic_GDF": {"history": dry},
+        }
+    )
     by = {(r["case"], r["quantity"]): r for r in rows}
     model = by[("isotropic_GDF_gamma1e-2", "Gamma_model at rho_f 0.95 (mm^-1)")]
     assert model["ours"] == pytest.approx(46.8) and model["status"] == "met"
     assert by[("isotropic_CLP_gamma1e-2", "Gamma at rho_f 0.95 (mm^-1)")]["status"] == "not met"
     line = next(x for x in lines if x.startswith("| isotropic | 0.95 |"))
     assert line.endswith("| +0.0 % | met | 10.50 |") and "3.15 | 3.50 | 46.80" in line
-    assert not any(r["case"] == "isotropic_GDF" for r in rows)  # the no-adhesion run is shown, not compared
-    assert any(x.startswith("| die | 0.89 | 39.8 | not run yet | not run yet | not run yet") and
-               x.endswith("| not run yet |") for x in lines)
+    # the no-adhesion run is shown, not compared
+    assert not any(r["case"] == "isotropic_GDF" for r in rows)
+    assert any(
+        x.startswith("| die | 0.89 | 39.8 | not run yet | not run yet | not run yet")
+        and x.endswith("| not run yet |")
+        for x in lines
+    )
 
 
 def _ellipse_fan(case, centre, a, b, angle_deg, nphi=12, compressive=3.0, tensile=1.0, gamma_l=5.0):
     """A synthetic finished fan: yield points on an ellipse (semi-axes a > b MPa, major axis at
     ``angle_deg`` from the sigma_m axis), sampled at uneven angles, and its summary."""
-    t = np.linspace(0, 2 * np.pi, nphi, endpoint=False) + 0.3 * np.sin(np.linspace(0, 2 * np.pi, nphi, endpoint=False))
+    t = np.linspace(0, 2 * np.pi, nphi, endpoint=False) + 0.3 * np.sin(
+        np.linspace(0, 2 * np.pi, nphi, endpoint=False)
+    )
     q = np.radians(angle_deg)
     x, y = a * np.cos(t), b * np.sin(t)
-    pts = np.column_stack([t, centre[0] + x * np.cos(q) - y * np.sin(q), centre[1] + x * np.sin(q) + y * np.cos(q)])
-    return {"case": case, "wall_s": 60.0, "surfaces": {"yield": pts, f"gamma_{gamma_l:.6g}": pts * [1, 1.1, 1.1]},
-            "unloaded": {"sigma_m_loaded": 5.0, "sigma_m_unloaded": 0.25, "Gamma_unloaded": 2 * gamma_l},
-            "summary": {"Gamma_limit_per_mm": gamma_l, "points": {"yield": nphi},
-                        "uniaxial_MPa": {"yield": {"compressive": compressive, "tensile": 0.5 * tensile},
-                                         f"gamma_{gamma_l:.6g}": {"compressive": 2 * compressive, "tensile": tensile}}}}
+    pts = np.column_stack(
+        [t, centre[0] + x * np.cos(q) - y * np.sin(q), centre[1] + x * np.sin(q) + y * np.cos(q)]
+    )
+    return {
+        "case": case,
+        "wall_s": 60.0,
+        "surfaces": {"yield": pts, f"gamma_{gamma_l:.6g}": pts * [1, 1.1, 1.1]},
+        "unloaded": {
+            "sigma_m_loaded": 5.0,
+            "sigma_m_unloaded": 0.25,
+            "Gamma_unloaded": 2 * gamma_l,
+        },
+        "summary": {
+            "Gamma_limit_per_mm": gamma_l,
+            "points": {"yield": nphi},
+            "uniaxial_MPa": {
+                "yield": {"compressive": compressive, "tensile": 0.5 * tensile},
+                f"gamma_{gamma_l:.6g}": {"compressive": 2 * compressive, "tensile": tensile},
+            },
+        },
+    }
 
 
 def test_surface_axis_of_a_rotated_ellipse():
@@ -328,29 +482,62 @@ def test_fan_rows_and_trends_on_synthetic_fans():
     """Gamma_l rows against table 4.2 and the four trends, shown on fans built to show them and
     not shown on fans built not to."""
     fans = {c.name: c for c in report.STAGES["fans"]}
-    done = {"fan_isotropic_0.79": _ellipse_fan(fans["fan_isotropic_0.79"], (1.0, 0.0), 2.0, 1.5, 0.0,
-                                                       compressive=2.0, tensile=0.8, gamma_l=17.0),
-            "fan_isotropic_0.87": _ellipse_fan(fans["fan_isotropic_0.87"], (1.5, 0.0), 3.0, 2.0, 0.0,
-                                                       compressive=3.0, tensile=1.2, gamma_l=27.0),
-            "fan_die_0.82": _ellipse_fan(fans["fan_die_0.82"], (1.5, 1.0), 3.0, 1.5, 25.0,
-                                                 compressive=2.5, tensile=1.0, gamma_l=10.0),
-            "fan_isotropic_0.87_gamma0": _ellipse_fan(fans["fan_isotropic_0.87_gamma0"], (3.5, 0.0), 3.0, 2.0, 0.0)}
+    done = {
+        "fan_isotropic_0.79": _ellipse_fan(
+            fans["fan_isotropic_0.79"],
+            (1.0, 0.0),
+            2.0,
+            1.5,
+            0.0,
+            compressive=2.0,
+            tensile=0.8,
+            gamma_l=17.0,
+        ),
+        "fan_isotropic_0.87": _ellipse_fan(
+            fans["fan_isotropic_0.87"],
+            (1.5, 0.0),
+            3.0,
+            2.0,
+            0.0,
+            compressive=3.0,
+            tensile=1.2,
+            gamma_l=27.0,
+        ),
+        "fan_die_0.82": _ellipse_fan(
+            fans["fan_die_0.82"],
+            (1.5, 1.0),
+            3.0,
+            1.5,
+            25.0,
+            compressive=2.5,
+            tensile=1.0,
+            gamma_l=10.0,
+        ),
+        "fan_isotropic_0.87_gamma0": _ellipse_fan(
+            fans["fan_isotropic_0.87_gamma0"], (3.5, 0.0), 3.0, 2.0, 0.0
+        ),
+    }
     rows, lines = report.fan_rows(done)
     by = {r["case"]: r for r in rows}
-    assert by["fan_isotropic_0.87"]["status"] == "met" and by["fan_die_0.82"]["status"] == "not met"  # 10 vs 24.9
+    # 10 vs 24.9
+    assert by["fan_isotropic_0.87"]["status"] == "met" and by["fan_die_0.82"]["status"] == "not met"
     assert "fan_isotropic_0.87_gamma0" not in by  # no thesis row without adhesion
     _, trends = report.trend_lines(done)
     assert [line.rsplit("|", 2)[-2].strip() for line in trends[2:]] == ["shown"] * 4
     # the same fans without the trends: no tension held, strengths falling, no rotation
-    done["fan_isotropic_0.87"] = _ellipse_fan(fans["fan_isotropic_0.87"], (3.5, 0.0), 3.0, 2.0, 0.0,
-                                                       compressive=1.5, tensile=0.5)
-    done["fan_die_0.82"] = _ellipse_fan(fans["fan_die_0.82"], (1.5, 1.0), 3.0, 1.5, 2.0,
-                                                 compressive=0.5, tensile=1.0)
+    done["fan_isotropic_0.87"] = _ellipse_fan(
+        fans["fan_isotropic_0.87"], (3.5, 0.0), 3.0, 2.0, 0.0, compressive=1.5, tensile=0.5
+    )
+    done["fan_die_0.82"] = _ellipse_fan(
+        fans["fan_die_0.82"], (1.5, 1.0), 3.0, 1.5, 2.0, compressive=0.5, tensile=1.0
+    )
     _, trends = report.trend_lines(done)
     assert [line.rsplit("|", 2)[-2].strip() for line in trends[2:]] == ["not shown"] * 4
     # tension held without adhesion too: not the adhesion's effect
     done["fan_isotropic_0.87"] = _ellipse_fan(fans["fan_isotropic_0.87"], (1.5, 0.0), 3.0, 2.0, 0.0)
-    done["fan_isotropic_0.87_gamma0"] = _ellipse_fan(fans["fan_isotropic_0.87_gamma0"], (2.5, 0.0), 3.0, 2.0, 0.0)
+    done["fan_isotropic_0.87_gamma0"] = _ellipse_fan(
+        fans["fan_isotropic_0.87_gamma0"], (2.5, 0.0), 3.0, 2.0, 0.0
+    )
     assert report.trend_lines(done)[1][2].endswith("| not shown |")
     _, trends = report.trend_lines({})
     assert all("not run yet" in line for line in trends[2:])
@@ -364,29 +551,59 @@ def test_reload_study_reads_how_far_the_surfaces_move():
     slow = "fan_isotropic_0.79_n1200"
     assert fans[slow].shares_loading_with == "fan_isotropic_0.79" and not fans[slow].is_thesis_fan
     # each variant against its reference if it names one, else the thesis fan sharing its loading
-    assert [fans[n].compared_with for n in (slow, "fan_isotropic_0.79_ramps", "fan_isotropic_0.79_A3_n800_ramps",
-                                            "fan_die_0.82_A3_n800", "fan_isotropic_0.79")] == \
-        ["fan_isotropic_0.79", "fan_isotropic_0.79", "fan_isotropic_0.79_ramps", "fan_die_0.82", None]
+    assert [
+        fans[n].compared_with
+        for n in (
+            slow,
+            "fan_isotropic_0.79_ramps",
+            "fan_isotropic_0.79_A3_n800_ramps",
+            "fan_die_0.82_A3_n800",
+            "fan_isotropic_0.79",
+        )
+    ] == [
+        "fan_isotropic_0.79",
+        "fan_isotropic_0.79",
+        "fan_isotropic_0.79_ramps",
+        "fan_die_0.82",
+        None,
+    ]
     assert fans["fan_isotropic_0.79_A3_n800_ramps"].shares_loading_with == "fan_isotropic_0.79"
     # a reference is a fan of the stage that shares the loading
     for case in fans.values():
-        assert case.compared_with is None or fans[case.compared_with].shares_loading_with in (None, case.shares_loading_with)
-        assert case.compared_with is None or (fans[case.compared_with].loading, fans[case.compared_with].rho_f,
-                                              fans[case.compared_with].gamma) == (case.loading, case.rho_f, case.gamma)
-    done = {"fan_isotropic_0.79": _ellipse_fan(fans["fan_isotropic_0.79"], (0.25, 0.0), 2.0, 1.5, 0.0,
-                                               compressive=2.0, tensile=0.8),
-            slow: _ellipse_fan(fans[slow], (0.25, 0.0), 2.04, 1.53, 0.0, compressive=2.04, tensile=0.81)}
-    done[slow]["summary"]["reload"] = {"amplitude": 2.45e-3, "steps": 1200, "duration_s": 2e-4,
-                                       "strain_rate_per_s": 12.25}
+        assert case.compared_with is None or fans[case.compared_with].shares_loading_with in (
+            None,
+            case.shares_loading_with,
+        )
+        assert case.compared_with is None or (
+            fans[case.compared_with].loading,
+            fans[case.compared_with].rho_f,
+            fans[case.compared_with].gamma,
+        ) == (case.loading, case.rho_f, case.gamma)
+    done = {
+        "fan_isotropic_0.79": _ellipse_fan(
+            fans["fan_isotropic_0.79"], (0.25, 0.0), 2.0, 1.5, 0.0, compressive=2.0, tensile=0.8
+        ),
+        slow: _ellipse_fan(
+            fans[slow], (0.25, 0.0), 2.04, 1.53, 0.0, compressive=2.04, tensile=0.81
+        ),
+    }
+    done[slow]["summary"]["reload"] = {
+        "amplitude": 2.45e-3,
+        "steps": 1200,
+        "duration_s": 2e-4,
+        "strain_rate_per_s": 12.25,
+    }
     line = next(x for x in report.reload_study_lines(done)[1] if x.startswith(f"| {slow} |"))
     assert "2.45 / 1200 / 12.2 / smooth-step vs ?" in line and "| 2.0 % (12) |" in line
     assert line.endswith("yield within 2.0 %; w2 not compared |")
     done[slow] = _ellipse_fan(fans[slow], (0.25, 0.0), 2.4, 1.8, 0.0, compressive=2.4, tensile=0.8)
     line = next(x for x in report.reload_study_lines(done)[1] if x.startswith(f"| {slow} |"))
-    assert "2.4 vs 2 (+20 %)" in line and line.endswith("yield moves by up to 20 %; w2 not compared |")
+    assert "2.4 vs 2 (+20 %)" in line and line.endswith(
+        "yield moves by up to 20 %; w2 not compared |"
+    )
 
 
-def test_open_die_yield_surface_read_on_the_same_rate_fan_that_closes_it():
+def test_open_die_surface_read_on_same_rate_fan_that_closes_it():
     """The die trends fall back from the thesis fan's open yield surface to the fan sharing its
     loading that reloads further at the same strain rate and profile, never to one at another
     rate or profile."""
@@ -400,14 +617,17 @@ def test_open_die_yield_surface_read_on_the_same_rate_fan_that_closes_it():
         done[name]["summary"]["reload"] = {"strain_rate_per_s": rate}
     by_name = {n: done.get(n) for n in fans}
     assert report.closed_yield_fan(by_name, "fan_die_0.82") == wide
-    done[wide]["summary"]["reload"]["profile"] = "smooth-ramps"  # same mean rate, another history of it
+    # same mean rate, another history of it
+    done[wide]["summary"]["reload"]["profile"] = "smooth-ramps"
     assert report.closed_yield_fan({n: done.get(n) for n in fans}, "fan_die_0.82") == "fan_die_0.82"
     done[wide]["summary"]["reload"]["profile"] = "smooth-step"
-    done[wide]["summary"]["reload"] = {"strain_rate_per_s": 69.0}  # twice as fast: not the same yield
+    # twice as fast: not the same yield
+    done[wide]["summary"]["reload"] = {"strain_rate_per_s": 69.0}
     assert report.closed_yield_fan({n: done.get(n) for n in fans}, "fan_die_0.82") == "fan_die_0.82"
 
 
 # --- CI-sized subset of the validation runs (real compactions, not synthetic histories) ---
+
 
 def _die_compaction(tmp_path, name, **options):
     """A 24-particle die compaction (seed 1, the validation's lead particles and friction) on a
@@ -419,16 +639,35 @@ def _die_compaction(tmp_path, name, **options):
 
     from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 
-    base = dict(particles=24, seed=1, path="die", target_density=0.85, divisions=4, radius_factor=0.975, outputs=20,
-                visual=False, checkpoint_every=0, directory=str(tmp_path / name))
-    history = run_compaction(CompactionCase.build(**{**base, **options}), MPI.COMM_SELF, log=lambda *a: None).history
+    base = dict(
+        particles=24,
+        seed=1,
+        path="die",
+        target_density=0.85,
+        divisions=4,
+        radius_factor=0.975,
+        outputs=20,
+        visual=False,
+        checkpoint_every=0,
+        directory=str(tmp_path / name),
+    )
+    history = run_compaction(
+        CompactionCase.build(**{**base, **options}), MPI.COMM_SELF, log=lambda *a: None
+    ).history
     return {name: history.column(name) for name in history.columns}
 
 
 def _band_mean(history, column, lo, hi, density, points=17):
     """Mean of ``column`` over ``density`` in [lo, hi] (``points`` interpolated): a 24-particle
     curve jumps by +-7 % from row to row as contacts form, a band averages those jumps out."""
-    return float(np.mean([report.at_density(history, column, rho, density) for rho in np.linspace(lo, hi, points)]))
+    return float(
+        np.mean(
+            [
+                report.at_density(history, column, rho, density)
+                for rho in np.linspace(lo, hi, points)
+            ]
+        )
+    )
 
 
 def test_die_clp_density_definition_on_a_small_volume(tmp_path):
@@ -442,7 +681,8 @@ def test_die_clp_density_definition_on_a_small_volume(tmp_path):
     CI-sized subset (2026-11-28: 3.328 faceted vs 3.414 MPa exact, -2.5 %)."""
     exact = _die_compaction(tmp_path, "exact", condition="CLP", increments=1500)
     faceted = _die_compaction(tmp_path, "faceted", condition="CLP", increments=1500, exact_volume=False)
-    assert faceted["rho_fe"][0] < 0.95 * exact["rho_fe"][0]  # the inscribed particle holds less solid
+    # the inscribed particle holds less solid
+    assert faceted["rho_fe"][0] < 0.95 * exact["rho_fe"][0]
     a = _band_mean(exact, "sigma_m", 0.68, 0.76, "rho_fe")
     b = _band_mean(faceted, "sigma_m", 0.68, 0.76, "rho_fe")
     assert b == pytest.approx(a, rel=0.05)
@@ -451,7 +691,8 @@ def test_die_clp_density_definition_on_a_small_volume(tmp_path):
     assert a > 1.3 * b
 
 
-@pytest.mark.heavy  # three 24-particle runs with copies, ~32 min beside other runs: pytest -m heavy -k stiffest -rP
+# three 24-particle runs with copies, ~32 min beside other runs: pytest -m heavy -k stiffest -rP
+@pytest.mark.heavy
 @pytest.mark.timeout(5400)
 def test_die_periodic_volume_is_the_stiffest_on_a_small_volume(tmp_path):
     """Thesis §2.7 at reduced size: over the constant-rate part of a die compaction (mean sigma_m
@@ -463,8 +704,14 @@ def test_die_periodic_volume_is_the_stiffest_on_a_small_volume(tmp_path):
     and GDF within 2.5 %); it is the 50-particle die stage's to show."""
     means = {}
     for bc, d_bc in (("CLP", None), ("CLPS", 1.5), ("GDF", 2.0)):
-        h = _die_compaction(tmp_path, bc, condition=bc, d_bc=d_bc, increments=3000,
-                            constraint_mass=STAGE_CONSTRAINT_MASS[bc])
+        h = _die_compaction(
+            tmp_path,
+            bc,
+            condition=bc,
+            d_bc=d_bc,
+            increments=3000,
+            constraint_mass=STAGE_CONSTRAINT_MASS[bc],
+        )
         means[bc] = _band_mean(h, "sigma_m", 0.70, 0.80, "rho_imposed", points=11)
     print("mean sigma_m over rho 0.70-0.80 (MPa):", means)  # shown with pytest -rP
     assert means["CLP"] > 1.03 * max(means["CLPS"], means["GDF"]), means
@@ -472,7 +719,7 @@ def test_die_periodic_volume_is_the_stiffest_on_a_small_volume(tmp_path):
 
 def test_fan_wall_time_adds_the_killed_processes(tmp_path):
     """A resumed fan's wall time starts from what the killed process had logged (wall_s)."""
-    import run
+    from validation import run
 
     (tmp_path / "wall_s").write_text("100.0\n")
     said = []
@@ -481,10 +728,10 @@ def test_fan_wall_time_adds_the_killed_processes(tmp_path):
     assert 100.0 <= run.FanClock(tmp_path).total() < 101.0
 
 
-def test_parallel_runs_spawn_one_single_threaded_process_per_case(tmp_path, monkeypatch):
+def test_parallel_runs_spawn_one_single_thread_process_per_case(tmp_path, monkeypatch):
     """`run.py --jobs N`: every case not done runs as its own process of run.py (one numba thread,
     its log in runs/<case>/log.txt); a done case is skipped; a failed one is reported."""
-    import run
+    from validation import run
 
     monkeypatch.setattr(run, "RUNS", tmp_path)
     (tmp_path / "die_CLP").mkdir()
@@ -509,7 +756,8 @@ def test_list_tells_where_a_killed_run_resumes(tmp_path, monkeypatch):
     """`run.py --list`: done, to run, or the step of the newest complete checkpoint."""
     import json
 
-    import run
+    from validation import run
+
     from validation.cases import CASES
 
     monkeypatch.setattr(run, "RUNS", tmp_path)
@@ -519,7 +767,8 @@ def test_list_tells_where_a_killed_run_resumes(tmp_path, monkeypatch):
         checkpoint = tmp_path / "die_CLPS_n12000" / "checkpoints" / f"step{step:07d}"
         checkpoint.mkdir(parents=True)
         (checkpoint / "meta.json").write_text(json.dumps({"step": step}))
-    (tmp_path / "die_CLPS_n12000" / "checkpoints" / "step0000900").mkdir()  # killed while writing it
+    # killed while writing it
+    (tmp_path / "die_CLPS_n12000" / "checkpoints" / "step0000900").mkdir()
     assert run.run_state(CASES["die_CLP"]) == "done"
     assert run.run_state(CASES["die_GDF"]) == "to run"
     assert run.run_state(CASES["die_CLPS_n12000"]) == "resumes at step 600 of 12000"

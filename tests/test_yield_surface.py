@@ -6,14 +6,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mpfem_fenicsx.homogenization import (first_crossing, hencky_strain, rendulic_strain, strain_invariants,
-                                          uniaxial_strengths)
+from mpfem_fenicsx.homogenization import (
+    first_crossing,
+    hencky_strain,
+    rendulic_strain,
+    strain_invariants,
+    uniaxial_strengths,
+)
 from mpfem_fenicsx.loading import reload_gradient, unload_gradient
 
 
 @pytest.mark.parametrize("phi", np.linspace(0, 2 * np.pi, 9)[:-1])
 def test_reload_gradient_follows_eq_4_8(phi):
-    """h_v = -A cos phi and h~_d = -A sin phi (natural sign; A cos phi, A sin phi compression > 0)."""
+    """h_v = -A cos phi and h~_d = -A sin phi (natural sign; A cos phi, A sin phi compression >
+    0)."""
     A = 0.012
     h = hencky_strain(reload_gradient(phi, A))
     h_v, _ = strain_invariants(h)
@@ -47,7 +53,7 @@ def test_uniaxial_strengths_of_an_ellipse():
     t = np.linspace(0, 2 * np.pi, 4000, endpoint=False)
     sm, sd = c + a * np.cos(t), b * np.sin(t)
     # (m - c)^2 / a^2 + 9 m^2 / b^2 = 1
-    roots = np.roots([1 / a ** 2 + 9 / b ** 2, -2 * c / a ** 2, c ** 2 / a ** 2 - 1])
+    roots = np.roots([1 / a**2 + 9 / b**2, -2 * c / a**2, c**2 / a**2 - 1])
     compressive, tensile = uniaxial_strengths(sm, sd)
     assert compressive == pytest.approx(3 * roots.max(), rel=1e-4)
     assert tensile == pytest.approx(-3 * roots.min(), rel=1e-4)
@@ -64,14 +70,22 @@ def fan(tmp_path_factory):
 
     from mpi4py import MPI
 
+    from mpfem_fenicsx.workflows.simple_cubic import simple_cubic_case
     from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase, run_yield_surface
 
-    from mpfem_fenicsx.workflows.simple_cubic import simple_cubic_case
-
     out = tmp_path_factory.mktemp("fan")
-    base = simple_cubic_case("isotropic", target_density=0.70, increments=600, visual=False, outputs=10).updated(gamma=1e-2)
-    case = YieldSurfaceCase(base=base, nphi=4, amplitude_factor=3.0, min_increments=200, reload_increments=200,
-                            rows_per_reload=20, out_dir=str(out))
+    base = simple_cubic_case(
+        "isotropic", target_density=0.70, increments=600, visual=False, outputs=10
+    ).updated(gamma=1e-2)
+    case = YieldSurfaceCase(
+        base=base,
+        nphi=4,
+        amplitude_factor=3.0,
+        min_increments=200,
+        reload_increments=200,
+        rows_per_reload=20,
+        out_dir=str(out),
+    )
     return case, run_yield_surface(case, MPI.COMM_SELF, log=lambda *a: None)
 
 
@@ -80,7 +94,12 @@ def test_fan_outputs_and_closed_yield_surface(fan):
 
     case, result = fan
     out = Path(case.out_dir)
-    for name, size in (("fan.csv", 5000), ("surfaces.csv", 200), ("uniaxial.csv", 40), ("yield_surface.png", 20000)):
+    for name, size in (
+        ("fan.csv", 5000),
+        ("surfaces.csv", 200),
+        ("uniaxial.csv", 40),
+        ("yield_surface.png", 20000),
+    ):
         assert (out / name).stat().st_size > size, name
     f = read_csv(out / "fan.csv")
     assert np.array_equal(np.unique(f["phi"]), case.phis)
@@ -109,10 +128,12 @@ def test_fan_outputs_and_closed_yield_surface(fan):
     assert reload["steps"] == case.reload_increments
     span = read_csv(out / "reload_000" / "history.csv")["time"][-1] - u.t_unloaded
     assert span == pytest.approx(reload["duration_s"], rel=1e-6)
-    assert reload["strain_rate_per_s"] * reload["duration_s"] == pytest.approx(case.amplitude_factor * u.h_v_unload)
+    assert reload["strain_rate_per_s"] * reload["duration_s"] == pytest.approx(
+        case.amplitude_factor * u.h_v_unload
+    )
 
 
-def test_unload_keeps_the_adhesive_contact_surface_and_opens_its_closed_part(fan):
+def test_unload_keeps_adhesive_surface_and_opens_its_closed_part(fan):
     """Gamma counts every loaded contact point, the adhesive ones in tension too; Gamma_closed
     only the compressive (closed) ones. Unloading the adhesive compact leaves its contacts held
     (Gamma nearly unchanged) while their compressive part shrinks, as the thesis' S does during
@@ -129,7 +150,7 @@ def test_unload_keeps_the_adhesive_contact_surface_and_opens_its_closed_part(fan
     assert closed[-1] < 0.9 * closed[0]
 
 
-def test_reload_restarted_with_contact_history_equals_uninterrupted_run(fan, tmp_path):
+def test_restarted_reload_with_contact_history_is_uninterrupted(fan, tmp_path):
     """The fan's reload (load -> checkpoint -> unload -> checkpoint -> restart on a reused model)
     steps exactly as one uninterrupted run of the same path: identical history rows."""
     from mpi4py import MPI
@@ -172,11 +193,20 @@ def test_killed_fan_resumes_where_it_stopped(fan, tmp_path):
     case, _ = fan
     out = tmp_path / "fan"
     shutil.copytree(case.out_dir, out)
-    for lost in ("unloaded.json", "fan.csv", "surfaces.csv", "unload", "unload_probe", "reload_002"):
+    for lost in (
+        "unloaded.json",
+        "fan.csv",
+        "surfaces.csv",
+        "unload",
+        "unload_probe",
+        "reload_002",
+    ):
         path = out / lost
         shutil.rmtree(path) if path.is_dir() else path.unlink()
     messages = []
-    run_yield_surface(replace(case, out_dir=str(out)), MPI.COMM_SELF, log=messages.append, resume=True)
+    run_yield_surface(
+        replace(case, out_dir=str(out)), MPI.COMM_SELF, log=messages.append, resume=True
+    )
     assert any("[load]" in m and "continued from" in m for m in messages)
     assert sum("done before" in m for m in messages) == case.nphi - 1
     a, b = read_csv(Path(case.out_dir) / "fan.csv"), read_csv(out / "fan.csv")
@@ -186,7 +216,9 @@ def test_killed_fan_resumes_where_it_stopped(fan, tmp_path):
     shutil.rmtree(out / "reload_001")
     (out / "fan.csv").unlink()
     messages.clear()
-    run_yield_surface(replace(case, out_dir=str(out)), MPI.COMM_SELF, log=messages.append, resume=True)
+    run_yield_surface(
+        replace(case, out_dir=str(out)), MPI.COMM_SELF, log=messages.append, resume=True
+    )
     assert any(m.startswith("[resume]") for m in messages)
     assert sum("done before" in m for m in messages) == case.nphi - 1
     b = read_csv(out / "fan.csv")
@@ -203,7 +235,6 @@ def test_fan_of_another_amplitude_reuses_the_finished_loading(fan, tmp_path):
 
     from mpfem_fenicsx.io import read_csv
     from mpfem_fenicsx.workflows.yield_surface import run_yield_surface
-
     from validation.run import share_loading
 
     case, _ = fan
@@ -212,7 +243,9 @@ def test_fan_of_another_amplitude_reuses_the_finished_loading(fan, tmp_path):
     messages = []
     wider = replace(case, amplitude_factor=2 * case.amplitude_factor, out_dir=str(out))
     run_yield_surface(wider, MPI.COMM_SELF, log=messages.append, resume=True)
-    assert any(m.startswith("[resume]") for m in messages) and not any(m.startswith("[load]") for m in messages)
+    assert any(m.startswith("[resume]") for m in messages) and not any(
+        m.startswith("[load]") for m in messages
+    )
     a, b = read_csv(Path(case.out_dir) / "fan.csv"), read_csv(out / "fan.csv")
     assert b["h_v"][0] == pytest.approx(a["h_v"][0], abs=1e-12)  # the same unloaded state
     assert np.ptp(b["h_v"]) > 1.8 * np.ptp(a["h_v"])
@@ -234,7 +267,9 @@ def test_reload_inside_does_not_yield_and_far_outside_does(fan, tmp_path):
     model = None
     E_d = {}
     for factor in (0.5, 6.0):
-        rc = replace_out(reload_case(replace(case, amplitude_factor=factor), u, 0), tmp_path / f"a{factor}")
+        rc = replace_out(
+            reload_case(replace(case, amplitude_factor=factor), u, 0), tmp_path / f"a{factor}"
+        )
         model = model or build_compaction(rc, MPI.COMM_SELF, lambda *a: None)
         res = run_compaction(rc, MPI.COMM_SELF, lambda *a: None, restart=u.checkpoint, model=model)
         E_d[factor] = res.history.column("E_d")[-1]
@@ -260,7 +295,9 @@ def test_reload_profile_sets_the_reload_strain_in_time(fan, tmp_path):
         assert reload_discretization(variant, u)["profile"] == profile
         rc = replace_out(reload_case(variant, u, 0), tmp_path / profile)
         model = model or build_compaction(rc, MPI.COMM_SELF, lambda *a: None)
-        h = run_compaction(rc, MPI.COMM_SELF, lambda *a: None, restart=u.checkpoint, model=model).history
+        h = run_compaction(
+            rc, MPI.COMM_SELF, lambda *a: None, restart=u.checkpoint, model=model
+        ).history
         t, h_v = h.column("time"), h.column("h_v")
         start = np.flatnonzero(np.isclose(t, u.t_unloaded, rtol=1e-9))[-1]
         t, h_v = t[start:], h_v[start:]
@@ -281,25 +318,42 @@ def replace_out(case, out):
 def test_implicit_restart_reproduces_the_uninterrupted_run(tmp_path):
     """Implicit compaction of 8 touching spheres (CLP, adhesive): restarted from a checkpoint, the
     adaptive Newton path (step sizes, cut-backs) and every history value are the uninterrupted
-    run's (SPEC §8: 1e-8 relative; the refreshed tangent at each converged state makes it exact)."""
+    run's (1e-8 relative asked; the refreshed tangent at each converged state makes it exact)."""
+    from mpfem_fenicsx.meshes.packing import Packing
     from mpi4py import MPI
 
-    from mpfem_fenicsx.meshes.packing import Packing
     from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 
     centres = np.array([(x, y, z) for x in (0.1, 0.3) for y in (0.1, 0.3) for z in (0.1, 0.3)])
     packing = Packing([0.4] * 3, centres, [0.1] * 8)
-    kw = dict(spheres=packing, target_density=0.53, steps=6, kind="implicit", outputs=6, checkpoint_every=2,
-              checkpoint_keep=0, visual=False, gamma=1e-2)
+    kw = dict(
+        spheres=packing,
+        target_density=0.53,
+        steps=6,
+        kind="implicit",
+        outputs=6,
+        checkpoint_every=2,
+        checkpoint_keep=0,
+        visual=False,
+        gamma=1e-2,
+    )
     quiet = lambda *a: None  # noqa: E731
-    whole = run_compaction(CompactionCase.build(directory=str(tmp_path / "whole"), **kw), MPI.COMM_SELF, quiet)
+    whole = run_compaction(
+        CompactionCase.build(directory=str(tmp_path / "whole"), **kw), MPI.COMM_SELF, quiet
+    )
     checkpoints = sorted((tmp_path / "whole" / "checkpoints").glob("step*"))
-    restarted = run_compaction(CompactionCase.build(directory=str(tmp_path / "restarted"), **kw), MPI.COMM_SELF, quiet,
-                               restart=checkpoints[0])
+    restarted = run_compaction(
+        CompactionCase.build(directory=str(tmp_path / "restarted"), **kw),
+        MPI.COMM_SELF,
+        quiet,
+        restart=checkpoints[0],
+    )
     a, b = whole.history.array(), restarted.history.array()
     assert a.shape == b.shape and a.shape[0] > int(checkpoints[0].name[4:]) + 1
     columns = whole.history.columns
-    assert np.nanmax(a[:, columns.index("E_p")]) > 0 and np.nanmax(a[:, columns.index("sigma_m")]) > 0
+    assert (
+        np.nanmax(a[:, columns.index("E_p")]) > 0 and np.nanmax(a[:, columns.index("sigma_m")]) > 0
+    )
     keep = [j for j, c in enumerate(columns) if c != "wall_time"]
     scale = np.nanmax(np.abs(a[:, keep]), axis=0) + 1e-300
     assert np.nanmax(np.abs(a[:, keep] - b[:, keep]) / scale) <= 1e-8
@@ -316,19 +370,29 @@ def test_limit_specific_surface_of_a_collapsing_fan():
     G0, t = 2.5, np.linspace(0.0, 1.0, 51)
     radius = np.minimum(5.0 * t, 3.0)
     gamma = np.where(t <= 0.6 + 1e-12, G0 - 0.1 * t, G0 - 0.06 - 1.0)
-    fans = [{"sigma_m": radius * np.cos(phi), "sigma_tilde_d": radius * np.sin(phi), "Gamma": gamma}
-            for phi in np.linspace(0, 2 * np.pi, 6, endpoint=False)]
+    fans = [
+        {"sigma_m": radius * np.cos(phi), "sigma_tilde_d": radius * np.sin(phi), "Gamma": gamma}
+        for phi in np.linspace(0, 2 * np.pi, 6, endpoint=False)
+    ]
     spacing = 1.06 / 24
     g_l = limit_specific_surface(fans, G0, scale=3.0)
     assert G0 - 0.06 - spacing < g_l <= G0 - 0.06
-    hardening = [{"sigma_m": 5 * t * np.cos(phi), "sigma_tilde_d": 5 * t * np.sin(phi), "Gamma": G0 - 0.1 * t}
-                 for phi in np.linspace(0, 2 * np.pi, 6, endpoint=False)]  # no peak, no collapse
+    hardening = [
+        {
+            "sigma_m": 5 * t * np.cos(phi),
+            "sigma_tilde_d": 5 * t * np.sin(phi),
+            "Gamma": G0 - 0.1 * t,
+        }
+        for phi in np.linspace(0, 2 * np.pi, 6, endpoint=False)
+    ]  # no peak, no collapse
     assert np.isnan(limit_specific_surface(hardening, G0, scale=3.0))
     # contacts that hold (Gamma -0.4 %) on reloads that stop (smooth step): the lowest levels are
     # crossed together where the reloads end; that is not a collapse
-    step = 3.0 * t ** 3 * (10 - 15 * t + 6 * t ** 2)
-    holding = [{"sigma_m": step * np.cos(phi), "sigma_tilde_d": step * np.sin(phi), "Gamma": G0 - 0.01 * t}
-               for phi in np.linspace(0, 2 * np.pi, 6, endpoint=False)]
+    step = 3.0 * t**3 * (10 - 15 * t + 6 * t**2)
+    holding = [
+        {"sigma_m": step * np.cos(phi), "sigma_tilde_d": step * np.sin(phi), "Gamma": G0 - 0.01 * t}
+        for phi in np.linspace(0, 2 * np.pi, 6, endpoint=False)
+    ]
     assert np.isfinite(limit_specific_surface(holding, G0, scale=3.0, min_collapse=0.0))
     assert np.isnan(limit_specific_surface(holding, G0, scale=3.0))
     # raw W2: positive then negative once (quasi-static rupture) vs sign noise
@@ -361,7 +425,9 @@ def test_explicit_unload_state_continued_implicitly(fan, tmp_path):
     before, _ = load_checkpoint(u.checkpoint, MPI.COMM_SELF)
     after, meta = load_checkpoint(settled.checkpoint, MPI.COMM_SELF)
     assert meta["solver"] == "implicit"
-    assert after["solver/contact/alpha"].max() == pytest.approx(before["solver/contact/alpha"].max(), rel=1e-6)
+    assert after["solver/contact/alpha"].max() == pytest.approx(
+        before["solver/contact/alpha"].max(), rel=1e-6
+    )
     assert len(settled.segments) == len(u.segments) + 1
     # the settled state is marked as such and survives its unloaded.json (a resumed implicit fan
     # settles an explicit fan's unload once, not again)
@@ -389,8 +455,12 @@ def test_settle_cut_backs_shorten_the_pseudo_time_step(fan, tmp_path, monkeypatc
     case, result = fan
     u = result["unloaded"]
     monkeypatch.setitem(implicit.DEFAULT_OPTIONS, "snes_max_it", 5)
-    settled, _ = settle(replace(case, solver="implicit", reload_steps=20, out_dir=str(tmp_path)), u, MPI.COMM_SELF,
-                        log=lambda *a: None)
+    settled, _ = settle(
+        replace(case, solver="implicit", reload_steps=20, out_dir=str(tmp_path)),
+        u,
+        MPI.COMM_SELF,
+        log=lambda *a: None,
+    )
     # the budget does force cut-backs: the hold's two increments became more (a row each)
     time = read_csv(tmp_path / "settle" / "history.csv")["time"]
     assert np.count_nonzero(time > u.t_unloaded * (1 + 1e-9)) > 2
@@ -398,7 +468,7 @@ def test_settle_cut_backs_shorten_the_pseudo_time_step(fan, tmp_path, monkeypatc
     assert abs(settled.sigma_m_unloaded) < abs(u.sigma_m_unloaded)
 
 
-def test_implicit_fan_resumed_from_an_explicit_unload_settles_it_once(fan, tmp_path):
+def test_implicit_fan_resumed_from_explicit_unload_settles_once(fan, tmp_path):
     """An implicit fan sharing an explicit fan's load and unload (validation: same path, other
     reloads) first settles that unload by Newton, then reloads from the settled state; the mark
     survives in its unloaded.json. The reloads are taken as finished (the explicit ones copied,
@@ -409,7 +479,6 @@ def test_implicit_fan_resumed_from_an_explicit_unload_settles_it_once(fan, tmp_p
     from mpi4py import MPI
 
     from mpfem_fenicsx.workflows.yield_surface import read_unloaded, run_yield_surface
-
     from validation.run import share_loading
 
     case, _ = fan
@@ -430,7 +499,8 @@ def test_implicit_fan_resumed_from_an_explicit_unload_settles_it_once(fan, tmp_p
     assert not any(m.startswith("[settle]") for m in messages)  # once
 
 
-@pytest.mark.heavy  # ~8 min on 2 threads alone, 29 min on one beside other work (4 implicit reloads of 20 Newton steps)
+# ~8 min on 2 threads alone, 29 min on one beside other work (4 implicit reloads of 20 Newton steps)
+@pytest.mark.heavy
 def test_implicit_fan_needs_no_w2_filter(fan, tmp_path):
     """The fan of the fixture with implicit reloads: closed yield polygon near the explicit one
     (within 25 % of its size: the explicit 200-increment reloads lag dynamically), and raw W2

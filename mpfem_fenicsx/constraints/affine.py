@@ -5,10 +5,10 @@ Reduced operators: K_red = P^T K P (``Mat.PtAP``), r_red = P^T r, lumped reduced
 M_red = |P|^T (M |P| 1), the row sums of |P|^T M |P| (M lumped): the usual row-sum lumping for
 injections and ties; for a distributing coupling, which hands the slave's stiffness to all its
 masters, it hands them the slave's mass in proportion, which keeps the explicit stable increment
-of the unconstrained mesh (a diagonal lumping does not: measured divergence). Prescribed (Dirichlet) dofs are rows of P with no entry and
-their value in g; multipoint couplings (periodic ties, distributing couplings, ``CouplingRows``)
-are rows with several entries: u_s = sum_k c_k u_k + g_s, the masters k being free dofs on any
-rank.
+of the unconstrained mesh (a diagonal lumping does not: measured divergence). Prescribed (Dirichlet)
+dofs are rows of P with no entry and their value in g; multipoint couplings (periodic ties,
+distributing couplings, ``CouplingRows``) are rows with several entries: u_s = sum_k c_k u_k + g_s,
+the masters k being free dofs on any rank.
 """
 
 from __future__ import annotations
@@ -36,8 +36,11 @@ class CouplingRows:
     coefficients: np.ndarray
 
     @staticmethod
-    def empty() -> "CouplingRows":
-        return CouplingRows(np.zeros(0, np.int32), np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    def empty() -> CouplingRows:
+        """No couplings."""
+        return CouplingRows(
+            np.zeros(0, np.int32), np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        )
 
 
 class AffineConstraint:
@@ -62,8 +65,11 @@ class AffineConstraint:
         couplings = couplings or CouplingRows.empty()
         self.couplings = couplings
         self.slaves = np.asarray(couplings.slaves, dtype=np.int32)
-        if self.slaves.size and (self.slaves.max() >= self.num_owned or np.intersect1d(self.slaves, dofs).size
-                                 or np.unique(self.slaves).size != self.slaves.size):
+        if self.slaves.size and (
+            self.slaves.max() >= self.num_owned
+            or np.intersect1d(self.slaves, dofs).size
+            or np.unique(self.slaves).size != self.slaves.size
+        ):
             raise ValueError("coupling slaves must be distinct owned dofs that are not prescribed")
         free = np.ones(self.num_owned, dtype=bool)
         free[self.prescribed] = False
@@ -73,7 +79,6 @@ class AffineConstraint:
         offset = comm.exscan(n_red) or 0
         self.num_reduced_global = comm.allreduce(n_red, op=MPI.SUM)
         self.reduced_range = (offset, offset + n_red)
-        global_offset = imap.local_range[0] * bs
 
         # one row per owned dof: free -> its reduced index; prescribed -> empty; slave -> masters
         counts = free.astype(np.int64)
@@ -105,11 +110,11 @@ class AffineConstraint:
         #: |P|, for the lumped reduced mass
         self._P_abs = PETSc.Mat().createAIJ(sizes, csr=(*csr, np.abs(values)), comm=comm)
         self._P_abs.assemble()
-        self._global_offset = global_offset
         self.g = dolfinx.fem.Function(V, name="prescribed")
 
     # -- vectors ------------------------------------------------------------------------------
     def create_reduced_vector(self) -> PETSc.Vec:
+        """A PETSc vector of the reduced (free) unknowns."""
         return self.P.createVecRight()
 
     def set_prescribed(self, values: np.ndarray) -> None:

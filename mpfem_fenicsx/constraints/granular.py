@@ -8,7 +8,8 @@ g = G vec(H) (vec(H)[3 i + j] = H_ij), so that
 
 and the generalized force conjugate to H (the "auxiliary nodes" reactions of the thesis) is
 R = G^T r_full (N mm) over the constraint rows: W_ext = R : dH, hence the Schmidt first Piola
-stress P = R / V0 with V0 the reference cell volume (eq. 2.14 and the virtual-work argument of §2.3).
+stress P = R / V0 with V0 the reference cell volume (eq. 2.14 and the virtual-work argument of
+§2.3).
 
 Kinds (``kind``):
 - ``GDH`` (eq. 2.12-2.13): the reference point (centre X_c) of every particle, originals and
@@ -57,7 +58,6 @@ import dolfinx
 from ..boundary import boundary_kind
 from ..meshes import node_particles
 from .affine import AffineConstraint, CouplingRows
-
 
 
 def periodic_lattice() -> np.ndarray:
@@ -110,7 +110,8 @@ class GranularBoundaryConditions:
         coupling_radius: reach of the distributing coupling as a fraction of r (thesis: 0.5).
         images: a ContactModel whose periodic images follow the deformed cell, shifts
             F0 (L o s) for the 26 neighbours s (CLP realized by contact with periodic images,
-            SPEC §5; then no copies are needed and only the rigid translation is fixed).
+            beyond the thesis; then no copies are needed and only the rigid translation is
+            fixed).
         anchor: CLP/CLPS only: hold one node against the free rigid translation (needed by a
             static solver; an explicit run conserves momentum and needs none).
         comoving: carry every particle with the homogeneous flow at its centre, H (X_c - L/2)
@@ -119,12 +120,29 @@ class GranularBoundaryConditions:
             alike) next to eq. 2.15; False leaves the copies' rotation free.
     """
 
-    def __init__(self, V, cell_particle, centres, radii, original, shift, cell, kind: str, gradient, *,
-                 coupling_radius: float = 0.5, images=None, anchor: bool = True, comoving: bool = True,
-                 equal_rotations: bool = True):
+    def __init__(
+        self,
+        V,
+        cell_particle,
+        centres,
+        radii,
+        original,
+        shift,
+        cell,
+        kind: str,
+        gradient,
+        *,
+        coupling_radius: float = 0.5,
+        images=None,
+        anchor: bool = True,
+        comoving: bool = True,
+        equal_rotations: bool = True,
+    ):
         rules = boundary_kind(kind)
         if not 0.0 < coupling_radius < 1.0:
-            raise ValueError(f"coupling_radius must be in (0, 1) (fraction of r), got {coupling_radius}")
+            raise ValueError(
+                f"coupling_radius must be in (0, 1) (fraction of r), got {coupling_radius}"
+            )
         self.V = V
         self.kind = kind
         self.images = images
@@ -142,8 +160,10 @@ class GranularBoundaryConditions:
         self.anchor_carrier = np.zeros(3)  # its prescribed displacement is H anchor_carrier (mm)
         self._nodes = nodes
         self._centres = centres
-        self._rows: list[tuple] = []  # (slave blocks, masters (k, m) blocks, coeffs, G (k, 3, 9)): per component
-        self._dof_rows: list[tuple] = []  # (slave dofs (k,), master dofs (k, m), coeffs, G (k, 9)): unrolled
+        # (slave blocks, masters (k, m) blocks, coeffs, G (k, 3, 9)): per component
+        self._rows: list[tuple] = []
+        # (slave dofs (k,), master dofs (k, m), coeffs, G (k, 9)): unrolled
+        self._dof_rows: list[tuple] = []
         self._prescribed: list[tuple] = []  # (blocks, G (k, 9)) for all 3 components
 
         by_particle = np.argsort(nodes.particle, kind="stable")
@@ -153,11 +173,21 @@ class GranularBoundaryConditions:
         if rules.driven != "none":
             driven = np.arange(radii.size) if rules.driven == "all" else np.flatnonzero(is_copy)
             for p in driven:
-                self._add_coupling(nodes, p, centres[p], radii[p], coupling_radius, centres[p] - 0.5 * self.cell)
+                self._add_coupling(
+                    nodes, p, centres[p], radii[p], coupling_radius, centres[p] - 0.5 * self.cell
+                )
         elif not rules.tied_nodes:  # CLPS: reference points
             for p in np.flatnonzero(is_copy):
-                self._add_periodic_coupling(nodes, p, original[p], centres, radii[p], coupling_radius,
-                                            shift[p] * self.cell, equal_rotations)
+                self._add_periodic_coupling(
+                    nodes,
+                    p,
+                    original[p],
+                    centres,
+                    radii[p],
+                    coupling_radius,
+                    shift[p] * self.cell,
+                    equal_rotations,
+                )
         else:
             self._add_ties(nodes, is_copy, original, shift)
         if rules.periodic and anchor:
@@ -198,7 +228,9 @@ class GranularBoundaryConditions:
             C[i, :, i] = w
         if rotations:
             r = nodes.X[sel] - w @ nodes.X[sel]
-            A = (w * np.einsum("ki,ki->k", r, r)).sum() * np.eye(3) - np.einsum("k,ki,kj->ij", w, r, r)
+            A = (w * np.einsum("ki,ki->k", r, r)).sum() * np.eye(3) - np.einsum(
+                "k,ki,kj->ij", w, r, r
+            )
             # (r x u)_i = eps_ijk r_j u_k: the moment rows per node
             eps = np.zeros((3, 3, 3))
             eps[0, 1, 2] = eps[1, 2, 0] = eps[2, 0, 1] = 1.0
@@ -225,7 +257,9 @@ class GranularBoundaryConditions:
         E = np.zeros((m, 9))
         for i in range(3):
             E[i, 3 * i: 3 * i + 3] = offset
-        self._dof_rows.append((dofs_p[pivots], np.broadcast_to(masters, (m, masters.size)), coeffs, D @ E))
+        self._dof_rows.append(
+            (dofs_p[pivots], np.broadcast_to(masters, (m, masters.size)), coeffs, D @ E)
+        )
 
     def _add_ties(self, nodes, is_copy, original, shift):
         """CLP: every node of every copy tied to the coincident node of its original."""
@@ -245,8 +279,10 @@ class GranularBoundaryConditions:
         hit = hit[np.arange(hit.shape[0]), first]
         bad = ~match[np.arange(hit.shape[0]), first]
         if np.any(bad):
-            raise ValueError(f"CLP: {int(bad.sum())} copy nodes have no coincident node on their original "
-                             "(copies must be meshed exactly like their originals)")
+            raise ValueError(
+                f"CLP: {int(bad.sum())} copy nodes have no coincident node on their original "
+                "(copies must be meshed exactly like their originals)"
+            )
         G = np.zeros((copy_nodes.size, 3, 9))
         for i in range(3):
             G[:, i, 3 * i: 3 * i + 3] = lattice
@@ -260,8 +296,10 @@ class GranularBoundaryConditions:
         used = set(original[is_copy].tolist()) if boundary_kind(self.kind).tied_nodes else set()
         candidates = [p for p in range(self.num_particles) if not is_copy[p] and p not in used]
         if not candidates:
-            raise ValueError(f"{self.kind}: every particle has a copy; no node left to anchor the rigid "
-                             "translation (use a larger cell)")
+            raise ValueError(
+                f"{self.kind}: every particle has a copy; no node left to anchor the rigid "
+                "translation (use a larger cell)"
+            )
         p = candidates[0]
         members = self._members[p]
         k = members[np.argmax(np.linalg.norm(nodes.X[members] - centres[p], axis=1))]
@@ -300,9 +338,12 @@ class GranularBoundaryConditions:
                 pres_G.append(G[owned, i])
         slaves = np.concatenate(slave_dofs) if slave_dofs else np.zeros(0, np.int64)
         counts = np.concatenate(indptr[1:]) if len(indptr) > 1 else np.zeros(0, np.int64)
-        couplings = CouplingRows(slaves.astype(np.int32), np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
-                                 np.concatenate(masters) if masters else np.zeros(0, np.int64),
-                                 np.concatenate(coeffs) if coeffs else np.zeros(0))
+        couplings = CouplingRows(
+            slaves.astype(np.int32),
+            np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
+            np.concatenate(masters) if masters else np.zeros(0, np.int64),
+            np.concatenate(coeffs) if coeffs else np.zeros(0),
+        )
         prescribed = np.concatenate(pres_dofs) if pres_dofs else np.zeros(0, np.int64)
         self.constraint = AffineConstraint(V, prescribed, couplings)
         order = np.argsort(prescribed)
@@ -349,9 +390,11 @@ class GranularBoundaryConditions:
 
     # -- PrescribedDisplacements interface (used by the solvers) -------------------------------
     def build(self) -> AffineConstraint:
+        """The affine constraint u = P u_red + g of these conditions."""
         return self.constraint
 
     def displacement_gradient(self, t: float) -> np.ndarray:
+        """H(t) = F0(t) - I (3, 3) of the loading path at time t (s)."""
         F0 = np.asarray(self.gradient(t), dtype=float)
         return F0 - np.eye(3)
 

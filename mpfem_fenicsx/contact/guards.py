@@ -1,4 +1,4 @@
-"""Guards of Newton's iterations on the adhesive contact law (thesis §3.3, SPEC §4).
+"""Guards of Newton's iterations on the adhesive contact law (thesis §3.3).
 
 The adhesive law has a fold (softening steeper than a surface node's stiffness) and a kink at
 gap = 0 for a virgin point: on a soft substrate Newton's iterates cycle between adhered and
@@ -48,7 +48,9 @@ class AdhesiveGuards:
             gone = np.isin(keys, self.separated)
             alpha_n[gone], smax_n[gone] = 0.0, 0.0
 
-    def track(self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray, T1: np.ndarray) -> np.ndarray:
+    def track(
+        self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray, T1: np.ndarray
+    ) -> np.ndarray:
         """After the law at an iterate (branch codes ``branch``, normal tractions ``T1``): snap-in,
         then peeling; returns the mask of the points whose softening slope the tangent holds at
         zero."""
@@ -81,7 +83,8 @@ class AdhesiveGuards:
             pos, known = lookup(last_keys, keys)
             was_softening = known & (normal_branch(last_branch[pos]) == SOFTENING)
             softening = normal_branch(branch) == SOFTENING
-            back = keys[was_softening & (normal_branch(branch) <= ADHESIVE_LOADING)]  # not on to separation
+            # not on to separation
+            back = keys[was_softening & (normal_branch(branch) <= ADHESIVE_LOADING)]
             if back.size:
                 self.separated = np.union1d(self.separated, back[np.isin(back, self.returned)])
                 self.returned = np.union1d(self.returned, back)
@@ -92,7 +95,9 @@ class AdhesiveGuards:
                 held = reentered & np.isin(keys, self.returned)
         return held
 
-    def track_snap_in(self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray, T1: np.ndarray) -> None:
+    def track_snap_in(
+        self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray, T1: np.ndarray
+    ) -> None:
         """Snap-in of the adhesive law at the edge of a growing contact.
 
         A virgin point (no memory) at the edge of a contact that grows on a soft (plastic)

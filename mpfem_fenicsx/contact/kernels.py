@@ -15,6 +15,7 @@ from .search import FACING, project_point
 
 @numba.njit(cache=True)
 def shape(nv, xi, eta, out):
+    """Shape functions at (xi, eta) of a facet with ``nv`` vertices (4: Q1, 3: P1) into ``out``."""
     if nv == 4:
         out[0] = (1 - xi) * (1 - eta)
         out[1] = xi * (1 - eta)
@@ -58,8 +59,32 @@ def relative_motion(nodes: np.ndarray, weights: np.ndarray, dU: np.ndarray) -> n
 
 
 @numba.njit(cache=True)
-def point_forces(pos, pos_n, nv, cn, branch, t1_held, alpha_n, smax_n, tpx, tpy, tpz, scale, k, kt, mu, sigma_c,
-                  delta_max, p0, alpha_forced, forces, res, law_out, facet_index, N):
+def point_forces(
+    pos,
+    pos_n,
+    nv,
+    cn,
+    branch,
+    t1_held,
+    alpha_n,
+    smax_n,
+    tpx,
+    tpy,
+    tpz,
+    scale,
+    k,
+    kt,
+    mu,
+    sigma_c,
+    delta_max,
+    p0,
+    alpha_forced,
+    forces,
+    res,
+    law_out,
+    facet_index,
+    N,
+):
     """Nodal forces (on the bodies) of one contact point for node positions ``pos`` (nn, 3):
     projection of pos[0] on the facet pos[1:] (corner normals ``cn``), gap, normal, slip since
     pos_n, law."""
@@ -71,8 +96,30 @@ def point_forces(pos, pos_n, nv, cn, branch, t1_held, alpha_n, smax_n, tpx, tpy,
         s[d] = pos[0, d] - pos_n[0, d]
         for v in range(nv):
             s[d] -= N[v] * (pos[1 + v, d] - pos_n[1 + v, d])
-    law_point(res[2], s[0], s[1], s[2], nx, ny, nz, alpha_n, smax_n, tpx, tpy, tpz, k, kt, mu, sigma_c,
-              delta_max, p0, alpha_forced, branch, t1_held, law_out)
+    law_point(
+        res[2],
+        s[0],
+        s[1],
+        s[2],
+        nx,
+        ny,
+        nz,
+        alpha_n,
+        smax_n,
+        tpx,
+        tpy,
+        tpz,
+        k,
+        kt,
+        mu,
+        sigma_c,
+        delta_max,
+        p0,
+        alpha_forced,
+        branch,
+        t1_held,
+        law_out,
+    )
     fx = scale * (law_out[0] * nx + law_out[1])
     fy = scale * (law_out[0] * ny + law_out[2])
     fz = scale * (law_out[0] * nz + law_out[3])
@@ -86,8 +133,32 @@ def point_forces(pos, pos_n, nv, cn, branch, t1_held, alpha_n, smax_n, tpx, tpy,
 
 
 @numba.njit(parallel=True, cache=True)
-def point_tangents(x, x_n, facets, nv, corner, slave, facet, branch, held, T1, shift, shift_n, alpha_n, smax_n, tt_n, scale, k, kt, mu,
-                    sigma_c, delta_max, p0, alpha_forced, K):
+def point_tangents(
+    x,
+    x_n,
+    facets,
+    nv,
+    corner,
+    slave,
+    facet,
+    branch,
+    held,
+    T1,
+    shift,
+    shift_n,
+    alpha_n,
+    smax_n,
+    tt_n,
+    scale,
+    k,
+    kt,
+    mu,
+    sigma_c,
+    delta_max,
+    p0,
+    alpha_forced,
+    K,
+):
     """Consistent tangent of every contact point by central differences of :func:`point_forces`
     over the positions of its nodes: K (n, 3 nn, 3 nn) = d r / d u, r = -forces on the bodies.
     The law stays on the branches of the current state (``branch``), so the differences never
@@ -132,13 +203,59 @@ def point_tangents(x, x_n, facets, nv, corner, slave, facet, branch, held, T1, s
         for b in range(nn):
             for j in range(3):
                 pos[b, j] += h
-                point_forces(pos, pos_n, nv, corner[facet[p]], branch[p], hold, alpha_n[p], smax_n[p], tt_n[p, 0], tt_n[p, 1], tt_n[p, 2],
-                              scale[p], k, kt, mu, sigma_c, delta_max, p0, alpha_forced, fp, res, law_out,
-                              facet_index, N)
+                point_forces(
+                    pos,
+                    pos_n,
+                    nv,
+                    corner[facet[p]],
+                    branch[p],
+                    hold,
+                    alpha_n[p],
+                    smax_n[p],
+                    tt_n[p, 0],
+                    tt_n[p, 1],
+                    tt_n[p, 2],
+                    scale[p],
+                    k,
+                    kt,
+                    mu,
+                    sigma_c,
+                    delta_max,
+                    p0,
+                    alpha_forced,
+                    fp,
+                    res,
+                    law_out,
+                    facet_index,
+                    N,
+                )
                 pos[b, j] -= 2.0 * h
-                point_forces(pos, pos_n, nv, corner[facet[p]], branch[p], hold, alpha_n[p], smax_n[p], tt_n[p, 0], tt_n[p, 1], tt_n[p, 2],
-                              scale[p], k, kt, mu, sigma_c, delta_max, p0, alpha_forced, fm, res, law_out,
-                              facet_index, N)
+                point_forces(
+                    pos,
+                    pos_n,
+                    nv,
+                    corner[facet[p]],
+                    branch[p],
+                    hold,
+                    alpha_n[p],
+                    smax_n[p],
+                    tt_n[p, 0],
+                    tt_n[p, 1],
+                    tt_n[p, 2],
+                    scale[p],
+                    k,
+                    kt,
+                    mu,
+                    sigma_c,
+                    delta_max,
+                    p0,
+                    alpha_forced,
+                    fm,
+                    res,
+                    law_out,
+                    facet_index,
+                    N,
+                )
                 pos[b, j] += h
                 for a in range(nn):
                     for i in range(3):
@@ -163,7 +280,9 @@ def coo_entries(nodes, blocks, K, rows, cols, vals):
 
 
 @numba.njit(cache=True)
-def contact_areas(slave, master_normal, node_facet_ptr, node_facets, facet_area, facet_normal, nv, out):
+def contact_areas(
+    slave, master_normal, node_facet_ptr, node_facets, facet_area, facet_normal, nv, out
+):
     """Tributary area of each contact point's slave node, counting only the slave facets that
     face the master (n_slave_facet . n_master < -FACING): a node on an edge of a block gets the
     share of its contact face only, not of the side faces."""

@@ -49,9 +49,18 @@ class ContactLaw:
             ("asperity_yield", self.asperity_yield, self.asperity_yield > 0, "> 0 MPa"),
         ]
         if self.tangential_penalty is not None:
-            checks.append(("tangential_penalty", self.tangential_penalty, self.tangential_penalty > 0, "> 0 N/mm^3"))
+            checks.append(
+                (
+                    "tangential_penalty",
+                    self.tangential_penalty,
+                    self.tangential_penalty > 0,
+                    "> 0 N/mm^3",
+                )
+            )
         if self.alpha_forced is not None:
-            checks.append(("alpha_forced", self.alpha_forced, 0 <= self.alpha_forced <= 1, "in [0, 1]"))
+            checks.append(
+                ("alpha_forced", self.alpha_forced, 0 <= self.alpha_forced <= 1, "in [0, 1]")
+            )
         for name, value, ok, allowed in checks:
             if not ok:
                 raise ValueError(f"contact.{name} = {value!r} is out of range: must be {allowed}")
@@ -64,10 +73,13 @@ class ContactLaw:
         single-contact elastic checks use such a law on purpose (adhesion off: sigma_0 = 1e6)."""
         alpha = 1.0 if self.alpha_forced is None else self.alpha_forced
         if alpha * self.sigma_c / self.penalty >= self.delta_max:
-            raise ValueError(f"contact.gamma = {self.gamma!r} with contact.delta_max = {self.delta_max!r} and penalty "
-                             f"{self.penalty:.4g} N/mm^3: the adhesive peak opening alpha sigma_c / k = "
-                             f"{alpha * self.sigma_c / self.penalty:.3g} mm must be < delta_max (gamma < "
-                             f"k delta_max^2 / 2 = {self.penalty * self.delta_max ** 2 / 2:.3g} mJ/mm^2)")
+            raise ValueError(
+                f"contact.gamma = {self.gamma!r} with contact.delta_max = {self.delta_max!r} and "
+                "penalty "
+                f"{self.penalty:.4g} N/mm^3: the adhesive peak opening alpha sigma_c / k = "
+                f"{alpha * self.sigma_c / self.penalty:.3g} mm must be < delta_max (gamma < "
+                f"k delta_max^2 / 2 = {self.penalty * self.delta_max**2 / 2:.3g} mJ/mm^2)"
+            )
 
     @property
     def p0(self) -> float:
@@ -80,6 +92,8 @@ class ContactLaw:
         return 2.0 * self.gamma / self.delta_max
 
     def kernel_parameters(self):
+        """The law's numbers as the compiled kernels take them (normal and tangential penalty,
+        friction, sigma_c, delta_max, p0, forced alpha or -1)."""
         kt = self.penalty if self.tangential_penalty is None else self.tangential_penalty
         forced = -1.0 if self.alpha_forced is None else float(self.alpha_forced)
         return (self.penalty, kt, self.friction, self.sigma_c, self.delta_max, self.p0, forced)
@@ -93,7 +107,9 @@ def default_penalty(E: float, length: float, factor: float = 10.0) -> float:
     1e9 N/mm^3 suits its coarse Abaqus meshes and explicit dynamics.
     """
     if not (E > 0 and length > 0 and factor > 0):
-        raise ValueError(f"default_penalty needs E, length, factor > 0, got {E}, {length}, {factor}")
+        raise ValueError(
+            f"default_penalty needs E, length, factor > 0, got {E}, {length}, {factor}"
+        )
     return factor * E / length
 
 
@@ -109,8 +125,30 @@ def normal_branch(code):
 
 
 @numba.njit(cache=True)
-def law_point(d, sx, sy, sz, nx, ny, nz, alpha_n, smax_n, tpx, tpy, tpz, k, kt, mu, sigma_c, delta_max,
-              p0, alpha_forced, branch, t1_held, out):
+def law_point(
+    d,
+    sx,
+    sy,
+    sz,
+    nx,
+    ny,
+    nz,
+    alpha_n,
+    smax_n,
+    tpx,
+    tpy,
+    tpz,
+    k,
+    kt,
+    mu,
+    sigma_c,
+    delta_max,
+    p0,
+    alpha_forced,
+    branch,
+    t1_held,
+    out,
+):
     """Contact law at one point (module docstring).
 
     Inputs: gap d (mm); slip increment (sx, sy, sz) (mm); unit normal (nx, ny, nz); history
@@ -226,9 +264,30 @@ def evaluate_law(gap, slip, normal, alpha_n, smax_n, tt_n, k, kt, mu, sigma_c, d
     n = gap.shape[0]
     for i in numba.prange(n):
         out = np.empty(9)
-        law_point(gap[i], slip[i, 0], slip[i, 1], slip[i, 2], normal[i, 0], normal[i, 1], normal[i, 2],
-                  alpha_n[i], smax_n[i], tt_n[i, 0], tt_n[i, 1], tt_n[i, 2], k, kt, mu, sigma_c,
-                  delta_max, p0, alpha_forced, -1, np.nan, out)
+        law_point(
+            gap[i],
+            slip[i, 0],
+            slip[i, 1],
+            slip[i, 2],
+            normal[i, 0],
+            normal[i, 1],
+            normal[i, 2],
+            alpha_n[i],
+            smax_n[i],
+            tt_n[i, 0],
+            tt_n[i, 1],
+            tt_n[i, 2],
+            k,
+            kt,
+            mu,
+            sigma_c,
+            delta_max,
+            p0,
+            alpha_forced,
+            -1,
+            np.nan,
+            out,
+        )
         branch[i] = int(out[8])
         T1[i] = out[0]
         Tt[i, 0] = out[1]

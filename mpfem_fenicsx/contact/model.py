@@ -28,7 +28,14 @@ from petsc4py import PETSc
 import dolfinx
 
 from .guards import AdhesiveGuards
-from .kernels import contact_areas, coo_entries, lookup, point_tangents, point_weights, relative_motion
+from .kernels import (
+    contact_areas,
+    coo_entries,
+    lookup,
+    point_tangents,
+    point_weights,
+    relative_motion,
+)
 from .laws import ContactLaw, evaluate_law
 from .search import ContactPoints, ContactSearch, corner_normals, facet_areas, surface_normals
 from .surface import ContactSurface
@@ -47,8 +54,11 @@ class ContactState:
     work: np.ndarray  # frictional work W_f per point, mJ
 
     @staticmethod
-    def empty() -> "ContactState":
-        return ContactState(np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.zeros(0))
+    def empty() -> ContactState:
+        """No contact points."""
+        return ContactState(
+            np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.zeros(0)
+        )
 
 
 @dataclass
@@ -68,21 +78,40 @@ class ContactEvaluation:
 
     @property
     def size(self) -> int:
+        """Number of contact points of this rank."""
         return self.points.size
 
     @staticmethod
-    def empty() -> "ContactEvaluation":
+    def empty() -> ContactEvaluation:
+        """No contact points, zero forces."""
         n0 = np.zeros(0)
-        return ContactEvaluation(ContactPoints.empty(), np.zeros((0, 5), np.int64), np.zeros((0, 5)), n0,
-                                 np.zeros((0, 3)), n0, np.zeros(0, np.int64), np.zeros((0, 3)), 0.0)
+        return ContactEvaluation(
+            ContactPoints.empty(),
+            np.zeros((0, 5), np.int64),
+            np.zeros((0, 5)),
+            n0,
+            np.zeros((0, 3)),
+            n0,
+            np.zeros(0, np.int64),
+            np.zeros((0, 3)),
+            0.0,
+        )
 
 
 class ContactModel:
     """Penalty / adhesive / frictional contact between the bodies tagged in ``facet_tags``."""
 
-    def __init__(self, V: dolfinx.fem.FunctionSpace, facet_tags: dolfinx.mesh.MeshTags, num_bodies: int,
-                 law: ContactLaw, search_distance: float, *, shifts: np.ndarray | None = None,
-                 allowed: np.ndarray | None = None):
+    def __init__(
+        self,
+        V: dolfinx.fem.FunctionSpace,
+        facet_tags: dolfinx.mesh.MeshTags,
+        num_bodies: int,
+        law: ContactLaw,
+        search_distance: float,
+        *,
+        shifts: np.ndarray | None = None,
+        allowed: np.ndarray | None = None,
+    ):
         self.law = law
         self.surface = ContactSurface(V, facet_tags, num_bodies)
         if search_distance < law.delta_max and law.gamma > 0:
@@ -107,7 +136,9 @@ class ContactModel:
         """Images of the masters shifted by ``lattice @ cell_vectors`` (lattice (m, 3) integers,
         the zero shift first; cell_vectors (3, 3), rows = current cell vectors F0 (L_i e_i), mm).
         Called whenever the macroscopic gradient changes (periodic conditions by images)."""
-        self.search.shifts = np.asarray(lattice, dtype=float) @ np.asarray(cell_vectors, dtype=float)
+        self.search.shifts = np.asarray(lattice, dtype=float) @ np.asarray(
+            cell_vectors, dtype=float
+        )
 
     def image_moment(self) -> np.ndarray:
         """sum over the points whose master is a periodic image of (force on the slave) x (image
@@ -140,8 +171,11 @@ class ContactModel:
         self.search_time += time.perf_counter() - start
         keys, shift_id = self._keys(pts)
         # image shifts at the last converged state: a deforming periodic cell moves the images
-        shift_n = self.shifts_committed[shift_id] if self.shifts_committed.shape == self.search.shifts.shape \
+        shift_n = (
+            self.shifts_committed[shift_id]
+            if self.shifts_committed.shape == self.search.shifts.shape
             else pts.shift
+        )
         # history of the points already in contact at the last converged state
         old = self.state
         alpha_n, smax_n, work_n = np.zeros(keys.size), np.zeros(keys.size), np.zeros(keys.size)
@@ -192,8 +226,26 @@ class ContactModel:
             K = np.empty((n, 3 * nn, 3 * nn))
             x_n = s.X + self.U_committed
             if n:
-                point_tangents(x, x_n, s.facets, s.vertices_per_facet, self.corner_normals(), pts.slave, pts.facet, branch, held, T1,
-                                pts.shift, shift_n, alpha_n, smax_n, tt_n, scale, *params, K)
+                point_tangents(
+                    x,
+                    x_n,
+                    s.facets,
+                    s.vertices_per_facet,
+                    self.corner_normals(),
+                    pts.slave,
+                    pts.facet,
+                    branch,
+                    held,
+                    T1,
+                    pts.shift,
+                    shift_n,
+                    alpha_n,
+                    smax_n,
+                    tt_n,
+                    scale,
+                    *params,
+                    K,
+                )
             size = n * 9 * nn * nn
             rows = np.empty(size, PETSc.IntType)
             cols = np.empty(size, PETSc.IntType)
@@ -216,7 +268,9 @@ class ContactModel:
         lam = 1.0
         pts = self.evaluation.points
         if pts.size:
-            jump = relative_motion(self.evaluation.nodes, self.evaluation.weights, self.surface.gather(direction))
+            jump = relative_motion(
+                self.evaluation.nodes, self.evaluation.weights, self.surface.gather(direction)
+            )
             dgap = np.einsum("pd,pd->p", jump, pts.normal)
             closed = pts.gap < 0
             depth = max(-pts.gap[closed].min(), 0.0) if closed.any() else 0.0
@@ -287,7 +341,7 @@ class ContactModel:
         """Start (or restart after a cut-back) an increment from the committed state.
 
         An adhesive point that an iterate pulls beyond delta_max loses its memory for the rest of
-        the increment, as the law's erasure is irreversible (SPEC §4). Without this, a node
+        the increment, as the law's erasure is irreversible (alpha reset to 0). Without this, a node
         peeling off a soft substrate re-adheres at the next iterate (the reversible trial law
         sees the committed memory again) and Newton cycles between adhered and separated: when
         the softening slope sigma_c / (delta_max - delta_1) exceeds a surface node's stiffness the
@@ -296,6 +350,8 @@ class ContactModel:
         self.guards.reset()
 
     def commit(self, u: dolfinx.fem.Function) -> None:
+        """End of an increment at ``u``: the trial history becomes the committed one, the
+        frictional work of the increment is added (summed over ranks)."""
         self.state = self.trial
         self.begin_increment()
         self.U_committed = self.surface.gather(u)
@@ -308,17 +364,28 @@ class ContactModel:
         keys, alpha, sigma_max, tangential traction, frictional work per point, committed
         surface displacement and the total frictional work."""
         st = self.state
-        return {"keys": st.keys, "alpha": st.alpha, "sigma_max": st.smax, "tangential_traction": st.tt,
-                "frictional_work": st.work, "surface_displacement": self.U_committed,
-                "image_shifts": self.shifts_committed, "total_frictional_work": np.array(self.frictional_work)}
+        return {
+            "keys": st.keys,
+            "alpha": st.alpha,
+            "sigma_max": st.smax,
+            "tangential_traction": st.tt,
+            "frictional_work": st.work,
+            "surface_displacement": self.U_committed,
+            "image_shifts": self.shifts_committed,
+            "total_frictional_work": np.array(self.frictional_work),
+        }
 
     def load_state(self, data: dict[str, np.ndarray]) -> None:
         """Restore :meth:`state_dict` (same mesh and partition)."""
         if data["surface_displacement"].shape != self.U_committed.shape:
             raise ValueError("contact state: surface size differs from this model's")
-        self.state = ContactState(np.asarray(data["keys"], np.int64), np.asarray(data["alpha"]),
-                                  np.asarray(data["sigma_max"]), np.asarray(data["tangential_traction"]),
-                                  np.asarray(data["frictional_work"]))
+        self.state = ContactState(
+            np.asarray(data["keys"], np.int64),
+            np.asarray(data["alpha"]),
+            np.asarray(data["sigma_max"]),
+            np.asarray(data["tangential_traction"]),
+            np.asarray(data["frictional_work"]),
+        )
         self.trial = self.state
         self.begin_increment()
         self.U_committed = np.asarray(data["surface_displacement"]).copy()
@@ -347,8 +414,14 @@ class ContactModel:
         """
         ev = self.evaluation
         if ev.size == 0:
-            local = (np.zeros((0, 2), np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0),
-                     np.zeros(0))
+            local = (
+                np.zeros((0, 2), np.int64),
+                np.zeros((0, 3)),
+                np.zeros((0, 3)),
+                np.zeros(0),
+                np.zeros(0),
+                np.zeros(0),
+            )
         else:
             loaded = ev.T1 != 0.0
             slave = self.surface.node_body[ev.points.slave]
@@ -365,8 +438,12 @@ class ContactModel:
             inverse = inverse.ravel()
             force = np.zeros((table.shape[0], 3))
             np.add.at(force, inverse, f)
-            area = np.bincount(inverse, weights=PASS_WEIGHT * ev.area * loaded, minlength=table.shape[0])
-            closed = np.bincount(inverse, weights=PASS_WEIGHT * ev.area * (ev.T1 > 0.0), minlength=table.shape[0])
+            area = np.bincount(
+                inverse, weights=PASS_WEIGHT * ev.area * loaded, minlength=table.shape[0]
+            )
+            closed = np.bincount(
+                inverse, weights=PASS_WEIGHT * ev.area * (ev.T1 > 0.0), minlength=table.shape[0]
+            )
             count = np.bincount(inverse, weights=loaded.astype(float), minlength=table.shape[0])
             local = (table[:, :2].astype(np.int64), table[:, 2:], force, area, count, closed)
         parts = self.comm.allgather(local)

@@ -45,12 +45,16 @@ class ContactPoints:
 
     @property
     def size(self) -> int:
+        """Number of slave points."""
         return self.slave.size
 
     @staticmethod
-    def empty() -> "ContactPoints":
+    def empty() -> ContactPoints:
+        """No slave points."""
         i0 = np.zeros(0, np.int64)
-        return ContactPoints(i0, i0, i0, np.zeros((0, 2)), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)))
+        return ContactPoints(
+            i0, i0, i0, np.zeros((0, 2)), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3))
+        )
 
 
 def body_boxes(x: np.ndarray, node_body: np.ndarray, num_bodies: int) -> np.ndarray:
@@ -68,11 +72,17 @@ def body_boxes(x: np.ndarray, node_body: np.ndarray, num_bodies: int) -> np.ndar
 def _sphere_radii(x, node_body, spheres):
     for i in range(x.shape[0]):
         b = node_body[i]
-        r = np.sqrt((x[i, 0] - spheres[b, 0]) ** 2 + (x[i, 1] - spheres[b, 1]) ** 2 + (x[i, 2] - spheres[b, 2]) ** 2)
+        r = np.sqrt(
+            (x[i, 0] - spheres[b, 0]) ** 2
+            + (x[i, 1] - spheres[b, 1]) ** 2
+            + (x[i, 2] - spheres[b, 2]) ** 2
+        )
         spheres[b, 3] = max(spheres[b, 3], r)
 
 
-def body_spheres(x: np.ndarray, node_body: np.ndarray, num_bodies: int, boxes: np.ndarray) -> np.ndarray:
+def body_spheres(
+    x: np.ndarray, node_body: np.ndarray, num_bodies: int, boxes: np.ndarray
+) -> np.ndarray:
     """(num_bodies, 4): centre (the box centre) and radius of a sphere holding every surface node
     of each body (a tighter filter than the box for round particles)."""
     spheres = np.zeros((num_bodies, 4))
@@ -102,7 +112,9 @@ def candidate_pairs(boxes: np.ndarray, distance: float, shifts: np.ndarray | Non
         hits = tree.query_ball_point(centres + shift, r=reach)
         slave = np.concatenate([np.asarray(h, dtype=np.int64) for h in hits])
         master = np.repeat(np.arange(len(hits)), [len(h) for h in hits])
-        overlap = np.all((lo[slave] <= hi[master] + shift) & (lo[master] + shift <= hi[slave]), axis=1)
+        overlap = np.all(
+            (lo[slave] <= hi[master] + shift) & (lo[master] + shift <= hi[slave]), axis=1
+        )
         keep = overlap & ((slave != master) | np.any(shift != 0.0))
         if allowed is not None:
             keep &= allowed[slave, master]
@@ -249,7 +261,9 @@ def _near_master(x, s, sh, mb, body_box, body_sphere, distance, p):
 
 
 @numba.njit(parallel=True, cache=True)
-def _near_counts(x, body_box, body_sphere, slave_ptr, slave_nodes, pairs, pair_shift, distance, counts):
+def _near_counts(
+    x, body_box, body_sphere, slave_ptr, slave_nodes, pairs, pair_shift, distance, counts
+):
     """counts[k]: slave nodes of pair k near its master (``_near_master``), the narrow phase's
     candidates; sizing the outputs by them (not by every slave node of every pair, ~100x more)
     keeps the search's memory small."""
@@ -257,16 +271,41 @@ def _near_counts(x, body_box, body_sphere, slave_ptr, slave_nodes, pairs, pair_s
         p = np.empty(3)
         n = 0
         for i in range(slave_ptr[pairs[k, 0]], slave_ptr[pairs[k, 0] + 1]):
-            if _near_master(x, slave_nodes[i], pair_shift[k], pairs[k, 1], body_box, body_sphere, distance, p):
+            if _near_master(
+                x, slave_nodes[i], pair_shift[k], pairs[k, 1], body_box, body_sphere, distance, p
+            ):
                 n += 1
         counts[k] = n
 
 
 @numba.njit(parallel=True, cache=True)
-def _narrow_phase(x, facets, nv, corner, facet_box, facet_normal, node_normal, body_box, body_sphere, body_facet_ptr,
-                  body_facets, slave_ptr,
-                  slave_nodes, pairs, pair_shift, distance, offsets, out_slave, out_master, out_facet,
-                  out_xi, out_gap, out_normal, out_shift, out_valid):
+def _narrow_phase(
+    x,
+    facets,
+    nv,
+    corner,
+    facet_box,
+    facet_normal,
+    node_normal,
+    body_box,
+    body_sphere,
+    body_facet_ptr,
+    body_facets,
+    slave_ptr,
+    slave_nodes,
+    pairs,
+    pair_shift,
+    distance,
+    offsets,
+    out_slave,
+    out_master,
+    out_facet,
+    out_xi,
+    out_gap,
+    out_normal,
+    out_shift,
+    out_valid,
+):
     npairs = pairs.shape[0]
     for k in numba.prange(npairs):
         sb = pairs[k, 0]
@@ -286,7 +325,10 @@ def _narrow_phase(x, facets, nv, corner, facet_box, facet_normal, node_normal, b
                     f = body_facets[j]
                     skip = False
                     for d in range(3):
-                        if p[d] < facet_box[f, 0, d] - distance or p[d] > facet_box[f, 1, d] + distance:
+                        if (
+                            p[d] < facet_box[f, 0, d] - distance
+                            or p[d] > facet_box[f, 1, d] + distance
+                        ):
                             skip = True
                     if skip:
                         continue
@@ -412,8 +454,15 @@ def corner_normals(x: np.ndarray, surface, feature_angle: float = FEATURE_ANGLE)
     corner of a triangle is zero."""
     nv = surface.vertices_per_facet
     out = np.empty((surface.facets.shape[0], 4, 3))
-    _corner_normals(_area_vectors(x, surface.facets, nv), surface.facets, nv, surface.node_facet_ptr,
-                    surface.node_facets, np.cos(np.radians(feature_angle)), out)
+    _corner_normals(
+        _area_vectors(x, surface.facets, nv),
+        surface.facets,
+        nv,
+        surface.node_facet_ptr,
+        surface.node_facets,
+        np.cos(np.radians(feature_angle)),
+        out,
+    )
     return out
 
 
@@ -448,7 +497,9 @@ class ContactSearch:
         nb = surface.num_bodies
         order = np.argsort(surface.facet_body, kind="stable")
         self.body_facets = order.astype(np.int64)
-        self.body_facet_ptr = np.searchsorted(surface.facet_body[order], np.arange(nb + 1)).astype(np.int64)
+        self.body_facet_ptr = np.searchsorted(surface.facet_body[order], np.arange(nb + 1)).astype(
+            np.int64
+        )
         slaves = surface.owned_nodes
         sbody = surface.node_body[slaves]
         order = np.argsort(sbody, kind="stable")
@@ -464,7 +515,17 @@ class ContactSearch:
         pair_shift = self.shifts[shift_index]
         spheres = body_spheres(x, s.node_body, s.num_bodies, boxes)
         counts = np.empty(len(pairs), np.int64)
-        _near_counts(x, boxes, spheres, self.slave_ptr, self.slave_nodes, pairs, pair_shift, self.distance, counts)
+        _near_counts(
+            x,
+            boxes,
+            spheres,
+            self.slave_ptr,
+            self.slave_nodes,
+            pairs,
+            pair_shift,
+            self.distance,
+            counts,
+        )
         offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         n = int(offsets[-1])
         out_slave = np.zeros(n, np.int64)
@@ -480,10 +541,32 @@ class ContactSearch:
             facet_normal, node_normal = surface_normals(x, s.facets, s.vertices_per_facet)
             if corner is None:
                 corner = corner_normals(x, s)
-            _narrow_phase(x, s.facets, s.vertices_per_facet, corner, facet_box, facet_normal, node_normal, boxes, spheres,
-                          self.body_facet_ptr,
-                          self.body_facets, self.slave_ptr, self.slave_nodes, pairs,
-                          pair_shift, self.distance, offsets, out_slave, out_master,
-                          out_facet, out_xi, out_gap, out_normal, out_shift, valid)
+            _narrow_phase(
+                x,
+                s.facets,
+                s.vertices_per_facet,
+                corner,
+                facet_box,
+                facet_normal,
+                node_normal,
+                boxes,
+                spheres,
+                self.body_facet_ptr,
+                self.body_facets,
+                self.slave_ptr,
+                self.slave_nodes,
+                pairs,
+                pair_shift,
+                self.distance,
+                offsets,
+                out_slave,
+                out_master,
+                out_facet,
+                out_xi,
+                out_gap,
+                out_normal,
+                out_shift,
+                valid,
+            )
         return ContactPoints(out_slave[valid], out_master[valid], out_facet[valid], out_xi[valid],
                              out_gap[valid], out_normal[valid], out_shift[valid])

@@ -1,7 +1,7 @@
 """The particles' contact surface, replicated on every rank.
 
 Every rank holds the whole surface (nodes, facets, particle of each facet): surfaces are small
-next to volumes (98 of the 517 nodes of a default particle), and a replicated master surface
+next to volumes (218 of the 561 nodes of a default particle), and a replicated master surface
 makes the search independent of the partition. Each rank *treats as slave* only the surface
 nodes it owns, so every contact point is computed exactly once, and results do not depend on
 the number of ranks beyond round-off.
@@ -35,14 +35,18 @@ class ContactSurface:
         owned_nodes: surface nodes whose dof block this rank owns (its slave nodes).
     """
 
-    def __init__(self, V: dolfinx.fem.FunctionSpace, facet_tags: dolfinx.mesh.MeshTags, num_bodies: int):
+    def __init__(
+        self, V: dolfinx.fem.FunctionSpace, facet_tags: dolfinx.mesh.MeshTags, num_bodies: int
+    ):
         mesh = V.mesh
         comm = mesh.comm
         self.comm = comm
         self.V = V
         self.num_bodies = num_bodies
         if V.element.basix_element.degree != 1:
-            raise NotImplementedError("contact surfaces need a degree-1 displacement space (Q1 or P1)")
+            raise NotImplementedError(
+                "contact surfaces need a degree-1 displacement space (Q1 or P1)"
+            )
         tdim = mesh.topology.dim
         mesh.topology.create_connectivity(tdim - 1, tdim)
         mesh.topology.create_connectivity(tdim, tdim - 1)
@@ -103,7 +107,9 @@ class ContactSurface:
         flat = self.facets[:, :nv].ravel()
         order = np.argsort(flat, kind="stable")
         self.node_facets = (order // nv).astype(np.int64)
-        self.node_facet_ptr = np.searchsorted(flat[order], np.arange(self.blocks.size + 1)).astype(np.int64)
+        self.node_facet_ptr = np.searchsorted(flat[order], np.arange(self.blocks.size + 1)).astype(
+            np.int64
+        )
 
         # local access: which surface nodes this rank owns, and their local dof blocks
         lo, hi = imap.local_range
@@ -116,6 +122,7 @@ class ContactSurface:
 
     @property
     def num_nodes(self) -> int:
+        """Number of surface nodes (all ranks)."""
         return self.blocks.size
 
     def gather(self, u: dolfinx.fem.Function) -> np.ndarray:
@@ -125,7 +132,3 @@ class ContactSurface:
         out = np.empty((self.num_nodes, 3))
         out[self._order] = np.concatenate(parts)
         return out
-
-    def global_dofs(self, nodes: np.ndarray) -> np.ndarray:
-        """Global unrolled dof indices (n, 3) of surface nodes."""
-        return self.blocks[nodes][:, None] * self.bs + np.arange(self.bs)[None, :]

@@ -1,5 +1,5 @@
 """Homogenization of a granular volume: mesoscopic strain and stress (thesis §2.3, §2.6, ch. 4,
-appendix C; SPEC §7). Pure numpy: plain arrays in, plain arrays out, no dolfinx / PETSc.
+appendix C). Pure numpy: plain arrays in, plain arrays out, no dolfinx / PETSc.
 
 Units mm, N, MPa, mJ. Sign conventions:
 - strains (F, h, h_v, h_d, h~_d) keep their natural sign: compaction gives h_v < 0;
@@ -37,9 +37,9 @@ from .stress import (
     piola_to_cauchy,
     rendulic_stress,
     reported_stress,
+    row_increments,
     schmidt_piola,
     schmidt_stress,
-    row_increments,
     second_order_work,
     stress_invariants,
     uniaxial_strengths,

@@ -139,7 +139,8 @@ def gradient_fit_noise_hd(X, residual_rms, h_v=0.0):
 
 # -- Hencky strain and invariants ---------------------------------------------------------------
 def hencky_strain(F) -> np.ndarray:
-    """Left Hencky (logarithmic) strain h = 1/2 ln(F F^T) (thesis eq. 2.3; eq. 2.18 with F = I + grad u).
+    """Left Hencky (logarithmic) strain h = 1/2 ln(F F^T) (thesis eq. 2.3; eq. 2.18 with
+    F = I + grad u).
 
     Computed by the spectral decomposition of B = F F^T (thesis footnote 3 of §2.3): objective,
     h(Q F) = Q h(F) Q^T for any rotation Q, and h(F Q) = h(F). Dimensionless, natural sign

@@ -29,7 +29,8 @@ def reported_stress(sigma) -> np.ndarray:
 
 
 def stress_invariants(sigma):
-    """(sigma_m, sigma_d) in MPa of Cauchy stress(es) given in the mechanics convention (tension > 0).
+    """(sigma_m, sigma_d) in MPa of Cauchy stress(es) given in the mechanics
+    convention (tension > 0).
 
     sigma_m = -tr(sigma)/3: mean stress, thesis eq. 2.10 / 4.1 (sigma_m = tr/3 of the
     compression-positive tensor), > 0 in compaction.
@@ -73,7 +74,9 @@ def branch_vectors(x, pair_i, pair_j, offset=None) -> np.ndarray:
     return lv
 
 
-def love_weber_stress(forces, branches, volume, weights=None, symmetrize: bool = False) -> np.ndarray:
+def love_weber_stress(
+    forces, branches, volume, weights=None, symmetrize: bool = False
+) -> np.ndarray:
     """Love-Weber mesoscopic Cauchy stress (MPa, MECHANICS convention, tension > 0).
 
         sigma = (1/V) sum_k w_k f^k (x) l^k,   sigma_ab = (1/V) sum_k w_k f^k_a l^k_b
@@ -105,7 +108,9 @@ def love_weber_stress(forces, branches, volume, weights=None, symmetrize: bool =
     f = np.asarray(forces, dtype=float).reshape(-1, 3)
     lv = np.asarray(branches, dtype=float).reshape(-1, 3)
     if f.shape != lv.shape:
-        raise ValueError(f"forces {f.shape} and branches {lv.shape} must have the same shape (M, 3)")
+        raise ValueError(
+            f"forces {f.shape} and branches {lv.shape} must have the same shape (M, 3)"
+        )
     if not np.ndim(volume) == 0 or not float(volume) > 0:
         raise ValueError(f"volume must be a positive scalar (mm^3), got {volume!r}")
     w = np.ones(f.shape[0]) if weights is None else np.asarray(weights, dtype=float)
@@ -173,11 +178,15 @@ def contact_weights(pair_i, pair_j, original, shift, bc: str, pair_shift=None) -
         raise ValueError("a contact links a particle to itself (same original, no lattice shift)")
     first_nz = d[np.arange(m), np.argmax(d != 0, axis=1)]
     flip = (oa > ob) | (same & (first_nz < 0))
-    key = np.column_stack([np.where(flip, ob, oa), np.where(flip, oa, ob), np.where(flip[:, None], -d, d)])
+    key = np.column_stack(
+        [np.where(flip, ob, oa), np.where(flip, oa, ob), np.where(flip[:, None], -d, d)]
+    )
     counted = ~(copy_i & copy_j)
     w = np.zeros(m)
     if np.any(counted):
-        _, inverse, counts = np.unique(key[counted], axis=0, return_inverse=True, return_counts=True)
+        _, inverse, counts = np.unique(
+            key[counted], axis=0, return_inverse=True, return_counts=True
+        )
         w[counted] = 1.0 / counts[inverse.ravel()]
     return w
 
@@ -197,11 +206,18 @@ def coordination(pair_i, pair_j, original, weights, num_particles: int, rattler_
     """
     original = np.asarray(original, dtype=np.int64)
     w = np.asarray(weights, dtype=float).ravel()
-    per_particle = (np.bincount(original[np.asarray(pair_i, dtype=np.int64)], weights=w, minlength=num_particles)
-                    + np.bincount(original[np.asarray(pair_j, dtype=np.int64)], weights=w, minlength=num_particles))
+    per_particle = np.bincount(
+        original[np.asarray(pair_i, dtype=np.int64)], weights=w, minlength=num_particles
+    ) + np.bincount(
+        original[np.asarray(pair_j, dtype=np.int64)], weights=w, minlength=num_particles
+    )
     per_particle = per_particle[:num_particles]
     contacts = float(w.sum())
-    return contacts, 2.0 * contacts / num_particles, int(np.count_nonzero(per_particle < rattler_below - 1e-9))
+    return (
+        contacts,
+        2.0 * contacts / num_particles,
+        int(np.count_nonzero(per_particle < rattler_below - 1e-9)),
+    )
 
 
 # -- Schmidt stress from the auxiliary nodes ---------------------------------------------------
@@ -305,7 +321,9 @@ def first_crossing(indicator, level, *series, rising: bool = True, last: bool = 
     arrays = [np.asarray(s, dtype=float) for s in series]
     for s in arrays:
         if s.shape[:1] != g.shape:
-            raise ValueError(f"series of length {s.shape[:1]} do not match the indicator ({g.size})")
+            raise ValueError(
+                f"series of length {s.shape[:1]} do not match the indicator ({g.size})"
+            )
     if hits.size == 0:
         return (np.nan, *[np.full(s.shape[1:], np.nan) for s in arrays])
     k = int(hits[-1] if last else hits[0])
@@ -326,7 +344,9 @@ def uniaxial_strengths(sigma_m, sigma_tilde_d):
     p = np.asarray(sigma_m, dtype=float).ravel()
     q = np.asarray(sigma_tilde_d, dtype=float).ravel()
     if p.shape != q.shape or p.size < 3:
-        raise ValueError(f"a closed surface needs >= 3 vertices of (sigma_m, sigma_tilde_d), got {p.size}")
+        raise ValueError(
+            f"a closed surface needs >= 3 vertices of (sigma_m, sigma_tilde_d), got {p.size}"
+        )
     g = q - 3.0 * p  # signed distance (up to a factor) to the uniaxial line
     g1, p1, q1 = np.roll(g, -1), np.roll(p, -1), np.roll(q, -1)
     cross = (g == 0) | (g * g1 < 0)

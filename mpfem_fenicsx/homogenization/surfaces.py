@@ -20,7 +20,15 @@ def default_gamma_levels(gamma_unloaded: float, gamma_fan: np.ndarray) -> tuple[
     lo, hi = float(np.nanmin(gamma_fan)), float(np.nanmax(gamma_fan))
     levels = [gamma_unloaded + f * (lo - gamma_unloaded) for f in (2 / 3, 1 / 3)] + \
              [gamma_unloaded + f * (hi - gamma_unloaded) for f in (1 / 3, 2 / 3)]
-    return tuple(sorted({float(f"{g:.5g}") for g in levels if g > 0 and abs(g - gamma_unloaded) > 1e-9 * gamma_unloaded}))
+    return tuple(
+        sorted(
+            {
+                float(f"{g:.5g}")
+                for g in levels
+                if g > 0 and abs(g - gamma_unloaded) > 1e-9 * gamma_unloaded
+            }
+        )
+    )
 
 
 def surface_points(fan: dict[str, np.ndarray], E_0: float, dissipation_threshold: float,
@@ -56,7 +64,9 @@ def iso_gamma_point(fan: dict[str, np.ndarray], level: float) -> tuple[float, fl
     the last time, either way (thesis §4.3, "le seuil le plus tardif"); None if it never does."""
     best = (-1.0, np.nan, np.nan)
     for rising in (True, False):
-        pos, m, d = first_crossing(fan["Gamma"], level, fan["sigma_m"], fan["sigma_tilde_d"], rising=rising, last=True)
+        pos, m, d = first_crossing(
+            fan["Gamma"], level, fan["sigma_m"], fan["sigma_tilde_d"], rising=rising, last=True
+        )
         if np.isfinite(pos) and pos > best[0]:
             best = (pos, m, d)
     return (float(best[1]), float(best[2])) if np.isfinite(best[1]) else None
@@ -66,9 +76,15 @@ def iso_gamma_point(fan: dict[str, np.ndarray], level: float) -> tuple[float, fl
 MIN_GAMMA_COLLAPSE = 0.05
 
 
-def limit_specific_surface(fans: list[dict], gamma_unloaded: float, scale: float, tolerance: float = 0.02,
-                           levels: int = 24, min_directions: int = 3,
-                           min_collapse: float = MIN_GAMMA_COLLAPSE) -> float:
+def limit_specific_surface(
+    fans: list[dict],
+    gamma_unloaded: float,
+    scale: float,
+    tolerance: float = 0.02,
+    levels: int = 24,
+    min_directions: int = 3,
+    min_collapse: float = MIN_GAMMA_COLLAPSE,
+) -> float:
     """Limit specific contact surface Gamma_l (1/mm, thesis §4.3 and table 4.2): the threshold
     below which the iso-Gamma curves superpose (the contacts collapse at the stress peak, so
     every lower threshold is crossed at almost the same stress; the thesis reads it off the
@@ -84,7 +100,10 @@ def limit_specific_surface(fans: list[dict], gamma_unloaded: float, scale: float
     levels of a fan whose contacts hold are crossed where the reloads stop, together but
     without any collapse."""
     minima = np.sort([float(np.nanmin(f["Gamma"])) for f in fans])
-    if minima.size < min_directions or not minima[min_directions - 1] <= (1.0 - min_collapse) * gamma_unloaded:
+    if (
+        minima.size < min_directions
+        or not minima[min_directions - 1] <= (1.0 - min_collapse) * gamma_unloaded
+    ):
         return float("nan")
     grid = np.linspace(gamma_unloaded, minima[min_directions - 1], levels + 1)[1:]
 
@@ -94,7 +113,7 @@ def limit_specific_surface(fans: list[dict], gamma_unloaded: float, scale: float
 
     curves = [{k: away(f, iso_gamma_point(f, g)) for k, f in enumerate(fans)} for g in grid]
     superposed = []
-    for upper, lower in zip(curves[:-1], curves[1:]):
+    for upper, lower in zip(curves[:-1], curves[1:], strict=True):
         common = [k for k in upper if upper[k] is not None and lower[k] is not None]
         moved = max((math.dist(upper[k], lower[k]) for k in common), default=np.inf)
         superposed.append(len(common) >= min_directions and moved <= tolerance * scale)

@@ -30,7 +30,9 @@ class CheckpointError(ValueError):
     """A checkpoint that cannot be used for this run (missing, other model or partition)."""
 
 
-def save_checkpoint(directory: str | Path, comm: MPI.Comm, arrays: dict[str, np.ndarray], meta: dict) -> Path:
+def save_checkpoint(
+    directory: str | Path, comm: MPI.Comm, arrays: dict[str, np.ndarray], meta: dict
+) -> Path:
     """Write this rank's ``arrays`` and rank 0's ``meta`` (JSON-serializable) atomically."""
     directory = Path(directory)
     tmp = directory.with_name(directory.name + ".tmp")
@@ -41,7 +43,9 @@ def save_checkpoint(directory: str | Path, comm: MPI.Comm, arrays: dict[str, np.
     np.savez(tmp / f"rank{comm.rank}.npz", **arrays)
     comm.barrier()
     if comm.rank == 0:
-        (tmp / "meta.json").write_text(json.dumps({**meta, "format": FORMAT, "num_ranks": comm.size}, indent=1))
+        (tmp / "meta.json").write_text(
+            json.dumps({**meta, "format": FORMAT, "num_ranks": comm.size}, indent=1)
+        )
         old = directory.with_name(directory.name + ".old")
         shutil.rmtree(old, ignore_errors=True)
         if directory.exists():
@@ -74,8 +78,10 @@ def resolve_checkpoint(path: str | Path) -> Path:
         found = sorted(d for d in root.glob("step*[0-9]") if (d / "meta.json").is_file())
         if found:
             return found[-1]
-    raise CheckpointError(f"restart: no checkpoint in {path} (a checkpoint directory holds meta.json; a run "
-                          "writes them under <out>/checkpoints/)")
+    raise CheckpointError(
+        f"restart: no checkpoint in {path} (a checkpoint directory holds meta.json; a run "
+        "writes them under <out>/checkpoints/)"
+    )
 
 
 def read_meta(directory: str | Path) -> dict:
@@ -92,8 +98,10 @@ def load_checkpoint(directory: str | Path, comm: MPI.Comm) -> tuple[dict[str, np
     if meta.get("format") != FORMAT:
         raise CheckpointError(f"restart: checkpoint format {meta.get('format')} is not {FORMAT}")
     if meta["num_ranks"] != comm.size:
-        raise CheckpointError(f"restart: the checkpoint was written by {meta['num_ranks']} MPI ranks; "
-                              f"restart it with mpirun -n {meta['num_ranks']} (this run has {comm.size})")
+        raise CheckpointError(
+            f"restart: the checkpoint was written by {meta['num_ranks']} MPI ranks; "
+            f"restart it with mpirun -n {meta['num_ranks']} (this run has {comm.size})"
+        )
     with np.load(Path(directory) / f"rank{comm.rank}.npz") as data:
         arrays = {k: data[k] for k in data.files}
     return arrays, meta

@@ -39,6 +39,7 @@ class CellFields:
         return values.reshape(self.problem.material_cells.size, -1).mean(axis=1)
 
     def update(self) -> None:
+        """Recompute the cell fields from the material's current state."""
         m = self.problem.material
         tau = m.tau
         # J = exp(tr eps_e) and tr tau = 3 K tr eps_e (plastic flow is isochoric)
@@ -49,6 +50,7 @@ class CellFields:
         self.eps_p.x.scatter_forward()
 
     def functions(self) -> list[dolfinx.fem.Function]:
+        """The fields written with the displacement."""
         fields = [self.von_mises, self.eps_p]
         return fields + ([self.particle] if self.particle is not None else [])
 
@@ -70,6 +72,7 @@ class ContactPressure:
         self._local[surf.owned_nodes] = surf.owned_local_blocks
 
     def update(self) -> None:
+        """Recompute the nodal contact pressure (MPa) from the last contact evaluation."""
         values = self.function.x.array
         values[:] = 0.0
         ev = self.contact.evaluation
@@ -93,6 +96,7 @@ class ParaViewWriter:
         self._file.write_mesh(problem.mesh)
 
     def write(self, t: float) -> None:
+        """Write the displacement and the fields at time ``t`` (s)."""
         self.fields.update()
         self._file.write_function(self.problem.u, t)
         for fn in self.fields.functions():
@@ -102,4 +106,5 @@ class ParaViewWriter:
             self._file.write_function(self.pressure.function, t)
 
     def close(self) -> None:
+        """Close the file."""
         self._file.close()

@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-
 #: the components of a 3 x 3 tensor in history columns, row by row: "11", "12", ..., "33"
 TENSOR_COMPONENTS = tuple(f"{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))
 
@@ -20,14 +19,16 @@ def tensor_columns(prefix: str) -> list[str]:
 
 def tensor_values(prefix: str, tensor) -> dict[str, float]:
     """A (3, 3) tensor as the history values of its columns ``prefix`` + 11 ... 33."""
-    return dict(zip(tensor_columns(prefix), np.asarray(tensor, dtype=float).ravel()))
+    return dict(zip(tensor_columns(prefix), np.asarray(tensor, dtype=float).ravel(), strict=True))
 
 
 def tensor_from_columns(columns, prefix: str) -> np.ndarray:
     """(n, 3, 3) tensors from the columns ``prefix`` + 11 ... 33 of a mapping of column arrays
     (``read_csv``) or of anything with a ``column(name)`` method (a :class:`History`)."""
     get = columns.column if hasattr(columns, "column") else columns.__getitem__
-    return np.stack([np.asarray(get(c), dtype=float) for c in tensor_columns(prefix)], axis=-1).reshape(-1, 3, 3)
+    return np.stack(
+        [np.asarray(get(c), dtype=float) for c in tensor_columns(prefix)], axis=-1
+    ).reshape(-1, 3, 3)
 
 
 class History:
@@ -46,6 +47,7 @@ class History:
         self.flush_every_row = flush_every_row
 
     def append(self, **values) -> None:
+        """Add a row: one value per column, by name (ValueError naming the missing or unknown)."""
         missing = set(self.columns) - set(values)
         unknown = set(values) - set(self.columns)
         if missing or unknown:
@@ -55,9 +57,11 @@ class History:
             self.write()
 
     def array(self) -> np.ndarray:
+        """The rows as an (n, columns) array."""
         return np.array(self.rows, dtype=float).reshape(-1, len(self.columns))
 
     def column(self, name: str) -> np.ndarray:
+        """The values (n,) of the column ``name``."""
         return self.array()[:, self.columns.index(name)]
 
     def tensor(self, prefix: str) -> np.ndarray:
@@ -65,13 +69,15 @@ class History:
         return tensor_from_columns(self, prefix)
 
     def write(self) -> Path:
+        """Write the CSV (rank 0; NaN as an empty field) and return its path."""
         if self.comm.rank == 0:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             with open(self.path, "w", newline="") as fh:
                 writer = csv.writer(fh)
                 writer.writerow(self.columns)
                 for row in self.rows:
-                    writer.writerow(["" if np.isnan(v) else repr(v) for v in row])  # NaN: not defined
+                    # NaN: not defined
+                    writer.writerow(["" if np.isnan(v) else repr(v) for v in row])
         return self.path
 
 
@@ -80,5 +86,7 @@ def read_csv(path: str | Path) -> dict[str, np.ndarray]:
     with open(path) as fh:
         reader = csv.reader(fh)
         header = next(reader)
-        data = np.array([[float(v) if v else np.nan for v in row] for row in reader], dtype=float).reshape(-1, len(header))
+        data = np.array(
+            [[float(v) if v else np.nan for v in row] for row in reader], dtype=float
+        ).reshape(-1, len(header))
     return {name: data[:, i] for i, name in enumerate(header)}

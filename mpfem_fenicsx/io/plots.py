@@ -25,7 +25,9 @@ def plot_loading_path(history_csv: str | Path, png: str | Path, title: str = "")
     h = read_csv(history_csv)
     missing = [c for c in ("rho", "sigma_m", "h_v", "h_d", "sigma_tilde_d") if c not in h]
     if missing:
-        raise ValueError(f"{history_csv}: not a compaction history (missing columns {', '.join(missing)})")
+        raise ValueError(
+            f"{history_csv}: not a compaction history (missing columns {', '.join(missing)})"
+        )
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.6), constrained_layout=True)
     ax = axes[0]
     ax.plot(h["rho"], h["sigma_m"], "o-", ms=3, label="Love-Weber")
@@ -63,8 +65,14 @@ def rendulic_frame(ax, reach: float) -> None:
     ax.set_ylabel("sigma~_d = sigma_I - (sigma_II + sigma_III)/2 (MPa)")
 
 
-def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surfaces_csv: str | Path,
-                       png: str | Path, title: str = "", gamma_limit: float = float("nan")) -> Path:
+def plot_yield_surface(
+    unload_history_csv: str | Path,
+    fan_csv: str | Path,
+    surfaces_csv: str | Path,
+    png: str | Path,
+    title: str = "",
+    gamma_limit: float = float("nan"),
+) -> Path:
     """Draw a chapter-4 fan in the style of thesis fig. 4.5 / 4.7 / 4.18: (a) strain paths
     (h_v, h~_d) of the loading, the unload and the reloads; (b) stress paths (sigma_m, sigma~_d)
     with the yield surface (iso-dissipation), the iso-Gamma curves, Hill's W2 <= 0 points and the
@@ -85,7 +93,7 @@ def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surf
             surfaces.setdefault(row["kind"], []).append(
                 (float(row["phi"]), float(row["sigma_m"]), float(row["sigma_tilde_d"])))
     fig, axes = plt.subplots(1, 2, figsize=(15, 5.6), constrained_layout=True)
-    for ax, (x, y) in zip(axes, (("h_v", "h_tilde_d"), ("sigma_m", "sigma_tilde_d"))):
+    for ax, (x, y) in zip(axes, (("h_v", "h_tilde_d"), ("sigma_m", "sigma_tilde_d")), strict=True):
         ax.plot(path[x], path[y], "k.-", ms=3, lw=1.2, label="loading + isotropic unload")
         for phi in np.unique(fan["phi"]):
             rows = fan["phi"] == phi
@@ -93,7 +101,7 @@ def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surf
         ax.grid(alpha=0.3)
     # zoom on the unload and the reloads (the loading path runs far off to the left)
     near = np.r_[fan["h_v"], path["h_v"][-1:]], np.r_[fan["h_tilde_d"], path["h_tilde_d"][-1:]]
-    for lim, values in zip((axes[0].set_xlim, axes[0].set_ylim), near):
+    for lim, values in zip((axes[0].set_xlim, axes[0].set_ylim), near, strict=True):
         lo, hi = np.nanmin(values), np.nanmax(values)
         pad = 0.15 * max(hi - lo, 1e-6)
         lim(lo - pad, hi + pad)
@@ -101,7 +109,10 @@ def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surf
     axes[0].set_ylabel("h~_d (-)")
     axes[0].set_title("(a) strain paths near the unloaded state (reload colour = phi)")
     ax = axes[1]
-    styles = {"yield": ("o-", "tab:red", "yield (iso-dissipation)"), "w2": ("x", "tab:purple", "Hill W2 <= 0")}
+    styles = {
+        "yield": ("o-", "tab:red", "yield (iso-dissipation)"),
+        "w2": ("x", "tab:purple", "Hill W2 <= 0"),
+    }
     greys = iter(plt.cm.Blues(np.linspace(0.45, 0.95, max(1, len(surfaces)))))
     for kind, pts in surfaces.items():
         p = np.array(sorted(pts))
@@ -112,8 +123,11 @@ def plot_yield_surface(unload_history_csv: str | Path, fan_csv: str | Path, surf
         else:
             marker, colour, label = styles[kind]
         complete = len(p) == np.unique(fan["phi"]).size  # a closed curve: every reload crossed
-        if kind == "w2" or not complete:  # points only: joining a partial set would draw false chords
-            ax.plot(p[:, 1], p[:, 2], marker[0], color=colour, ms=5, label=f"{label} ({len(p)} reloads)")
+        # points only: joining a partial set would draw false chords
+        if kind == "w2" or not complete:
+            ax.plot(
+                p[:, 1], p[:, 2], marker[0], color=colour, ms=5, label=f"{label} ({len(p)} reloads)"
+            )
         else:
             closed = np.vstack([p, p[:1]])
             ax.plot(closed[:, 1], closed[:, 2], marker, color=colour, ms=4, lw=1.4, label=label)
@@ -154,9 +168,15 @@ def plot_deviatoric_surface(points, png: str | Path, mean: float, title: str = "
     ax = fig.add_subplot(1, 2, 1)
     for k, (sign, turn) in enumerate(images):
         angle = sign * pts[:, 1] + turn * 2 * np.pi / 3
-        ax.plot(pts[:, 0] * np.cos(angle), pts[:, 0] * np.sin(angle), "o",
-                mfc="tab:red" if k == 0 else "none", mec="tab:red", ms=6 if k == 0 else 4,
-                label="yield (measured)" if k == 0 else ("mirrored by symmetry" if k == 1 else None))
+        ax.plot(
+            pts[:, 0] * np.cos(angle),
+            pts[:, 0] * np.sin(angle),
+            "o",
+            mfc="tab:red" if k == 0 else "none",
+            mec="tab:red",
+            ms=6 if k == 0 else 4,
+            label="yield (measured)" if k == 0 else ("mirrored by symmetry" if k == 1 else None),
+        )
     r = 1.15 * (pts[:, 0].max() if pts.size else 1.0)
     for i, name in enumerate(("sigma_1 (x)", "sigma_2 (y)", "sigma_3 (z)")):
         a = 2 * np.pi / 3 * i  # the direction of a stress along axis i (lode_angle)
@@ -168,12 +188,19 @@ def plot_deviatoric_surface(points, png: str | Path, mean: float, title: str = "
     ax.legend(fontsize=8, loc="best")
     ax.grid(alpha=0.3)
     ax3 = fig.add_subplot(1, 2, 2, projection="3d")
-    ring = sorted((float((sign * theta + turn * 2 * np.pi / 3) % (2 * np.pi)), q) for q, theta in pts
-                  for sign, turn in images)  # the whole section at sigma_m = mean, closed
+    ring = sorted(
+        (float((sign * theta + turn * 2 * np.pi / 3) % (2 * np.pi)), q)
+        for q, theta in pts
+        for sign, turn in images
+    )  # the whole section at sigma_m = mean, closed
     if ring:
-        section = np.array([mean + np.sqrt(2.0 / 3.0) * q * lode_direction(a) for a, q in ring + ring[:1]])
+        section = np.array(
+            [mean + np.sqrt(2.0 / 3.0) * q * lode_direction(a) for a, q in ring + ring[:1]]
+        )
         ax3.plot(*section.T, color="tab:red", lw=0.8, label=f"section at sigma_m = {mean:g} MPa")
-    measured = np.array([mean + np.sqrt(2.0 / 3.0) * q * lode_direction(theta) for q, theta in pts]).reshape(-1, 3)
+    measured = np.array(
+        [mean + np.sqrt(2.0 / 3.0) * q * lode_direction(theta) for q, theta in pts]
+    ).reshape(-1, 3)
     ax3.scatter(*measured.T, color="tab:red", s=14)
     top = mean + (pts[:, 0].max() if pts.size else 1.0)
     ax3.plot([0, top], [0, top], [0, top], color="0.5", lw=0.8, label="hydrostatic axis")
@@ -184,7 +211,9 @@ def plot_deviatoric_surface(points, png: str | Path, mean: float, title: str = "
     return _save(fig, png, title)
 
 
-def plot_force_rupture(rows: dict, points: dict, phi_c: float, png: str | Path, title: str = "") -> Path:
+def plot_force_rupture(
+    rows: dict, points: dict, phi_c: float, png: str | Path, title: str = ""
+) -> Path:
     """A force-controlled rupture probe (workflows.force_rupture): left, the stress along the
     path against the strain along it (MPa, mm/mm); right, E_c / E_d (log) and W2 against time,
     with the threshold phi_c and each criterion's rupture point marked."""
@@ -196,13 +225,24 @@ def plot_force_rupture(rows: dict, points: dict, phi_c: float, png: str | Path, 
     t = rows["time"]
     strain = np.column_stack([rows[f"h_{i}{i}"] for i in (1, 2, 3)])
     strain_along = np.linalg.norm(strain - strain[0], axis=1)
-    marks = {"phi": ("tab:red", "E_c / E_d = phi_c"), "w2": ("tab:blue", "W2 <= 0"), "peak": ("k", "peak stress")}
+    marks = {
+        "phi": ("tab:red", "E_c / E_d = phi_c"),
+        "w2": ("tab:blue", "W2 <= 0"),
+        "peak": ("k", "peak stress"),
+    }
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 4.2))
     ax.plot(strain_along, rows["path_stress"], ".-", color="0.3")
     for key, (color, label) in marks.items():
         if key in points:
-            ax.plot(np.interp(points[key]["time"], t, strain_along), points[key]["path_stress"], "o", mfc="none",
-                    mec=color, ms=9, label=label)
+            ax.plot(
+                np.interp(points[key]["time"], t, strain_along),
+                points[key]["path_stress"],
+                "o",
+                mfc="none",
+                mec=color,
+                ms=9,
+                label=label,
+            )
     ax.set_xlabel("strain along the path |h - h_start|")
     ax.set_ylabel("stress along the path (MPa, from the start)")
     ax.legend(fontsize=8)

@@ -28,7 +28,9 @@ class Progress:
 
     The ETA extrapolates the wall time since the first update (restart: since the restart)."""
 
-    def __init__(self, comm: MPI.Comm = MPI.COMM_WORLD, stream=None, width: int = 24, enabled: bool = True):
+    def __init__(
+        self, comm: MPI.Comm = MPI.COMM_WORLD, stream=None, width: int = 24, enabled: bool = True
+    ):
         self.enabled = enabled and comm.rank == 0
         self.stream = stream if stream is not None else sys.stdout
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
@@ -37,7 +39,10 @@ class Progress:
         self._fraction0 = 0.0
         self._open_line = False
 
-    def update(self, fraction: float, step: int, total: int, *, rho: float, sigma_m: float, extra: str = "") -> str:
+    def update(
+        self, fraction: float, step: int, total: int, *, rho: float, sigma_m: float, extra: str = ""
+    ) -> str:
+        """Print the progress line (rank 0, when enabled) and return it."""
         fraction = min(max(fraction, 0.0), 1.0)
         now = time.perf_counter()
         if self._start is None:
@@ -45,9 +50,12 @@ class Progress:
         done = fraction - self._fraction0
         eta = (now - self._start) / done * (1.0 - fraction) if done > 1e-12 else float("nan")
         filled = int(round(self.width * fraction))
-        line = (f"[{'#' * filled}{'.' * (self.width - filled)}] {100 * fraction:5.1f} %  step {step}/{total}  "
-                f"rho {rho:.4f}  sigma_m {sigma_m:.3f} MPa  "
-                f"ETA {format_seconds(eta) if eta == eta else '--'}" + (f"  {extra}" if extra else ""))
+        line = (
+            f"[{'#' * filled}{'.' * (self.width - filled)}] {100 * fraction:5.1f} %  step "
+            f"{step}/{total}  "
+            f"rho {rho:.4f}  sigma_m {sigma_m:.3f} MPa  "
+            f"ETA {format_seconds(eta) if eta == eta else '--'}" + (f"  {extra}" if extra else "")
+        )
         if self.enabled:
             if self.tty:
                 self.stream.write("\r\033[K" + line)

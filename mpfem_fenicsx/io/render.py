@@ -10,9 +10,16 @@ import dolfinx
 import dolfinx.plot
 
 
-def render_deformed(u: dolfinx.fem.Function, cell_field: dolfinx.fem.Function, path: str | Path,
-                    *, title: str = "", label: str = "von Mises (MPa)", cells: np.ndarray | None = None,
-                    save_grid: bool = False) -> Path | None:
+def render_deformed(
+    u: dolfinx.fem.Function,
+    cell_field: dolfinx.fem.Function,
+    path: str | Path,
+    *,
+    title: str = "",
+    label: str = "von Mises (MPa)",
+    cells: np.ndarray | None = None,
+    save_grid: bool = False,
+) -> Path | None:
     """Render u-deformed particles coloured by a DG0 field to a PNG (gathered on rank 0);
     ``cells``: the local cells to show (default: all owned cells). ``save_grid``: also write the
     deformed grid next to the PNG (``.vtu``, title in its field data) so that

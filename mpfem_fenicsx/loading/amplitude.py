@@ -12,7 +12,8 @@ def _quintic_ramp(u: float) -> float:
 
 @dataclass(frozen=True)
 class SmoothStep:
-    """Abaqus SMOOTH STEP between (t0, 0) and (t1, 1): a = 10 s^3 - 15 s^4 + 6 s^5, s = (t-t0)/(t1-t0).
+    """Abaqus SMOOTH STEP between (t0, 0) and (t1, 1): a = 10 s^3 - 15 s^4 + 6 s^5,
+    s = (t-t0)/(t1-t0).
 
     Zero velocity and acceleration at both knots, which keeps explicit runs quasi-static.
     """
@@ -25,10 +26,12 @@ class SmoothStep:
             raise ValueError(f"SmoothStep needs t1 > t0, got t0={self.t0}, t1={self.t1}")
 
     def __call__(self, t: float) -> float:
+        """Amplitude in [0, 1] at time ``t`` (s)."""
         s = min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
         return _quintic_ramp(s)
 
     def rate(self, t: float) -> float:
+        """d amplitude / dt (1/s) at time ``t`` (s)."""
         s = min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
         return 30.0 * s * s * (1.0 - s) ** 2 / (self.t1 - self.t0)
 
@@ -59,8 +62,10 @@ class SmoothRamps:
         if not self.t1 > self.t0:
             raise ValueError(f"SmoothRamps needs t1 > t0, got t0={self.t0}, t1={self.t1}")
         if not (0.0 < self.rise and 0.0 < self.fall and self.rise + self.fall <= 1.0):
-            raise ValueError(f"SmoothRamps needs rise > 0, fall > 0 and rise + fall <= 1, got rise={self.rise}, "
-                             f"fall={self.fall}")
+            raise ValueError(
+                f"SmoothRamps needs rise > 0, fall > 0 and rise + fall <= 1, got rise={self.rise}, "
+                f"fall={self.fall}"
+            )
 
     @property
     def plateau(self) -> float:
@@ -68,6 +73,7 @@ class SmoothRamps:
         return 1.0 / (1.0 - 0.5 * (self.rise + self.fall))
 
     def __call__(self, t: float) -> float:
+        """Amplitude in [0, 1] at time ``t`` (s)."""
         s = min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
         v = self.plateau
         if s < self.rise:
@@ -77,6 +83,7 @@ class SmoothRamps:
         return v * (0.5 * self.rise + s - self.rise)
 
     def rate(self, t: float) -> float:
+        """d amplitude / dt (1/s) at time ``t`` (s)."""
         s = min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
         u = min(s / self.rise, (1.0 - s) / self.fall, 1.0)
         return self.plateau * _quintic_ramp(u) / (self.t1 - self.t0)
@@ -94,7 +101,9 @@ class Ramp:
     t0: float = 0.0
 
     def __call__(self, t: float) -> float:
+        """Amplitude in [0, 1] at time ``t`` (s)."""
         return min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
 
     def rate(self, t: float) -> float:
+        """d amplitude / dt (1/s) at time ``t`` (s)."""
         return 1.0 / (self.t1 - self.t0) if self.t0 <= t <= self.t1 else 0.0

@@ -1,4 +1,4 @@
-"""Macroscopic loading paths F0(t) of a granular volume (thesis §2.5 and §4.2, SPEC §5).
+"""Macroscopic loading paths F0(t) of a granular volume (thesis §2.5 and §4.2).
 
 Compaction keeps the solid volume (plastic flow is isochoric, elastic change is small), so a
 target relative density rho_f reached from rho_0 needs det F0 = rho_0 / rho_f:
@@ -46,8 +46,8 @@ def unload_gradient(h_v: float) -> np.ndarray:
 
 
 def reload_gradient(phi: float, amplitude: float, axis: int = 2) -> np.ndarray:
-    """Reload increment gradient F^r = diag(exp h^r) of thesis eq. 4.8-4.9 in direction ``phi`` (rad)
-    of the Rendulic strain plane, axis I = ``axis`` (default z, the die axis):
+    """Reload increment gradient F^r = diag(exp h^r) of thesis eq. 4.8-4.9 in direction ``phi``
+    (rad) of the Rendulic strain plane, axis I = ``axis`` (default z, the die axis):
     h_I = -A (cos phi / 3 + sin phi), h_II = h_III = -A (cos phi / 3 - sin phi / 2), so that the
     compression-positive volumetric and signed deviatoric strains are A cos phi and A sin phi
     (h_v = -A cos phi, h~_d = -A sin phi in the natural sign of the histories): phi = 0 is
@@ -89,7 +89,9 @@ class GradientPath:
             if not duration > 0:
                 raise ValueError(f"segment {k}: duration must be > 0 s, got {duration}")
             if G.shape != (3, 3) or not np.linalg.det(G) > 0:
-                raise ValueError(f"segment {k}: increment gradient must be a 3x3 matrix with det > 0")
+                raise ValueError(
+                    f"segment {k}: increment gradient must be a 3x3 matrix with det > 0"
+                )
             self._knots.append(self._knots[-1] + duration)
             shape = PROFILES[self.profiles[k] if k < len(self.profiles) else "smooth-step"]
             self._amplitudes.append(shape(self._knots[-1], self._knots[-2]))
@@ -98,6 +100,7 @@ class GradientPath:
 
     @property
     def duration(self) -> float:
+        """End time of the last segment (s)."""
         return self._knots[-1]
 
     @property
@@ -106,6 +109,7 @@ class GradientPath:
         return list(self._knots)
 
     def __call__(self, t: float) -> np.ndarray:
+        """F0 (3, 3) at time ``t`` (s); held at the last segment's end after it."""
         k = int(np.searchsorted(self._knots, t, side="right")) - 1
         if k >= len(self.segments):
             return self._ends[-1].copy()

@@ -1,11 +1,13 @@
 """Mixed strain / stress control of a periodic volume through its auxiliary nodes (beyond the
-thesis: its perspectives 4-5; issue 24).
+thesis: its perspectives 4-5).
 
 Each component of the macroscopic state is either strain-driven (a prescribed velocity gradient
 L_ij, 1/s) or stress-driven (a prescribed Cauchy stress sigma_ij(t), MPa, compression > 0 as in
 the histories). The stress-driven components of L are set by a servo on the measured stress (the
 auxiliary nodes' reactions, Schmidt's eq. 2.19, or the volume average of the particles' stress,
-eq. C.7: ``measure``), like the periodic-cell controllers of DEM codes:
+eq. C.7, over the VEP's volume V0 det F, F the centroids' least-squares gradient: ``measure``; the
+history's ``sigma_schmidt_*`` and ``sigma_vol_*`` columns report the same two measures), like the
+periodic-cell controllers of DEM codes:
 
     e_ij = target_ij - sigma_ij                                            (compression > 0)
     L_ij = -rate * clip((e_ij + (1 / integral_time) int e_ij dt) / band, -1, 1)
@@ -25,9 +27,9 @@ measured stress first (exponential moving average): the explicit pseudo-dynamics
 about the quasi-static value. An average lags a stress ramped at R MPa/s by R filter_time, so a
 servo holding the average on a ramped target would hold the stress that far ahead of it; the
 filter also tracks the average's own rate, low-passed over the same time, and the servo reads
-average + filter_time x rate: no lag on a ramp. The gradient is integrated from the servo's velocity gradient,
-F0(t + dt) = exp(L dt) F0(t); off-diagonal stress-driven components use the symmetric part (no
-spin).
+average + filter_time x rate: no lag on a ramp. The gradient is integrated from the servo's velocity
+gradient, F0(t + dt) = exp(L dt) F0(t); off-diagonal stress-driven components use the symmetric part
+(no spin).
 
 The control is a gradient path t -> F0(t) (``GranularBoundaryConditions.gradient``); the
 workflow calls :meth:`StressControl.update` with the measured stress every ``every`` explicit
@@ -36,8 +38,8 @@ increments. Its time must only advance.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 from scipy.linalg import expm
@@ -99,7 +101,9 @@ class StressControl:
         if not (isinstance(self.every, int) and self.every >= 1):
             raise ValueError(f"every must be an integer >= 1 (increments), got {self.every}")
         if self.integral_time is not None and not self.integral_time > 0:
-            raise ValueError(f"integral_time must be > 0 s (or None: no integral term), got {self.integral_time}")
+            raise ValueError(
+                f"integral_time must be > 0 s (or None: no integral term), got {self.integral_time}"
+            )
         if not self.filter_time >= 0:
             raise ValueError(f"filter_time must be >= 0 s, got {self.filter_time}")
         self._t = 0.0
@@ -122,10 +126,15 @@ class StressControl:
 
     @property
     def knots(self) -> list[float]:
+        """The path's start and end times (s)."""
         return [0.0, self.duration]
 
     def _velocity_gradient(self, t: float) -> np.ndarray:
-        L = np.zeros((3, 3)) if self.velocity_gradient is None else np.asarray(self.velocity_gradient(t), float)
+        L = (
+            np.zeros((3, 3))
+            if self.velocity_gradient is None
+            else np.asarray(self.velocity_gradient(t), float)
+        )
         return np.where(self._check_mask(self.stress_driven(t)), self._L_servo, L)
 
     def __call__(self, t: float) -> np.ndarray:
@@ -134,7 +143,9 @@ class StressControl:
         if t == self._previous[0] and t < self._t:
             return self._previous[1].copy()
         if t < self._t:
-            raise ValueError(f"StressControl: time must advance (asked t = {t:.6g} s after {self._t:.6g} s)")
+            raise ValueError(
+                f"StressControl: time must advance (asked t = {t:.6g} s after {self._t:.6g} s)"
+            )
         if t > self._t:
             dt = t - self._t
             self._previous = (self._t, self._F.copy())
@@ -155,21 +166,32 @@ class StressControl:
     def state_dict(self) -> dict:
         """The servo's state (plain lists and floats, for a checkpoint's metadata): restoring it
         with :meth:`load_state` into the same control continues the path bit for bit."""
-        return {"t": self._t, "F": self._F.tolist(), "previous_t": self._previous[0],
-                "previous_F": self._previous[1].tolist(), "L_servo": self._L_servo.tolist(),
-                "filtered": None if self._filtered is None else self._filtered.tolist(),
-                "integral": self._integral.tolist(), "t_update": self._t_update, "trend": self._trend.tolist(),
-                "target_before": self._target_before.tolist(), "target_rate": self._target_rate.tolist()}
+        return {
+            "t": self._t,
+            "F": self._F.tolist(),
+            "previous_t": self._previous[0],
+            "previous_F": self._previous[1].tolist(),
+            "L_servo": self._L_servo.tolist(),
+            "filtered": None if self._filtered is None else self._filtered.tolist(),
+            "integral": self._integral.tolist(),
+            "t_update": self._t_update,
+            "trend": self._trend.tolist(),
+            "target_before": self._target_before.tolist(),
+            "target_rate": self._target_rate.tolist(),
+        }
 
     def load_state(self, state: dict) -> None:
         """Restore :meth:`state_dict`."""
         self._t, self._F = float(state["t"]), np.array(state["F"], dtype=float)
         self._previous = (float(state["previous_t"]), np.array(state["previous_F"], dtype=float))
         self._L_servo = np.array(state["L_servo"], dtype=float)
-        self._filtered = None if state["filtered"] is None else np.array(state["filtered"], dtype=float)
+        self._filtered = (
+            None if state["filtered"] is None else np.array(state["filtered"], dtype=float)
+        )
         self._integral = np.array(state["integral"], dtype=float)
         self._t_update = state["t_update"]
-        self._trend = np.array(state.get("trend", np.zeros((3, 3))), dtype=float)  # older checkpoints: none
+        # older checkpoints: none
+        self._trend = np.array(state.get("trend", np.zeros((3, 3))), dtype=float)
         self._target_before = np.array(state.get("target_before", np.zeros((3, 3))), dtype=float)
         self._target_rate = np.array(state.get("target_rate", np.zeros((3, 3))), dtype=float)
 
@@ -200,14 +222,18 @@ class StressControl:
             target_rate = (target - self._target_before) / dt
             previous = self._target_rate
             with np.errstate(divide="ignore", invalid="ignore"):
-                ratio = np.where(np.abs(previous) > 0, np.clip(target_rate / previous, -1.0, 1.0), 1.0)
+                ratio = np.where(
+                    np.abs(previous) > 0, np.clip(target_rate / previous, -1.0, 1.0), 1.0
+                )
             self._integral = self._integral * ratio
             self._target_rate = target_rate
         self._target_before = target
         if self.integral_time is not None:
             # anti-windup: the integral grows only where the rate is not saturated
             free = np.abs(error + self._integral / self.integral_time) < self.band
-            self._integral = np.where(mask & free, self._integral + error * dt, np.where(mask, self._integral, 0.0))
+            self._integral = np.where(
+                mask & free, self._integral + error * dt, np.where(mask, self._integral, 0.0)
+            )
             command = error + self._integral / self.integral_time
         L = -self.rate * np.clip(command / self.band, -1.0, 1.0)
         self._L_servo = np.where(mask, 0.5 * (L + L.T), 0.0)
@@ -226,7 +252,9 @@ def rounded_waypoints(times, values, corner: float = 0.1) -> Callable[[float], n
     times = np.asarray(times, dtype=float)
     values = np.asarray(values, dtype=float).reshape(times.size, -1)
     if not 0 <= corner <= 1:
-        raise ValueError(f"corner must be in [0, 1] (fraction of the shorter adjacent segment), got {corner}")
+        raise ValueError(
+            f"corner must be in [0, 1] (fraction of the shorter adjacent segment), got {corner}"
+        )
     rates = np.diff(values, axis=0) / np.diff(times)[:, None]
     corners = []  # (start a, half width h, value at a, rate before, rate change)
     for k in range(1, times.size - 1):
@@ -261,8 +289,10 @@ def normal_stress_path(times, stresses, rate: float, band: float, start: np.ndar
     if stresses.ndim == 1:
         stresses = np.repeat(stresses[:, None], 3, axis=1)
     if times.ndim != 1 or times.size < 2 or stresses.shape != (times.size, 3):
-        raise ValueError(f"stresses must hold one (3,) or scalar stress per time (>= 2 waypoints), got times "
-                         f"{times.shape} and stresses {stresses.shape}")
+        raise ValueError(
+            f"stresses must hold one (3,) or scalar stress per time (>= 2 waypoints), got times "
+            f"{times.shape} and stresses {stresses.shape}"
+        )
     if not (np.all(np.isfinite(times)) and np.all(np.isfinite(stresses))):
         raise ValueError("times and stresses must be finite")
     if times[0] < 0 or np.any(np.diff(times) <= 0):
@@ -273,14 +303,31 @@ def normal_stress_path(times, stresses, rate: float, band: float, start: np.ndar
     def target(t):
         return np.diag(rounded(t))
 
-    return StressControl(duration=float(times[-1]), stress_driven=np.eye(3, dtype=bool), target=target, rate=rate,
-                         band=band, start=np.eye(3) if start is None else start, measure=measure,
-                         integral_time=integral_time, filter_time=filter_time)
+    return StressControl(
+        duration=float(times[-1]),
+        stress_driven=np.eye(3, dtype=bool),
+        target=target,
+        rate=rate,
+        band=band,
+        start=np.eye(3) if start is None else start,
+        measure=measure,
+        integral_time=integral_time,
+        filter_time=filter_time,
+    )
 
 
-def pressure_control(pressure: float, ramp: float, hold: float, rate: float, band: float, measure: str = "schmidt",
-                     integral_time: float | None = None, filter_time: float = 0.0, unload_to: float | None = None,
-                     unload: float = 0.0) -> StressControl:
+def pressure_control(
+    pressure: float,
+    ramp: float,
+    hold: float,
+    rate: float,
+    band: float,
+    measure: str = "schmidt",
+    integral_time: float | None = None,
+    filter_time: float = 0.0,
+    unload_to: float | None = None,
+    unload: float = 0.0,
+) -> StressControl:
     """Isotropic pressure path: the three normal stresses ramped to ``pressure`` MPa (compression
     > 0) over ``ramp`` s, then held ``hold`` s; with ``unload_to``, then ramped down to it over
     ``unload`` s and held ``hold`` s again (a :func:`normal_stress_path`). ``rate`` (1/s),
@@ -292,8 +339,10 @@ def pressure_control(pressure: float, ramp: float, hold: float, rate: float, ban
     if hold < 0:
         raise ValueError(f"hold must be >= 0 s, got {hold}")
     if unload_to is not None and not (0 < unload_to < pressure and unload > 0):
-        raise ValueError(f"unload_to must be in (0, pressure = {pressure}) MPa and unload > 0 s, got "
-                         f"{unload_to} / {unload}")
+        raise ValueError(
+            f"unload_to must be in (0, pressure = {pressure}) MPa and unload > 0 s, got "
+            f"{unload_to} / {unload}"
+        )
     times, levels = [0.0, ramp], [0.0, pressure]
     if unload_to is not None:
         times += [ramp + hold, ramp + hold + unload]
@@ -304,14 +353,31 @@ def pressure_control(pressure: float, ramp: float, hold: float, rate: float, ban
         times, levels = times[:-1], levels[:-1]
         if unload_to is not None:
             times, levels = times[:2] + times[3:], levels[:2] + levels[3:]
-    return normal_stress_path(times, levels, rate=rate, band=band, measure=measure, integral_time=integral_time,
-                              filter_time=filter_time)
+    return normal_stress_path(
+        times,
+        levels,
+        rate=rate,
+        band=band,
+        measure=measure,
+        integral_time=integral_time,
+        filter_time=filter_time,
+    )
 
 
-def triaxial_control(confining: float, consolidation: float, hold: float, axial_strain: float, axial_time: float,
-                     rate: float, band: float, axis: int = 2, measure: str = "schmidt",
-                     integral_time: float | None = None, filter_time: float = 0.0,
-                     axial_ramp: float = 0.3) -> StressControl:
+def triaxial_control(
+    confining: float,
+    consolidation: float,
+    hold: float,
+    axial_strain: float,
+    axial_time: float,
+    rate: float,
+    band: float,
+    axis: int = 2,
+    measure: str = "schmidt",
+    integral_time: float | None = None,
+    filter_time: float = 0.0,
+    axial_ramp: float = 0.3,
+) -> StressControl:
     """Triaxial compression: isotropic consolidation (the three normal stresses ramped to
     ``confining`` MPa over ``consolidation`` s, then held ``hold`` s), then axial compression
     along ``axis`` to the Hencky strain ``axial_strain`` (> 0: shortening) over ``axial_time`` s,
@@ -322,8 +388,12 @@ def triaxial_control(confining: float, consolidation: float, hold: float, axial_
     strains stay zero.
     ``rate`` (1/s), ``band`` (MPa), ``measure``, ``integral_time`` and ``filter_time`` (s): the
     servo's (see :class:`StressControl`)."""
-    for name, value in (("confining", confining), ("consolidation", consolidation), ("axial_strain", axial_strain),
-                        ("axial_time", axial_time)):
+    for name, value in (
+        ("confining", confining),
+        ("consolidation", consolidation),
+        ("axial_strain", axial_strain),
+        ("axial_time", axial_time),
+    ):
         if not value > 0:
             raise ValueError(f"{name} must be > 0, got {value}")
     if hold < 0:
@@ -337,11 +407,15 @@ def triaxial_control(confining: float, consolidation: float, hold: float, axial_
     lateral[axis, axis] = False
     shortening = np.zeros((3, 3))
     ramp_in = axial_ramp * axial_time
-    shortening[axis, axis] = -axial_strain / (axial_time - 0.5 * ramp_in)  # the ramp-in loses half its length
+    # the ramp-in loses half its length
+    shortening[axis, axis] = -axial_strain / (axial_time - 0.5 * ramp_in)
 
     # the consolidation ramp's end rounded (rounded_waypoints) like the axial rate's start
-    consolidated = rounded_waypoints([0.0, consolidation, start_axial + axial_time], [0.0, confining, confining],
-                                     corner=axial_ramp)
+    consolidated = rounded_waypoints(
+        [0.0, consolidation, start_axial + axial_time],
+        [0.0, confining, confining],
+        corner=axial_ramp,
+    )
 
     def axial(t):
         if t < start_axial:
@@ -364,9 +438,19 @@ def lode_direction(theta: float) -> np.ndarray:
     return np.sqrt(2.0 / 3.0) * np.cos(theta - np.array([0.0, 2.0, -2.0]) * np.pi / 3.0)
 
 
-def lode_shear_control(mean: float, q_max: float, theta: float, duration: float, rate: float, band: float,
-                       start: np.ndarray | None = None, t0: float = 0.0, measure: str = "schmidt",
-                       integral_time: float | None = None, filter_time: float = 0.0) -> StressControl:
+def lode_shear_control(
+    mean: float,
+    q_max: float,
+    theta: float,
+    duration: float,
+    rate: float,
+    band: float,
+    start: np.ndarray | None = None,
+    t0: float = 0.0,
+    measure: str = "schmidt",
+    integral_time: float | None = None,
+    filter_time: float = 0.0,
+) -> StressControl:
     """Shear at constant mean stress: the three normal stresses driven to
     sigma = mean I + sqrt(2/3) q(t) diag(lode_direction(theta)), q (the von Mises equivalent
     stress, MPa) ramped from 0 at t0 to ``q_max`` at t0 + duration; shear strains stay zero.
@@ -381,6 +465,14 @@ def lode_shear_control(mean: float, q_max: float, theta: float, duration: float,
         q = q_max * min(max((t - t0) / duration, 0.0), 1.0)
         return mean * np.eye(3) + np.sqrt(2.0 / 3.0) * q * direction
 
-    return StressControl(duration=t0 + duration, stress_driven=np.eye(3, dtype=bool), target=target, rate=rate,
-                         band=band, start=np.eye(3) if start is None else start, measure=measure,
-                         integral_time=integral_time, filter_time=filter_time)
+    return StressControl(
+        duration=t0 + duration,
+        stress_driven=np.eye(3, dtype=bool),
+        target=target,
+        rate=rate,
+        band=band,
+        start=np.eye(3) if start is None else start,
+        measure=measure,
+        integral_time=integral_time,
+        filter_time=filter_time,
+    )

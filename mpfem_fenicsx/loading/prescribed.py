@@ -44,16 +44,20 @@ class PrescribedDisplacements:
         #: fixed multipoint rows (e.g. cyclic symmetry), built with the prescribed dofs
         self.couplings: CouplingRows | None = None
 
-    def add(self, dofs: np.ndarray, value: Callable | float = 0.0) -> "PrescribedDisplacements":
+    def add(self, dofs: np.ndarray, value: Callable | float = 0.0) -> PrescribedDisplacements:
+        """Prescribe ``dofs`` to ``value`` (mm): a number, an array, or t -> either."""
         self._groups.append((np.asarray(dofs, dtype=np.int32), value))
         return self
 
     @property
     def prescribed_dofs(self) -> np.ndarray:
         """All dofs of the groups added so far (local unrolled indices)."""
-        return np.concatenate([d for d, _ in self._groups]) if self._groups else np.zeros(0, np.int32)
+        return (
+            np.concatenate([d for d, _ in self._groups]) if self._groups else np.zeros(0, np.int32)
+        )
 
     def build(self) -> AffineConstraint:
+        """The affine constraint of the prescribed dofs and the couplings."""
         self.constraint = AffineConstraint(self.V, self.prescribed_dofs, self.couplings)
         prescribed = self.constraint.prescribed
         self._positions = []
@@ -63,11 +67,13 @@ class PrescribedDisplacements:
         return self.constraint
 
     def values(self, t: float) -> np.ndarray:
+        """Values (mm) of the constraint's prescribed dofs at time ``t`` (s)."""
         out = np.zeros(self.constraint.prescribed.size)
-        for (dofs, value), (pos, keep) in zip(self._groups, self._positions):
+        for (_, value), (pos, keep) in zip(self._groups, self._positions, strict=True):
             v = value(t) if callable(value) else value
             out[pos] = v[keep] if np.ndim(v) else v
         return out
 
     def apply(self, t: float) -> None:
+        """Set the prescribed values of time ``t`` (s) in the constraint."""
         self.constraint.set_prescribed(self.values(t))

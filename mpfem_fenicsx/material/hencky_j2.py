@@ -192,7 +192,8 @@ def _mul_abt(a, b, out):
 
 @numba.njit(cache=True, inline="always")
 def _store_cp_inv(be, Finv, M, C, out):
-    """out = the 6 components of C_p^-1 = F^-1 b_e F^-T (its two triangles averaged); M, C scratch."""
+    """out = the 6 components of C_p^-1 = F^-1 b_e F^-T (its two triangles averaged); M, C
+    scratch."""
     _mul_abt(be, Finv, M)
     _mul_ab(Finv, M, C)
     out[0] = C[0, 0]
@@ -308,7 +309,14 @@ def _sym_norm2(a):
 @numba.njit(cache=True, inline="always")
 def _sym_axpi(alpha, a, c):
     """alpha a + c 1."""
-    return (alpha * a[0] + c, alpha * a[1] + c, alpha * a[2] + c, alpha * a[3], alpha * a[4], alpha * a[5])
+    return (
+        alpha * a[0] + c,
+        alpha * a[1] + c,
+        alpha * a[2] + c,
+        alpha * a[3],
+        alpha * a[4],
+        alpha * a[5],
+    )
 
 
 @numba.njit(cache=True, inline="always")
@@ -343,7 +351,9 @@ def _half_log_near_identity(b):
     c4 = x[3] * x[5] - x[4] * s1
     c5 = x[3] * x[4] - s0 * x[5]
     inv_det = 1.0 / (s0 * c0 + x[3] * c3 + x[4] * c4)
-    y = _sym_mul(x, (c0 * inv_det, c1 * inv_det, c2 * inv_det, c3 * inv_det, c4 * inv_det, c5 * inv_det))
+    y = _sym_mul(
+        x, (c0 * inv_det, c1 * inv_det, c2 * inv_det, c3 * inv_det, c4 * inv_det, c5 * inv_det)
+    )
     z = _sym_mul(y, y)
     r2 = _sym_norm2(y)
     # the series' terms y^(2k+1)/(2k+1) from k = 1; keep them while r^(2k+1) > tolerance
@@ -392,7 +402,8 @@ def _update_point_by_series(qp, b, Finv, cp_inv_n, eps_p_n, mu, bulk, s0, modulu
     dgamma, plastic, work = _plastic_multiplier(q_tr, p_n, three_mu, s0, modulus, exponent, law)
     beta = 1.0 - three_mu * dgamma / q_tr if plastic else 1.0
     if plastic:
-        # dev eps_e = beta dev eps^trial, tr eps_e = tr eps^trial: b_e = e^(2 vol / 3) exp(2 beta dev)
+        # dev eps_e = beta dev eps^trial, tr eps_e = tr eps^trial:
+        # b_e = e^(2 vol / 3) exp(2 beta dev)
         e = _exp_near_zero(_sym_axpi(2.0 * beta, dev, 0.0))
         scale = np.exp(2.0 * vol / 3.0)
         _sym_to_full(_sym_axpi(scale, e, 0.0), M1)
@@ -431,9 +442,33 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
         _mul_ab(f, M1, be)
         b = (be[0, 0], be[1, 1], be[2, 2], 0.5 * (be[0, 1] + be[1, 0]), 0.5 * (be[0, 2] + be[2, 0]),
              0.5 * (be[1, 2] + be[2, 1]))
-        if not want_tangent and _sym_norm2(_sym_axpi(1.0, b, -1.0)) <= SERIES_RADIUS * SERIES_RADIUS:
-            _update_point_by_series(qp, b, Finv, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law,
-                                    P_dev, cp_inv_new, eps_p_new, tau, dissipation, psi, M1, M2, M3, C)
+        if (
+            not want_tangent
+            and _sym_norm2(_sym_axpi(1.0, b, -1.0)) <= SERIES_RADIUS * SERIES_RADIUS
+        ):
+            _update_point_by_series(
+                qp,
+                b,
+                Finv,
+                cp_inv_n,
+                eps_p_n,
+                mu,
+                bulk,
+                s0,
+                modulus,
+                exponent,
+                law,
+                P_dev,
+                cp_inv_new,
+                eps_p_new,
+                tau,
+                dissipation,
+                psi,
+                M1,
+                M2,
+                M3,
+                C,
+            )
             continue
         eig_sym3(be, x, Q)
 
@@ -481,7 +516,8 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
         dev2 = 0.0
         for A in range(3):
             dev2 += (eps_e[A] - tr_e / 3.0) ** 2
-        psi[qp] = mu * dev2  # deviatoric part only: the volumetric energy follows the volumetric rule
+        # deviatoric part only: the volumetric energy follows the volumetric rule
+        psi[qp] = mu * dev2
 
         _mul_abt(M2, Finv, P_dev[qp])  # P_dev = dev(tau) F^-T
         if not want_tangent:
@@ -493,7 +529,9 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
                 a[A, B] = 2.0 * mu * beta * ((1.0 if A == B else 0.0) - 1.0 / 3.0)
         if plastic:
             p = p_n + dgamma
-            slope = _yield_and_slope(p, _hardening_power(p, exponent, law), s0, modulus, exponent, law)[1]
+            slope = _yield_and_slope(
+                p, _hardening_power(p, exponent, law), s0, modulus, exponent, law
+            )[1]
             coef = 6.0 * mu * mu * (dgamma / q_tr - 1.0 / (three_mu + slope))
             for A in range(3):
                 for B in range(3):
@@ -502,8 +540,8 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
         for i in range(3):
             for j in range(3):
                 for k in range(3):
-                    for l in range(3):
-                        Cs[i, j, k, l] = 0.0
+                    for m in range(3):
+                        Cs[i, j, k, m] = 0.0
         for A in range(3):
             for B in range(3):
                 coef = a[A, B]
@@ -511,8 +549,8 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
                     for j in range(3):
                         nAij = Q[i, A] * Q[j, A] * coef
                         for k in range(3):
-                            for l in range(3):
-                                Cs[i, j, k, l] += nAij * Q[k, B] * Q[l, B]
+                            for m in range(3):
+                                Cs[i, j, k, m] += nAij * Q[k, B] * Q[m, B]
         for A in range(3):
             for B in range(3):
                 if A == B:
@@ -522,8 +560,10 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
                     for j in range(3):
                         nAB = theta * Q[i, A] * Q[j, B]
                         for k in range(3):
-                            for l in range(3):
-                                Cs[i, j, k, l] += nAB * (x[B] * Q[k, A] * Q[l, B] + x[A] * Q[k, B] * Q[l, A])
+                            for m in range(3):
+                                Cs[i, j, k, m] += nAB * (
+                                    x[B] * Q[k, A] * Q[m, B] + x[A] * Q[k, B] * Q[m, A]
+                                )
         # material tangent A_iJkL = Cs_ijkb Finv_Lb Finv_Jj - P_iL Finv_Jk
         for i in range(3):
             for j in range(3):
@@ -574,9 +614,42 @@ def return_mapping(F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law, w
         a = np.empty((3, 3))
         Cs = np.empty((3, 3, 3, 3))
         D = np.empty((3, 3, 3, 3))
-        _update_range(chunk * _CHUNK, min(nq, (chunk + 1) * _CHUNK), F, cp_inv_n, eps_p_n, mu, bulk, s0,
-                      modulus, exponent, law, want_tangent, P_dev, A_dev, cp_inv_new, eps_p_new, tau,
-                      dissipation, psi, Finv, C, be, x, Q, eps_tr, s_tr, s, eps_e, M1, M2, M3, a, Cs, D)
+        _update_range(
+            chunk * _CHUNK,
+            min(nq, (chunk + 1) * _CHUNK),
+            F,
+            cp_inv_n,
+            eps_p_n,
+            mu,
+            bulk,
+            s0,
+            modulus,
+            exponent,
+            law,
+            want_tangent,
+            P_dev,
+            A_dev,
+            cp_inv_new,
+            eps_p_new,
+            tau,
+            dissipation,
+            psi,
+            Finv,
+            C,
+            be,
+            x,
+            Q,
+            eps_tr,
+            s_tr,
+            s,
+            eps_e,
+            M1,
+            M2,
+            M3,
+            a,
+            Cs,
+            D,
+        )
 
 
 class HenckyJ2:
@@ -624,12 +697,20 @@ class HenckyJ2:
         self.plastic_work += self.dissipation
 
     def state_dict(self) -> dict[str, np.ndarray]:
-        """Committed plastic state (C_p^-1, eps_p, plastic work) of this rank's points (for checkpoints)."""
-        return {"cp_inv": self.cp_inv.copy(), "eps_p": self.eps_p.copy(), "plastic_work": self.plastic_work.copy()}
+        """Committed plastic state (C_p^-1, eps_p, plastic work) of this rank's points (for
+        checkpoints)."""
+        return {
+            "cp_inv": self.cp_inv.copy(),
+            "eps_p": self.eps_p.copy(),
+            "plastic_work": self.plastic_work.copy(),
+        }
 
     def load_state(self, data: dict[str, np.ndarray]) -> None:
+        """Restore :meth:`state` (ValueError when the number of points differs)."""
         if data["eps_p"].shape != self.eps_p.shape:
-            raise ValueError(f"material state has {data['eps_p'].size} points, expected {self.num_points}")
+            raise ValueError(
+                f"material state has {data['eps_p'].size} points, expected {self.num_points}"
+            )
         self.cp_inv[:] = data["cp_inv"]
         self.eps_p[:] = data["eps_p"]
         # checkpoints written before the per-point tally: the work so far is not known per point

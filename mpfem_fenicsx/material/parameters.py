@@ -17,10 +17,15 @@ class ElastoPlastic:
     """
 
     E: float = parameter(10000.0, "Young's modulus (MPa)", low=0, open_low=True)
-    nu: float = parameter(0.435, "Poisson's ratio (-)", low=-1, high=0.5, open_low=True, open_high=True)
+    nu: float = parameter(
+        0.435, "Poisson's ratio (-)", low=-1, high=0.5, open_low=True, open_high=True
+    )
     sigma_0: float = parameter(5.0, "initial yield stress (MPa)", low=0, open_low=True)
-    hardening: str = parameter("power", "sigma_y = sigma_0 + K eps_p^n (power, eq. 2.1) or sigma_0 + H eps_p "
-                               "(linear)", choices=("power", "linear"))
+    hardening: str = parameter(
+        "power",
+        "sigma_y = sigma_0 + K eps_p^n (power, eq. 2.1) or sigma_0 + H eps_p (linear)",
+        choices=("power", "linear"),
+    )
     K: float = parameter(15.5, "power-law hardening modulus (MPa)", low=0)
     n: float = parameter(0.35, "power-law hardening exponent (-)", low=0, high=1, open_low=True)
     H: float = parameter(0.0, "linear hardening modulus (MPa)", low=0)
@@ -31,14 +36,17 @@ class ElastoPlastic:
 
     @property
     def mu(self) -> float:
+        """Shear modulus (MPa)."""
         return self.E / (2.0 * (1.0 + self.nu))
 
     @property
     def lmbda(self) -> float:
+        """Lame's first parameter (MPa)."""
         return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
 
     @property
     def bulk(self) -> float:
+        """Bulk modulus (MPa)."""
         return self.E / (3.0 * (1.0 - 2.0 * self.nu))
 
     @property

@@ -1,4 +1,4 @@
-"""Yield surface in the deviatoric plane by stress-controlled probes (issue 24; beyond the
+"""Yield surface in the deviatoric plane by stress-controlled probes (beyond the
 thesis, whose chapter-4 fans are strain-driven reloads in the (sigma_m, sigma~_d) plane).
 
 Stages (data flow: consolidation -> unload -> checkpoint -> fan of Lode-angle probes -> surface):
@@ -9,16 +9,17 @@ Stages (data flow: consolidation -> unload -> checkpoint -> fan of Lode-angle pr
 2. **probes** (``out/probe_<deg>``): from that checkpoint, each probe keeps sigma_m = ``p_probe``
    and ramps the von Mises stress q along the Lode angle theta (loading.mixed.lode_shear_control),
    with the servo's state and the contact history carried over;
-3. **surface**: the yield point of a probe is where E_d first reaches E_0 (1 + ``dissipation_threshold``)
+3. **surface**: the yield point of a probe is where E_d first reaches
+E_0 (1 + ``dissipation_threshold``)
    (the iso-dissipation criterion of thesis §4.2.2), interpolated between history rows in the
    measured (Schmidt) stress. Angles 0-60 degrees cover the deviatoric plane of an isotropic
    state by symmetry (compression and extension differ, so the sector is [0, 60] and not less).
 
 Outputs in ``out_dir``: ``fan.csv`` (theta_deg, time, sigma_m, q, lode_deg, E_d: the probes'
-rows), ``surface.csv`` (theta_deg, sigma_m, q, lode_deg of each yield point), ``deviatoric_surface.png``
-(the deviatoric plane, the points mirrored to the full circle, and the principal-stress view).
-MPa, compression > 0; theta = 0 is triaxial compression along x, 60 degrees triaxial extension
-along z (loading.mixed.lode_direction).
+rows), ``surface.csv`` (theta_deg, sigma_m, q, lode_deg of each yield point),
+``deviatoric_surface.png`` (the deviatoric plane, the points mirrored to the full circle, and the
+principal-stress view). MPa, compression > 0; theta = 0 is triaxial compression along x, 60 degrees
+triaxial extension along z (loading.mixed.lode_direction).
 """
 
 from __future__ import annotations
@@ -43,16 +44,26 @@ class DeviatoricSurfaceCase(StressProbeCase):
     """A Lode-angle fan: the consolidated state of :class:`StressProbeCase` (base, p_load,
     p_probe, ramp, hold, unload, probe, the servo's settings), then one probe per angle."""
 
-    q_max: float = parameter(3.0, "von Mises stress at the end of a probe (MPa)", low=0, high=1000, open_low=True)
+    q_max: float = parameter(
+        3.0, "von Mises stress at the end of a probe (MPa)", low=0, high=1000, open_low=True
+    )
     angles_deg: tuple = (0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0)
-    dissipation_threshold: float = parameter(3e-3, "yield where E_d first exceeds E_0 (1 + this) (thesis §4.2.2: "
-                                             "0.3 %) (-)", low=0, high=1, open_low=True, open_high=True)
+    dissipation_threshold: float = parameter(
+        3e-3,
+        "yield where E_d first exceeds E_0 (1 + this) (thesis §4.2.2: 0.3 %) (-)",
+        low=0,
+        high=1,
+        open_low=True,
+        open_high=True,
+    )
     out_dir: str = "results/deviatoric_surface"
 
     def __post_init__(self):
         super().__post_init__()
         if len(self.angles_deg) < 1 or any(not -360 <= a <= 360 for a in self.angles_deg):
-            raise ValueError(f"angles_deg must hold angles in [-360, 360] degrees, got {self.angles_deg}")
+            raise ValueError(
+                f"angles_deg must hold angles in [-360, 360] degrees, got {self.angles_deg}"
+            )
 
 
 def lode_angle(sigma: np.ndarray) -> float:
@@ -67,34 +78,58 @@ def lode_angle(sigma: np.ndarray) -> float:
 
 
 def probe_rows(history, theta_deg: float, t_start: float) -> dict[str, np.ndarray]:
-    """fan.csv rows of one probe's history (rows after ``t_start``): Schmidt sigma_m, q, Lode angle."""
+    """fan.csv rows of one probe's history (rows after ``t_start``): Schmidt sigma_m, q, Lode
+    angle."""
     t = history.column("time")
     keep = t > t_start * (1 + 1e-12)
-    sigma = np.stack([history.column(f"sigma_schmidt_{c}")[keep] for c in ("11", "12", "13", "21", "22", "23", "31",
-                                                                          "32", "33")], axis=-1).reshape(-1, 3, 3)
+    sigma = np.stack(
+        [
+            history.column(f"sigma_schmidt_{c}")[keep]
+            for c in ("11", "12", "13", "21", "22", "23", "31", "32", "33")
+        ],
+        axis=-1,
+    ).reshape(-1, 3, 3)
     mean, q = stress_invariants(-sigma)  # the invariants take tension > 0
     sigma = np.diagonal(sigma, axis1=1, axis2=2)
-    return {"theta_deg": np.full(keep.sum(), theta_deg), "time": t[keep], "sigma_m": mean, "q": q,
-            "lode_deg": np.array([lode_angle(s) for s in sigma]), "E_d": history.column("E_d")[keep]}
+    return {
+        "theta_deg": np.full(keep.sum(), theta_deg),
+        "time": t[keep],
+        "sigma_m": mean,
+        "q": q,
+        "lode_deg": np.array([lode_angle(s) for s in sigma]),
+        "E_d": history.column("E_d")[keep],
+    }
 
 
-def yield_point(rows: dict[str, np.ndarray], E_0: float, threshold: float) -> tuple[float, float, float] | None:
+def yield_point(
+    rows: dict[str, np.ndarray], E_0: float, threshold: float
+) -> tuple[float, float, float] | None:
     """(sigma_m, q, lode_deg) where E_d first reaches E_0 (1 + threshold), or None."""
-    _, m, q = first_crossing(rows["E_d"], E_0 * (1.0 + threshold), rows["sigma_m"], rows["q"], rising=True)
+    _, m, q = first_crossing(
+        rows["E_d"], E_0 * (1.0 + threshold), rows["sigma_m"], rows["q"], rising=True
+    )
     if not np.isfinite(m):
         return None
     k = int(np.argmax(rows["E_d"] >= E_0 * (1.0 + threshold)))
     return float(m), float(q), float(rows["lode_deg"][k])
 
 
-def run_deviatoric_surface(case: DeviatoricSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> dict:
+def run_deviatoric_surface(
+    case: DeviatoricSurfaceCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print
+) -> dict:
     """Stages 1-3 (module docstring); returns {"E_0", "points": [(theta_deg, sigma_m, q, lode_deg)],
     "fan": fan rows}."""
     state = consolidate(case, comm, log=log)
     fan, points = [], []
     for theta in case.angles_deg:
-        control = lode_shear_control(mean=case.p_probe, q_max=case.q_max, theta=np.radians(theta),
-                                     duration=case.probe * case.base.loading.duration, t0=state.time, **case.servo())
+        control = lode_shear_control(
+            mean=case.p_probe,
+            q_max=case.q_max,
+            theta=np.radians(theta),
+            duration=case.probe * case.base.loading.duration,
+            t0=state.time,
+            **case.servo(),
+        )
         history = run_probe(case, state, control, f"probe_{theta:g}", comm, log=log)
         rows = probe_rows(history, theta, state.time)
         fan.append(rows)
@@ -106,7 +141,9 @@ def run_deviatoric_surface(case: DeviatoricSurfaceCase, comm: MPI.Comm = MPI.COM
     return {"E_0": state.E_0, "points": points, "fan": fan}
 
 
-def write_outputs(out: Path, fan: list[dict], points: list[tuple], case: DeviatoricSurfaceCase) -> None:
+def write_outputs(
+    out: Path, fan: list[dict], points: list[tuple], case: DeviatoricSurfaceCase
+) -> None:
     """fan.csv, surface.csv and deviatoric_surface.png."""
     with open(out / "fan.csv", "w", newline="") as fh:
         w = csv.writer(fh)
@@ -121,6 +158,10 @@ def write_outputs(out: Path, fan: list[dict], points: list[tuple], case: Deviato
             w.writerow([f"{v:.9g}" for v in p])
     from ..io.plots import plot_deviatoric_surface
 
-    plot_deviatoric_surface(points, out / "deviatoric_surface.png", mean=case.p_probe,
-                            title=f"yield in the deviatoric plane at sigma_m = {case.p_probe} MPa "
-                                  f"(loaded to {case.p_load} MPa)")
+    plot_deviatoric_surface(
+        points,
+        out / "deviatoric_surface.png",
+        mean=case.p_probe,
+        title=f"yield in the deviatoric plane at sigma_m = {case.p_probe} MPa "
+        f"(loaded to {case.p_load} MPa)",
+    )

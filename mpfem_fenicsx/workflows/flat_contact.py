@@ -4,8 +4,9 @@ A rigid base (all nodes fixed) and an elastic block of height h (one hexahedron,
 contact area) resting on it; the block's top face is driven.
 
 Normal test: lateral faces on rollers (uniaxial strain), compress until T1 = 3 sigma_y (asperity
-yield sigma_y, p0 = 3 sigma_y, so alpha = 0.5), unload, then pull apart beyond delta_max. Expected: alpha
-= 0.5 at the end of compression, peak tension alpha sigma_c = 0.5 sigma_c, T1 = 0 from delta_max.
+yield sigma_y, p0 = 3 sigma_y, so alpha = 0.5), unload, then pull apart beyond delta_max. Expected:
+alpha = 0.5 at the end of compression, peak tension alpha sigma_c = 0.5 sigma_c, T1 = 0 from
+delta_max.
 
 Tangential test (block with nu = 0, so that compressing it does not pre-load the frictional
 interface through Poisson's expansion): compress to T1 = 3 sigma_y, then drive the top face
@@ -35,6 +36,8 @@ from ..solvers import ImplicitSolver, StepControl
 
 @dataclass(frozen=True)
 class FlatContactCase:
+    """The flat-contact check's block, contact law and loads (MPa, mm, mJ/mm^2)."""
+
     E: float = 200000.0  # MPa
     nu: float = 0.3
     height: float = 0.1  # block height h, mm (thin: stiffer than the adhesive softening slope)
@@ -49,16 +52,23 @@ class FlatContactCase:
         return 4.0 * self.gamma / self.sigma_y
 
     def law(self) -> ContactLaw:
+        """The contact law of the case."""
         return ContactLaw(penalty=self.penalty, friction=self.mu, gamma=self.gamma,
                           delta_max=self.delta_max, asperity_yield=self.sigma_y)
 
 
 def _setup(case: FlatContactCase, nu: float, comm, tangent: bool = True):
     h = case.height
-    assembly = box_bodies_mesh([([0, 0, -0.1], [1, 1, 0], (1, 1, 1)), ([0, 0, 0], [1, 1, h], (1, 1, 1))], comm)
-    material = ElastoPlastic(E=case.E, nu=nu, sigma_0=1e9, hardening="linear", K=0.0, H=0.0, density=7.8e-9)
+    assembly = box_bodies_mesh(
+        [([0, 0, -0.1], [1, 1, 0], (1, 1, 1)), ([0, 0, 0], [1, 1, h], (1, 1, 1))], comm
+    )
+    material = ElastoPlastic(
+        E=case.E, nu=nu, sigma_0=1e9, hardening="linear", K=0.0, H=0.0, density=7.8e-9
+    )
     problem = SolidProblem(assembly.mesh, material, tangent=tangent)
-    contact = ContactModel(problem.V, assembly.facet_tags, 2, case.law(), search_distance=2 * case.delta_max)
+    contact = ContactModel(
+        problem.V, assembly.facet_tags, 2, case.law(), search_distance=2 * case.delta_max
+    )
     base = body_dofs(problem.V, assembly.cell_tags, 0)
     block = set(body_dofs(problem.V, assembly.cell_tags, 1).tolist())
 
@@ -92,7 +102,10 @@ def _traction(contact: ContactModel) -> tuple[float, float, float]:
     return gap, t1, alpha
 
 
-def run_normal(case: FlatContactCase, out_dir: Path, comm: MPI.Comm, steps_per_unit: int = 40) -> History:
+def run_normal(
+    case: FlatContactCase, out_dir: Path, comm: MPI.Comm, steps_per_unit: int = 40
+) -> History:
+    """The normal test: its history (written to ``out_dir``)."""
     problem, contact, base, block_dofs = _setup(case, case.nu, comm)
     E, nu = case.E, case.nu
     M = E * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
@@ -100,7 +113,8 @@ def run_normal(case: FlatContactCase, out_dir: Path, comm: MPI.Comm, steps_per_u
     u_open = 1.5 * case.delta_max
     h = case.height
     u_peak = 2.0 * (0.5 * case.law().sigma_c * h / M)  # past the tension peak (elastic block)
-    # pseudo-time path: compress on [0, 1], unload on [1, 2], cross the peak on [2, 3], open on [3, 4]
+    # pseudo-time path: compress on [0, 1], unload on [1, 2], cross the peak on [2, 3],
+    # open on [3, 4]
     def uz(t):
         return float(np.interp(t, [0.0, 1.0, 2.0, 3.0, 4.0], [0.0, u_c, 0.0, u_peak, u_open]))
 
@@ -122,6 +136,8 @@ def run_normal(case: FlatContactCase, out_dir: Path, comm: MPI.Comm, steps_per_u
 
 
 def run_tangential(case: FlatContactCase, out_dir: Path, comm: MPI.Comm, steps_per_unit: int = 40):
+    """The tangential test: its history (written to ``out_dir``), the slip onset u3c (mm)
+    and the friction limit tau_c (MPa)."""
     problem, contact, base, block_dofs = _setup(case, 0.0, comm)
     h = case.height
     u_c = _compression(case, case.E, 3.0 * case.sigma_y)
@@ -152,8 +168,9 @@ def run_tangential(case: FlatContactCase, out_dir: Path, comm: MPI.Comm, steps_p
     return history, u3c, tau_c
 
 
-def run_normal_explicit(case: FlatContactCase, out_dir: Path, comm: MPI.Comm, duration: float = 2e-4,
-                        steps: int = 4000):
+def run_normal_explicit(
+    case: FlatContactCase, out_dir: Path, comm: MPI.Comm, duration: float = 2e-4, steps: int = 4000
+):
     """Explicit counterpart of the compression half of :func:`run_normal` (smooth step to
     T1 = 3 sigma_y). Returns (history, energies)."""
     from ..loading import SmoothStep
@@ -168,21 +185,28 @@ def run_normal_explicit(case: FlatContactCase, out_dir: Path, comm: MPI.Comm, du
     bcs.add(block_dofs(lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], 1.0), 0))
     bcs.add(block_dofs(lambda x: np.isclose(x[1], 0.0) | np.isclose(x[1], 1.0), 1))
     bcs.add(block_dofs(lambda x: np.isclose(x[2], case.height), 2), lambda t: u_c * amplitude(t))
-    history = History(out_dir / "normal_explicit.csv", ["time", "delta_mm", "T1_MPa", "alpha"], comm)
+    history = History(
+        out_dir / "normal_explicit.csv", ["time", "delta_mm", "T1_MPa", "alpha"], comm
+    )
 
     def record(s):
         gap, t1, alpha = _traction(contact)
         history.append(time=s.t, delta_mm=gap, T1_MPa=t1, alpha=alpha)
 
-    solver = ExplicitSolver(problem, bcs, ExplicitSettings(t_end=duration, target_dt=duration / steps),
-                            contact=contact)
+    solver = ExplicitSolver(
+        problem, bcs, ExplicitSettings(t_end=duration, target_dt=duration / steps), contact=contact
+    )
     solver.run(record, outputs=50)
     history.write()
     return history, solver.energies
 
 
-def run_flat_contact(case: FlatContactCase = FlatContactCase(), out_dir: str | Path = "results/flat_contact",
-                     comm: MPI.Comm = MPI.COMM_WORLD):
+def run_flat_contact(
+    case: FlatContactCase = FlatContactCase(),
+    out_dir: str | Path = "results/flat_contact",
+    comm: MPI.Comm = MPI.COMM_WORLD,
+):
+    """Both tests: (normal history, tangential history, u3c, tau_c)."""
     out_dir = Path(out_dir)
     normal = run_normal(case, out_dir, comm)
     tangential, u3c, tau_c = run_tangential(case, out_dir, comm)

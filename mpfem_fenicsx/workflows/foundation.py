@@ -23,8 +23,8 @@ from ..io.render import render_deformed
 from ..loading import PrescribedDisplacements, component_dofs
 from ..material import LEAD, ElastoPlastic
 from ..meshes import ParticleVolumes, particle_mesh
-from ..problem import SolidProblem
 from ..parameters import check_parameters, parameter
+from ..problem import SolidProblem
 from ..solvers import SOLVERS, StepControl, create_solver, loading_amplitude, solver_kind
 from ..solvers.explicit import ExplicitSettings
 
@@ -38,15 +38,22 @@ def _log_mass_scaling(solver, log) -> None:
 
 @dataclass(frozen=True)
 class UniaxialCase:
-    """Homogeneous uniaxial tension of a 1 mm cube (SPEC §9 case 1), checked on construction
+    """Homogeneous uniaxial tension of a 1 mm cube (a verification case), checked on construction
     (ValueError naming the field)."""
 
-    solver: str = parameter("implicit", "implicit (Newton, adaptive steps) or explicit (central differences, mass "
-                            "scaling)", choices=SOLVERS)
-    log_strain: float = parameter(0.5, "final logarithmic strain along x (-)", low=0, high=2, open_low=True)
+    solver: str = parameter(
+        "implicit",
+        "implicit (Newton, adaptive steps) or explicit (central differences, mass scaling)",
+        choices=SOLVERS,
+    )
+    log_strain: float = parameter(
+        0.5, "final logarithmic strain along x (-)", low=0, high=2, open_low=True
+    )
     cells: int = parameter(2, "hexahedra per edge of the 1 mm cube", low=1, high=32)
     material: ElastoPlastic = LEAD
-    explicit_time: float = parameter(4e-3, "explicit: loading time, mass-scaled (s)", low=0, open_low=True)
+    explicit_time: float = parameter(
+        4e-3, "explicit: loading time, mass-scaled (s)", low=0, open_low=True
+    )
     explicit_steps: int = parameter(8000, "explicit: increments over the loading", low=10)
     rows: int = parameter(400, "explicit: history rows", low=2, high=100000)
 
@@ -59,22 +66,37 @@ class SqueezeCase:
     """One cube-sphere particle squeezed between two prescribed caps, checked on construction
     (ValueError naming the field)."""
 
-    solver: str = parameter("implicit", "implicit (Newton, adaptive steps) or explicit (central differences, mass "
-                            "scaling)", choices=SOLVERS)
-    reduction: float = parameter(0.3, "height reduction of the particle (-)", low=0, high=0.6, open_low=True,
-                                 open_high=True)
+    solver: str = parameter(
+        "implicit",
+        "implicit (Newton, adaptive steps) or explicit (central differences, mass scaling)",
+        choices=SOLVERS,
+    )
+    reduction: float = parameter(
+        0.3, "height reduction of the particle (-)", low=0, high=0.6, open_low=True, open_high=True
+    )
     radius: float = parameter(1.0, "particle radius (mm)", low=0, open_low=True)
-    cap: float = parameter(0.75, "nodes with |z| >= cap x radius are the prescribed caps (-)", low=0.3, high=1,
-                           open_low=True, open_high=True)
+    cap: float = parameter(
+        0.75,
+        "nodes with |z| >= cap x radius are the prescribed caps (-)",
+        low=0.3,
+        high=1,
+        open_low=True,
+        open_high=True,
+    )
     refinement: int = parameter(1, "cube-sphere refinement (1 = 561 nodes)", low=1, high=4)
     material: ElastoPlastic = LEAD
-    explicit_time: float = parameter(2e-3, "explicit: loading time, mass-scaled (s)", low=0, open_low=True)
+    explicit_time: float = parameter(
+        2e-3, "explicit: loading time, mass-scaled (s)", low=0, open_low=True
+    )
     explicit_steps: int = parameter(6000, "explicit: increments over the loading", low=10)
     rows: int = parameter(40, "history rows (explicit)", low=2, high=100000)
     #: the particle's cells: "hexahedron" (cube-sphere, SRI) or "tetrahedron" (gmsh, order
     #: ``tet_order``, size ``tet_size`` mm)
-    cell_type: str = parameter("hexahedron", "particle cells: hexahedron (cube-sphere) or tetrahedron (gmsh)",
-                               choices=("hexahedron", "tetrahedron"))
+    cell_type: str = parameter(
+        "hexahedron",
+        "particle cells: hexahedron (cube-sphere) or tetrahedron (gmsh)",
+        choices=("hexahedron", "tetrahedron"),
+    )
     tet_order: int = parameter(2, "tetrahedra: polynomial order", low=1, high=2)
     tet_size: float = parameter(0.3, "tetrahedra: element size (mm)", low=0, open_low=True)
     full_integration: bool = False  # hexahedra without the reduced volumetric rule (they lock)
@@ -91,6 +113,8 @@ def _mean_over_points(problem: SolidProblem, values: np.ndarray) -> float:
 
 @dataclass
 class UniaxialResult:
+    """The uniaxial test's curve: log strain, true stress (MPa, tension > 0), plastic strain."""
+
     log_strain: np.ndarray
     true_stress: np.ndarray  # MPa, tension > 0
     eps_p: np.ndarray
@@ -126,7 +150,9 @@ def run_uniaxial(case: UniaxialCase = UniaxialCase(), out_dir: str | Path = "res
     loaded = component_dofs(V, lambda x: np.isclose(x[0], length), 0)
     bcs.add(loaded, lambda t: (stretch - 1.0) * length * amplitude(t))
 
-    history = History(out_dir / "stress_strain.csv", ["log_strain", "true_stress_MPa", "eps_p"], comm)
+    history = History(
+        out_dir / "stress_strain.csv", ["log_strain", "true_stress_MPa", "eps_p"], comm
+    )
     energy = None
 
     def record(s):
@@ -134,22 +160,41 @@ def run_uniaxial(case: UniaxialCase = UniaxialCase(), out_dir: str | Path = "res
         lateral = _mean_over_points(problem, F[:, 1, 1]) * _mean_over_points(problem, F[:, 2, 2])
         force = s.reactions(loaded)
         u_end = (stretch - 1.0) * length * amplitude(s.t)
-        history.append(log_strain=np.log1p(u_end / length), true_stress_MPa=force / (lateral * length ** 2),
-                       eps_p=_mean_over_points(problem, problem.material.eps_p))
+        history.append(
+            log_strain=np.log1p(u_end / length),
+            true_stress_MPa=force / (lateral * length**2),
+            eps_p=_mean_over_points(problem, problem.material.eps_p),
+        )
 
     if not kind.static:  # a dynamic run's energy balance
-        energy = History(out_dir / "energy.csv", ["time", "W_ext", "E_int", "E_p", "E_el", "E_kin", "E_visc"], comm)
+        energy = History(
+            out_dir / "energy.csv",
+            ["time", "W_ext", "E_int", "E_p", "E_el", "E_kin", "E_visc"],
+            comm,
+        )
 
     def on_output(s):
         record(s)
         if energy is not None:
             e = s.energy_record()
-            energy.append(time=s.t, W_ext=e["W_ext"], E_int=e["E_int"], E_p=e["E_p"], E_el=e["E_el"],
-                          E_kin=e["E_c"], E_visc=e["E_visc"])
+            energy.append(
+                time=s.t,
+                W_ext=e["W_ext"],
+                E_int=e["E_int"],
+                E_p=e["E_p"],
+                E_el=e["E_el"],
+                E_kin=e["E_c"],
+                E_visc=e["E_visc"],
+            )
 
     start = time.perf_counter()
-    s = create_solver(solver, problem, bcs, controls=[StepControl(t_end=1.0, dt=0.01, dt_max=0.02)],
-                      settings=ExplicitSettings(t_end=explicit_time, target_dt=explicit_time / explicit_steps))
+    s = create_solver(
+        solver,
+        problem,
+        bcs,
+        controls=[StepControl(t_end=1.0, dt=0.01, dt_max=0.02)],
+        settings=ExplicitSettings(t_end=explicit_time, target_dt=explicit_time / explicit_steps),
+    )
     _log_mass_scaling(s, log)
     s.run_path(on_output, outputs=rows)
     if energy is not None:
@@ -163,14 +208,20 @@ def run_uniaxial(case: UniaxialCase = UniaxialCase(), out_dir: str | Path = "res
 
 @dataclass
 class SqueezeResult:
+    """The sphere squeeze's history, initial volume (mm^3) and wall time (s)."""
+
     history: History
     initial_volume: float
     wall_time: float
     num_dofs: int
 
 
-def run_sphere_squeeze(case: SqueezeCase = SqueezeCase(), out_dir: str | Path = "results/sphere_squeeze",
-                       comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> SqueezeResult:
+def run_sphere_squeeze(
+    case: SqueezeCase = SqueezeCase(),
+    out_dir: str | Path = "results/sphere_squeeze",
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    log=print,
+) -> SqueezeResult:
     """Squeeze one cube-sphere particle between two prescribed caps to a height reduction.
 
     The caps are the nodes with |z| >= cap * radius: their u_z is prescribed (-/+ reduction *
@@ -181,11 +232,29 @@ def run_sphere_squeeze(case: SqueezeCase = SqueezeCase(), out_dir: str | Path = 
     ``visual``: ParaView series ``<solver>.xdmf`` (displacement, von Mises, eps_p) and a
     PNG of the final deformed particle coloured by von Mises stress.
     """
-    solver, material, reduction, radius, cap = case.solver, case.material, case.reduction, case.radius, case.cap
-    explicit_time, explicit_steps, rows, visual = case.explicit_time, case.explicit_steps, case.rows, case.visual
+    solver, material, reduction, radius, cap = (
+        case.solver,
+        case.material,
+        case.reduction,
+        case.radius,
+        case.cap,
+    )
+    explicit_time, explicit_steps, rows, visual = (
+        case.explicit_time,
+        case.explicit_steps,
+        case.rows,
+        case.visual,
+    )
     out_dir = Path(out_dir)
-    assembly = particle_mesh([[0.0, 0.0, 0.0]], [radius], comm, refinement=case.refinement,
-                             cell_type=case.cell_type, tet_order=case.tet_order, tet_size=case.tet_size)
+    assembly = particle_mesh(
+        [[0.0, 0.0, 0.0]],
+        [radius],
+        comm,
+        refinement=case.refinement,
+        cell_type=case.cell_type,
+        tet_order=case.tet_order,
+        tet_size=case.tet_size,
+    )
     problem = SolidProblem(assembly.mesh, material, tangent=solver_kind(solver).tangent,
                            full_integration=case.full_integration)
     V = problem.V
@@ -221,8 +290,13 @@ def run_sphere_squeeze(case: SqueezeCase = SqueezeCase(), out_dir: str | Path = 
                        force_N=-s.reactions(top), volume_mm3=vol, volume_change=vol / v0 - 1.0)
 
     start = time.perf_counter()
-    s = create_solver(solver, problem, bcs, controls=[StepControl(t_end=1.0, dt=0.01, dt_max=0.025, dt_min=1e-5)],
-                      settings=ExplicitSettings(t_end=explicit_time, target_dt=explicit_time / explicit_steps))
+    s = create_solver(
+        solver,
+        problem,
+        bcs,
+        controls=[StepControl(t_end=1.0, dt=0.01, dt_max=0.025, dt_min=1e-5)],
+        settings=ExplicitSettings(t_end=explicit_time, target_dt=explicit_time / explicit_steps),
+    )
     _log_mass_scaling(s, log)
     s.run_path(record, outputs=rows, log=log)
     wall = time.perf_counter() - start

@@ -1,4 +1,4 @@
-"""Hertz contact of two identical elastic spheres (SPEC §9 case 2), frictionless.
+"""Hertz contact of two identical elastic spheres, frictionless (a verification case).
 
 Spheres of radius r centred at (0, 0, -r) and (0, 0, r), touching at the origin; P1 tetrahedra
 from gmsh, refined around the contact point. Each sphere is driven by a small rigid core (the
@@ -7,7 +7,7 @@ the centres. Reference: F = 4/3 E* sqrt(R) delta^(3/2), E* = E / (2 (1 - nu^2)),
 
 ``HertzCase(solver="explicit")`` runs the same case with central differences (mass scaling to
 ``explicit_increments`` increments, smooth-step approach): slow enough, it should reproduce the
-implicit force-approach curve (issue 3 acceptance, checked by ``demos/hertz.py --solver explicit``,
+implicit force-approach curve (checked by ``demos/hertz.py --solver explicit``,
 too long for CI; measured in ``bench/README.md``, "Single contacts").
 """
 
@@ -26,8 +26,8 @@ from ..contact.laws import default_penalty
 from ..io import History
 from ..loading import PrescribedDisplacements, component_dofs
 from ..material import ElastoPlastic
-from ..parameters import check_parameters, parameter
 from ..meshes import particle_mesh
+from ..parameters import check_parameters, parameter
 from ..problem import SolidProblem
 from ..solvers import SOLVERS, StepControl, create_solver, loading_amplitude, solver_kind
 from ..solvers.explicit import ExplicitSettings
@@ -35,59 +35,104 @@ from ..solvers.explicit import ExplicitSettings
 
 @dataclass(frozen=True)
 class HertzCase:
+    """The Hertz case: spheres, mesh, contact penalty and approach (MPa, mm)."""
+
     E: float = parameter(200000.0, "Young's modulus of both spheres (MPa)", low=0, open_low=True)
     nu: float = parameter(0.3, "Poisson's ratio (-)", low=0, high=0.5, open_high=True)
     radius: float = parameter(1.0, "sphere radius r (mm)", low=0, open_low=True)
-    delta_max_over_r: float = parameter(0.005, "final approach of the centres / r (-)", low=0, high=0.05,
-                                        open_low=True)
+    delta_max_over_r: float = parameter(
+        0.005, "final approach of the centres / r (-)", low=0, high=0.05, open_low=True
+    )
     steps: int = parameter(10, "implicit load steps", low=1)
-    size_min: float = parameter(0.005, "element size at the contact / r (-; <= size)", low=0, open_low=True)
+    size_min: float = parameter(
+        0.005, "element size at the contact / r (-; <= size)", low=0, open_low=True
+    )
     #: size_min within this distance of the contact point (relative)
-    refine_radius: float = parameter(0.06, "refined zone around the contact point / r (-)", low=0, open_low=True)
-    size: float = parameter(0.3, "element size away from the contact / r (-)", low=0, high=1, open_low=True)
-    core: float = parameter(0.1, "rigid driving core radius / r (-)", low=0, high=0.5, open_low=True)
+    refine_radius: float = parameter(
+        0.06, "refined zone around the contact point / r (-)", low=0, open_low=True
+    )
+    size: float = parameter(
+        0.3, "element size away from the contact / r (-)", low=0, high=1, open_low=True
+    )
+    core: float = parameter(
+        0.1, "rigid driving core radius / r (-)", low=0, high=0.5, open_low=True
+    )
     #: k = factor * E / (size_min r), see contact.laws.default_penalty
-    penalty_factor: float = parameter(10.0, "penalty k = factor x E / h, h the contact element size (-)", low=0,
-                                      open_low=True)
-    solver: str = parameter("implicit", "implicit (Newton, the reference curve) or explicit (central differences, "
-                            "smooth-step approach)", choices=SOLVERS)
-    explicit_increments: int = parameter(8000, "explicit: mass-scaled increments of the approach (slow loading)",
-                                         low=100)
-    explicit_time: float = parameter(1e-3, "explicit: time of the approach, mass-scaled (s)", low=0, open_low=True)
+    penalty_factor: float = parameter(
+        10.0, "penalty k = factor x E / h, h the contact element size (-)", low=0, open_low=True
+    )
+    solver: str = parameter(
+        "implicit",
+        "implicit (Newton, the reference curve) or explicit (central differences, "
+        "smooth-step approach)",
+        choices=SOLVERS,
+    )
+    explicit_increments: int = parameter(
+        8000, "explicit: mass-scaled increments of the approach (slow loading)", low=100
+    )
+    explicit_time: float = parameter(
+        1e-3, "explicit: time of the approach, mass-scaled (s)", low=0, open_low=True
+    )
     rows: int = parameter(40, "explicit: history rows", low=2, high=100000)
 
     def __post_init__(self):
         check_parameters(self, prefix="HertzCase.")
         if self.size_min > self.size:
-            raise ValueError(f"HertzCase.size_min = {self.size_min} must be <= size = {self.size} (relative to r)")
+            raise ValueError(
+                f"HertzCase.size_min = {self.size_min} must be <= size = {self.size} (relative to "
+                "r)"
+            )
 
     def hertz_force(self, delta):
+        """Hertz force (N) at the centre approach ``delta`` (mm)."""
         e_star = self.E / (2.0 * (1.0 - self.nu ** 2))
         return 4.0 / 3.0 * e_star * np.sqrt(self.radius / 2.0) * np.asarray(delta) ** 1.5
 
 
 @dataclass
 class HertzResult:
+    """The Hertz run's force-approach history, its number of dofs and wall time (s)."""
+
     history: History
     num_dofs: int
     wall_time: float
     newton_iterations: list
 
 
-def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hertz",
-              comm: MPI.Comm = MPI.COMM_WORLD, petsc_options: dict | None = None, log=print) -> HertzResult:
-    solver, explicit_increments, explicit_time = case.solver, case.explicit_increments, case.explicit_time
+def run_hertz(
+    case: HertzCase = HertzCase(),
+    out_dir: str | Path = "results/hertz",
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    petsc_options: dict | None = None,
+    log=print,
+) -> HertzResult:
+    """Run the Hertz case; the force-approach history is written to ``out_dir``."""
+    solver, explicit_increments, explicit_time = (
+        case.solver,
+        case.explicit_increments,
+        case.explicit_time,
+    )
     kind = solver_kind(solver)
     r = case.radius
     with warnings.catch_warnings():  # P1 tetrahedra: fine for this elastic, compressible case
         warnings.simplefilter("ignore")
-        assembly = particle_mesh([[0, 0, -r], [0, 0, r]], [r, r], comm, cell_type="tetrahedron", tet_order=1,
-                                 tet_size=case.size,
-                                 tet_refine=[((0.0, 0.0, 0.0), case.size_min * r, case.refine_radius * r, 0.8 * r),
-                                             # enough nodes in the driving cores to hold them rigidly
-                                             ((0.0, 0.0, -r), 0.3 * case.core * r, case.core * r, 0.5 * r),
-                                             ((0.0, 0.0, r), 0.3 * case.core * r, case.core * r, 0.5 * r)])
-        material = ElastoPlastic(E=case.E, nu=case.nu, sigma_0=1e12, hardening="linear", K=0.0, H=0.0)
+        assembly = particle_mesh(
+            [[0, 0, -r], [0, 0, r]],
+            [r, r],
+            comm,
+            cell_type="tetrahedron",
+            tet_order=1,
+            tet_size=case.size,
+            tet_refine=[
+                ((0.0, 0.0, 0.0), case.size_min * r, case.refine_radius * r, 0.8 * r),
+                # enough nodes in the driving cores to hold them rigidly
+                ((0.0, 0.0, -r), 0.3 * case.core * r, case.core * r, 0.5 * r),
+                ((0.0, 0.0, r), 0.3 * case.core * r, case.core * r, 0.5 * r),
+            ],
+        )
+        material = ElastoPlastic(
+            E=case.E, nu=case.nu, sigma_0=1e12, hardening="linear", K=0.0, H=0.0
+        )
         problem = SolidProblem(assembly.mesh, material, tangent=kind.tangent)
     V = problem.V
     penalty = default_penalty(case.E, case.size_min * r, case.penalty_factor)
@@ -105,7 +150,9 @@ def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hert
     lower = component_dofs(V, core(-1.0), 2)
     upper = component_dofs(V, core(1.0), 2)
     amplitude = loading_amplitude(solver, explicit_time)
-    bcs.add(lower, lambda t: 0.5 * delta_end * amplitude(t)).add(upper, lambda t: -0.5 * delta_end * amplitude(t))
+    bcs.add(lower, lambda t: 0.5 * delta_end * amplitude(t)).add(
+        upper, lambda t: -0.5 * delta_end * amplitude(t)
+    )
     name = "force.csv" if kind.static else f"force_{solver}.csv"
     history = History(Path(out_dir) / name, ["delta_mm", "force_N", "force_hertz_N"], comm)
     iterations = []
@@ -115,19 +162,36 @@ def run_hertz(case: HertzCase = HertzCase(), out_dir: str | Path = "results/hert
         force = -s.reactions(upper)  # the upper core pushes down: compressive force > 0
         history.append(delta_mm=delta, force_N=force, force_hertz_N=float(case.hertz_force(delta)))
         iterations.append(s.snes.getIterationNumber() if kind.static else 0)  # Newton's
-        log(f"  delta/r = {delta / r:.5f}: F = {force:.4f} N, Hertz {case.hertz_force(delta):.4f} N "
-            f"({100 * (force / case.hertz_force(delta) - 1):+.2f} %), {contact.count(True)} contact points, "
-            f"{iterations[-1]} Newton iterations")
+        log(
+            f"  delta/r = {delta / r:.5f}: F = {force:.4f} N, Hertz {case.hertz_force(delta):.4f} "
+            "N "
+            f"({100 * (force / case.hertz_force(delta) - 1):+.2f} %), {contact.count(True)} "
+            "contact points, "
+            f"{iterations[-1]} Newton iterations"
+        )
 
     log(f"Hertz: {V.dofmap.index_map.size_global * 3} dofs, penalty {penalty:.3g} N/mm^3")
     start = time.perf_counter()
     dt = 1.0 / case.steps
-    s = create_solver(solver, problem, bcs, contact=contact, petsc_options=petsc_options,
-                      controls=[StepControl(t_end=1.0, dt=dt, dt_max=dt, dt_min=dt / 64)],
-                      settings=ExplicitSettings(t_end=explicit_time, target_dt=explicit_time / explicit_increments))
+    s = create_solver(
+        solver,
+        problem,
+        bcs,
+        contact=contact,
+        petsc_options=petsc_options,
+        controls=[StepControl(t_end=1.0, dt=dt, dt_max=dt, dt_min=dt / 64)],
+        settings=ExplicitSettings(
+            t_end=explicit_time, target_dt=explicit_time / explicit_increments
+        ),
+    )
     if not kind.static:
-        log(f"  explicit: dt = {s.dt:.3g} s (unscaled {s.dt_stable_unscaled:.3g} s), {explicit_increments} "
-            "increments")
+        log(
+            f"  explicit: dt = {s.dt:.3g} s (unscaled {s.dt_stable_unscaled:.3g} s), "
+            f"{explicit_increments} "
+            "increments"
+        )
     s.run_path(record, outputs=case.rows, log=log)
     history.write()
-    return HertzResult(history, V.dofmap.index_map.size_global * 3, time.perf_counter() - start, iterations)
+    return HertzResult(
+        history, V.dofmap.index_map.size_global * 3, time.perf_counter() - start, iterations
+    )

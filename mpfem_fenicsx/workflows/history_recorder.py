@@ -2,11 +2,13 @@
 and appendix C). Sign convention: reported stresses are positive in compression (sigma_m > 0 in
 compaction); strains keep their sign (h_v < 0 in compaction). Units mm, N, MPa, s, mJ.
 
-History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C):
+History columns (one row per output; thesis §2.3, §4.2, appendix C):
 - time (s); rho = V_p / (V0 det F) (eq. 2.4-2.5: V_p = 4/3 pi sum r^3 of the particles' initial,
   meshed radii; F the least-squares gradient of the VEP centroids, eq. 2.2, C.3-C.6);
-  rho_imposed (same with F0, the auxiliary-node gradient); rho_fe (finite-element particle
-  volumes / V0 det F: the faceted mesh holds less solid than the spheres, 6.5 % at 517 nodes);
+  rho_imposed (same with F0, the auxiliary-node gradient); rho_fe (the finite-element particle
+  volumes / V0 det F: rho at the start for volume-exact particles, the default; less with
+  ``exact_volume = false``, whose faceted particles hold less solid than their spheres; it
+  follows the particles' elastic volume change);
 - h_v, h_d, h_tilde_d: Hencky strain invariants of F (eq. 2.3, 2.8-2.9, 4.3-4.4; natural sign,
   h_v < 0 in compaction; Rendulic axis I = z, the die axis); nonaffine: rms distance of the
   volume's centroids from the fitted affine motion F X + c, over the mean radius (-);
@@ -49,10 +51,10 @@ History columns (one row per output; SPEC §10, thesis §2.3, §4.2, appendix C)
 - wall_time (s).
 
 Quasi-static check of an explicit run (:func:`quasi_static_check`, logged at its end): the
-explicit energy balance is exact, W_ext + E_mass = E_int + E_visc + E_contact + E_c + E_damp + E_carrier,
-where E_carrier is the work of the damping and of the particles' inertia through the imposed
-flow's offsets (``solvers.explicit``). On a quasi-static path it vanishes and a path brought to
-rest leaves the volume in balance; a share of the work through the carrier or an out-of-balance
+explicit energy balance is exact, W_ext + E_mass = E_int + E_visc + E_contact + E_c + E_damp +
+E_carrier, where E_carrier is the work of the damping and of the particles' inertia through the
+imposed flow's offsets (``solvers.explicit``). On a quasi-static path it vanishes and a path brought
+to rest leaves the volume in balance; a share of the work through the carrier or an out-of-balance
 volume at rest means the stress still depends on the loading rate (more increments move it).
 """
 
@@ -64,24 +66,61 @@ import numpy as np
 from mpi4py import MPI
 
 from ..boundary import boundary_kind
-from ..homogenization import (branch_vectors, contact_weights, coordination, dissipated_energy, hencky_strain,
-                              least_squares_gradient, love_weber_stress, piola_to_cauchy, relative_density,
-                              rendulic_strain, rendulic_stress, specific_contact_surface, strain_invariants,
-                              stress_invariants)
+from ..homogenization import (
+    branch_vectors,
+    contact_weights,
+    coordination,
+    dissipated_energy,
+    hencky_strain,
+    least_squares_gradient,
+    love_weber_stress,
+    piola_to_cauchy,
+    relative_density,
+    rendulic_strain,
+    rendulic_stress,
+    specific_contact_surface,
+    strain_invariants,
+    stress_invariants,
+)
 from ..io.history import tensor_columns, tensor_values
 from ..meshes import ParticleCentroids
 
 #: the history's columns, in file order, by group
 KINEMATICS = ["time", "rho", "rho_imposed", "rho_fe", "h_v", "h_d", "h_tilde_d", "nonaffine"]
 STRESS_INVARIANTS = ["sigma_m", "sigma_d", "sigma_tilde_d"]
-TENSORS = {"F": "least-squares gradient of the centroids", "sigma": "Love-Weber stress",
-           "sigma_schmidt_": "Schmidt stress (periodic conditions)", "sigma_vol_": "volume-averaged stress"}
+TENSORS = {
+    "F": "least-squares gradient of the centroids",
+    "sigma": "Love-Weber stress",
+    "sigma_schmidt_": "Schmidt stress (periodic conditions)",
+    "sigma_vol_": "volume-averaged stress",
+}
 CONTACTS = ["n_contacts", "Z", "rattlers", "Gamma", "Gamma_model", "Gamma_closed"]
-ENERGIES = ["E_p", "E_f", "E_d", "E_p_model", "E_d_model", "E_c", "E_int", "E_el", "E_contact", "E_visc", "E_damp",
-            "E_mass", "W_ext"]
+ENERGIES = [
+    "E_p",
+    "E_f",
+    "E_d",
+    "E_p_model",
+    "E_d_model",
+    "E_c",
+    "E_int",
+    "E_el",
+    "E_contact",
+    "E_visc",
+    "E_damp",
+    "E_mass",
+    "W_ext",
+]
 QUASI_STATIC = ["unbalanced", "E_c_over_E_int"]
-COLUMNS = (KINEMATICS + STRESS_INVARIANTS + [c for prefix in TENSORS for c in tensor_columns(prefix)]
-           + ["sigma_vol_m"] + CONTACTS + ENERGIES + QUASI_STATIC + ["wall_time"])
+COLUMNS = (
+    KINEMATICS
+    + STRESS_INVARIANTS
+    + [c for prefix in TENSORS for c in tensor_columns(prefix)]
+    + ["sigma_vol_m"]
+    + CONTACTS
+    + ENERGIES
+    + QUASI_STATIC
+    + ["wall_time"]
+)
 
 #: limits of the quasi-static check: the share of the work through the comoving carrier at the end
 #: (cumulative), and the out-of-balance ratio of the last row with the path at rest. They separate
@@ -92,7 +131,16 @@ COLUMNS = (KINEMATICS + STRESS_INVARIANTS + [c for prefix in TENSORS for c in te
 CARRIER_SHARE_LIMIT = 0.1
 UNBALANCED_AT_REST_LIMIT = 0.05
 #: the history columns the check reads (the energy balance's and the out-of-balance ratio)
-QUASI_STATIC_CHECK_COLUMNS = ("W_ext", "E_int", "E_visc", "E_contact", "E_c", "E_damp", "E_mass", "unbalanced")
+QUASI_STATIC_CHECK_COLUMNS = (
+    "W_ext",
+    "E_int",
+    "E_visc",
+    "E_contact",
+    "E_c",
+    "E_damp",
+    "E_mass",
+    "unbalanced",
+)
 
 
 def carrier_share(history) -> np.ndarray:
@@ -103,7 +151,15 @@ def carrier_share(history) -> np.ndarray:
     column name -> array (a ``read_csv`` dict, or ``{c: History.column(c)}``)."""
     h = history
     mass_scaling = np.nan_to_num(h["E_mass"], nan=0.0) if "E_mass" in h else 0.0
-    carrier = h["E_int"] + h["E_visc"] + h["E_contact"] + h["E_c"] + h["E_damp"] - h["W_ext"] - mass_scaling
+    carrier = (
+        h["E_int"]
+        + h["E_visc"]
+        + h["E_contact"]
+        + h["E_c"]
+        + h["E_damp"]
+        - h["W_ext"]
+        - mass_scaling
+    )
     with np.errstate(divide="ignore", invalid="ignore"):  # W_ext = 0 before the first contact
         return carrier / h["W_ext"]
 
@@ -113,31 +169,48 @@ class QuasiStaticCheck:
     """The quasi-static check of an explicit run (:func:`quasi_static_check`)."""
 
     carrier_share: float  # E_carrier / W_ext at the end (cumulative, -)
-    unbalanced_at_rest: float  # out-of-balance ratio of the last row (-), NaN when the path ends in motion
+    # out-of-balance ratio of the last row (-), NaN when the path ends in motion
+    unbalanced_at_rest: float
 
     @property
     def passed(self) -> bool:
-        return bool(abs(self.carrier_share) <= CARRIER_SHARE_LIMIT
-                    and not self.unbalanced_at_rest > UNBALANCED_AT_REST_LIMIT)
+        """Both measures within their limits (a NaN out-of-balance ratio passes)."""
+        return bool(
+            abs(self.carrier_share) <= CARRIER_SHARE_LIMIT
+            and not self.unbalanced_at_rest > UNBALANCED_AT_REST_LIMIT
+        )
 
     def summary(self, increments: int) -> str:
         """One line for the run's log."""
-        found = (f"{100 * self.carrier_share:.1f} % of the work through the comoving carrier "
-                 f"(limit {100 * CARRIER_SHARE_LIMIT:.0f} %)")
+        found = (
+            f"{100 * self.carrier_share:.1f} % of the work through the comoving carrier "
+            f"(limit {100 * CARRIER_SHARE_LIMIT:.0f} %)"
+        )
         if np.isfinite(self.unbalanced_at_rest):
-            found += f", out of balance {self.unbalanced_at_rest:.2g} at rest (limit {UNBALANCED_AT_REST_LIMIT:g})"
+            found += (
+                f", out of balance {self.unbalanced_at_rest:.2g} at rest "
+                f"(limit {UNBALANCED_AT_REST_LIMIT:g})"
+            )
         if self.passed:
             return f"quasi-static check passed: {found}"
-        return (f"quasi-static check FAILED: {found}: the stress depends on the loading rate; "
-                f"compare a run with more increments (this one: {increments})")
+        return (
+            f"quasi-static check FAILED: {found}: the stress depends on the loading rate; "
+            f"compare a run with more increments (this one: {increments})"
+        )
 
 
 def quasi_static_check(history, at_rest: bool = True) -> QuasiStaticCheck:
     """Quasi-static check of an explicit compaction from its history (column name -> array): the
     last row's :func:`carrier_share` (the whole run's work) and, when the path ends at rest
     (``at_rest``: every smooth profile of ``loading``), the last row's ``unbalanced``."""
-    share = float(carrier_share(history)[-1]) if len(history["W_ext"]) and history["W_ext"][-1] > 0 else 0.0
-    unbalanced = float(history["unbalanced"][-1]) if at_rest and len(history["unbalanced"]) else float("nan")
+    share = (
+        float(carrier_share(history)[-1])
+        if len(history["W_ext"]) and history["W_ext"][-1] > 0
+        else 0.0
+    )
+    unbalanced = (
+        float(history["unbalanced"][-1]) if at_rest and len(history["unbalanced"]) else float("nan")
+    )
     return QuasiStaticCheck(share, unbalanced)
 
 
@@ -156,9 +229,12 @@ class HistoryRecorder:
         self.mean_radius = float(np.mean(model.radii[: self.n]))
         self.centroids = ParticleCentroids(model.assembly, model.problem.u)
         # one memory layout: a restart reproduces the BLAS round-off
-        self.X0 = np.ascontiguousarray(self.centroids()[: self.n] if reference_centroids is None
-                                       else reference_centroids, dtype=float)
-        # the particles of the volume (originals; CLP copies are stiffless, GDH/GDF/CLPS copies lie outside)
+        self.X0 = np.ascontiguousarray(
+            self.centroids()[: self.n] if reference_centroids is None else reference_centroids,
+            dtype=float,
+        )
+        # the particles of the volume (originals; CLP copies are stiffless, GDH/GDF/CLPS copies lie
+        # outside)
         problem = model.problem
         self.volume_cells = model.assembly.cell_tags.values[: problem.num_cells] < self.n
 
@@ -171,27 +247,44 @@ class HistoryRecorder:
         """Cauchy stress (MPa, tension > 0) of the auxiliary nodes' reactions (eq. 2.14, 2.19)."""
         return piola_to_cauchy(self.model.bcs.macroscopic_force(reaction) / self.cell_volume0, F0)
 
+    def volume_stress(self, F: np.ndarray) -> np.ndarray:
+        """The volume-averaged Cauchy stress (MPa, tension > 0) of eq. C.7, (1/V) sum int sigma dv
+        over the volume's particles, V = V0 det F the volume of the VEP (eq. 2.4): ``F`` the
+        least-squares gradient of the centroids, the volume of rho and of the Love-Weber stress."""
+        return self.volume_stress_integral() / (np.linalg.det(F) * self.cell_volume0)
+
     def measured_stress(self, solver, measure: str) -> np.ndarray:
-        """The Cauchy stress (MPa, tension > 0) a stress servo reads: "schmidt" (the auxiliary
-        nodes' reactions, eq. 2.19) or "volume" (the volume average over the cell, eq. C.7)."""
-        F0 = self.model.path(solver.t)
+        """The Cauchy stress (MPa, tension > 0) a stress servo reads, the one the history reports
+        for the same state: "schmidt" (the auxiliary nodes' reactions, eq. 2.19, the
+        ``sigma_schmidt_*`` columns) or "volume" (:meth:`volume_stress`, the ``sigma_vol_*``
+        columns; it measures the centroids for F)."""
         if measure == "schmidt":
-            return self.schmidt_stress(solver.macroscopic_reaction, F0)
-        return self.volume_stress_integral() / (np.linalg.det(F0) * self.cell_volume0)
+            return self.schmidt_stress(solver.macroscopic_reaction, self.model.path(solver.t))
+        F, _ = least_squares_gradient(self.X0, self.centroids()[: self.n])
+        return self.volume_stress(F)
 
     def _kinematics(self, x: np.ndarray, F0: np.ndarray) -> tuple[dict, np.ndarray]:
         n = self.n
         F, c = least_squares_gradient(self.X0, x[:n])
         # rms distance of the centroids from the best affine motion, over the mean radius
-        nonaffine = float(np.sqrt(np.mean(np.sum((x[:n] - self.X0 @ F.T - c) ** 2, axis=1)))) / self.mean_radius
+        nonaffine = (
+            float(np.sqrt(np.mean(np.sum((x[:n] - self.X0 @ F.T - c) ** 2, axis=1))))
+            / self.mean_radius
+        )
         h = hencky_strain(F)
         h_v, h_d = strain_invariants(h)
         volume = np.linalg.det(F) * self.cell_volume0
         solid0 = self.model.solid_volume0
-        return dict(rho=relative_density(solid0, self.cell_volume0, F),
-                    rho_imposed=relative_density(solid0, self.cell_volume0, F0),
-                    rho_fe=float(self.centroids.volumes[:n].sum()) / volume, h_v=h_v, h_d=h_d,
-                    h_tilde_d=rendulic_strain(h)[1], nonaffine=nonaffine, **tensor_values("F", F)), F
+        return dict(
+            rho=relative_density(solid0, self.cell_volume0, F),
+            rho_imposed=relative_density(solid0, self.cell_volume0, F0),
+            rho_fe=float(self.centroids.volumes[:n].sum()) / volume,
+            h_v=h_v,
+            h_d=h_d,
+            h_tilde_d=rendulic_strain(h)[1],
+            nonaffine=nonaffine,
+            **tensor_values("F", F),
+        ), F
 
     def _contacts(self, x: np.ndarray, F: np.ndarray, F0: np.ndarray) -> tuple[dict, np.ndarray]:
         """Love-Weber over the model's contacts with the appendix-C counting weights, and the
@@ -200,17 +293,25 @@ class HistoryRecorder:
         pf = model.contact.pair_forces()
         pairs = pf["pairs"]
         image = np.rint(np.linalg.solve(F0, pf["shift"].T).T / model.packing.cell).astype(np.int64)
-        weights = contact_weights(pairs[:, 0], pairs[:, 1], model.original, model.shift, model.boundary.condition, image)
+        weights = contact_weights(
+            pairs[:, 0], pairs[:, 1], model.original, model.shift, model.boundary.condition, image
+        )
         volume = np.linalg.det(F) * self.cell_volume0
-        sigma_lw = love_weber_stress(pf["force"], branch_vectors(x, pairs[:, 0], pairs[:, 1], pf["shift"]),
-                                     volume, weights)  # tension > 0
+        sigma_lw = love_weber_stress(
+            pf["force"], branch_vectors(x, pairs[:, 0], pairs[:, 1], pf["shift"]), volume, weights
+        )  # tension > 0
         carrying = pf["points"] > 0  # pairs within the search distance may carry no force
-        n_contacts, mean_z, rattlers = coordination(pairs[carrying, 0], pairs[carrying, 1], model.original,
-                                                    weights[carrying], self.n)
-        return dict(n_contacts=n_contacts, Z=mean_z, rattlers=rattlers,
-                    Gamma=specific_contact_surface(pf["area"], self.cell_volume0, F, weights),
-                    Gamma_model=specific_contact_surface(pf["area"], self.cell_volume0, F),
-                    Gamma_closed=specific_contact_surface(pf["area_closed"], self.cell_volume0, F, weights)), sigma_lw
+        n_contacts, mean_z, rattlers = coordination(
+            pairs[carrying, 0], pairs[carrying, 1], model.original, weights[carrying], self.n
+        )
+        return dict(
+            n_contacts=n_contacts,
+            Z=mean_z,
+            rattlers=rattlers,
+            Gamma=specific_contact_surface(pf["area"], self.cell_volume0, F, weights),
+            Gamma_model=specific_contact_surface(pf["area"], self.cell_volume0, F),
+            Gamma_closed=specific_contact_surface(pf["area_closed"], self.cell_volume0, F, weights),
+        ), sigma_lw
 
     def _energies(self, solver) -> dict:
         """The solver's energies; E_p of the volume's particles (the solver tallies the whole
@@ -231,19 +332,34 @@ class HistoryRecorder:
         row, F = self._kinematics(x, F0)
         contacts, sigma_lw = self._contacts(x, F, F0)
         # third measure, from the particles' stress field: (1/V) sum int sigma dv (eq. C.7)
-        sigma_vol = self.volume_stress_integral() / (np.linalg.det(F) * self.cell_volume0)
+        sigma_vol = self.volume_stress(F)
         sigma_s = np.full((3, 3), np.nan)
         if self.periodic:  # Schmidt: reactions conjugate to F0 (auxiliary nodes), eq. 2.14
             sigma_s = self.schmidt_stress(solver.macroscopic_reaction, F0)
         energies = self._energies(solver)
         sigma_m, sigma_d = stress_invariants(sigma_lw)
-        if not (np.isfinite(row["rho"]) and np.isfinite(sigma_lw).all() and np.isfinite(energies["E_p_model"])):
-            raise FloatingPointError(f"non-finite state at step {solver.step} (t={solver.t:.4g} s): rho={row['rho']}, "
-                                     f"sigma_m={sigma_m}")
-        row.update(time=solver.t, sigma_m=sigma_m, sigma_d=sigma_d, sigma_tilde_d=rendulic_stress(sigma_lw)[1],
-                   **tensor_values("sigma", -sigma_lw), **tensor_values("sigma_schmidt_", -sigma_s),
-                   **tensor_values("sigma_vol_", -sigma_vol), sigma_vol_m=stress_invariants(sigma_vol)[0],
-                   **contacts, **energies, unbalanced=solver.unbalanced_ratio(),
-                   E_c_over_E_int=energies["E_c"] / energies["E_int"] if energies["E_int"] > 0 else np.nan,
-                   wall_time=wall_time)
+        if not (
+            np.isfinite(row["rho"])
+            and np.isfinite(sigma_lw).all()
+            and np.isfinite(energies["E_p_model"])
+        ):
+            raise FloatingPointError(
+                f"non-finite state at step {solver.step} (t={solver.t:.4g} s): rho={row['rho']}, "
+                f"sigma_m={sigma_m}"
+            )
+        row.update(
+            time=solver.t,
+            sigma_m=sigma_m,
+            sigma_d=sigma_d,
+            sigma_tilde_d=rendulic_stress(sigma_lw)[1],
+            **tensor_values("sigma", -sigma_lw),
+            **tensor_values("sigma_schmidt_", -sigma_s),
+            **tensor_values("sigma_vol_", -sigma_vol),
+            sigma_vol_m=stress_invariants(sigma_vol)[0],
+            **contacts,
+            **energies,
+            unbalanced=solver.unbalanced_ratio(),
+            E_c_over_E_int=energies["E_c"] / energies["E_int"] if energies["E_int"] > 0 else np.nan,
+            wall_time=wall_time,
+        )
         return row

@@ -26,15 +26,34 @@ MESH_ROTATION = Rotation.from_rotvec(0.3 * np.array([1.0, 2.0, 3.0]) / np.sqrt(1
 COMPONENTS = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
 
 
-def simple_cubic_case(loading: str, radius: float = 0.1, target_density: float = 0.95, increments: int = 4000,
-                      out_dir: str = "results/simple_cubic", visual: bool = True, outputs: int = 40,
-                      face_copies_only: bool = False) -> CompactionCase:
+def simple_cubic_case(
+    loading: str,
+    radius: float = 0.1,
+    target_density: float = 0.95,
+    increments: int = 4000,
+    out_dir: str = "results/simple_cubic",
+    visual: bool = True,
+    outputs: int = 40,
+    face_copies_only: bool = False,
+) -> CompactionCase:
     """The thesis §2.6 cell: CLP by copies, radii not shrunk (exact pi / 6; the particle meshes are
     inscribed in their touching spheres), all copies (or the 12 face copies of the thesis)."""
-    return CompactionCase.build(spheres=simple_cubic_packing(radius), path=loading, condition="CLP", images=False,
-                          exact_volume=False, corners=not face_copies_only,
-                          d_bc=1.0, radius_factor=1.0, rotation=MESH_ROTATION, target_density=target_density,
-                          increments=increments, outputs=outputs, visual=visual, directory=str(Path(out_dir) / loading))
+    return CompactionCase.build(
+        spheres=simple_cubic_packing(radius),
+        path=loading,
+        condition="CLP",
+        images=False,
+        exact_volume=False,
+        corners=not face_copies_only,
+        d_bc=1.0,
+        radius_factor=1.0,
+        rotation=MESH_ROTATION,
+        target_density=target_density,
+        increments=increments,
+        outputs=outputs,
+        visual=visual,
+        directory=str(Path(out_dir) / loading),
+    )
 
 
 def checks(result) -> dict[str, np.ndarray]:
