@@ -86,7 +86,7 @@ from mpfem_fenicsx.solvers.explicit import ExplicitSettings
 # write. The defaults give a run of about a minute; the tests run it with fewer increments.
 
 # %%
-DEFAULT_INCREMENTS = 1500
+DEFAULT_INCREMENTS = 1200
 parser = argparse.ArgumentParser(description="The simple cubic cell (thesis §2.6), step by step.")
 parser.add_argument("--target-density", type=float, default=0.65,
                     help="relative density to reach, in (pi/6, 0.7) (default 0.65)")
