@@ -34,7 +34,7 @@
 #
 # Run it with
 #
-#     python demos/cubic_cell.py                 # about a minute on one core
+#     python demos/cubic_cell.py                 # a minute or two on one core
 #     mpirun -n 2 python demos/cubic_cell.py
 #
 # Units are mm, N, MPa, s and mJ. Reported stresses are positive in compression. It writes
@@ -83,7 +83,8 @@ from mpfem_fenicsx.solvers.explicit import ExplicitSettings
 # ## Options
 #
 # Three options only: how far to compact, in how many explicit increments, and where to
-# write. The defaults give a run of about a minute; the tests run it with fewer increments.
+# write. The defaults pass the check at the end; the tests run it with fewer increments (a
+# smoke run, which says so).
 
 # %%
 DEFAULT_INCREMENTS = 1200
