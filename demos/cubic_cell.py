@@ -339,6 +339,11 @@ solver.run_path(record, outputs=20)
 # and the density fitted to the centroids must equal the imposed one, $\pi / (6 \det F)$.
 # The three diagonal components are close but not equal: the rotated particle meshes meet
 # their x, y and z neighbours on different facets.
+#
+# Love-Weber and Schmidt agree all along the path, not only at rest: the tied copies are
+# massless shells, so the forces through their ties are the contact forces across the cell's
+# faces. The volume average is the measure that needs equilibrium (in a run with too few
+# increments it is the one that departs).
 
 # %%
 final = measure()
