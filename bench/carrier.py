@@ -31,11 +31,11 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+from convergence import DENSITIES, sigma_at
 from mpi4py import MPI
 
 import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
-import numpy as np
-from convergence import DENSITIES, sigma_at
 from mpfem_fenicsx.io.history import read_csv
 from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 
@@ -47,26 +47,39 @@ def value_at(history: dict, column: str, rho: float) -> float:
 
 def summarize(history: dict) -> dict:
     ratio = history["h_d"] / np.where(history["h_v"] != 0, np.abs(history["h_v"]), np.nan)
-    return {**{f"sigma_m_{rho:.2f}": sigma_at(history, rho) for rho in DENSITIES},
-            "hd_over_hv_0.85": value_at({**history, "ratio": ratio}, "ratio", 0.85),
-            "hd_over_hv_end": float(ratio[-1]),
-            "nonaffine_end": float(history["nonaffine"][-1]),
-            "E_damp_over_E_d_end": float(history["E_damp"][-1] / history["E_d"][-1]),
-            "rho_end": float(history["rho"][-1]),
-            "wall_s": float(history["wall_time"][-1])}
+    return {
+        **{f"sigma_m_{rho:.2f}": sigma_at(history, rho) for rho in DENSITIES},
+        "hd_over_hv_0.85": value_at({**history, "ratio": ratio}, "ratio", 0.85),
+        "hd_over_hv_end": float(ratio[-1]),
+        "nonaffine_end": float(history["nonaffine"][-1]),
+        "E_damp_over_E_d_end": float(history["E_damp"][-1] / history["E_d"][-1]),
+        "rho_end": float(history["rho"][-1]),
+        "wall_s": float(history["wall_time"][-1]),
+    }
 
 
 def main(argv=None) -> list[dict]:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--particles", type=int, default=50)
-    p.add_argument("--bcs", nargs="+", choices=("CLP", "GDF", "GDH", "CLPS"), default=["CLP", "GDF"])
+    p.add_argument(
+        "--bcs", nargs="+", choices=("CLP", "GDF", "GDH", "CLPS"), default=["CLP", "GDF"]
+    )
     p.add_argument("--increments", type=int, default=4000)
-    p.add_argument("--carrier", nargs="+", choices=("on", "off"), default=["on", "off"],
-                   help="runs to make (e.g. two processes, one each, never overlapping: they would share "
-                        "a run directory); the table takes every finished run")
+    p.add_argument(
+        "--carrier",
+        nargs="+",
+        choices=("on", "off"),
+        default=["on", "off"],
+        help="runs to make (e.g. two processes, one each, never overlapping: they would share "
+        "a run directory); the table takes every finished run",
+    )
     p.add_argument("--outputs", type=int, default=100, help="history rows over the path")
     p.add_argument("--out", default="results/carrier")
-    p.add_argument("--table-only", action="store_true", help="tabulate the finished runs in --out, run nothing")
+    p.add_argument(
+        "--table-only", action="store_true", help="tabulate the finished runs in --out, run nothing"
+    )
     args = p.parse_args(argv)
     if args.particles < 4 or args.increments < 10:
         p.error("--particles must be >= 4 and --increments >= 10")
@@ -75,39 +88,67 @@ def main(argv=None) -> list[dict]:
     out = Path(args.out)
     rows = []
     for bc, comoving in itertools.product(args.bcs, (True, False)):
-        run_dir = out / f"p{args.particles}_{bc}_{'carrier' if comoving else 'free'}_n{args.increments}"
+        run_dir = (
+            out / f"p{args.particles}_{bc}_{'carrier' if comoving else 'free'}_n{args.increments}"
+        )
         done = (run_dir / "done").exists()
         if not done and not args.table_only and ("on" if comoving else "off") in args.carrier:
-            say(f"--- {args.particles} particles, {bc}, carrier {'on' if comoving else 'off'} -> {run_dir}")
+            say(
+                f"--- {args.particles} particles, {bc}, carrier {'on' if comoving else 'off'} -> {run_dir}"
+            )
             start = time.perf_counter()
-            case = CompactionCase.build(particles=args.particles, condition=bc, comoving=comoving, increments=args.increments,
-                                  outputs=args.outputs, visual=False, checkpoint_every=0, directory=str(run_dir))
+            case = CompactionCase.build(
+                particles=args.particles,
+                condition=bc,
+                comoving=comoving,
+                increments=args.increments,
+                outputs=args.outputs,
+                visual=False,
+                checkpoint_every=0,
+                directory=str(run_dir),
+            )
             run_compaction(case, comm, log=lambda *a, **k: None)
             if comm.rank == 0:
                 (run_dir / "done").write_text(f"{time.perf_counter() - start:.1f}\n")
             done = True
         if done and comm.rank == 0:
-            rows.append({"particles": args.particles, "bc": bc, "carrier": comoving,
-                         **summarize(read_csv(run_dir / "history.csv"))})
+            rows.append(
+                {
+                    "particles": args.particles,
+                    "bc": bc,
+                    "carrier": comoving,
+                    **summarize(read_csv(run_dir / "history.csv")),
+                }
+            )
     if comm.rank == 0 and rows:
         for r in rows:  # each carrier-free run against the carried one
             ref = next((q for q in rows if q["bc"] == r["bc"] and q["carrier"]), None)
-            r["max_dev_sigma_m"] = (max(abs(r[f"sigma_m_{rho:.2f}"] / ref[f"sigma_m_{rho:.2f}"] - 1.0)
-                                        for rho in DENSITIES) if ref is not None else float("nan"))
+            r["max_dev_sigma_m"] = (
+                max(
+                    abs(r[f"sigma_m_{rho:.2f}"] / ref[f"sigma_m_{rho:.2f}"] - 1.0)
+                    for rho in DENSITIES
+                )
+                if ref is not None
+                else float("nan")
+            )
         out.mkdir(parents=True, exist_ok=True)
         with open(out / "carrier.csv", "w", newline="") as fh:
             writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
             writer.writeheader()
             writer.writerows(rows)
-        say("| particles | bc | carrier | sigma_m 0.80 / 0.85 / 0.90 (MPa) | h_d/h_v 0.85 / end | non-affine rms / r "
-            "(end) | E_damp / E_d (end) | rho (end) | max sigma_m dev. from carried | wall (s) |")
+        say(
+            "| particles | bc | carrier | sigma_m 0.80 / 0.85 / 0.90 (MPa) | h_d/h_v 0.85 / end | non-affine rms / r "
+            "(end) | E_damp / E_d (end) | rho (end) | max sigma_m dev. from carried | wall (s) |"
+        )
         say("|---" * 10 + "|")
         for r in rows:
-            say(f"| {r['particles']} | {r['bc']} | {'on' if r['carrier'] else 'off'} | "
+            say(
+                f"| {r['particles']} | {r['bc']} | {'on' if r['carrier'] else 'off'} | "
                 f"{r['sigma_m_0.80']:.3f} / {r['sigma_m_0.85']:.3f} / {r['sigma_m_0.90']:.3f} | "
                 f"{r['hd_over_hv_0.85']:.4f} / {r['hd_over_hv_end']:.4f} | {r['nonaffine_end']:.4f} | "
                 f"{r['E_damp_over_E_d_end']:.4f} | {r['rho_end']:.4f} | {100 * r['max_dev_sigma_m']:.2f} % | "
-                f"{r['wall_s']:.0f} |")
+                f"{r['wall_s']:.0f} |"
+            )
         sys.stdout.flush()
     return rows
 

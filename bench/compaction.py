@@ -25,41 +25,71 @@ import sys
 import tempfile
 import time
 
+from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS, unit_ball_hex
 from mpi4py import MPI
 
 import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
 from mpfem_fenicsx.boundary import KINDS
-from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS, unit_ball_hex
-from mpfem_fenicsx.solvers.constraint_mass import CONSTRAINT_MASSES
 from mpfem_fenicsx.case import CompactionCase, MeshSection, SolverSection
+from mpfem_fenicsx.solvers.constraint_mass import CONSTRAINT_MASSES
 from mpfem_fenicsx.workflows.compaction import CompactionRun, run_compaction
 
 
 def main(argv=None) -> dict:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--particles", type=int, default=50)
     p.add_argument("--bc", choices=KINDS, default="CLP")
-    p.add_argument("--solver", choices=("explicit",), default="explicit",
-                   help="explicit (the implicit granular solver is experimental)")
+    p.add_argument(
+        "--solver",
+        choices=("explicit",),
+        default="explicit",
+        help="explicit (the implicit granular solver is experimental)",
+    )
     p.add_argument("--steps", type=int, default=200, help="timed increments (short mode)")
-    p.add_argument("--warmup", type=int, default=None,
-                   help="untimed increments before (default: 55 %% of --increments, contacts established)")
-    p.add_argument("--increments", type=int, default=4000, help="increments of the whole run (sets dt)")
+    p.add_argument(
+        "--warmup",
+        type=int,
+        default=None,
+        help="untimed increments before (default: 55 %% of --increments, contacts established)",
+    )
+    p.add_argument(
+        "--increments", type=int, default=4000, help="increments of the whole run (sets dt)"
+    )
     p.add_argument("--full", action="store_true", help="time the whole run to --target-density")
-    p.add_argument("--copies", action="store_true",
-                   help="CLP by copies tied to their originals (the default, since 2026-11-24: periodic images)")
-    p.add_argument("--mesh", choices=tuple(RESOLUTIONS), default=MeshSection.resolution,
-                   help="named cube-sphere resolution (chapter2: 561 nodes per particle, the default; "
-                        "chapter4: 1 933; coarse: 517, the default before 2026-11-24)")
-    p.add_argument("--radius-factor", type=float, default=MeshSection.radius_factor,
-                   help="[mesh] radius_factor (the coarse volume-exact particle needs <= 0.9778)")
-    p.add_argument("--constraint-mass", choices=CONSTRAINT_MASSES, default=SolverSection.constraint_mass,
-                   help="explicit reduced mass of the constrained model ([solver] constraint_mass)")
+    p.add_argument(
+        "--copies",
+        action="store_true",
+        help="CLP by copies tied to their originals (the default, since 2026-11-24: periodic images)",
+    )
+    p.add_argument(
+        "--mesh",
+        choices=tuple(RESOLUTIONS),
+        default=MeshSection.resolution,
+        help="named cube-sphere resolution (chapter2: 561 nodes per particle, the default; "
+        "chapter4: 1 933; coarse: 517, the default before 2026-11-24)",
+    )
+    p.add_argument(
+        "--radius-factor",
+        type=float,
+        default=MeshSection.radius_factor,
+        help="[mesh] radius_factor (the coarse volume-exact particle needs <= 0.9778)",
+    )
+    p.add_argument(
+        "--constraint-mass",
+        choices=CONSTRAINT_MASSES,
+        default=SolverSection.constraint_mass,
+        help="explicit reduced mass of the constrained model ([solver] constraint_mass)",
+    )
     p.add_argument("--target-density", type=float, default=0.95)
     p.add_argument("--seed", type=int, default=1)
     args = p.parse_args(argv)
-    for name, value, low in (("--particles", args.particles, 1), ("--steps", args.steps, 1),
-                             ("--increments", args.increments, 2)):
+    for name, value, low in (
+        ("--particles", args.particles, 1),
+        ("--steps", args.steps, 1),
+        ("--increments", args.increments, 2),
+    ):
         if value < low:
             p.error(f"{name} = {value} must be >= {low}")
     if args.warmup is not None and not 0 <= args.warmup < args.increments:
@@ -69,13 +99,25 @@ def main(argv=None) -> dict:
     nodes = unit_ball_hex(*RESOLUTIONS[args.mesh]).num_nodes
     out = tempfile.mkdtemp(prefix="mpfem-bench-") if comm.rank == 0 else None
     out = comm.bcast(out)
-    base = dict(particles=args.particles, condition=args.bc, kind=args.solver, seed=args.seed,
-                target_density=args.target_density, increments=args.increments, resolution=args.mesh,
-                radius_factor=args.radius_factor,
-                images=False if args.copies else None, constraint_mass=args.constraint_mass,
-                visual=False, checkpoint_every=0, directory=out)
+    base = dict(
+        particles=args.particles,
+        condition=args.bc,
+        kind=args.solver,
+        seed=args.seed,
+        target_density=args.target_density,
+        increments=args.increments,
+        resolution=args.mesh,
+        radius_factor=args.radius_factor,
+        images=False if args.copies else None,
+        constraint_mass=args.constraint_mass,
+        visual=False,
+        checkpoint_every=0,
+        directory=out,
+    )
     quiet = lambda *a, **k: None  # noqa: E731
-    warmup = 0 if args.full else (int(0.55 * args.increments) if args.warmup is None else args.warmup)
+    warmup = (
+        0 if args.full else (int(0.55 * args.increments) if args.warmup is None else args.warmup)
+    )
     start = time.perf_counter()
     if args.full:
         case = CompactionCase.build(**base, outputs=40)
@@ -88,7 +130,9 @@ def main(argv=None) -> dict:
     else:
         # build + warm-up to the contact-rich state, then the timed increments (outputs: none in
         # between, one at the end to include the homogenization's cost once)
-        every = max(1, args.increments // 40)  # 40 outputs: rho and contacts known at the end of the warm-up
+        every = max(
+            1, args.increments // 40
+        )  # 40 outputs: rho and contacts known at the end of the warm-up
         warmup = max(every, warmup // every * every)
         case = CompactionCase.build(**base, outputs=40)
         res = CompactionRun(case, comm, log=quiet).run(max_steps=warmup)

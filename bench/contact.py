@@ -13,13 +13,13 @@ import argparse
 import json
 
 import numpy as np
+from mpfem_fenicsx.meshes import particle_mesh
 from mpi4py import MPI
+from timing import median_time
 
 import mpfem_fenicsx  # noqa: F401
-from timing import median_time
 from mpfem_fenicsx.contact import ContactLaw, ContactModel
 from mpfem_fenicsx.material import LEAD
-from mpfem_fenicsx.meshes import particle_mesh
 from mpfem_fenicsx.problem import SolidProblem
 
 
@@ -33,7 +33,9 @@ def lattice(n: int, seed: int = 0):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--particles", type=int, nargs="+", default=[50, 150, 350])
     parser.add_argument("--repeat", type=int, default=5)
     args = parser.parse_args()
@@ -56,13 +58,20 @@ def main():
         t_search = median_time(lambda: contact.search(x), args.repeat, comm)
         t_forces = median_time(forces, args.repeat, comm)
         template = _template(problem)
-        t_tangent = median_time(lambda: (contact.evaluate(problem.u, tangent=True), contact.tangent_matrix(template)),
-                           args.repeat, comm)
+        t_tangent = median_time(
+            lambda: (contact.evaluate(problem.u, tangent=True), contact.tangent_matrix(template)),
+            args.repeat,
+            comm,
+        )
         points = comm.allreduce(contact.evaluation.size, op=MPI.SUM)
         result = {
-            "particles": n, "ranks": comm.size, "surface_nodes": int(surface.num_nodes),
+            "particles": n,
+            "ranks": comm.size,
+            "surface_nodes": int(surface.num_nodes),
             "contact_points": int(points),
-            "search_s": t_search, "forces_s": t_forces, "forces_and_tangent_s": t_tangent,
+            "search_s": t_search,
+            "forces_s": t_forces,
+            "forces_and_tangent_s": t_tangent,
             "search_us_per_surface_node": 1e6 * t_search / surface.num_nodes,
             "forces_us_per_surface_node": 1e6 * t_forces / surface.num_nodes,
         }

@@ -30,13 +30,13 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS
 from mpi4py import MPI
 
 import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
-import numpy as np
 from mpfem_fenicsx.io.history import read_csv
 from mpfem_fenicsx.loading import PROFILES
-from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS
 from mpfem_fenicsx.solvers.constraint_mass import CONSTRAINT_MASSES
 from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 
@@ -56,52 +56,112 @@ def sigma_at(history: dict, rho: float, column: str = "rho") -> float:
 
 def summarize(history: dict, densities=DENSITIES, column: str = "rho") -> dict:
     s = history["sigma_m"]
-    return {**{f"sigma_m_{rho:.2f}": sigma_at(history, rho, column) for rho in densities},
-            "rho_end": float(history["rho"][-1]), "sigma_m_end": float(s[-1]),
-            "end_over_max": float(s[-1] / np.nanmax(s)),
-            "rho_minus_rho_fe_rel": float(abs(history["rho"] - history["rho_fe"]).max() / history["rho"][-1]),
-            "unbalanced_end": float(history["unbalanced"][-1]) if "unbalanced" in history else float("nan"),
-            "E_c_over_E_int_end": float(history["E_c_over_E_int"][-1]) if "E_c_over_E_int" in history else float("nan"),
-            "wall_s": float(history["wall_time"][-1])}
+    return {
+        **{f"sigma_m_{rho:.2f}": sigma_at(history, rho, column) for rho in densities},
+        "rho_end": float(history["rho"][-1]),
+        "sigma_m_end": float(s[-1]),
+        "end_over_max": float(s[-1] / np.nanmax(s)),
+        "rho_minus_rho_fe_rel": float(
+            abs(history["rho"] - history["rho_fe"]).max() / history["rho"][-1]
+        ),
+        "unbalanced_end": float(history["unbalanced"][-1])
+        if "unbalanced" in history
+        else float("nan"),
+        "E_c_over_E_int_end": float(history["E_c_over_E_int"][-1])
+        if "E_c_over_E_int" in history
+        else float("nan"),
+        "wall_s": float(history["wall_time"][-1]),
+    }
 
 
 def main(argv=None) -> list[dict]:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     d = CompactionCase()
     p.add_argument("--particles", type=int, default=d.packing.particles)
-    p.add_argument("--increments", type=int, nargs="+", default=[d.solver.increments, 2 * d.solver.increments,
-                                                                     4 * d.solver.increments])
-    p.add_argument("--meshes", nargs="+", choices=tuple(RESOLUTIONS), default=["chapter2", "chapter4"])
-    p.add_argument("--profile", nargs="+", choices=tuple(PROFILES), default=[d.loading.profile],
-                   help="amplitude of the compaction in time ([loading] profile)")
+    p.add_argument(
+        "--increments",
+        type=int,
+        nargs="+",
+        default=[d.solver.increments, 2 * d.solver.increments, 4 * d.solver.increments],
+    )
+    p.add_argument(
+        "--meshes", nargs="+", choices=tuple(RESOLUTIONS), default=["chapter2", "chapter4"]
+    )
+    p.add_argument(
+        "--profile",
+        nargs="+",
+        choices=tuple(PROFILES),
+        default=[d.loading.profile],
+        help="amplitude of the compaction in time ([loading] profile)",
+    )
     p.add_argument("--target-density", type=float, default=d.loading.target_density)
     p.add_argument("--outputs", type=int, default=100, help="history rows over the path")
     p.add_argument("--loading", default=d.loading.path, help="[loading] path (isotropic, die)")
-    p.add_argument("--bc", default=d.boundary.condition, help="[boundary] condition: CLP, CLPS, GDF or GDH")
-    p.add_argument("--d-bc", type=float, default=None, help="duplication distance / r_max (default: table 2.3)")
-    p.add_argument("--divisions", type=int, default=None, help="hexahedra per inner-cube edge of the particle")
-    p.add_argument("--radius-factor", type=float, default=d.mesh.radius_factor,
-                   help="[mesh] radius_factor (a coarse volume-exact particle needs less than 0.99: "
-                        "4 divisions <= 0.9778)")
-    p.add_argument("--constraint-mass", choices=CONSTRAINT_MASSES, default=d.solver.constraint_mass,
-                   help="explicit reduced mass of the constrained model ([solver] constraint_mass)")
-    p.add_argument("--densities", type=float, nargs="+", default=list(DENSITIES),
-                   help="densities where sigma_m is read")
-    p.add_argument("--density", choices=("rho", "rho_imposed"), default="rho",
-                   help="the density column the sigma_m are read on")
+    p.add_argument(
+        "--bc", default=d.boundary.condition, help="[boundary] condition: CLP, CLPS, GDF or GDH"
+    )
+    p.add_argument(
+        "--d-bc", type=float, default=None, help="duplication distance / r_max (default: table 2.3)"
+    )
+    p.add_argument(
+        "--divisions", type=int, default=None, help="hexahedra per inner-cube edge of the particle"
+    )
+    p.add_argument(
+        "--radius-factor",
+        type=float,
+        default=d.mesh.radius_factor,
+        help="[mesh] radius_factor (a coarse volume-exact particle needs less than 0.99: "
+        "4 divisions <= 0.9778)",
+    )
+    p.add_argument(
+        "--constraint-mass",
+        choices=CONSTRAINT_MASSES,
+        default=d.solver.constraint_mass,
+        help="explicit reduced mass of the constrained model ([solver] constraint_mass)",
+    )
+    p.add_argument(
+        "--densities",
+        type=float,
+        nargs="+",
+        default=list(DENSITIES),
+        help="densities where sigma_m is read",
+    )
+    p.add_argument(
+        "--density",
+        choices=("rho", "rho_imposed"),
+        default="rho",
+        help="the density column the sigma_m are read on",
+    )
     p.add_argument("--out", default="results/convergence")
-    p.add_argument("--table-only", action="store_true", help="tabulate the finished runs in --out, run nothing")
+    p.add_argument(
+        "--table-only", action="store_true", help="tabulate the finished runs in --out, run nothing"
+    )
     args = p.parse_args(argv)
     if args.particles < 2 or min(args.increments) < 10:
         p.error("--particles must be >= 2 and --increments >= 10")
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     out = Path(args.out)
-    options = dict(path=args.loading, condition=args.bc, d_bc=args.d_bc, divisions=args.divisions,
-                   radius_factor=args.radius_factor, constraint_mass=args.constraint_mass)
-    variant = "" if (args.loading, args.bc, args.d_bc, args.divisions) == (d.loading.path, d.boundary.condition, None, None) else (
-        f"_{args.loading}_{args.bc}" + (f"_dbc{args.d_bc:g}" if args.d_bc is not None else "")
-        + (f"_div{args.divisions}" if args.divisions is not None else ""))
+    options = dict(
+        path=args.loading,
+        condition=args.bc,
+        d_bc=args.d_bc,
+        divisions=args.divisions,
+        radius_factor=args.radius_factor,
+        constraint_mass=args.constraint_mass,
+    )
+    variant = (
+        ""
+        if (args.loading, args.bc, args.d_bc, args.divisions)
+        == (d.loading.path, d.boundary.condition, None, None)
+        else (
+            f"_{args.loading}_{args.bc}"
+            + (f"_dbc{args.d_bc:g}" if args.d_bc is not None else "")
+            + (f"_div{args.divisions}" if args.divisions is not None else "")
+        )
+    )
     if args.radius_factor != d.mesh.radius_factor:
         variant += f"_rf{args.radius_factor:g}"
     if args.constraint_mass != d.solver.constraint_mass:
@@ -114,21 +174,41 @@ def main(argv=None) -> list[dict]:
             run_dir = out / f"p{args.particles}{variant}_{mesh}_{profile}_n{n}"
             done = (run_dir / "done").exists()
             if not done and not args.table_only:
-                say(f"--- {args.particles} particles, mesh {mesh}, {profile}, {n} increments -> {run_dir}")
+                say(
+                    f"--- {args.particles} particles, mesh {mesh}, {profile}, {n} increments -> {run_dir}"
+                )
                 start = time.perf_counter()
-                case = CompactionCase.build(particles=args.particles, resolution=mesh, profile=profile, increments=n,
-                                      target_density=args.target_density, outputs=args.outputs, visual=False,
-                                      checkpoint_every=0, directory=str(run_dir), **options)
+                case = CompactionCase.build(
+                    particles=args.particles,
+                    resolution=mesh,
+                    profile=profile,
+                    increments=n,
+                    target_density=args.target_density,
+                    outputs=args.outputs,
+                    visual=False,
+                    checkpoint_every=0,
+                    directory=str(run_dir),
+                    **options,
+                )
                 run_compaction(case, comm, log=lambda *a, **k: None)
                 if comm.rank == 0:
                     (run_dir / "done").write_text(f"{time.perf_counter() - start:.1f}\n")
                 done = True
             if done and comm.rank == 0:
-                rows.append({"particles": args.particles, "variant": variant.lstrip("_") or "-", "mesh": mesh,
-                             "profile": profile, "increments": n,
-                             **summarize(read_csv(run_dir / "history.csv"), densities, args.density)})
+                rows.append(
+                    {
+                        "particles": args.particles,
+                        "variant": variant.lstrip("_") or "-",
+                        "mesh": mesh,
+                        "profile": profile,
+                        "increments": n,
+                        **summarize(read_csv(run_dir / "history.csv"), densities, args.density),
+                    }
+                )
     if comm.rank == 0 and rows:
-        for mesh, profile in itertools.product(args.meshes, args.profile):  # vs the finest rate, same mesh and profile
+        for mesh, profile in itertools.product(
+            args.meshes, args.profile
+        ):  # vs the finest rate, same mesh and profile
             same = [r for r in rows if r["mesh"] == mesh and r["profile"] == profile]
             if not same:
                 continue
@@ -141,16 +221,21 @@ def main(argv=None) -> list[dict]:
             writer.writeheader()
             writer.writerows(rows)
         read_on = " / ".join(f"{rho:.2f}" for rho in densities)
-        header = (f"| particles | variant | mesh | profile | N | sigma_m at {args.density} {read_on} (MPa) | max dev. "
-                  "from finest N | end / max | max abs(rho - rho_fe) / rho | unbalanced (end) | E_c/E_int (end) | "
-                  "wall (s) |")
+        header = (
+            f"| particles | variant | mesh | profile | N | sigma_m at {args.density} {read_on} (MPa) | max dev. "
+            "from finest N | end / max | max abs(rho - rho_fe) / rho | unbalanced (end) | E_c/E_int (end) | "
+            "wall (s) |"
+        )
         say(header)
         say("|---" * 12 + "|")
         for r in rows:
-            say(f"| {r['particles']} | {r['variant']} | {r['mesh']} | {r['profile']} | {r['increments']} | "
-                + " / ".join(f"{r[c]:.3f}" for c in columns) + " | "
+            say(
+                f"| {r['particles']} | {r['variant']} | {r['mesh']} | {r['profile']} | {r['increments']} | "
+                + " / ".join(f"{r[c]:.3f}" for c in columns)
+                + " | "
                 f"{100 * r['max_dev_from_finest']:.2f} % | {r['end_over_max']:.4f} | {r['rho_minus_rho_fe_rel']:.2e} | "
-                f"{r['unbalanced_end']:.2e} | {r['E_c_over_E_int_end']:.2e} | {r['wall_s']:.0f} |")
+                f"{r['unbalanced_end']:.2e} | {r['E_c_over_E_int_end']:.2e} | {r['wall_s']:.0f} |"
+            )
         sys.stdout.flush()
     return rows
 

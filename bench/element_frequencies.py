@@ -27,11 +27,16 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
 from mpi4py import MPI
 
 import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
-import numpy as np
-from mpfem_fenicsx.problem import HEX_CENTRE_GRADIENTS, HEX_GAUSS_GRADIENTS, HEX_VERTICES, hexahedron_gradients
+from mpfem_fenicsx.problem import (
+    HEX_CENTRE_GRADIENTS,
+    HEX_GAUSS_GRADIENTS,
+    HEX_VERTICES,
+    hexahedron_gradients,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # the repository: the validation package
@@ -59,8 +64,13 @@ def strain_displacement(grad: np.ndarray) -> np.ndarray:
     return B
 
 
-def element_highest_omega2(x: np.ndarray, D: np.ndarray, density: np.ndarray,
-                           volumetric: float | None = None, reference: np.ndarray | None = None) -> np.ndarray:
+def element_highest_omega2(
+    x: np.ndarray,
+    D: np.ndarray,
+    density: np.ndarray,
+    volumetric: float | None = None,
+    reference: np.ndarray | None = None,
+) -> np.ndarray:
     """omega_e^2 (1/s^2) of Q1 hexahedra with nodes ``x`` (n, 8, 3) (mm), elasticity ``D`` and
     densities ``density`` (n,) (t/mm^3): the largest eigenvalue of K_e against the row-sum lumped
     mass rho V / 8 per node. K_e integrated at the 2x2x2 Gauss points, or, with the bulk modulus
@@ -95,60 +105,99 @@ def element_highest_omega2(x: np.ndarray, D: np.ndarray, density: np.ndarray,
 def cube_reference(E: float, nu: float, density: float) -> tuple[float, float]:
     """The unit cube's omega_e h / c_d, computed and in closed form."""
     c_d = np.sqrt(E * (1 - nu) / ((1 + nu) * (1 - 2 * nu)) / density)
-    omega2 = element_highest_omega2(HEX_VERTICES[None].astype(float), elasticity_matrix(E, nu), np.array([density]))
+    omega2 = element_highest_omega2(
+        HEX_VERTICES[None].astype(float), elasticity_matrix(E, nu), np.array([density])
+    )
     return float(np.sqrt(omega2[0]) / c_d), float(2.0 * np.sqrt((1 + nu) / (1 - nu)))
 
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--case", required=True, help="validation case name (validation/cases.py)")
-    parser.add_argument("--checkpoint", required=True, type=Path, help="a checkpoint directory of that case's run")
+    parser.add_argument(
+        "--checkpoint", required=True, type=Path, help="a checkpoint directory of that case's run"
+    )
     args = parser.parse_args(argv)
-    from validation.cases import CASES
     from mpfem_fenicsx.workflows.compaction import CompactionRun
+    from validation.cases import CASES
 
     comm = MPI.COMM_WORLD
     say = (lambda m: print(m, flush=True)) if comm.rank == 0 else (lambda m: None)
     if args.case not in CASES:
-        raise SystemExit(f"--case: {args.case!r} is not a validation case (python validation/run.py --list)")
-    run = CompactionRun(CASES[args.case].compaction_case(f"/tmp/element_frequencies_{args.case}"), comm,
-                        log=say, restart=args.checkpoint)
+        raise SystemExit(
+            f"--case: {args.case!r} is not a validation case (python validation/run.py --list)"
+        )
+    run = CompactionRun(
+        CASES[args.case].compaction_case(f"/tmp/element_frequencies_{args.case}"),
+        comm,
+        log=say,
+        restart=args.checkpoint,
+    )
     solver, problem, model = run.solver, run.model.problem, run.model
     material = problem.params
     computed, closed = cube_reference(material.E, material.nu, material.density)
-    say(f"unit cube: omega_e h / c_d = {computed:.4f} (closed form {closed:.4f}; the same with the "
-        f"volumetric part at the centre)")
+    say(
+        f"unit cube: omega_e h / c_d = {computed:.4f} (closed form {closed:.4f}; the same with the "
+        f"volumetric part at the centre)"
+    )
 
     cells = problem.V.dofmap.list[: problem.num_cells]
     reference = problem.V.tabulate_dof_coordinates()[cells]
     x = (problem.V.tabulate_dof_coordinates() + problem.u.x.array.reshape(-1, 3))[cells]
     scale = solver.scaling.scale
-    omega_dt = np.sqrt(element_highest_omega2(x, elasticity_matrix(material.E, material.nu),
-                                              material.density * scale)) * solver.dt
-    estimate = solver.scaling.stable_increments(problem.min_cell_length(deformed=True)) * np.sqrt(scale)
+    omega_dt = (
+        np.sqrt(
+            element_highest_omega2(
+                x, elasticity_matrix(material.E, material.nu), material.density * scale
+            )
+        )
+        * solver.dt
+    )
+    estimate = solver.scaling.stable_increments(problem.min_cell_length(deformed=True)) * np.sqrt(
+        scale
+    )
     ratio = omega_dt / (2.0 * solver.dt / estimate)
-    run_element = np.sqrt(element_highest_omega2(x, elasticity_matrix(material.E, material.nu),
-                                                 material.density * scale, volumetric=material.bulk,
-                                                 reference=reference)) * solver.dt
+    run_element = (
+        np.sqrt(
+            element_highest_omega2(
+                x,
+                elasticity_matrix(material.E, material.nu),
+                material.density * scale,
+                volumetric=material.bulk,
+                reference=reference,
+            )
+        )
+        * solver.dt
+    )
     particle = model.assembly.cell_tags.values[: problem.num_cells]
     gathered = comm.gather((omega_dt, ratio, run_element, particle))
     if comm.rank:
         return
-    omega_dt, ratio, run_element, particle = (np.concatenate([g[k] for g in gathered]) for k in range(4))
-    say(f"{omega_dt.size} cells at step {solver.step}: omega_e dt max {omega_dt.max():.3f}, 99.9 % "
-        f"{np.quantile(omega_dt, 0.999):.3f}, median {np.median(omega_dt):.3f} (an element alone is stable <= 2)")
-    say(f"omega_e dt / (2 dt / dt_e): quantiles 1 / 50 / 99.9 % {np.quantile(ratio, [0.01, 0.5, 0.999]).round(3)}, "
-        f"max {ratio.max():.3f}")
+    omega_dt, ratio, run_element, particle = (
+        np.concatenate([g[k] for g in gathered]) for k in range(4)
+    )
+    say(
+        f"{omega_dt.size} cells at step {solver.step}: omega_e dt max {omega_dt.max():.3f}, 99.9 % "
+        f"{np.quantile(omega_dt, 0.999):.3f}, median {np.median(omega_dt):.3f} (an element alone is stable <= 2)"
+    )
+    say(
+        f"omega_e dt / (2 dt / dt_e): quantiles 1 / 50 / 99.9 % {np.quantile(ratio, [0.01, 0.5, 0.999]).round(3)}, "
+        f"max {ratio.max():.3f}"
+    )
     worst = np.zeros(particle.max() + 1)
     np.maximum.at(worst, particle, omega_dt)
     top = np.argsort(worst)[::-1][:8]
-    say(f"cells with omega_e dt > 2: {(omega_dt > 2).sum()}; particles with the highest omega_e dt: "
-        + ", ".join(f"{p}{' (copy)' if model.is_copy[p] else ''} {worst[p]:.3f}" for p in top))
+    say(
+        f"cells with omega_e dt > 2: {(omega_dt > 2).sum()}; particles with the highest omega_e dt: "
+        + ", ".join(f"{p}{' (copy)' if model.is_copy[p] else ''} {worst[p]:.3f}" for p in top)
+    )
     worst[:] = 0.0
     np.maximum.at(worst, particle, run_element)
     top = np.argsort(worst)[::-1][:4]
-    say(f"the runs' element (volumetric part at the centre, moduli per reference volume): omega_e dt max {run_element.max():.3f}, median "
-        f"{np.median(run_element):.3f}; highest in " + ", ".join(f"{p} {worst[p]:.3f}" for p in top))
+    say(
+        f"the runs' element (volumetric part at the centre, moduli per reference volume): omega_e dt max {run_element.max():.3f}, median "
+        f"{np.median(run_element):.3f}; highest in " + ", ".join(f"{p} {worst[p]:.3f}" for p in top)
+    )
 
 
 if __name__ == "__main__":

@@ -15,17 +15,19 @@ import platform
 import time
 
 import numpy as np
+from mpfem_fenicsx.meshes import particle_mesh
 from mpi4py import MPI
+from timing import median_time
 
 import mpfem_fenicsx  # noqa: F401
-from timing import median_time
 from mpfem_fenicsx.material import LEAD
-from mpfem_fenicsx.meshes import particle_mesh
 from mpfem_fenicsx.problem import SolidProblem
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--particles", type=int, default=50)
     parser.add_argument("--refinement", type=int, default=1)
     parser.add_argument("--repeat", type=int, default=5)
@@ -49,7 +51,9 @@ def main():
     problem.assemble_jacobian(K)
 
     phases = {
-        "deformation_gradient_expression": lambda: problem._F_expr.eval(problem.mesh, problem.material_cells),
+        "deformation_gradient_expression": lambda: problem._F_expr.eval(
+            problem.mesh, problem.material_cells
+        ),
         "deformation_gradient_eval": problem.deformation_gradients,
         "material_update_stress": lambda: problem.update_material(tangent=False),
         "material_update_stress_tangent": lambda: problem.update_material(tangent=True),

@@ -49,6 +49,13 @@ import time
 from pathlib import Path
 
 import numpy as np
+from mpfem_fenicsx.meshes import ParticleCentroids, node_particles, particle_mesh
+from mpfem_fenicsx.meshes.packing import (
+    assembly_particles,
+    duplicate_particles,
+    periodic_pair_realizations,
+    simple_cubic_packing,
+)
 from mpi4py import MPI
 from scipy.spatial.transform import Rotation
 
@@ -68,13 +75,6 @@ from mpfem_fenicsx.homogenization import (
 )
 from mpfem_fenicsx.loading import GradientPath, compaction_gradient
 from mpfem_fenicsx.material import LEAD
-from mpfem_fenicsx.meshes import ParticleCentroids, node_particles, particle_mesh
-from mpfem_fenicsx.meshes.packing import (
-    assembly_particles,
-    duplicate_particles,
-    periodic_pair_realizations,
-    simple_cubic_packing,
-)
 from mpfem_fenicsx.problem import SolidProblem
 from mpfem_fenicsx.solvers import create_solver
 from mpfem_fenicsx.solvers.explicit import ExplicitSettings
@@ -89,11 +89,19 @@ from mpfem_fenicsx.solvers.explicit import ExplicitSettings
 # %%
 DEFAULT_INCREMENTS = 1200
 parser = argparse.ArgumentParser(description="The simple cubic cell (thesis §2.6), step by step.")
-parser.add_argument("--target-density", type=float, default=0.65,
-                    help="relative density to reach, in (pi/6, 0.7) (default 0.65)")
-parser.add_argument("--increments", type=int, default=DEFAULT_INCREMENTS,
-                    help=f"explicit increments of the compaction, >= 100 (default "
-                         f"{DEFAULT_INCREMENTS}; fewer: a smoke run, not quasi-static)")
+parser.add_argument(
+    "--target-density",
+    type=float,
+    default=0.65,
+    help="relative density to reach, in (pi/6, 0.7) (default 0.65)",
+)
+parser.add_argument(
+    "--increments",
+    type=int,
+    default=DEFAULT_INCREMENTS,
+    help=f"explicit increments of the compaction, >= 100 (default "
+    f"{DEFAULT_INCREMENTS}; fewer: a smoke run, not quasi-static)",
+)
 parser.add_argument("--out", default="results/cubic_cell", help="output folder")
 args = parser.parse_args()
 if not np.pi / 6 < args.target_density < 0.7:
@@ -126,8 +134,10 @@ n = packing.num_particles
 cell_volume0 = float(np.prod(packing.cell))  # V0 (mm^3)
 solid0 = solid_volume(packing.radii)  # V_p (mm^3), eq. 2.5
 rho0 = solid0 / cell_volume0
-say(f"packing: {n} spheres of radius {radius} mm in a cube of side {packing.cell[0]:g} mm, "
-    f"rho0 = {rho0:.4f} (pi/6 = {np.pi / 6:.4f})")
+say(
+    f"packing: {n} spheres of radius {radius} mm in a cube of side {packing.cell[0]:g} mm, "
+    f"rho0 = {rho0:.4f} (pi/6 = {np.pi / 6:.4f})"
+)
 
 # %% [markdown]
 # ## 2. Duplicated particles for the periodic conditions
@@ -166,8 +176,15 @@ say(f"assembly: {n} particles + {copies.num_copies} tied copies = {radii.size} b
 # %%
 rotation = Rotation.from_rotvec(0.3 * np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)).as_matrix()
 divisions = 6  # hexahedra per edge of the inner cube (the thesis' particle)
-assembly = particle_mesh(centres, radii, comm, divisions=divisions, layers=1, exact_volume=False,
-                         rotations=np.broadcast_to(rotation, (radii.size, 3, 3)))
+assembly = particle_mesh(
+    centres,
+    radii,
+    comm,
+    divisions=divisions,
+    layers=1,
+    exact_volume=False,
+    rotations=np.broadcast_to(rotation, (radii.size, 3, 3)),
+)
 mesh = assembly.mesh
 num_cells = mesh.topology.index_map(3).size_local  # cells owned by this rank
 cell_body = assembly.cell_tags.values[:num_cells]  # body of every owned cell
@@ -186,8 +203,10 @@ cell_body = assembly.cell_tags.values[:num_cells]  # body of every owned cell
 volume_cells = ~is_copy[cell_body]  # owned cells of the eight particles of the cell
 problem = SolidProblem(mesh, LEAD, tangent=False, active_cells=np.flatnonzero(volume_cells))
 V = problem.V
-say(f"mesh: {mesh.topology.index_map(3).size_global} hexahedra, "
-    f"{3 * V.dofmap.index_map.size_global} displacement dofs, material {LEAD.E:g} MPa")
+say(
+    f"mesh: {mesh.topology.index_map(3).size_global} hexahedra, "
+    f"{3 * V.dofmap.index_map.size_global} displacement dofs, material {LEAD.E:g} MPa"
+)
 
 # %% [markdown]
 # ## 5. The loading path and the periodic constraints
@@ -211,8 +230,19 @@ duration = 1e-3  # s, mass-scaled loading time
 target = compaction_gradient("isotropic", rho0, args.target_density)
 hold = (0.25 * duration, np.eye(3))  # a segment whose increment gradient is I: F0 stays
 path = GradientPath([(duration, target), hold], profiles=("smooth-ramps", "smooth-step"))
-bcs = GranularBoundaryConditions(V, cell_body, centres, radii, original, shift, packing.cell,
-                                 "CLP", path, anchor=False, comoving=True)
+bcs = GranularBoundaryConditions(
+    V,
+    cell_body,
+    centres,
+    radii,
+    original,
+    shift,
+    packing.cell,
+    "CLP",
+    path,
+    anchor=False,
+    comoving=True,
+)
 say(f"loading: F0 = {target[0, 0]:.4f} I, rho {rho0:.4f} -> {args.target_density}")
 
 # %% [markdown]
@@ -230,8 +260,14 @@ say(f"loading: F0 = {target[0, 0]:.4f} I, rho {rho0:.4f} -> {args.target_density
 # %%
 h_contact = radius * np.pi / (2 * divisions)  # mm, edge of a surface facet
 law = ContactLaw(penalty=default_penalty(LEAD.E, h_contact, 10.0), friction=0.1, gamma=0.0)
-contact = ContactModel(V, assembly.facet_tags, radii.size, law, search_distance=0.05 * radius,
-                       allowed=periodic_pair_realizations(original, shift))
+contact = ContactModel(
+    V,
+    assembly.facet_tags,
+    radii.size,
+    law,
+    search_distance=0.05 * radius,
+    allowed=periodic_pair_realizations(original, shift),
+)
 say(f"contact: penalty {law.penalty:.3g} N/mm^3, friction {law.friction}")
 
 # %% [markdown]
@@ -249,12 +285,21 @@ say(f"contact: penalty {law.penalty:.3g} N/mm^3, friction {law.friction}")
 # of every node (a copy moves with its original: the same body).
 
 # %%
-settings = ExplicitSettings(t_end=path.duration, target_dt=duration / args.increments,
-                            local_damping=0.7)
-solver = create_solver("explicit", problem, bcs, contact=contact, settings=settings,
-                       damped_bodies=original[node_particles(V, cell_body)])
-say(f"solver: explicit, dt = {solver.dt:.3g} s (unscaled {solver.dt_stable_unscaled:.3g} s), "
-    f"{solver.total_steps} increments")
+settings = ExplicitSettings(
+    t_end=path.duration, target_dt=duration / args.increments, local_damping=0.7
+)
+solver = create_solver(
+    "explicit",
+    problem,
+    bcs,
+    contact=contact,
+    settings=settings,
+    damped_bodies=original[node_particles(V, cell_body)],
+)
+say(
+    f"solver: explicit, dt = {solver.dt:.3g} s (unscaled {solver.dt_stable_unscaled:.3g} s), "
+    f"{solver.total_steps} increments"
+)
 
 # %% [markdown]
 # ## 8. What we measure
@@ -292,8 +337,9 @@ def measure() -> dict:
     pairs = contact.pair_forces()
     i, j = pairs["pairs"][:, 0], pairs["pairs"][:, 1]
     weights = contact_weights(i, j, original, shift, "CLP")
-    love_weber = love_weber_stress(pairs["force"], branch_vectors(x, i, j, pairs["shift"]),
-                                   volume, weights)
+    love_weber = love_weber_stress(
+        pairs["force"], branch_vectors(x, i, j, pairs["shift"]), volume, weights
+    )
     # Schmidt, eq. 2.19: P = R / V0 from the forces the medium exerts on the constrained dofs
     reaction = bcs.macroscopic_force(solver.macroscopic_reaction)
     schmidt = piola_to_cauchy(reaction / cell_volume0, F0)
@@ -301,11 +347,15 @@ def measure() -> dict:
     integral = problem.cell_stress_integrals()[volume_cells].sum(axis=0)
     averaged = comm.allreduce(integral, op=MPI.SUM) / volume
     stresses = {"Love-Weber": love_weber, "Schmidt": schmidt, "volume average": averaged}
-    return {"time": solver.t, "rho": float(relative_density(solid0, cell_volume0, F)),
-            "rho_imposed": float(relative_density(solid0, cell_volume0, F0)),
-            "stress": {name: reported_stress(s) for name, s in stresses.items()},
-            "sigma_m": {name: float(stress_invariants(s)[0]) for name, s in stresses.items()},
-            "contacts": int(np.sum(pairs["points"] > 0)), "unbalanced": solver.unbalanced_ratio()}
+    return {
+        "time": solver.t,
+        "rho": float(relative_density(solid0, cell_volume0, F)),
+        "rho_imposed": float(relative_density(solid0, cell_volume0, F0)),
+        "stress": {name: reported_stress(s) for name, s in stresses.items()},
+        "sigma_m": {name: float(stress_invariants(s)[0]) for name, s in stresses.items()},
+        "contacts": int(np.sum(pairs["points"] > 0)),
+        "unbalanced": solver.unbalanced_ratio(),
+    }
 
 
 # %% [markdown]
@@ -316,18 +366,36 @@ def measure() -> dict:
 # row: the density and the mean stress of each measure.
 
 # %%
-columns = ["time", "rho", "rho_imposed", "sigma_m_love_weber", "sigma_m_schmidt",
-           "sigma_m_volume", "contacts", "unbalanced"]
+columns = [
+    "time",
+    "rho",
+    "rho_imposed",
+    "sigma_m_love_weber",
+    "sigma_m_schmidt",
+    "sigma_m_volume",
+    "contacts",
+    "unbalanced",
+]
 history: list[list[float]] = []
 
 
 def record(solver) -> None:
     """One history row (and a progress line) at an output of the solver's loop."""
     m = measure()
-    history.append([m["time"], m["rho"], m["rho_imposed"], *m["sigma_m"].values(), m["contacts"],
-                    m["unbalanced"]])
-    say(f"  t = {m['time']:.2e} s  rho = {m['rho']:.4f}  "
-        f"sigma_m = {m['sigma_m']['Love-Weber']:6.3f} MPa  contacts {m['contacts']}")
+    history.append(
+        [
+            m["time"],
+            m["rho"],
+            m["rho_imposed"],
+            *m["sigma_m"].values(),
+            m["contacts"],
+            m["unbalanced"],
+        ]
+    )
+    say(
+        f"  t = {m['time']:.2e} s  rho = {m['rho']:.4f}  "
+        f"sigma_m = {m['sigma_m']['Love-Weber']:6.3f} MPa  contacts {m['contacts']}"
+    )
 
 
 solver.run_path(record, outputs=20)
@@ -349,13 +417,17 @@ solver.run_path(record, outputs=20)
 final = measure()
 wall = comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
 reference = final["sigma_m"]["Love-Weber"]
-say(f"\nrho = {final['rho']:.5f} (pi / (6 det F); imposed {final['rho_imposed']:.5f}), "
-    f"{final['contacts']} contacts, out of balance {final['unbalanced']:.2g}")
+say(
+    f"\nrho = {final['rho']:.5f} (pi / (6 det F); imposed {final['rho_imposed']:.5f}), "
+    f"{final['contacts']} contacts, out of balance {final['unbalanced']:.2g}"
+)
 say("stress (MPa, compression > 0)  sigma_11  sigma_22  sigma_33   sigma_m  vs Love-Weber")
 for name, sigma in final["stress"].items():
     sigma_m = final["sigma_m"][name]
-    say(f"  {name:<27} {sigma[0, 0]:9.3f} {sigma[1, 1]:9.3f} {sigma[2, 2]:9.3f} {sigma_m:9.3f}"
-        f"  {100 * (sigma_m - reference) / reference:+7.2f} %")
+    say(
+        f"  {name:<27} {sigma[0, 0]:9.3f} {sigma[1, 1]:9.3f} {sigma[2, 2]:9.3f} {sigma_m:9.3f}"
+        f"  {100 * (sigma_m - reference) / reference:+7.2f} %"
+    )
 say(f"wall time {wall:.1f} s on {comm.size} rank(s)")
 
 # %% [markdown]
@@ -366,8 +438,10 @@ say(f"wall time {wall:.1f} s on {comm.size} rank(s)")
 spread = max(abs(value - reference) for value in final["sigma_m"].values())
 agree = reference > 0 and spread <= 0.03 * reference
 affine = abs(final["rho"] - final["rho_imposed"]) <= 1e-4 * final["rho_imposed"]
-say(f"check: stresses {'agree' if agree else 'DISAGREE'} (largest gap {spread:.3g} MPa), "
-    f"density {'exact' if affine else 'NOT exact'}")
+say(
+    f"check: stresses {'agree' if agree else 'DISAGREE'} (largest gap {spread:.3g} MPa), "
+    f"density {'exact' if affine else 'NOT exact'}"
+)
 
 # %% [markdown]
 # ## 11. Outputs
@@ -390,11 +464,17 @@ if comm.rank == 0:
 
     rows = np.array(history)
     fig, ax = plt.subplots(figsize=(5.5, 4))
-    for k, label, style in ((3, "Love-Weber (eq. 2.6)", "-"), (4, "Schmidt (eq. 2.19)", "--"),
-                            (5, "volume average (eq. C.7)", ":")):
+    for k, label, style in (
+        (3, "Love-Weber (eq. 2.6)", "-"),
+        (4, "Schmidt (eq. 2.19)", "--"),
+        (5, "volume average (eq. C.7)", ":"),
+    ):
         ax.plot(rows[:, 1], rows[:, k], style, label=label)
-    ax.set(xlabel="relative density rho", ylabel="mean stress sigma_m (MPa, compression > 0)",
-           title="Simple cubic cell, 8 lead spheres, CLP")
+    ax.set(
+        xlabel="relative density rho",
+        ylabel="mean stress sigma_m (MPa, compression > 0)",
+        title="Simple cubic cell, 8 lead spheres, CLP",
+    )
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
@@ -403,7 +483,9 @@ if comm.rank == 0:
 
 if not (agree and affine):
     if args.increments < DEFAULT_INCREMENTS:
-        say(f"(a smoke run: below the default {DEFAULT_INCREMENTS} increments the path is not "
-            "quasi-static, and the check is not expected to pass)")
+        say(
+            f"(a smoke run: below the default {DEFAULT_INCREMENTS} increments the path is not "
+            "quasi-static, and the check is not expected to pass)"
+        )
     else:
         raise SystemExit(1)

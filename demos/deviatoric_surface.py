@@ -21,35 +21,60 @@ import sys
 
 from mpi4py import MPI
 
-from mpfem_fenicsx.options import add_case_option
 from mpfem_fenicsx.exits import RUN_FAILED, bad_input_exits, fail
-from mpfem_fenicsx.options import add_parameter_option
+from mpfem_fenicsx.options import add_case_option, add_parameter_option
 from mpfem_fenicsx.workflows.compaction import CompactionCase, RunFailure
 from mpfem_fenicsx.workflows.deviatoric_surface import DeviatoricSurfaceCase, run_deviatoric_surface
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_case_option(p, "packing", "particles")  # type, default, range and help from the case declarations
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    add_case_option(
+        p, "packing", "particles"
+    )  # type, default, range and help from the case declarations
     add_case_option(p, "packing", "seed")
-    for name in ("p_load", "p_probe", "q_max"):  # meaning, unit, default and range from the case's declaration
+    for name in (
+        "p_load",
+        "p_probe",
+        "q_max",
+    ):  # meaning, unit, default and range from the case's declaration
         add_parameter_option(p, DeviatoricSurfaceCase, name)
-    p.add_argument("--angles", type=float, nargs="+", default=[0, 10, 20, 30, 40, 50, 60],
-                   help="Lode angles of the probes (deg; 0 triaxial compression along x, 60 extension along z)")
+    p.add_argument(
+        "--angles",
+        type=float,
+        nargs="+",
+        default=[0, 10, 20, 30, 40, 50, 60],
+        help="Lode angles of the probes (deg; 0 triaxial compression along x, 60 extension along z)",
+    )
     add_case_option(p, "solver", "increments", help="per 1e-3 s of loading")
     p.add_argument("--out", default="results/deviatoric_surface")
     args = p.parse_args(argv)
     with bad_input_exits():
-        base = CompactionCase.build(particles=args.particles, seed=args.seed, condition="CLP", increments=args.increments,
-                              visual=False)
-        case = DeviatoricSurfaceCase(base=base, p_load=args.p_load, p_probe=args.p_probe, q_max=args.q_max,
-                                     angles_deg=tuple(args.angles), out_dir=args.out)
+        base = CompactionCase.build(
+            particles=args.particles,
+            seed=args.seed,
+            condition="CLP",
+            increments=args.increments,
+            visual=False,
+        )
+        case = DeviatoricSurfaceCase(
+            base=base,
+            p_load=args.p_load,
+            p_probe=args.p_probe,
+            q_max=args.q_max,
+            angles_deg=tuple(args.angles),
+            out_dir=args.out,
+        )
     try:
         result = run_deviatoric_surface(case, MPI.COMM_WORLD)
     except RunFailure as err:
         fail(RUN_FAILED, str(err))
     if MPI.COMM_WORLD.rank == 0:
-        print(f"E_0 = {result['E_0']:.4g} mJ; yield points (theta deg: sigma_m, q MPa, measured Lode angle deg):")
+        print(
+            f"E_0 = {result['E_0']:.4g} mJ; yield points (theta deg: sigma_m, q MPa, measured Lode angle deg):"
+        )
         for theta, sigma_m, q, lode in result["points"]:
             print(f"  {theta:5.1f}: {sigma_m:.3f}, {q:.3f}, {lode:.1f}")
         missing = len(args.angles) - len(result["points"])

@@ -33,14 +33,21 @@ def summarize(case: FlatContactCase, normal, tangential, u3c, tau_c) -> dict:
     first = slice(0, int(np.argmax(u3)) + 1)
     k_stick = np.polyfit(u3[first][stick[first]], tau[first][stick[first]], 1)[0]
     return {
-        "T1_max_MPa": T1[imax], "alpha_at_T1_max": alpha[imax],
-        "peak_tension_MPa": -T1.min(), "peak_tension_from_softening_line_MPa": -(slope * d1 + intercept),
-        "zero_crossing_of_softening_mm": -intercept / slope, "delta_max_mm": case.delta_max,
+        "T1_max_MPa": T1[imax],
+        "alpha_at_T1_max": alpha[imax],
+        "peak_tension_MPa": -T1.min(),
+        "peak_tension_from_softening_line_MPa": -(slope * d1 + intercept),
+        "zero_crossing_of_softening_mm": -intercept / slope,
+        "delta_max_mm": case.delta_max,
         "max_abs_T1_beyond_delta_max": float(np.abs(T1[beyond]).max()) if beyond.any() else np.nan,
         "alpha_beyond_delta_max": float(alpha[beyond].max()) if beyond.any() else np.nan,
-        "sigma_c_MPa": law.sigma_c, "tau_c_MPa": tau_c, "tau_plateau_MPa": float(np.abs(tau).max()),
-        "u3c_expected_mm": u3c, "u3c_from_stick_slope_mm": tau_c / k_stick,
-        "W_f_mJ_per_mm2": wf[-1], "W_f_expected_mJ_per_mm2": 6.0 * tau_c * u3c,
+        "sigma_c_MPa": law.sigma_c,
+        "tau_c_MPa": tau_c,
+        "tau_plateau_MPa": float(np.abs(tau).max()),
+        "u3c_expected_mm": u3c,
+        "u3c_from_stick_slope_mm": tau_c / k_stick,
+        "W_f_mJ_per_mm2": wf[-1],
+        "W_f_expected_mJ_per_mm2": 6.0 * tau_c * u3c,
     }
 
 
@@ -68,7 +75,9 @@ def plot(normal, tangential, path: Path) -> None:
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--out", default="results/flat_contact")
     args = parser.parse_args(argv)
     comm = MPI.COMM_WORLD

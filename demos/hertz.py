@@ -26,7 +26,9 @@ from mpfem_fenicsx.workflows.hertz import HertzCase, run_hertz
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     add_parameter_option(parser, HertzCase, "size_min")
     add_parameter_option(parser, HertzCase, "steps")
     parser.add_argument("--out", default="results/hertz")
@@ -36,8 +38,12 @@ def main(argv=None):
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     with bad_input_exits():
-        case = HertzCase(size_min=args.size_min, steps=args.steps, solver=args.solver,
-                         explicit_increments=args.increments)
+        case = HertzCase(
+            size_min=args.size_min,
+            steps=args.steps,
+            solver=args.solver,
+            explicit_increments=args.increments,
+        )
     if not solver_kind(case.solver).static:  # a dynamic run compared with the static one
         res = run_hertz(case, args.out, comm, log=say)
         say(f"{res.num_dofs} dofs, {res.wall_time:.1f} s")
@@ -55,8 +61,10 @@ def main(argv=None):
     h = res.history
     delta, force, ref = h.column("delta_mm"), h.column("force_N"), h.column("force_hertz_N")
     worst = np.abs(force / ref - 1.0).max()
-    say(f"{res.num_dofs} dofs, {res.wall_time:.1f} s, Newton iterations per step {res.newton_iterations}; "
-        f"largest deviation from Hertz {100 * worst:.2f} %")
+    say(
+        f"{res.num_dofs} dofs, {res.wall_time:.1f} s, Newton iterations per step {res.newton_iterations}; "
+        f"largest deviation from Hertz {100 * worst:.2f} %"
+    )
     if comm.rank == 0:
         import matplotlib
 

@@ -38,8 +38,10 @@ def main(argv=None, loading: str = "isotropic", doc: str = __doc__) -> None:
     #    range (exit 2 with one line naming it)
     args = compaction_parser(loading, doc).parse_args(argv)
     case = compaction_case(args, loading)
-    say(f"case: {case.packing.particles} particles, {case.boundary.condition}, {case.loading.path} to "
-        f"rho = {case.loading.target_density}, {case.solver.kind} solver ({case.solver.increments} increments)")
+    say(
+        f"case: {case.packing.particles} particles, {case.boundary.condition}, {case.loading.path} to "
+        f"rho = {case.loading.target_density}, {case.solver.kind} solver ({case.solver.increments} increments)"
+    )
 
     with run_exits():  # exit 2 on bad input found while building, 3 if the run diverges
         # 2. The model, each stage taking the sections it needs (build_compaction): the packing

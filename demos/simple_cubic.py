@@ -34,10 +34,11 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from mpfem_fenicsx.options import add_case_option
 from mpfem_fenicsx.exits import bad_input_exits
+from mpfem_fenicsx.options import add_case_option
 from mpfem_fenicsx.workflows.compaction import initial_packing, run_compaction
 from mpfem_fenicsx.workflows.simple_cubic import COMPONENTS, checks, simple_cubic_case
+
 
 def write_checks(data: dict[str, np.ndarray], path: Path) -> None:
     with open(path, "w", newline="") as fh:
@@ -60,14 +61,27 @@ def plot(results: dict, path: Path) -> None:
         axes[0].plot(hv, chk["rho_pi6"], "k:", lw=1)
         for a, b in [(0, 0), (2, 2)]:
             name = f"{a + 1}{b + 1}"
-            axes[1].plot(hv, -chk[f"h_aux_{name}"], "-", lw=3, alpha=0.35, label=f"{loading} h{name}: auxiliary nodes")
+            axes[1].plot(
+                hv,
+                -chk[f"h_aux_{name}"],
+                "-",
+                lw=3,
+                alpha=0.35,
+                label=f"{loading} h{name}: auxiliary nodes",
+            )
             axes[1].plot(hv, -chk[f"h_lsq_{name}"], "--", label=f"{loading} h{name}: least squares")
         for k in (1, 3):
-            axes[2].plot(hv, h.column(f"sigma{k}{k}"), "-", label=f"{loading} sigma{k}{k}: Love-Weber")
-            axes[2].plot(hv, h.column(f"sigma_schmidt_{k}{k}"), "--", label=f"{loading} sigma{k}{k}: Schmidt")
+            axes[2].plot(
+                hv, h.column(f"sigma{k}{k}"), "-", label=f"{loading} sigma{k}{k}: Love-Weber"
+            )
+            axes[2].plot(
+                hv, h.column(f"sigma_schmidt_{k}{k}"), "--", label=f"{loading} sigma{k}{k}: Schmidt"
+            )
     axes[0].set(xlabel="-h_v", ylabel="relative density rho", title="rho = pi / (6 det F) (dotted)")
     axes[1].set(xlabel="-h_v", ylabel="-h_ii (Hencky)", title="least squares vs auxiliary nodes")
-    axes[2].set(xlabel="-h_v", ylabel="stress (MPa, compression > 0)", title="Love-Weber vs Schmidt")
+    axes[2].set(
+        xlabel="-h_v", ylabel="stress (MPa, compression > 0)", title="Love-Weber vs Schmidt"
+    )
     for ax in axes:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
@@ -78,24 +92,40 @@ def plot(results: dict, path: Path) -> None:
 
 
 def main(argv=None) -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--loading", choices=("isotropic", "die", "both"), default="both")
-    p.add_argument("--radius", type=float, default=0.1, help="sphere radius r (mm); the cell is 4 r")
+    p.add_argument(
+        "--radius", type=float, default=0.1, help="sphere radius r (mm); the cell is 4 r"
+    )
     add_case_option(p, "loading", "target_density", default=0.95)
     add_case_option(p, "solver", "increments", default=4000, help="per loading")
-    p.add_argument("--face-copies-only", action="store_true",
-                   help="the thesis' 12 face copies (no edge / corner copies)")
-    p.add_argument("--no-visual", action="store_true", help="skip ParaView output and the particle PNG")
+    p.add_argument(
+        "--face-copies-only",
+        action="store_true",
+        help="the thesis' 12 face copies (no edge / corner copies)",
+    )
+    p.add_argument(
+        "--no-visual", action="store_true", help="skip ParaView output and the particle PNG"
+    )
     p.add_argument("--out", default="results/simple_cubic")
     args = p.parse_args(argv)
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     out = Path(args.out)
     results = {}
-    for loading in (("isotropic", "die") if args.loading == "both" else (args.loading,)):
+    for loading in ("isotropic", "die") if args.loading == "both" else (args.loading,):
         with bad_input_exits():  # the case and its packing, checked before any mesh
-            case = simple_cubic_case(loading, args.radius, args.target_density, args.increments, str(out),
-                                     visual=not args.no_visual, face_copies_only=args.face_copies_only)
+            case = simple_cubic_case(
+                loading,
+                args.radius,
+                args.target_density,
+                args.increments,
+                str(out),
+                visual=not args.no_visual,
+                face_copies_only=args.face_copies_only,
+            )
             initial_packing(case.packing, case.mesh, case.loading.target_density)
         res = run_compaction(case, comm, log=lambda *a: None)
         chk = checks(res)
@@ -103,12 +133,17 @@ def main(argv=None) -> None:
         if comm.rank == 0:
             write_checks(chk, out / loading / "checks.csv")
         rho_err = np.max(np.abs(chk["rho"] - chk["rho_pi6"]) / chk["rho_pi6"])
-        h_err = max(np.max(np.abs(chk[f"h_lsq_{a + 1}{b + 1}"] - chk[f"h_aux_{a + 1}{b + 1}"])) for a, b in COMPONENTS)
+        h_err = max(
+            np.max(np.abs(chk[f"h_lsq_{a + 1}{b + 1}"] - chk[f"h_aux_{a + 1}{b + 1}"]))
+            for a, b in COMPONENTS
+        )
         lw, sm = chk["sigma_m_love_weber"][-1], chk["sigma_m_schmidt"][-1]
-        say(f"{loading}: rho = {chk['rho'][-1]:.4f}, max |rho - pi/(6 det F)| / rho = {rho_err:.2e}, "
+        say(
+            f"{loading}: rho = {chk['rho'][-1]:.4f}, max |rho - pi/(6 det F)| / rho = {rho_err:.2e}, "
             f"max |h_lsq - h_aux| = {h_err:.2e}, sigma_m Love-Weber {lw:.3f} / Schmidt {sm:.3f} MPa "
             f"({100 * abs(lw - sm) / abs(lw):.2f} %), {res.num_dofs} dofs, {res.increments} increments, "
-            f"wall {res.wall_time:.0f} s")
+            f"wall {res.wall_time:.0f} s"
+        )
     if comm.rank == 0:
         plot(results, out / "simple_cubic.png")
         say(f"outputs in {out}/: <loading>/history.csv, <loading>/checks.csv, simple_cubic.png")

@@ -16,21 +16,29 @@ from mpfem_fenicsx.workflows.foundation import SqueezeCase, run_sphere_squeeze
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     for name in ("solver", "reduction", "refinement", "explicit_steps"):  # declared in SqueezeCase
         add_parameter_option(parser, SqueezeCase, name)
     parser.add_argument("--out", default="results/sphere_squeeze")
     args = parser.parse_args(argv)
     with bad_input_exits():
-        case = SqueezeCase(solver=args.solver, reduction=args.reduction, refinement=args.refinement,
-                           explicit_steps=args.explicit_steps)
+        case = SqueezeCase(
+            solver=args.solver,
+            reduction=args.reduction,
+            refinement=args.refinement,
+            explicit_steps=args.explicit_steps,
+        )
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     res = run_sphere_squeeze(case, out_dir=args.out, comm=comm, log=say)
     h = res.history
-    say(f"{args.solver}: {res.num_dofs} dofs, {len(h.rows)} rows, force {h.column('force_N')[-1]:.4f} N at "
+    say(
+        f"{args.solver}: {res.num_dofs} dofs, {len(h.rows)} rows, force {h.column('force_N')[-1]:.4f} N at "
         f"{100 * h.column('height_reduction')[-1]:.1f} % height reduction, volume change "
-        f"{100 * h.column('volume_change')[-1]:+.4f} %, wall {res.wall_time:.1f} s")
+        f"{100 * h.column('volume_change')[-1]:+.4f} %, wall {res.wall_time:.1f} s"
+    )
 
 
 if __name__ == "__main__":

@@ -27,14 +27,12 @@ import sys
 import numpy as np
 from mpi4py import MPI
 
-from mpfem_fenicsx.io.plots import plot_loading_path
-from mpfem_fenicsx.options import add_case_option
-from mpfem_fenicsx.options import run_exits
-from mpfem_fenicsx.exits import bad_input_exits
-from mpfem_fenicsx.options import add_parameter_option
-from mpfem_fenicsx.loading.stress_paths import StressPath
-from mpfem_fenicsx.parameters import parameter_default
 from mpfem_fenicsx.case import CompactionCase, LoadingSection
+from mpfem_fenicsx.exits import bad_input_exits
+from mpfem_fenicsx.io.plots import plot_loading_path
+from mpfem_fenicsx.loading.stress_paths import StressPath
+from mpfem_fenicsx.options import add_case_option, add_parameter_option, run_exits
+from mpfem_fenicsx.parameters import parameter_default
 from mpfem_fenicsx.workflows.compaction import run_compaction
 
 #: the demo's servo band / confining pressure (the paths' default is 0.25)
@@ -42,8 +40,12 @@ TRIAXIAL_BAND_FRACTION = 0.15
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_case_option(p, "packing", "particles")  # type, default, range and help from the case declarations
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    add_case_option(
+        p, "packing", "particles"
+    )  # type, default, range and help from the case declarations
     add_case_option(p, "packing", "seed")
     # the path's options (meaning, unit, default, range) from its declaration: loading.stress_paths.StressPath
     add_parameter_option(p, StressPath, "pressure", flag="--confining", default=2.0)
@@ -53,35 +55,69 @@ def main(argv=None) -> int:
         add_parameter_option(p, StressPath, name)
     # a narrower band than the paths' default: the lateral stresses' lag in the axial phase
     # (README, the triaxial servo study: 0.25 -> 0.15 took the largest Schmidt deviation from 2.14 to 1.85 %)
-    add_parameter_option(p, StressPath, "band_fraction", default=TRIAXIAL_BAND_FRACTION,
-                         help=f"here {TRIAXIAL_BAND_FRACTION}")
+    add_parameter_option(
+        p,
+        StressPath,
+        "band_fraction",
+        default=TRIAXIAL_BAND_FRACTION,
+        help=f"here {TRIAXIAL_BAND_FRACTION}",
+    )
     add_case_option(p, "output", "outputs", default=60)
     p.add_argument("--out", default="results/triaxial")
-    p.add_argument("--restart", default=None, metavar="CHECKPOINT",
-                   help="continue a killed run from a checkpoint (directory, or its results folder: the newest "
-                        "one); give the same options as the run that wrote it")
+    p.add_argument(
+        "--restart",
+        default=None,
+        metavar="CHECKPOINT",
+        help="continue a killed run from a checkpoint (directory, or its results folder: the newest "
+        "one); give the same options as the run that wrote it",
+    )
     args = p.parse_args(argv)
     with bad_input_exits():
-        path = StressPath(path="triaxial", pressure=args.confining, axial_strain=args.axial_strain, rate=args.rate,
-                          band=args.band, band_fraction=args.band_fraction, measure=args.measure,
-                          integral_time=args.integral_time, filter_time=args.filter_time, axial_ramp=args.axial_ramp)
+        path = StressPath(
+            path="triaxial",
+            pressure=args.confining,
+            axial_strain=args.axial_strain,
+            rate=args.rate,
+            band=args.band,
+            band_fraction=args.band_fraction,
+            measure=args.measure,
+            integral_time=args.integral_time,
+            filter_time=args.filter_time,
+            axial_ramp=args.axial_ramp,
+        )
         duration = parameter_default(LoadingSection, "duration")  # times above in units of it
         control = path.control(duration)
-        case = CompactionCase.build(particles=args.particles, seed=args.seed, condition="CLP", control=control, duration=duration,
-                              increments=args.increments, outputs=args.outputs, visual=False, directory=args.out)
+        case = CompactionCase.build(
+            particles=args.particles,
+            seed=args.seed,
+            condition="CLP",
+            control=control,
+            duration=duration,
+            increments=args.increments,
+            outputs=args.outputs,
+            visual=False,
+            directory=args.out,
+        )
     with run_exits():  # a refused checkpoint exits 2, a diverged run 3
         result = run_compaction(case, MPI.COMM_WORLD, restart=args.restart)
     h = result.history
     if MPI.COMM_WORLD.rank == 0:
-        plot_loading_path(h.path, result.out_dir / "loading_path.png",
-                          title=f"{args.particles} particles, triaxial, confining {args.confining} MPa, CLP")
-        axial = h.column("time") > control.duration - path.axial_time * duration * (1 - 1e-9)  # the axial phase's rows
+        plot_loading_path(
+            h.path,
+            result.out_dir / "loading_path.png",
+            title=f"{args.particles} particles, triaxial, confining {args.confining} MPa, CLP",
+        )
+        axial = h.column("time") > control.duration - path.axial_time * duration * (
+            1 - 1e-9
+        )  # the axial phase's rows
         for name, key in (("Schmidt", "sigma_schmidt_"), ("volume average", "sigma_vol_")):
             lateral = np.concatenate([h.column(key + "11")[axial], h.column(key + "22")[axial]])
-            print(f"end: sigma_11 / 22 / 33 = {h.column(key + '11')[-1]:.3f} / {h.column(key + '22')[-1]:.3f}"
-                  f" / {h.column(key + '33')[-1]:.3f} MPa ({name}), rho {h.column('rho')[-1]:.4f}; axial phase: "
-                  f"lateral stresses within {100 * np.abs(lateral / args.confining - 1).max():.2f} % of the "
-                  f"confining pressure")
+            print(
+                f"end: sigma_11 / 22 / 33 = {h.column(key + '11')[-1]:.3f} / {h.column(key + '22')[-1]:.3f}"
+                f" / {h.column(key + '33')[-1]:.3f} MPa ({name}), rho {h.column('rho')[-1]:.4f}; axial phase: "
+                f"lateral stresses within {100 * np.abs(lateral / args.confining - 1).max():.2f} % of the "
+                f"confining pressure"
+            )
     return 0
 
 

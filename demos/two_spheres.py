@@ -30,37 +30,82 @@ import numpy as np
 from mpi4py import MPI
 
 from mpfem_fenicsx.exits import bad_input_exits
-from mpfem_fenicsx.options import add_parameter_option
 from mpfem_fenicsx.io import History
+from mpfem_fenicsx.options import add_parameter_option
 from mpfem_fenicsx.workflows.two_spheres import TwoSphereCase, run_two_spheres, unloading_branch
 
 RATIOS = (0.1, 0.3, 0.6, 0.8, 1.0, 1.2, 1.6, 2.0)
 
 
 #: the full demo: the wedge at the thesis' contact resolution
-DEMO_CASE = TwoSphereCase(model="wedge", size_min=0.004, refine_radius=0.2, grading=0.3, load_steps=40, unload_steps=80)
+DEMO_CASE = TwoSphereCase(
+    model="wedge", size_min=0.004, refine_radius=0.2, grading=0.3, load_steps=40, unload_steps=80
+)
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     d = DEMO_CASE
-    parser.add_argument("--ratios", type=float, nargs="+", default=RATIOS, help="sigma_c / sigma_y values")
+    parser.add_argument(
+        "--ratios", type=float, nargs="+", default=RATIOS, help="sigma_c / sigma_y values"
+    )
     parser.add_argument("--gamma", type=float, default=d.gamma, help="adhesion energy, mJ/mm^2")
-    for name in ("size_min", "grading", "refine_radius", "model", "wedge_angle", "load_steps", "unload_steps"):
-        add_parameter_option(parser, TwoSphereCase, name, default=getattr(d, name))  # the demo's own defaults
+    for name in (
+        "size_min",
+        "grading",
+        "refine_radius",
+        "model",
+        "wedge_angle",
+        "load_steps",
+        "unload_steps",
+    ):
+        add_parameter_option(
+            parser, TwoSphereCase, name, default=getattr(d, name)
+        )  # the demo's own defaults
     parser.add_argument("--out", default="results/two_spheres")
-    parser.add_argument("--replot", action="store_true",
-                        help="no simulation: summary, curves and figure from the history_<ratio>.csv in --out")
+    parser.add_argument(
+        "--replot",
+        action="store_true",
+        help="no simulation: summary, curves and figure from the history_<ratio>.csv in --out",
+    )
     args = parser.parse_args(argv)
     with bad_input_exits():  # every ratio's case before the first run
-        cases = {ratio: replace(d, ratio=ratio, gamma=args.gamma, size_min=args.size_min, grading=args.grading,
-                                refine_radius=args.refine_radius, model=args.model, wedge_angle=args.wedge_angle,
-                                load_steps=args.load_steps, unload_steps=args.unload_steps) for ratio in args.ratios}
+        cases = {
+            ratio: replace(
+                d,
+                ratio=ratio,
+                gamma=args.gamma,
+                size_min=args.size_min,
+                grading=args.grading,
+                refine_radius=args.refine_radius,
+                model=args.model,
+                wedge_angle=args.wedge_angle,
+                load_steps=args.load_steps,
+                unload_steps=args.unload_steps,
+            )
+            for ratio in args.ratios
+        }
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     out = Path(args.out)
-    summary = History(out / "summary.csv", ["sigma_c_over_sigma_y", "error_e", "grid_points", "error_rms", "error_samples",
-                                            "a0_mm", "F0_N", "samples", "pull_off_mm", "wall_s"], comm)
+    summary = History(
+        out / "summary.csv",
+        [
+            "sigma_c_over_sigma_y",
+            "error_e",
+            "grid_points",
+            "error_rms",
+            "error_samples",
+            "a0_mm",
+            "F0_N",
+            "samples",
+            "pull_off_mm",
+            "wall_s",
+        ],
+        comm,
+    )
     curves = {}
     for ratio in args.ratios:
         case = cases[ratio]
@@ -72,25 +117,39 @@ def main(argv=None):
             branch = unloading_branch(case, np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2))
             pull_off, wall = float("nan"), float("nan")
         else:
-            say(f"sigma_c / sigma_y = {ratio:g}: sigma_c = {case.sigma_c:g} MPa, delta_max = {case.delta_max:.3g} mm")
+            say(
+                f"sigma_c / sigma_y = {ratio:g}: sigma_c = {case.sigma_c:g} MPa, delta_max = {case.delta_max:.3g} mm"
+            )
             res = run_two_spheres(case, out, comm, log=say)
             branch = res.branch
             pull_off = float("nan") if res.pull_off is None else res.pull_off
             wall = res.wall_time
             say(f"  {res.num_dofs} dofs, {wall:.0f} s")
-        curve = History(out / f"sigma_c_{ratio:g}.csv", ["a_over_a0", "force_N", "force_mj_N"], comm)
+        curve = History(
+            out / f"sigma_c_{ratio:g}.csv", ["a_over_a0", "force_N", "force_mj_N"], comm
+        )
         for a, f, f_mj in zip(branch.a, branch.F, branch.F_mj):
             curve.append(a_over_a0=a / branch.a0, force_N=f, force_mj_N=f_mj)
         curve.write()
         curves[ratio] = (branch.a / branch.a0, branch.F / branch.F0, branch.a0, branch.F0, case)
-        summary.append(sigma_c_over_sigma_y=ratio, error_e=branch.error, grid_points=branch.grid_points,
-                       error_rms=branch.error_rms, error_samples=branch.error_samples, a0_mm=branch.a0, F0_N=branch.F0,
-                       samples=branch.a.size,
-                       pull_off_mm=pull_off, wall_s=wall)
+        summary.append(
+            sigma_c_over_sigma_y=ratio,
+            error_e=branch.error,
+            grid_points=branch.grid_points,
+            error_rms=branch.error_rms,
+            error_samples=branch.error_samples,
+            a0_mm=branch.a0,
+            F0_N=branch.F0,
+            samples=branch.a.size,
+            pull_off_mm=pull_off,
+            wall_s=wall,
+        )
         summary.write()
-        say(f"  sigma_c / sigma_y = {ratio:g}: a0 = {branch.a0:.4f} mm, F0 = {branch.F0:.3f} N, e = "
+        say(
+            f"  sigma_c / sigma_y = {ratio:g}: a0 = {branch.a0:.4f} mm, F0 = {branch.F0:.3f} N, e = "
             f"{100 * branch.error:.2f} % (eq. 3.21 on {branch.grid_points} radii a / a0 = 0.1..0.9); "
-            f"{branch.a.size} unloading samples: {100 * branch.error_rms:.2f} % rms")
+            f"{branch.a.size} unloading samples: {100 * branch.error_rms:.2f} % rms"
+        )
     if not curves:
         say(f"no results in {out}")
         return
@@ -113,7 +172,9 @@ def main(argv=None):
         ax[0].grid(alpha=0.3)
         rows = summary.array()
         ax[1].plot(rows[:, 0], 100 * rows[:, 1], "o-", label="e, eq. 3.21 (a / a0 = 0.1 ... 0.9)")
-        ax[1].plot(rows[:, 0], 100 * rows[:, 3], "s--", ms=4, label="rms over the unloading samples")
+        ax[1].plot(
+            rows[:, 0], 100 * rows[:, 3], "s--", ms=4, label="rms over the unloading samples"
+        )
         ax[1].legend(fontsize=7)
         ax[1].axhline(5.0, color="k", ls="--", lw=1)
         ax[1].set_ylim(bottom=0.0)

@@ -20,21 +20,31 @@ from mpfem_fenicsx.workflows.foundation import UniaxialCase, run_uniaxial
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    for name in ("solver", "log_strain", "cells"):  # meaning, unit, default and range from UniaxialCase
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    for name in (
+        "solver",
+        "log_strain",
+        "cells",
+    ):  # meaning, unit, default and range from UniaxialCase
         add_parameter_option(parser, UniaxialCase, name)
     parser.add_argument("--out", default="results/uniaxial")
     args = parser.parse_args(argv)
     with bad_input_exits():
-        case = UniaxialCase(solver=args.solver, log_strain=args.log_strain, cells=args.cells, material=LEAD)
+        case = UniaxialCase(
+            solver=args.solver, log_strain=args.log_strain, cells=args.cells, material=LEAD
+        )
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     res = run_uniaxial(case, args.out, comm, log=say)
     plastic = res.eps_p > 1e-3
     dev = np.abs(res.true_stress[plastic] / LEAD.yield_stress(res.eps_p[plastic]) - 1.0).max()
-    say(f"{args.solver}: {len(res.log_strain)} rows, final log strain {res.log_strain[-1]:.4f}, "
+    say(
+        f"{args.solver}: {len(res.log_strain)} rows, final log strain {res.log_strain[-1]:.4f}, "
         f"true stress {res.true_stress[-1]:.4f} MPa, eps_p {res.eps_p[-1]:.4f}; "
-        f"max deviation from sigma_0 + K eps_p^n: {100 * dev:.3f} %; wall {res.wall_time:.1f} s")
+        f"max deviation from sigma_0 + K eps_p^n: {100 * dev:.3f} %; wall {res.wall_time:.1f} s"
+    )
     say(f"wrote {res.csv}")
 
 

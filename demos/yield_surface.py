@@ -22,12 +22,10 @@ is first relaxed to static equilibrium): W2 then needs no filter, at ~10x the co
 Stresses in MPa, compression > 0.
 """
 
-
 from mpi4py import MPI
 
-from mpfem_fenicsx.options import compaction_case, compaction_parser
 from mpfem_fenicsx.exits import RUN_FAILED, bad_input_exits, fail
-from mpfem_fenicsx.options import add_parameter_option
+from mpfem_fenicsx.options import add_parameter_option, compaction_case, compaction_parser
 from mpfem_fenicsx.workflows.compaction import RunFailure
 from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase, run_yield_surface, surfaces
 
@@ -38,33 +36,57 @@ DEFAULTS = dict(particles=24, target_density=0.80, increments=2000, gamma=1e-2, 
 def main(argv=None) -> None:
     p = compaction_parser("isotropic", __doc__)
     p.set_defaults(out="results/yield_surface", **DEFAULTS)
-    p.add_argument("--loading", choices=("isotropic", "die"), default="isotropic", help="initial loading path")
+    p.add_argument(
+        "--loading", choices=("isotropic", "die"), default="isotropic", help="initial loading path"
+    )
     # meaning, unit, default and range of the fan's options from YieldSurfaceCase's declarations
     add_parameter_option(p, YieldSurfaceCase, "nphi")
     add_parameter_option(p, YieldSurfaceCase, "unload_stress_ratio", flag="--unload-ratio")
     add_parameter_option(p, YieldSurfaceCase, "amplitude_factor")
     add_parameter_option(p, YieldSurfaceCase, "dissipation_threshold", flag="--threshold")
-    p.add_argument("--gamma-thresholds", type=float, nargs="*", default=(),
-                   help="iso-Gamma levels (1/mm; default: 0.25..1 x Gamma after the unload)")
+    p.add_argument(
+        "--gamma-thresholds",
+        type=float,
+        nargs="*",
+        default=(),
+        help="iso-Gamma levels (1/mm; default: 0.25..1 x Gamma after the unload)",
+    )
     add_parameter_option(p, YieldSurfaceCase, "reload_steps")
     add_parameter_option(p, YieldSurfaceCase, "reload_profile")
-    p.add_argument("--resume", action="store_true",
-                   help="continue a killed fan in --out (same options): the loading from its newest checkpoint, "
-                        "finished stages and reloads not repeated")
-    p.add_argument("--surfaces-only", action="store_true",
-                   help="recompute fan.csv, surfaces.csv, uniaxial.csv and the PNG from a finished fan in --out "
-                        "(e.g. with another --threshold or --gamma-thresholds)")
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue a killed fan in --out (same options): the loading from its newest checkpoint, "
+        "finished stages and reloads not repeated",
+    )
+    p.add_argument(
+        "--surfaces-only",
+        action="store_true",
+        help="recompute fan.csv, surfaces.csv, uniaxial.csv and the PNG from a finished fan in --out "
+        "(e.g. with another --threshold or --gamma-thresholds)",
+    )
     args = p.parse_args(argv)
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     args.no_visual = True  # the stages write histories, the fan its own figure
-    reload_solver, args.solver = args.solver, "explicit"  # --solver: the reloads' (loading: explicit)
+    reload_solver, args.solver = (
+        args.solver,
+        "explicit",
+    )  # --solver: the reloads' (loading: explicit)
     base = compaction_case(args, args.loading)
     with bad_input_exits():
-        case = YieldSurfaceCase(base=base, solver=reload_solver, reload_steps=args.reload_steps, nphi=args.nphi, unload_stress_ratio=args.unload_ratio,
-                                amplitude_factor=args.amplitude_factor, reload_profile=args.reload_profile,
-                                dissipation_threshold=args.threshold,
-                                gamma_thresholds=tuple(args.gamma_thresholds), out_dir=args.out)
+        case = YieldSurfaceCase(
+            base=base,
+            solver=reload_solver,
+            reload_steps=args.reload_steps,
+            nphi=args.nphi,
+            unload_stress_ratio=args.unload_ratio,
+            amplitude_factor=args.amplitude_factor,
+            reload_profile=args.reload_profile,
+            dissipation_threshold=args.threshold,
+            gamma_thresholds=tuple(args.gamma_thresholds),
+            out_dir=args.out,
+        )
     if args.surfaces_only:
         if comm.rank == 0:
             surfaces(case, log=say)
@@ -73,7 +95,9 @@ def main(argv=None) -> None:
         result = run_yield_surface(case, comm, log=say, resume=args.resume)
     except RunFailure as err:
         fail(RUN_FAILED, str(err))
-    say(f"done in {result['wall_time']:.0f} s: {args.out}/fan.csv, surfaces.csv, uniaxial.csv, yield_surface.png")
+    say(
+        f"done in {result['wall_time']:.0f} s: {args.out}/fan.csv, surfaces.csv, uniaxial.csv, yield_surface.png"
+    )
 
 
 if __name__ == "__main__":

@@ -31,7 +31,7 @@ class QuadratureRules:
     volumetric: int
 
     @staticmethod
-    def for_cell(cell_name: str, degree: int) -> "QuadratureRules":
+    def for_cell(cell_name: str, degree: int) -> QuadratureRules:
         if cell_name == "hexahedron" and degree == 1:
             return QuadratureRules(deviatoric=2, volumetric=1)  # 8 points + 1 point (SRI)
         if cell_name == "tetrahedron":
@@ -88,7 +88,9 @@ def lumped_mass_action(density, v, dx):
     return density * ufl.dot(ufl.as_vector([1.0, 1.0, 1.0]), v) * dx
 
 
-def bulk_viscosity_work(u, velocity, v, density, wave_speed, cell_length, linear, quadratic, dx_vol):
+def bulk_viscosity_work(
+    u, velocity, v, density, wave_speed, cell_length, linear, quadratic, dx_vol
+):
     """Abaqus-style bulk viscosity (explicit dynamics): a volumetric viscous Cauchy stress
 
         sigma_bv = [ b1 rho c_d L_e eps_dot_v  -  rho (b2 L_e eps_dot_v)^2 H(-eps_dot_v) ] I
@@ -102,6 +104,8 @@ def bulk_viscosity_work(u, velocity, v, density, wave_speed, cell_length, linear
     J = ufl.det(F)
     rate = ufl.tr(ufl.grad(velocity) * Finv)
     compression = ufl.conditional(ufl.lt(rate, 0.0), 1.0, 0.0)
-    pressure = linear * density * wave_speed * cell_length * rate \
+    pressure = (
+        linear * density * wave_speed * cell_length * rate
         - density * (quadratic * cell_length * rate) ** 2 * compression
+    )
     return J * pressure * ufl.tr(ufl.grad(v) * Finv) * dx_vol

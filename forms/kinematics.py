@@ -64,8 +64,12 @@ def _gradients(cells, x, gdofs, dpsi, u, dofs, dphi, out):
                 row = c * npts + q
                 for i in range(3):
                     for j in range(3):
-                        out[row, i, j] = (1.0 if i == j else 0.0) + G[i, 0] * K[0, j] + G[i, 1] * K[1, j] \
+                        out[row, i, j] = (
+                            (1.0 if i == j else 0.0)
+                            + G[i, 0] * K[0, j]
+                            + G[i, 1] * K[1, j]
                             + G[i, 2] * K[2, j]
+                        )
 
 
 def reference_derivatives(V, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -73,8 +77,10 @@ def reference_derivatives(V, points: np.ndarray) -> tuple[np.ndarray, np.ndarray
     basis of the space ``V`` at ``points``."""
     psi = V.mesh.ufl_domain().ufl_coordinate_element().basix_element.tabulate(1, points)
     phi = V.element.basix_element.tabulate(1, points)  # (4, npts, ndofs, 1) for the scalar element
-    return (np.ascontiguousarray(np.moveaxis(psi[1:4, :, :, 0], 0, -1)),
-            np.ascontiguousarray(np.moveaxis(phi[1:4, :, :, 0], 0, -1)))
+    return (
+        np.ascontiguousarray(np.moveaxis(psi[1:4, :, :, 0], 0, -1)),
+        np.ascontiguousarray(np.moveaxis(phi[1:4, :, :, 0], 0, -1)),
+    )
 
 
 class DeformationGradients:
@@ -96,7 +102,9 @@ class DeformationGradients:
         """F of ``u`` (default: the Function given at construction); the returned array is
         overwritten by the next call."""
         u = self.u if u is None else u
-        _gradients(self.cells, self.x, self.gdofs, self.dpsi, u.x.array, self.dofs, self.dphi, self.out)
+        _gradients(
+            self.cells, self.x, self.gdofs, self.dpsi, u.x.array, self.dofs, self.dphi, self.out
+        )
         return self.out
 
     def matches(self, rtol: float = 1e-12) -> bool:
@@ -109,8 +117,15 @@ class DeformationGradients:
         if not self.cells.size:
             return True
         w = dolfinx.fem.Function(self.u.function_space)
-        w.interpolate(lambda x: np.stack([0.01 * np.sin(x[1] + 2 * x[2]), 0.02 * np.cos(x[0] * x[2]),
-                                          0.015 * np.sin(x[0] - x[1]) * x[2]]))
+        w.interpolate(
+            lambda x: np.stack(
+                [
+                    0.01 * np.sin(x[1] + 2 * x[2]),
+                    0.02 * np.cos(x[0] * x[2]),
+                    0.015 * np.sin(x[0] - x[1]) * x[2],
+                ]
+            )
+        )
         expression = dolfinx.fem.Expression(deformation_gradient(w), self.points)
         F_ref = expression.eval(self.u.function_space.mesh, self.cells).reshape(-1, 3, 3)
         return bool(np.abs(self(w) - F_ref).max() <= rtol * max(1.0, np.abs(F_ref).max()))
@@ -129,7 +144,9 @@ def _inverse_jacobians(cells, x, gdofs, dpsi, out, dets):
             dets[c * npts + q] = abs(inverse3(J, out[c * npts + q]))
 
 
-def _point_geometry(V, points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _point_geometry(
+    V, points: np.ndarray, cells: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """What a force loop over ``points`` of ``cells`` needs once (total Lagrangian): the reference
     derivatives of V's scalar basis (npts, n, 3), J^-1 (n_cells npts, 3, 3) and |det J|."""
     mesh = V.mesh
@@ -145,7 +162,9 @@ def _spatial_derivatives(q, dphi, K, scale, d):
     """d[b, J] = scale dphi_b/dX_J at point q, dphi_b/dX_J = sum_k dphi_b/dxi_k (J^-1)_kJ."""
     for b in range(dphi.shape[1]):
         for j in range(3):
-            d[b, j] = (dphi[q, b, 0] * K[0, j] + dphi[q, b, 1] * K[1, j] + dphi[q, b, 2] * K[2, j]) * scale
+            d[b, j] = (
+                dphi[q, b, 0] * K[0, j] + dphi[q, b, 1] * K[1, j] + dphi[q, b, 2] * K[2, j]
+            ) * scale
 
 
 @numba.njit(cache=True, inline="always")
@@ -168,7 +187,9 @@ def _add_pressure_forces(cell, dofs, d, scale, Finv, out):
     for b in range(d.shape[0]):
         dof = dofs[cell, b]
         for i in range(3):
-            out[3 * dof + i] += scale * (d[b, 0] * Finv[0, i] + d[b, 1] * Finv[1, i] + d[b, 2] * Finv[2, i])
+            out[3 * dof + i] += scale * (
+                d[b, 0] * Finv[0, i] + d[b, 1] * Finv[1, i] + d[b, 2] * Finv[2, i]
+            )
 
 
 @numba.njit(cache=True)
@@ -206,7 +227,9 @@ class DeviatoricForces:
     def add_to(self, P_dev: np.ndarray, array: np.ndarray) -> None:
         """array += the force of the first Piola stresses ``P_dev`` ((cell, point) order, (n, 3, 3),
         MPa) of the cells; ``array`` is the local array of a blocked (3) vector, ghosts included."""
-        _add_deviatoric_forces(self.cells, self.dofs, self.dphi, self.Kinv, self.volumes, P_dev, array)
+        _add_deviatoric_forces(
+            self.cells, self.dofs, self.dphi, self.Kinv, self.volumes, P_dev, array
+        )
 
     def matches(self, form, P_function, material_P: np.ndarray, rtol: float = 1e-12) -> bool:
         """Whether :meth:`add_to` reproduces the assembled ``form`` (int P : Grad v, P the
@@ -221,7 +244,9 @@ class DeviatoricForces:
         material_P[:] = rng.uniform(-1.0, 1.0, material_P.shape)
         if P_function.x.array.size and not np.shares_memory(material_P, P_function.x.array):
             width = material_P[0].size * (material_P.shape[0] // self.cells.size)
-            P_function.x.array.reshape(-1, width)[self.cells] = material_P.reshape(self.cells.size, width)
+            P_function.x.array.reshape(-1, width)[self.cells] = material_P.reshape(
+                self.cells.size, width
+            )
         reference = dolfinx.fem.assemble_vector(form)  # local array, ghosts not summed
         ours = np.zeros_like(reference.array)
         self.add_to(material_P, ours)
@@ -258,8 +283,22 @@ def _add_volumetric_forces(cells, dofs, dphi, Kinv, volumes, u, bulk, out):
 
 
 @numba.njit(cache=True)
-def _add_bulk_viscosity_forces(cells, dofs, dphi, Kinv, volumes, u, velocity, cell_dofs, density, wave_speed,
-                               cell_length, linear, quadratic, out):
+def _add_bulk_viscosity_forces(
+    cells,
+    dofs,
+    dphi,
+    Kinv,
+    volumes,
+    u,
+    velocity,
+    cell_dofs,
+    density,
+    wave_speed,
+    cell_length,
+    linear,
+    quadratic,
+    out,
+):
     """out += int J sigma_bv : grad_x v dX at the points of ``cells`` (``bulk.bulk_viscosity_work``;
     density, wave_speed, cell_length: cell values at ``cell_dofs[cell]``; one thread)."""
     npts = dphi.shape[0]
@@ -302,17 +341,40 @@ class VolumetricForces:
     def add_volumetric(self, u, bulk: float, array: np.ndarray) -> None:
         """array += the volumetric internal force (N) of the displacement Function ``u`` (mm) for
         the bulk modulus ``bulk`` (MPa)."""
-        _add_volumetric_forces(self.cells, self.dofs, self.dphi, self.Kinv, self.volumes, u.x.array, float(bulk),
-                               array)
+        _add_volumetric_forces(
+            self.cells, self.dofs, self.dphi, self.Kinv, self.volumes, u.x.array, float(bulk), array
+        )
 
-    def add_bulk_viscosity(self, u, velocity, density, wave_speed, cell_length, linear: float, quadratic: float,
-                           array: np.ndarray) -> None:
+    def add_bulk_viscosity(
+        self,
+        u,
+        velocity,
+        density,
+        wave_speed,
+        cell_length,
+        linear: float,
+        quadratic: float,
+        array: np.ndarray,
+    ) -> None:
         """array += the bulk-viscosity force (N) at displacement ``u`` (mm) and ``velocity`` (mm/s);
         ``density`` (t/mm^3), ``wave_speed`` (mm/s), ``cell_length`` (mm): cell-wise (DG0) Functions."""
         cell_dofs = density.function_space.dofmap.list[:, 0]
-        _add_bulk_viscosity_forces(self.cells, self.dofs, self.dphi, self.Kinv, self.volumes, u.x.array,
-                                   velocity.x.array, cell_dofs, density.x.array, wave_speed.x.array,
-                                   cell_length.x.array, float(linear), float(quadratic), array)
+        _add_bulk_viscosity_forces(
+            self.cells,
+            self.dofs,
+            self.dphi,
+            self.Kinv,
+            self.volumes,
+            u.x.array,
+            velocity.x.array,
+            cell_dofs,
+            density.x.array,
+            wave_speed.x.array,
+            cell_length.x.array,
+            float(linear),
+            float(quadratic),
+            array,
+        )
 
     @staticmethod
     def reproduces(form, add, fields, rtol: float = 1e-12) -> bool:
@@ -323,9 +385,18 @@ class VolumetricForces:
 
         saved = [f.x.array.copy() for f, _ in fields]
         for k, (f, scale) in enumerate(fields):
-            f.interpolate(lambda x, k=k, s=scale: s * np.stack([
-                0.01 * np.sin(x[1] + 2 * x[2] + k), 0.02 * np.cos(x[0] * x[2] - k),
-                0.015 * np.sin(x[0] - x[1] + 2 * k) * x[2]]))
+            f.interpolate(
+                lambda x, k=k, s=scale: (
+                    s
+                    * np.stack(
+                        [
+                            0.01 * np.sin(x[1] + 2 * x[2] + k),
+                            0.02 * np.cos(x[0] * x[2] - k),
+                            0.015 * np.sin(x[0] - x[1] + 2 * k) * x[2],
+                        ]
+                    )
+                )
+            )
         reference = dolfinx.fem.assemble_vector(form)  # local array, ghosts not summed
         ours = np.zeros_like(reference.array)
         add(ours)

@@ -36,8 +36,14 @@ import numpy as np
 
 from .packing import Packing
 
-__all__ = ["MAX_DEM_OVERLAP", "START_GAP", "START_OVERLAP_TOLERANCE", "Admission", "admit_packing",
-           "metres_warning"]
+__all__ = [
+    "MAX_DEM_OVERLAP",
+    "START_GAP",
+    "START_OVERLAP_TOLERANCE",
+    "Admission",
+    "admit_packing",
+    "metres_warning",
+]
 
 #: largest overlap (fraction of the smaller radius) of the spheres through the particle meshes'
 #: nodes at the start: round-off of touching spheres, not an interpenetration
@@ -82,9 +88,11 @@ def metres_warning(packing: Packing) -> str | None:
     if r_max >= METRES_RADIUS and float(cell.max()) >= METRES_CELL:
         return None
     sides = " x ".join(f"{d:.3g}" for d in cell)
-    return (f"WARNING: the packing's lengths look like metres (largest radius {r_max:.3g} mm, "
-            f"cell {sides} mm): convert the file with "
-            f"'mpfem pack --input FILE --length-scale 1000 --out FILE.txt'")
+    return (
+        f"WARNING: the packing's lengths look like metres (largest radius {r_max:.3g} mm, "
+        f"cell {sides} mm): convert the file with "
+        f"'mpfem pack --input FILE --length-scale 1000 --out FILE.txt'"
+    )
 
 
 def _worst_pair(packing: Packing, scale: float) -> tuple[int, int, list[int], float]:
@@ -102,12 +110,13 @@ def _start_refusal(packing: Packing, factor: float, node_scale: float, dem: bool
     (``dem``: the packing overlaps, and the default factor would be lowered)."""
     i, j, shift, start = _worst_pair(packing, factor * node_scale)
     fit = _floor4(packing.contact_ratio() / node_scale)
-    default = (" (or leave the default: it is lowered for a DEM packing's overlaps)"
-               if dem else "")
-    return (f"radius_factor {factor:g}: the particle mesh's nodes lie at {node_scale:.4f} x the "
-            f"meshed radius, so particles {i} and {j} (image shift {shift}) would start "
-            f"interpenetrating by up to {_percent(start)} of the smaller radius; use radius_factor "
-            f"<= {fit:.4f}{default}, more divisions or exact_volume = false")
+    default = " (or leave the default: it is lowered for a DEM packing's overlaps)" if dem else ""
+    return (
+        f"radius_factor {factor:g}: the particle mesh's nodes lie at {node_scale:.4f} x the "
+        f"meshed radius, so particles {i} and {j} (image shift {shift}) would start "
+        f"interpenetrating by up to {_percent(start)} of the smaller radius; use radius_factor "
+        f"<= {fit:.4f}{default}, more divisions or exact_volume = false"
+    )
 
 
 def _dem_refusal(packing: Packing, node_scale: float) -> str:
@@ -115,14 +124,17 @@ def _dem_refusal(packing: Packing, node_scale: float) -> str:
     i, j, shift, overlap = _worst_pair(packing, 1.0)
     fit = _floor4(packing.contact_ratio() / node_scale)
     accept = f", or set radius_factor <= {fit:.4f} to take it as it is" if fit >= 0.5 else ""
-    return (f"overlap of particles {i} and {j} (image shift {shift}): {_percent(overlap)} of the "
-            f"smaller radius, beyond the {_percent(MAX_DEM_OVERLAP)} of a DEM contact that the "
-            f"automatic radius reduction takes; relax the packing in the DEM code or check its "
-            f"lengths{accept}")
+    return (
+        f"overlap of particles {i} and {j} (image shift {shift}): {_percent(overlap)} of the "
+        f"smaller radius, beyond the {_percent(MAX_DEM_OVERLAP)} of a DEM contact that the "
+        f"automatic radius reduction takes; relax the packing in the DEM code or check its "
+        f"lengths{accept}"
+    )
 
 
-def _choose_factor(packing: Packing, radius_factor: float, node_scale: float, automatic: bool,
-                   tolerance: float) -> tuple[float, float, bool]:
+def _choose_factor(
+    packing: Packing, radius_factor: float, node_scale: float, automatic: bool, tolerance: float
+) -> tuple[float, float, bool]:
     """(factor, the packing's largest overlap, lowered automatically?) or ValueError."""
     overlap = packing.max_overlap()
     start = packing.scaled(radius_factor * node_scale).max_overlap()
@@ -135,9 +147,15 @@ def _choose_factor(packing: Packing, radius_factor: float, node_scale: float, au
     return _floor4((1.0 - START_GAP) * packing.contact_ratio() / node_scale), overlap, True
 
 
-def admit_packing(packing: Packing, radius_factor: float, node_scale: float, *,
-                  target_density: float | None = None, automatic: bool = False,
-                  tolerance: float = START_OVERLAP_TOLERANCE) -> Admission:
+def admit_packing(
+    packing: Packing,
+    radius_factor: float,
+    node_scale: float,
+    *,
+    target_density: float | None = None,
+    automatic: bool = False,
+    tolerance: float = START_OVERLAP_TOLERANCE,
+) -> Admission:
     """Admit ``packing`` for a run whose particles are meshed at ``radius_factor`` times the
     packing's radii with their surface nodes at ``node_scale`` times that (the module's rule).
 
@@ -151,23 +169,30 @@ def admit_packing(packing: Packing, radius_factor: float, node_scale: float, *,
     if not (math.isfinite(node_scale) and node_scale > 0.0):
         raise ValueError(f"node_scale must be > 0, got {node_scale!r}")
     packing.validate(overlap_tolerance=np.inf)  # sizes and centres; the overlaps are ruled here
-    factor, overlap, lowered = _choose_factor(packing, radius_factor, node_scale, automatic,
-                                              tolerance)
+    factor, overlap, lowered = _choose_factor(
+        packing, radius_factor, node_scale, automatic, tolerance
+    )
     solid = float(4.0 / 3.0 * np.pi * np.sum((packing.radii * factor) ** 3))  # thesis eq. 2.5
     rho0 = solid / float(np.prod(packing.cell))
     if target_density is not None and not rho0 < target_density < 1.0:
-        raise ValueError(f"loading.target_density = {target_density} is out of range: must be in "
-                         f"({rho0:.4f}, 1), above the packing's initial relative density "
-                         f"V_p / V0 = {rho0:.4f}")
+        raise ValueError(
+            f"loading.target_density = {target_density} is out of range: must be in "
+            f"({rho0:.4f}, 1), above the packing's initial relative density "
+            f"V_p / V0 = {rho0:.4f}"
+        )
     notes = []
     if lowered:
-        notes.append(f"radius reduction x{factor:.4f} (instead of x{radius_factor:g}) for the "
-                     f"packing's {_percent(overlap)} overlaps and the particle's nodes at "
-                     f"{node_scale:.4f} x its radius")
+        notes.append(
+            f"radius reduction x{factor:.4f} (instead of x{radius_factor:g}) for the "
+            f"packing's {_percent(overlap)} overlaps and the particle's nodes at "
+            f"{node_scale:.4f} x its radius"
+        )
     elif overlap > tolerance:  # a DEM packing's contacts (not the round-off of touching spheres)
-        notes.append(f"largest overlap {_percent(overlap)} of the smaller radius, removed by the "
-                     f"radius reduction x{factor:g} (the particle's nodes at {node_scale:.4f} x "
-                     f"its radius)")
+        notes.append(
+            f"largest overlap {_percent(overlap)} of the smaller radius, removed by the "
+            f"radius reduction x{factor:g} (the particle's nodes at {node_scale:.4f} x "
+            f"its radius)"
+        )
     warning = metres_warning(packing)
     if warning is not None:
         notes.append(warning)

@@ -49,7 +49,9 @@ def _check_particles(centres, radii) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"radii must have shape ({centres.shape[0]},), got {radii.shape}")
     bad = np.flatnonzero(~(radii > 0))
     if bad.size:
-        raise ValueError(f"radius must be > 0 mm; particles {bad.tolist()} have {radii[bad].tolist()}")
+        raise ValueError(
+            f"radius must be > 0 mm; particles {bad.tolist()} have {radii[bad].tolist()}"
+        )
     return centres, radii
 
 
@@ -65,10 +67,14 @@ def _tag_mesh(mesh: dolfinx.mesh.Mesh, particle_of_original_cell: np.ndarray):
     mesh.topology.create_connectivity(tdim - 1, tdim)
     facets = dolfinx.mesh.exterior_facet_indices(mesh.topology)
     f2c = mesh.topology.connectivity(tdim - 1, tdim)
-    owner_cell = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32) if facets.size else \
-        np.zeros(0, dtype=np.int32)
-    facet_tags = dolfinx.mesh.meshtags(mesh, tdim - 1, facets.astype(np.int32),
-                                       cell_particle[owner_cell])
+    owner_cell = (
+        np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
+        if facets.size
+        else np.zeros(0, dtype=np.int32)
+    )
+    facet_tags = dolfinx.mesh.meshtags(
+        mesh, tdim - 1, facets.astype(np.int32), cell_particle[owner_cell]
+    )
     return cell_tags, facet_tags
 
 
@@ -113,11 +119,22 @@ def box_bodies_mesh(boxes, comm: MPI.Comm = MPI.COMM_WORLD) -> BodyAssembly:
     return BodyAssembly(mesh, cell_tags, facet_tags, len(boxes))
 
 
-def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type: str = "hexahedron",
-                  divisions: int | None = None, layers: int | None = None, refinement: int = 1,
-                  exact_volume: bool = True,
-                  tet_order: int = 1, tet_size: float = 0.25, tet_refine: list | None = None,
-                  rotations: np.ndarray | None = None, grading: np.ndarray | None = None) -> ParticleAssembly:
+def particle_mesh(
+    centres,
+    radii,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    *,
+    cell_type: str = "hexahedron",
+    divisions: int | None = None,
+    layers: int | None = None,
+    refinement: int = 1,
+    exact_volume: bool = True,
+    tet_order: int = 1,
+    tet_size: float = 0.25,
+    tet_refine: list | None = None,
+    rotations: np.ndarray | None = None,
+    grading: np.ndarray | None = None,
+) -> ParticleAssembly:
     """Mesh the spheres ``(centres[i], radii[i])`` (mm) as one DOLFINx mesh on ``comm``.
 
     Args:
@@ -145,14 +162,23 @@ def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type:
                 grading = np.asarray(grading, dtype=float).reshape(radii.size, 3)
                 # the conformal map keeps the unit sphere: apply it to the inscribed ball, then scale
                 s = ball.radius_scale
-                unit = np.stack([s * mobius_ball(ball.points / s, -g) if np.any(g) else ball.points for g in grading])
+                unit = np.stack(
+                    [
+                        s * mobius_ball(ball.points / s, -g) if np.any(g) else ball.points
+                        for g in grading
+                    ]
+                )
             if rotations is not None:
                 rotations = np.asarray(rotations, dtype=float)
                 if rotations.shape != (radii.size, 3, 3):
-                    raise ValueError(f"rotations must have shape ({radii.size}, 3, 3), got {rotations.shape}")
+                    raise ValueError(
+                        f"rotations must have shape ({radii.size}, 3, 3), got {rotations.shape}"
+                    )
                 unit = np.einsum("pij,pnj->pni", rotations, unit)
             x = (centres[:, None, :] + radii[:, None, None] * unit).reshape(-1, 3)
-            cells = (ball.cells[None] + n_nodes * np.arange(radii.size)[:, None, None]).reshape(-1, 8)
+            cells = (ball.cells[None] + n_nodes * np.arange(radii.size)[:, None, None]).reshape(
+                -1, 8
+            )
         else:
             x = np.zeros((0, 3))
             cells = np.zeros((0, 8), dtype=np.int64)
@@ -164,8 +190,9 @@ def particle_mesh(centres, radii, comm: MPI.Comm = MPI.COMM_WORLD, *, cell_type:
     if cell_type == "tetrahedron":
         from .tetra import gmsh_spheres
 
-        mesh, cell_tags, facet_tags = gmsh_spheres(centres, radii, comm, order=tet_order, size=tet_size,
-                                                   refine=tet_refine)
+        mesh, cell_tags, facet_tags = gmsh_spheres(
+            centres, radii, comm, order=tet_order, size=tet_size, refine=tet_refine
+        )
         return ParticleAssembly(mesh, cell_tags, facet_tags, centres, radii, "tetrahedron")
     raise ValueError(f"cell_type must be 'hexahedron' or 'tetrahedron', got {cell_type!r}")
 
@@ -245,13 +272,20 @@ class ParticleCentroids:
         self._vec.x.array[:] = 0.0
         dolfinx.fem.assemble_vector(self._vec.x.array, self._form)
         cell_moments = self._vec.x.array.reshape(-1, 4)[self._dofs]
-        sums = np.stack([np.bincount(self._pid, weights=cell_moments[:, k], minlength=self._n) for k in range(4)])
+        sums = np.stack(
+            [
+                np.bincount(self._pid, weights=cell_moments[:, k], minlength=self._n)
+                for k in range(4)
+            ]
+        )
         sums = self._comm.allreduce(sums, op=MPI.SUM)
         self.volumes = sums[3].copy()
         return (sums[:3] / sums[3]).T
 
 
-def particle_volumes(assembly: ParticleAssembly, u: dolfinx.fem.Function | None = None) -> np.ndarray:
+def particle_volumes(
+    assembly: ParticleAssembly, u: dolfinx.fem.Function | None = None
+) -> np.ndarray:
     """One-off evaluation of :class:`ParticleVolumes` (compiles a form: not for time loops)."""
     return ParticleVolumes(assembly, u)()
 

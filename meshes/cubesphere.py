@@ -94,19 +94,31 @@ def hexahedra_volume(points: np.ndarray, cells: np.ndarray) -> float:
     x = points[cells]  # (m, 8, 3)
     c = _HEX_CORNERS.astype(float)
     volume = 0.0
-    for q in np.array(np.meshgrid(*[[0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0)]] * 3,
-                                  indexing="ij")).reshape(3, -1).T:
+    for q in (
+        np.array(
+            np.meshgrid(*[[0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0)]] * 3, indexing="ij")
+        )
+        .reshape(3, -1)
+        .T
+    ):
         # d N_a / d q_d of the trilinear shape functions at q
         factors = np.where(c == 1, q, 1.0 - q)  # (8, 3)
         signs = np.where(c == 1, 1.0, -1.0)
-        dN = np.stack([signs[:, d] * np.prod(np.delete(factors, d, axis=1), axis=1) for d in range(3)], axis=1)
+        dN = np.stack(
+            [signs[:, d] * np.prod(np.delete(factors, d, axis=1), axis=1) for d in range(3)], axis=1
+        )
         volume += np.linalg.det(np.einsum("mai,ad->mid", x, dN)).sum() / 8.0
     return float(volume)
 
 
 @lru_cache(maxsize=16)
-def unit_ball_hex(divisions: int | None = None, layers: int | None = None, refinement: int = 1,
-                  core_fraction: float = 0.5, exact_volume: bool = True) -> UnitBallMesh:
+def unit_ball_hex(
+    divisions: int | None = None,
+    layers: int | None = None,
+    refinement: int = 1,
+    core_fraction: float = 0.5,
+    exact_volume: bool = True,
+) -> UnitBallMesh:
     """Cube-sphere hexahedral mesh of the ball of radius 1 centred at the origin.
 
     Args:
@@ -126,7 +138,7 @@ def unit_ball_hex(divisions: int | None = None, layers: int | None = None, refin
         if int(value) != value or value < 1:
             raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
     if not 0.0 < core_fraction < 1.0 / np.sqrt(3.0):
-        raise ValueError(f"core_fraction must be in (0, {1/np.sqrt(3):.4f}), got {core_fraction}")
+        raise ValueError(f"core_fraction must be in (0, {1 / np.sqrt(3):.4f}), got {core_fraction}")
     n = int(divisions * refinement)
     m = int(layers * refinement)
     a = float(core_fraction)
@@ -172,7 +184,9 @@ def unit_ball_hex(divisions: int | None = None, layers: int | None = None, refin
     if exact_volume:
         scale = float(np.cbrt(4.0 / 3.0 * np.pi / hexahedra_volume(points, cells)))
         points = scale * points
-    return UnitBallMesh(points=points, cells=cells.astype(np.int64), surface_nodes=surface, radius_scale=scale)
+    return UnitBallMesh(
+        points=points, cells=cells.astype(np.int64), surface_nodes=surface, radius_scale=scale
+    )
 
 
 def mobius_ball(points: np.ndarray, a: np.ndarray) -> np.ndarray:

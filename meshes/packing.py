@@ -29,9 +29,20 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["PACKING_FORMATS", "AssemblyParticles", "Duplicates", "Packing", "assembly_particles",
-           "duplicate_particles", "generate_packing", "packing_format", "simple_cubic_packing", "periodic_pair_realizations", "read_packing",
-           "write_packing"]
+__all__ = [
+    "PACKING_FORMATS",
+    "AssemblyParticles",
+    "Duplicates",
+    "Packing",
+    "assembly_particles",
+    "duplicate_particles",
+    "generate_packing",
+    "packing_format",
+    "simple_cubic_packing",
+    "periodic_pair_realizations",
+    "read_packing",
+    "write_packing",
+]
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
@@ -52,8 +63,9 @@ def _periodic_pairs(centres, radii, cell, cutoff):
     n = radii.size
     images = (centres[None, :, :] + _SHIFTS[:, None, :] * cell).reshape(-1, 3)
     keep = np.flatnonzero(np.all((images > -cutoff) & (images < cell + cutoff), axis=1))
-    found = cKDTree(centres).sparse_distance_matrix(cKDTree(images[keep]), cutoff,
-                                                    output_type="ndarray")
+    found = cKDTree(centres).sparse_distance_matrix(
+        cKDTree(images[keep]), cutoff, output_type="ndarray"
+    )
     i, k = found["i"].astype(np.int64), keep[found["j"]]
     j, shift = k % n, _SHIFTS[k // n]
     mask = i < j  # drops self (and its images) and the mirrored copy (j, i, -shift)
@@ -142,21 +154,31 @@ class Packing:
             raise ValueError(f"radius must be > 0 mm; particle {bad[0]} has r={float(r[bad[0]])!r}")
         bad = np.flatnonzero(2.0 * r >= cell.min())
         if bad.size:
-            raise ValueError(f"radius must be < min(cell)/2 = {cell.min() / 2:g} mm; particle {bad[0]} "
-                             f"has r={float(r[bad[0]])!r}")
+            raise ValueError(
+                f"radius must be < min(cell)/2 = {cell.min() / 2:g} mm; particle {bad[0]} "
+                f"has r={float(r[bad[0]])!r}"
+            )
         outside = ~(np.isfinite(c) & (c >= 0.0) & (c < cell))
         if outside.any():
             p, ax = np.argwhere(outside)[0]
-            raise ValueError(f"centre of particle {p} outside the cell: {'xyz'[ax]}={float(c[p, ax])!r} not in "
-                             f"[0, {float(cell[ax])!r}) mm")
+            raise ValueError(
+                f"centre of particle {p} outside the cell: {'xyz'[ax]}={float(c[p, ax])!r} not in "
+                f"[0, {float(cell[ax])!r}) mm"
+            )
         if not 0.0 < radius_factor <= 1.0:
             raise ValueError(f"radius_factor must be in (0, 1], got {radius_factor}")
-        i, j, shift, rel = (self if radius_factor == 1.0 else self.scaled(radius_factor))._overlaps()
+        i, j, shift, rel = (
+            self if radius_factor == 1.0 else self.scaled(radius_factor)
+        )._overlaps()
         if rel.size and rel.max() > overlap_tolerance:
             k = np.argmax(rel)
-            after = "" if radius_factor == 1.0 else f" after the radius reduction x{radius_factor:g}"
-            raise ValueError(f"overlap of particles {i[k]} and {j[k]} (image shift {shift[k].tolist()}): "
-                             f"{rel[k]:.3g} of the smaller radius{after} > overlap_tolerance={overlap_tolerance:g}")
+            after = (
+                "" if radius_factor == 1.0 else f" after the radius reduction x{radius_factor:g}"
+            )
+            raise ValueError(
+                f"overlap of particles {i[k]} and {j[k]} (image shift {shift[k].tolist()}): "
+                f"{rel[k]:.3g} of the smaller radius{after} > overlap_tolerance={overlap_tolerance:g}"
+            )
         return self
 
 
@@ -165,7 +187,9 @@ def simple_cubic_packing(radius: float = 0.1) -> Packing:
     a periodic cube of side 4 r (solid fraction pi / 6)."""
     _check_positive("radius", radius)
     grid = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=float)
-    return Packing(cell=np.full(3, 4.0 * radius), centres=radius * (1.0 + 2.0 * grid), radii=np.full(8, radius))
+    return Packing(
+        cell=np.full(3, 4.0 * radius), centres=radius * (1.0 + 2.0 * grid), radii=np.full(8, radius)
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -186,8 +210,11 @@ PACKING_FORMATS = ("plain", "yade", "lammps")
 # a cell size in a comment header, e.g. YADE scripts' "# dx dy dz (mm) = 0.827 0.827 0.827 ; ..." or
 # "# cell = 1 1 1"
 _NUMBER = r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
-_CELL_HEADER = re.compile(r"(?:dx\s*,?\s*dy\s*,?\s*dz|cell(?:[ _]?size)?|hsize)[^=:\n]*[=:]\s*" + r"[\s,;]+".join([_NUMBER] * 3),
-                          re.IGNORECASE)
+_CELL_HEADER = re.compile(
+    r"(?:dx\s*,?\s*dy\s*,?\s*dz|cell(?:[ _]?size)?|hsize)[^=:\n]*[=:]\s*"
+    + r"[\s,;]+".join([_NUMBER] * 3),
+    re.IGNORECASE,
+)
 
 
 def packing_format(path) -> str:
@@ -211,8 +238,13 @@ def packing_format(path) -> str:
     return "plain"
 
 
-def read_packing(path, validate: bool = True, overlap_tolerance: float = 1e-6, cell=None,
-                 length_scale: float = 1.0) -> Packing:
+def read_packing(
+    path,
+    validate: bool = True,
+    overlap_tolerance: float = 1e-6,
+    cell=None,
+    length_scale: float = 1.0,
+) -> Packing:
     """Read a packing file as a DEM code left it (:func:`packing_format` tells which):
 
     - ``plain`` (:func:`write_packing`): a line ``dx dy dz``, then one ``x y z r`` line per sphere;
@@ -231,9 +263,13 @@ def read_packing(path, validate: bool = True, overlap_tolerance: float = 1e-6, c
     path = Path(path)
     if not (np.isfinite(length_scale) and length_scale > 0):
         raise ValueError(f"length_scale must be > 0, got {length_scale}")
-    reader = {"plain": _read_plain, "yade": _read_yade, "lammps": _read_lammps}[packing_format(path)]
+    reader = {"plain": _read_plain, "yade": _read_yade, "lammps": _read_lammps}[
+        packing_format(path)
+    ]
     cell, centres, radii, wrap = reader(path, cell)
-    cell, centres, radii = (np.asarray(a, dtype=float) * length_scale for a in (cell, centres, radii))
+    cell, centres, radii = (
+        np.asarray(a, dtype=float) * length_scale for a in (cell, centres, radii)
+    )
     if wrap and cell.shape == (3,) and np.all(np.isfinite(cell) & (cell > 0)):
         centres = np.mod(centres, cell)
         centres[centres >= cell] = 0.0  # mod of a tiny negative value rounds up to the cell size
@@ -246,9 +282,13 @@ def _numbers(path, lineno, line, what, expected) -> list[float]:
     try:
         values = [float(v) for v in fields]
     except ValueError:
-        raise ValueError(f"{path}: line {lineno}: {what} must hold {expected} numbers, got {line.strip()!r}")
+        raise ValueError(
+            f"{path}: line {lineno}: {what} must hold {expected} numbers, got {line.strip()!r}"
+        )
     if len(values) != expected:
-        raise ValueError(f"{path}: line {lineno}: {what} must hold {expected} numbers, got {len(values)}")
+        raise ValueError(
+            f"{path}: line {lineno}: {what} must hold {expected} numbers, got {len(values)}"
+        )
     return values
 
 
@@ -262,7 +302,9 @@ def _read_plain(path, cell):
         else:
             rows.append(_numbers(path, lineno, line, "sphere line 'x y z r'", 4))
     if found is None or not rows:
-        raise ValueError(f"{path}: expected a cell line 'dx dy dz' and at least one sphere line 'x y z r'")
+        raise ValueError(
+            f"{path}: expected a cell line 'dx dy dz' and at least one sphere line 'x y z r'"
+        )
     rows = np.array(rows)
     return (found if cell is None else cell), rows[:, :3], rows[:, 3], False
 
@@ -273,33 +315,41 @@ def _read_yade(path, cell):
         text = line.strip()
         if text.startswith("#"):
             if text.lower().startswith("#format"):
-                columns = text[len("#format"):].strip().split("_")
+                columns = text[len("#format") :].strip().split("_")
             match = _CELL_HEADER.search(text)
             if match and header_cell is None:
                 header_cell = [float(v) for v in match.groups()]
             continue
         if not text:
             continue
-        rows.append(_numbers(path, lineno, line, f"sphere line '{' '.join(columns)}'", len(columns)))
+        rows.append(
+            _numbers(path, lineno, line, f"sphere line '{' '.join(columns)}'", len(columns))
+        )
     missing = [c for c in "xyzr" if c not in columns]
     if missing:
-        raise ValueError(f"{path}: YADE #format needs the columns x, y, z, r; missing {', '.join(missing)}")
+        raise ValueError(
+            f"{path}: YADE #format needs the columns x, y, z, r; missing {', '.join(missing)}"
+        )
     if not rows:
         raise ValueError(f"{path}: no sphere line 'x y z r'")
     cell = header_cell if cell is None else cell
     if cell is None:
-        raise ValueError(f"{path}: a YADE export without its periodic cell: give it (--cell dx dy dz) or add a header "
-                         f"line '# dx dy dz = ...'")
+        raise ValueError(
+            f"{path}: a YADE export without its periodic cell: give it (--cell dx dy dz) or add a header "
+            f"line '# dx dy dz = ...'"
+        )
     rows = np.array(rows)
     return cell, rows[:, [columns.index(c) for c in "xyz"]], rows[:, columns.index("r")], True
 
 
 def _read_lammps(path, cell):
     lines = path.read_text().splitlines()
-    starts = [k for k, line in enumerate(lines) if line.strip().upper().startswith("ITEM: TIMESTEP")]
+    starts = [
+        k for k, line in enumerate(lines) if line.strip().upper().startswith("ITEM: TIMESTEP")
+    ]
     if not starts:
         raise ValueError(f"{path}: a LAMMPS / LIGGGHTS dump must start with 'ITEM: TIMESTEP'")
-    block, offset = lines[starts[-1]:], starts[-1]  # the last snapshot
+    block, offset = lines[starts[-1] :], starts[-1]  # the last snapshot
     lo = hi = names = None
     count = None
     k = 0
@@ -310,42 +360,71 @@ def _read_lammps(path, cell):
             k += 2
         elif head.startswith("ITEM: BOX BOUNDS"):
             if "XY" in head.split():
-                raise ValueError(f"{path}: line {offset + k + 1}: a triclinic box is not supported (orthogonal only)")
-            bounds = [_numbers(path, offset + k + 2 + a, block[k + 1 + a], "box bounds line 'lo hi'", 2)
-                      for a in range(3)]
+                raise ValueError(
+                    f"{path}: line {offset + k + 1}: a triclinic box is not supported (orthogonal only)"
+                )
+            bounds = [
+                _numbers(path, offset + k + 2 + a, block[k + 1 + a], "box bounds line 'lo hi'", 2)
+                for a in range(3)
+            ]
             lo, hi = np.array(bounds)[:, 0], np.array(bounds)[:, 1]
             k += 4
         elif head.startswith("ITEM: ATOMS"):
             names = block[k].split()[2:]
-            body = block[k + 1:k + 1 + (count if count is not None else len(block))]
+            body = block[k + 1 : k + 1 + (count if count is not None else len(block))]
             atoms_line = offset + k + 2
             break
         else:
             k += 1
     if names is None or lo is None:
-        raise ValueError(f"{path}: the dump's last snapshot needs 'ITEM: BOX BOUNDS' and 'ITEM: ATOMS' sections")
+        raise ValueError(
+            f"{path}: the dump's last snapshot needs 'ITEM: BOX BOUNDS' and 'ITEM: ATOMS' sections"
+        )
     size = hi - lo
     axes = []
     for a, axis in enumerate("xyz"):
-        for name, scaled in ((axis, False), (axis + "u", False), (axis + "s", True), (axis + "su", True)):
+        for name, scaled in (
+            (axis, False),
+            (axis + "u", False),
+            (axis + "s", True),
+            (axis + "su", True),
+        ):
             if name in names:
                 axes.append((names.index(name), scaled))
                 break
         else:
-            raise ValueError(f"{path}: line {atoms_line - 1}: ATOMS columns need {axis} (or {axis}u, {axis}s); got "
-                             f"{' '.join(names)}")
+            raise ValueError(
+                f"{path}: line {atoms_line - 1}: ATOMS columns need {axis} (or {axis}u, {axis}s); got "
+                f"{' '.join(names)}"
+            )
     if "radius" in names:
         radius_col, factor = names.index("radius"), 1.0
     elif "diameter" in names:
         radius_col, factor = names.index("diameter"), 0.5
     else:
-        raise ValueError(f"{path}: line {atoms_line - 1}: ATOMS columns need radius (or diameter); got {' '.join(names)}")
-    rows = np.array([_numbers(path, atoms_line + i, line, "atom line", len(names)) for i, line in enumerate(body)
-                     if line.strip()])
+        raise ValueError(
+            f"{path}: line {atoms_line - 1}: ATOMS columns need radius (or diameter); got {' '.join(names)}"
+        )
+    rows = np.array(
+        [
+            _numbers(path, atoms_line + i, line, "atom line", len(names))
+            for i, line in enumerate(body)
+            if line.strip()
+        ]
+    )
     if count is not None and rows.shape[0] != count:
-        raise ValueError(f"{path}: the last snapshot holds {rows.shape[0]} atoms, its header says {count}")
-    centres = np.column_stack([lo[a] + rows[:, c] * size[a] if scaled else rows[:, c]
-                               for a, (c, scaled) in enumerate(axes)]) - lo
+        raise ValueError(
+            f"{path}: the last snapshot holds {rows.shape[0]} atoms, its header says {count}"
+        )
+    centres = (
+        np.column_stack(
+            [
+                lo[a] + rows[:, c] * size[a] if scaled else rows[:, c]
+                for a, (c, scaled) in enumerate(axes)
+            ]
+        )
+        - lo
+    )
     return (size if cell is None else cell), centres, factor * rows[:, radius_col], True
 
 
@@ -362,7 +441,9 @@ _RELAXED, _JAMMED, _REBUILD, _BUDGET = 0, 1, 2, 3
 
 
 @numba.njit(cache=True)
-def _fire(x, v, xref, pi, pj, rad, cell, state, max_steps, tol, ftol, half_skin):  # pragma: no cover
+def _fire(
+    x, v, xref, pi, pj, rad, cell, state, max_steps, tol, ftol, half_skin
+):  # pragma: no cover
     """FIRE minimisation of U = 1/2 sum_(i,j) max(r_i + r_j - |x_i - x_j|, 0)^2 (min. image).
 
     Stops with _RELAXED when every overlap < tol, _JAMMED when every net force < ftol while
@@ -437,8 +518,12 @@ def _fire(x, v, xref, pi, pj, rad, cell, state, max_steps, tol, ftol, half_skin)
         x += dt * v
         dmax2 = 0.0
         for i in range(n):
-            dmax2 = max(dmax2, (x[i, 0] - xref[i, 0]) ** 2 + (x[i, 1] - xref[i, 1]) ** 2
-                        + (x[i, 2] - xref[i, 2]) ** 2)
+            dmax2 = max(
+                dmax2,
+                (x[i, 0] - xref[i, 0]) ** 2
+                + (x[i, 1] - xref[i, 1]) ** 2
+                + (x[i, 2] - xref[i, 2]) ** 2,
+            )
         if dmax2 > half_skin * half_skin:
             code = _REBUILD
             break
@@ -472,14 +557,18 @@ class _Relaxer:
                 pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
                 pi, pj, xref = pairs[:, 0].copy(), pairs[:, 1].copy(), x.copy()
             chunk = int(min(20000, max_steps - state[3]))
-            code = _fire(x, v, xref, pi, pj, self.rad, self.cell, state, chunk, tol, ftol, 0.5 * self.skin)
+            code = _fire(
+                x, v, xref, pi, pj, self.rad, self.cell, state, chunk, tol, ftol, 0.5 * self.skin
+            )
             if code in (_RELAXED, _JAMMED):
                 break
             if state[3] >= max_steps:
                 code = _JAMMED
                 break
             if time.perf_counter() > self.deadline:
-                raise RuntimeError("generate_packing: max_time_s exceeded; increase max_time_s or reduce n")
+                raise RuntimeError(
+                    "generate_packing: max_time_s exceeded; increase max_time_s or reduce n"
+                )
         self.steps += int(state[3])
         x[:] = _wrap(x, self.cell)
         return code
@@ -490,8 +579,15 @@ def _check_positive(name, value, unit="mm"):
         raise ValueError(f"{name} must be > 0 {unit}, got {value!r}")
 
 
-def generate_packing(n: int, r_min: float, r_max: float, seed: int, target_fraction: float | None = None,
-                     cell_aspect=(1.0, 1.0, 1.0), max_time_s: float = 600.0) -> Packing:
+def generate_packing(
+    n: int,
+    r_min: float,
+    r_max: float,
+    seed: int,
+    target_fraction: float | None = None,
+    cell_aspect=(1.0, 1.0, 1.0),
+    max_time_s: float = 600.0,
+) -> Packing:
     """Seeded frictionless random packing of ``n`` spheres in a periodic cell (thesis §2.2.1).
 
     Radii are uniform in [r_min, r_max] (mm; thesis 0.082-0.147, r_max/r_min ~ 1.8). Centres are
@@ -538,8 +634,10 @@ def generate_packing(n: int, r_min: float, r_max: float, seed: int, target_fract
     g_max = (0.74 / phi0) ** (1.0 / 3.0)
     room = cell.min() / 2.0 - 2.0 * g_max * r_max
     if room <= 0.0:
-        raise ValueError(f"n={n} too small for a periodic cell: the smallest side must exceed 4 r_max "
-                         f"(use more particles or a cubic cell_aspect)")
+        raise ValueError(
+            f"n={n} too small for a periodic cell: the smallest side must exceed 4 r_max "
+            f"(use more particles or a cubic cell_aspect)"
+        )
     skin = min(0.3 * r_min, 0.9 * room)
     tol = 1e-4 * r_min  # overlap tolerance during compression, final radii units
 
@@ -598,7 +696,9 @@ class Duplicates:
         return self.original.size
 
 
-def duplicate_particles(packing: Packing, d_bc: float, faces: str = "all", corners: bool = True) -> Duplicates:
+def duplicate_particles(
+    packing: Packing, d_bc: float, faces: str = "all", corners: bool = True
+) -> Duplicates:
     """Duplicated particles for the boundary conditions (thesis §2.2.1).
 
     A particle whose centre is closer than ``d_bc`` (mm) to the plane x = x_min is copied to
@@ -630,8 +730,12 @@ def duplicate_particles(packing: Packing, d_bc: float, faces: str = "all", corne
             new_shift.append(s)
         original, shift = np.concatenate(new_orig), np.concatenate(new_shift)
     original, shift = original[n:], shift[n:]
-    return Duplicates(_readonly(original), _readonly(shift), _readonly(c[original] + shift * cell),
-                      _readonly(packing.radii[original].copy()))
+    return Duplicates(
+        _readonly(original),
+        _readonly(shift),
+        _readonly(c[original] + shift * cell),
+        _readonly(packing.radii[original].copy()),
+    )
 
 
 class AssemblyParticles(NamedTuple):
@@ -646,7 +750,9 @@ class AssemblyParticles(NamedTuple):
 def assembly_particles(packing: Packing, duplicates: Duplicates) -> AssemblyParticles:
     """Concatenate the packing particles and their ``duplicates`` (originals first)."""
     n = packing.num_particles
-    if duplicates.original.size and (duplicates.original.min() < 0 or duplicates.original.max() >= n):
+    if duplicates.original.size and (
+        duplicates.original.min() < 0 or duplicates.original.max() >= n
+    ):
         raise ValueError(f"duplicates.original must index the packing particles in [0, {n})")
     return AssemblyParticles(
         np.concatenate([packing.centres, duplicates.centres]),

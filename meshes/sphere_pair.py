@@ -31,17 +31,30 @@ from .cubesphere import _orient_positive
 from .tetra import ball_size_field, gmsh_to_dolfinx, size_from_background
 
 
-def quarter_sphere_pair(radius: float = 1.0, comm: MPI.Comm = MPI.COMM_WORLD, *, size_min: float = 0.03,
-                        refine_radius: float = 0.2, refine_width: float = 0.5, size_max: float = 0.3,
-                        grading: float | None = None) -> BodyAssembly:
+def quarter_sphere_pair(
+    radius: float = 1.0,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    *,
+    size_min: float = 0.03,
+    refine_radius: float = 0.2,
+    refine_width: float = 0.5,
+    size_max: float = 0.3,
+    grading: float | None = None,
+) -> BodyAssembly:
     """Mesh the two quarter spheres (mm); sizes relative to ``radius`` (tetrahedra before splitting)."""
-    checks = [("size_min", size_min, 1e-3, 0.5), ("size_max", size_max, size_min, 1.0),
-              ("refine_radius", refine_radius, 0.0, 1.0), ("refine_width", refine_width, 0.0, 2.0)]
+    checks = [
+        ("size_min", size_min, 1e-3, 0.5),
+        ("size_max", size_max, size_min, 1.0),
+        ("refine_radius", refine_radius, 0.0, 1.0),
+        ("refine_width", refine_width, 0.0, 2.0),
+    ]
     if grading is not None:
         checks.append(("grading", grading, 0.05, 2.0))
     for name, value, lo, hi in checks:
         if not lo <= value <= hi:
-            raise ValueError(f"sphere pair {name} = {value} is out of range [{lo}, {hi}] (relative to the radius)")
+            raise ValueError(
+                f"sphere pair {name} = {value} is out of range [{lo}, {hi}] (relative to the radius)"
+            )
     r = float(radius)
 
     def build(gmsh):
@@ -63,22 +76,39 @@ def quarter_sphere_pair(radius: float = 1.0, comm: MPI.Comm = MPI.COMM_WORLD, *,
                     curved.append(face)
             gmsh.model.addPhysicalGroup(2, curved, body + 1)
         if grading is None:
-            field = ball_size_field(gmsh, (0.0, 0.0, 0.0), size_min * r, refine_radius * r,
-                                    (refine_radius + refine_width) * r, size_max * r)
+            field = ball_size_field(
+                gmsh,
+                (0.0, 0.0, 0.0),
+                size_min * r,
+                refine_radius * r,
+                (refine_radius + refine_width) * r,
+                size_max * r,
+            )
         else:
-            field = _contact_cap_size_field(gmsh, r, size_min * r, refine_radius * r, grading, size_max * r)
+            field = _contact_cap_size_field(
+                gmsh, r, size_min * r, refine_radius * r, grading, size_max * r
+            )
         size_from_background(gmsh, field)
         gmsh.option.setNumber("Mesh.SubdivisionAlgorithm", 2)  # every tetrahedron -> 4 hexahedra
         gmsh.model.mesh.generate(3)
 
     mesh, cell_tags, facet_tags = gmsh_to_dolfinx("sphere_pair", build, comm)
     if mesh.topology.cell_name() != "hexahedron":
-        raise RuntimeError(f"gmsh subdivision gave {mesh.topology.cell_name()} cells, expected hexahedra")
+        raise RuntimeError(
+            f"gmsh subdivision gave {mesh.topology.cell_name()} cells, expected hexahedra"
+        )
     return BodyAssembly(mesh, cell_tags, facet_tags, 2)
 
 
-def _contact_cap_size_field(gmsh, r: float, size_in: float, cap_radius: float, grading: float, size_out: float,
-                            section: bool = False) -> int:
+def _contact_cap_size_field(
+    gmsh,
+    r: float,
+    size_in: float,
+    cap_radius: float,
+    grading: float,
+    size_out: float,
+    section: bool = False,
+) -> int:
     """gmsh MathEval field (mm): size_in + grading * (distance from the contact cap), at most
     size_out. The cap: the spherical surfaces (centres (0, 0, -+r)) within cap_radius of the z axis;
     the distance combines the depth below the surface and the radial distance beyond the cap.
@@ -87,13 +117,23 @@ def _contact_cap_size_field(gmsh, r: float, size_in: float, cap_radius: float, g
     depth = f"({r} - Sqrt({rho}*{rho} + ({r} - Abs({z}))^2))"
     field = gmsh.model.mesh.field.add("MathEval")
     gmsh.model.mesh.field.setString(
-        field, "F", f"Min({size_out}, {size_in} + {grading} * Sqrt(Max({rho} - {cap_radius}, 0)^2 + {depth}^2))")
+        field,
+        "F",
+        f"Min({size_out}, {size_in} + {grading} * Sqrt(Max({rho} - {cap_radius}, 0)^2 + {depth}^2))",
+    )
     return field
 
 
-def wedge_sphere_pair(radius: float = 1.0, comm: MPI.Comm = MPI.COMM_WORLD, *, angle: float = 2.0,
-                      size_min: float = 0.004, cap_radius: float = 0.2, grading: float = 0.3,
-                      size_max: float = 0.2) -> BodyAssembly:
+def wedge_sphere_pair(
+    radius: float = 1.0,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    *,
+    angle: float = 2.0,
+    size_min: float = 0.004,
+    cap_radius: float = 0.2,
+    grading: float = 0.3,
+    size_max: float = 0.2,
+) -> BodyAssembly:
     """Thin wedge (``angle`` degrees about the z axis) of the same two spheres: one layer of
     hexahedra revolved from a quadrilateral mesh of the meridian half-disks (x >= 0 in the plane
     y = 0), for axisymmetric loadings. The wedge lies between the plane y = 0 and the plane at
@@ -110,19 +150,30 @@ def wedge_sphere_pair(radius: float = 1.0, comm: MPI.Comm = MPI.COMM_WORLD, *, a
     is duplicated, one copy per plane; the workflow ties the copies). Tags as the quarter model:
     cell tag = body id, facet tag = body id on the spherical surfaces only.
     """
-    checks = [("angle", angle, 0.1, 30.0), ("size_min", size_min, 2e-4, 0.5), ("size_max", size_max, size_min, 1.0),
-              ("cap_radius", cap_radius, 0.0, 1.0), ("grading", grading, 0.05, 2.0)]
+    checks = [
+        ("angle", angle, 0.1, 30.0),
+        ("size_min", size_min, 2e-4, 0.5),
+        ("size_max", size_max, size_min, 1.0),
+        ("cap_radius", cap_radius, 0.0, 1.0),
+        ("grading", grading, 0.05, 2.0),
+    ]
     for name, value, lo, hi in checks:
         if not lo <= value <= hi:
             raise ValueError(f"wedge sphere pair {name} = {value} is out of range [{lo}, {hi}]")
     r = float(radius)
     theta = np.radians(angle)
     if comm.rank == 0:
-        section, quads, body = _meridian_quads(r, size_min * r, cap_radius * r, grading, size_max * r)
+        section, quads, body = _meridian_quads(
+            r, size_min * r, cap_radius * r, grading, size_max * r
+        )
         n = section.shape[0]
         rho, z = section[:, 0], section[:, 1]
-        x = np.concatenate([np.stack([rho, np.zeros(n), z], axis=1),
-                            np.stack([rho * np.cos(theta), rho * np.sin(theta), z], axis=1)])
+        x = np.concatenate(
+            [
+                np.stack([rho, np.zeros(n), z], axis=1),
+                np.stack([rho * np.cos(theta), rho * np.sin(theta), z], axis=1),
+            ]
+        )
         # tensor-product (DOLFINx) vertex order: quad (a, b, c, d) -> (a, b, d, c) in both planes
         q = quads[:, [0, 1, 3, 2]]
         cells = _orient_positive(x, np.concatenate([q, q + n], axis=1))
@@ -133,10 +184,14 @@ def wedge_sphere_pair(radius: float = 1.0, comm: MPI.Comm = MPI.COMM_WORLD, *, a
     body = comm.bcast(body, root=0)
     num_cells = mesh.topology.index_map(3).size_local + mesh.topology.index_map(3).num_ghosts
     original = np.asarray(mesh.topology.original_cell_index, dtype=np.int64)[:num_cells]
-    cell_tags = dolfinx.mesh.meshtags(mesh, 3, np.arange(num_cells, dtype=np.int32), body[original].astype(np.int32))
+    cell_tags = dolfinx.mesh.meshtags(
+        mesh, 3, np.arange(num_cells, dtype=np.int32), body[original].astype(np.int32)
+    )
 
     def on_sphere(sign):
-        return lambda p: np.abs(np.sqrt(p[0] ** 2 + p[1] ** 2 + (p[2] - sign * r) ** 2) - r) < 1e-9 * r
+        return lambda p: (
+            np.abs(np.sqrt(p[0] ** 2 + p[1] ** 2 + (p[2] - sign * r) ** 2) - r) < 1e-9 * r
+        )
 
     facets, values = [], []
     for b, sign in enumerate((-1.0, 1.0)):
@@ -171,7 +226,9 @@ def _meridian_quads(r: float, size_in: float, cap_radius: float, grading: float,
             out, _ = occ.intersect([(2, disk)], [(2, box)])
             surfaces.append(out[0][1])
         occ.synchronize()
-        field = _contact_cap_size_field(gmsh, r, size_in, cap_radius, grading, size_out, section=True)
+        field = _contact_cap_size_field(
+            gmsh, r, size_in, cap_radius, grading, size_out, section=True
+        )
         size_from_background(gmsh, field)
         gmsh.option.setNumber("Mesh.SubdivisionAlgorithm", 1)  # every triangle -> 3 quadrilaterals
         gmsh.model.mesh.generate(2)
@@ -184,7 +241,9 @@ def _meridian_quads(r: float, size_in: float, cap_radius: float, grading: float,
         for b, surface in enumerate(surfaces):
             types, _, nodes = gmsh.model.mesh.getElements(2, surface)
             if list(types) != [3]:
-                raise RuntimeError(f"gmsh gave element types {list(types)} on the meridian, expected quadrilaterals (3)")
+                raise RuntimeError(
+                    f"gmsh gave element types {list(types)} on the meridian, expected quadrilaterals (3)"
+                )
             q = index[nodes[0].astype(np.int64)].reshape(-1, 4)
             quads.append(q)
             body.append(np.full(q.shape[0], b, np.int64))
@@ -195,7 +254,10 @@ def _meridian_quads(r: float, size_in: float, cap_radius: float, grading: float,
     quads = np.concatenate(quads)
     # counter-clockwise in (rho, z)
     p = points[quads]
-    area2 = np.sum(p[:, :, 0] * np.roll(p[:, :, 1], -1, axis=1) - np.roll(p[:, :, 0], -1, axis=1) * p[:, :, 1], axis=1)
+    area2 = np.sum(
+        p[:, :, 0] * np.roll(p[:, :, 1], -1, axis=1) - np.roll(p[:, :, 0], -1, axis=1) * p[:, :, 1],
+        axis=1,
+    )
     quads[area2 < 0] = quads[area2 < 0][:, ::-1]
     # drop the nodes no quadrilateral uses (the geometry's corner points)
     used, quads = np.unique(quads, return_inverse=True)

@@ -41,12 +41,21 @@ def gmsh_to_dolfinx(name: str, build, comm: MPI.Comm):
     return mesh, cell_tags, facet_tags
 
 
-def ball_size_field(gmsh, centre, size_in: float, radius: float, outer: float, size_out: float) -> int:
+def ball_size_field(
+    gmsh, centre, size_in: float, radius: float, outer: float, size_out: float
+) -> int:
     """gmsh Ball field (mm): size_in within ``radius`` of ``centre``, growing to size_out at
     ``outer``. (A field, not an extra geometric point: that would become an orphan mesh node.)"""
     ball = gmsh.model.mesh.field.add("Ball")
-    for key, value in dict(Radius=radius, Thickness=outer - radius, VIn=size_in, VOut=size_out,
-                           XCenter=centre[0], YCenter=centre[1], ZCenter=centre[2]).items():
+    for key, value in dict(
+        Radius=radius,
+        Thickness=outer - radius,
+        VIn=size_in,
+        VOut=size_out,
+        XCenter=centre[0],
+        YCenter=centre[1],
+        ZCenter=centre[2],
+    ).items():
         gmsh.model.mesh.field.setNumber(ball, key, float(value))
     return ball
 
@@ -54,12 +63,23 @@ def ball_size_field(gmsh, centre, size_in: float, radius: float, outer: float, s
 def size_from_background(gmsh, field: int) -> None:
     """Element sizes from ``field`` only (not from points, boundaries or curvature)."""
     gmsh.model.mesh.field.setAsBackgroundMesh(field)
-    for key in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints", "Mesh.MeshSizeFromCurvature"):
+    for key in (
+        "Mesh.MeshSizeExtendFromBoundary",
+        "Mesh.MeshSizeFromPoints",
+        "Mesh.MeshSizeFromCurvature",
+    ):
         gmsh.option.setNumber(key, 0)
 
 
-def gmsh_spheres(centres: np.ndarray, radii: np.ndarray, comm: MPI.Comm, *, order: int = 1,
-                 size: float = 0.25, refine: list | None = None):
+def gmsh_spheres(
+    centres: np.ndarray,
+    radii: np.ndarray,
+    comm: MPI.Comm,
+    *,
+    order: int = 1,
+    size: float = 0.25,
+    refine: list | None = None,
+):
     """Mesh each sphere with gmsh: (mesh, cell tags, facet tags), tag = particle id (0-based).
 
     ``refine``: optional list of (point (3,), size_min, distance_min, distance_max) in mm: the
@@ -89,7 +109,9 @@ def gmsh_spheres(centres: np.ndarray, radii: np.ndarray, comm: MPI.Comm, *, orde
         if refine:
             fields = []
             for point, size_min, dist_min, dist_max in refine:
-                fields.append(ball_size_field(gmsh, point, size_min, dist_min, dist_max, size * radii.max()))
+                fields.append(
+                    ball_size_field(gmsh, point, size_min, dist_min, dist_max, size * radii.max())
+                )
             field = gmsh.model.mesh.field.add("Min")
             gmsh.model.mesh.field.setNumbers(field, "FieldsList", fields)
             size_from_background(gmsh, field)

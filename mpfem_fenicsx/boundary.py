@@ -46,12 +46,15 @@ class BoundaryKind:
         return "half" if self.tied_nodes else "all"
 
 
-BOUNDARY_KINDS = {k.name: k for k in (
-    BoundaryKind("GDH", periodic=False, tied_nodes=False, driven="all", default_d_bc=2.5),
-    BoundaryKind("GDF", periodic=False, tied_nodes=False, driven="copies", default_d_bc=2.5),
-    BoundaryKind("CLPS", periodic=True, tied_nodes=False, driven="none", default_d_bc=2.5),
-    BoundaryKind("CLP", periodic=True, tied_nodes=True, driven="none", default_d_bc=1.8),
-)}
+BOUNDARY_KINDS = {
+    k.name: k
+    for k in (
+        BoundaryKind("GDH", periodic=False, tied_nodes=False, driven="all", default_d_bc=2.5),
+        BoundaryKind("GDF", periodic=False, tied_nodes=False, driven="copies", default_d_bc=2.5),
+        BoundaryKind("CLPS", periodic=True, tied_nodes=False, driven="none", default_d_bc=2.5),
+        BoundaryKind("CLP", periodic=True, tied_nodes=True, driven="none", default_d_bc=1.8),
+    )
+}
 #: the names, in the thesis' order
 KINDS = tuple(BOUNDARY_KINDS)
 

@@ -41,8 +41,17 @@ from .parameters import check_parameters, parameter
 from .solvers import SOLVERS, solver_kind
 from .solvers.constraint_mass import CONSTRAINT_MASSES
 
-__all__ = ["SECTIONS", "BoundarySection", "CompactionCase", "ContactSection", "LoadingSection", "MeshSection",
-           "OutputSection", "PackingSection", "SolverSection"]
+__all__ = [
+    "SECTIONS",
+    "BoundarySection",
+    "CompactionCase",
+    "ContactSection",
+    "LoadingSection",
+    "MeshSection",
+    "OutputSection",
+    "PackingSection",
+    "SolverSection",
+]
 
 
 @dataclass(frozen=True)
@@ -51,20 +60,35 @@ class PackingSection:
     Radii in mm (thesis table 2.1: 0.082-0.147 mm)."""
 
     particles: int = parameter(24, "particles of the generated periodic packing", low=2, high=5000)
-    r_min: float = parameter(0.082, "smallest radius of the generated packing (mm)", low=0, open_low=True)
-    r_max: float = parameter(0.147, "largest radius of the generated packing (mm)", low=0, open_low=True)
+    r_min: float = parameter(
+        0.082, "smallest radius of the generated packing (mm)", low=0, open_low=True
+    )
+    r_max: float = parameter(
+        0.147, "largest radius of the generated packing (mm)", low=0, open_low=True
+    )
     seed: int = parameter(1, "seed of the packing generator", low=0)
-    fraction: float | None = parameter(None, "stop the generator at this solid fraction (default: jammed, ~0.63) "
-                                       "(-)", kind=float, low=0.1, high=0.66)
-    file: str | None = parameter(None, "packing file instead of the generator: 'dx dy dz' then one 'x y z r' line "
-                                 "per sphere (mm), or a YADE export / LAMMPS dump", kind=str)
+    fraction: float | None = parameter(
+        None,
+        "stop the generator at this solid fraction (default: jammed, ~0.63) (-)",
+        kind=float,
+        low=0.1,
+        high=0.66,
+    )
+    file: str | None = parameter(
+        None,
+        "packing file instead of the generator: 'dx dy dz' then one 'x y z r' line "
+        "per sphere (mm), or a YADE export / LAMMPS dump",
+        kind=str,
+    )
     #: an in-memory packing instead of the generator or the file (programs, restarts)
     spheres: Packing | None = None
 
     def __post_init__(self):
         check_parameters(self, "packing.")
         if self.r_max < self.r_min:
-            raise ValueError(f"packing.r_max = {self.r_max!r} is out of range: must be >= r_min = {self.r_min!r} mm")
+            raise ValueError(
+                f"packing.r_max = {self.r_max!r} is out of range: must be >= r_min = {self.r_min!r} mm"
+            )
 
 
 @dataclass(frozen=True)
@@ -72,18 +96,37 @@ class MeshSection:
     """``[mesh]``: the hexahedral cube-sphere particle (every particle holds its sphere's volume
     by default) and the radius reduction before meshing."""
 
-    resolution: str = parameter("chapter2", "cube-sphere particle: chapter2 = the thesis' appendix-A particle (6x6 "
-                                "quadrilaterals per cube face, 561 nodes), chapter4 = its 10x10 O-grid (1 933 nodes), "
-                                "coarse = 4x4 with 4 shell layers (517 nodes); every one holds its sphere's volume",
-                                choices=tuple(RESOLUTIONS))
-    refinement: int = parameter(1, "cube-sphere refinement: multiplies the resolution's subdivisions (chapter2: 1 = "
-                                "561 nodes per particle, 2 = 3 929)", low=1, high=4)
-    radius_factor: float = parameter(0.99, "radii shrunk by this factor before meshing: no initial "
-                                     "interpenetration (-)", low=0.5, high=1)
-    divisions: int | None = parameter(None, "hexahedra per inner-cube edge (default: the resolution's; odd: the "
-                                      "contact points of axis-aligned neighbours fall on facet centres, not nodes)",
-                                      kind=int, low=1, high=16)
-    layers: int | None = parameter(None, "shell layers (default: the resolution's)", kind=int, low=1, high=16)
+    resolution: str = parameter(
+        "chapter2",
+        "cube-sphere particle: chapter2 = the thesis' appendix-A particle (6x6 "
+        "quadrilaterals per cube face, 561 nodes), chapter4 = its 10x10 O-grid (1 933 nodes), "
+        "coarse = 4x4 with 4 shell layers (517 nodes); every one holds its sphere's volume",
+        choices=tuple(RESOLUTIONS),
+    )
+    refinement: int = parameter(
+        1,
+        "cube-sphere refinement: multiplies the resolution's subdivisions (chapter2: 1 = "
+        "561 nodes per particle, 2 = 3 929)",
+        low=1,
+        high=4,
+    )
+    radius_factor: float = parameter(
+        0.99,
+        "radii shrunk by this factor before meshing: no initial interpenetration (-)",
+        low=0.5,
+        high=1,
+    )
+    divisions: int | None = parameter(
+        None,
+        "hexahedra per inner-cube edge (default: the resolution's; odd: the "
+        "contact points of axis-aligned neighbours fall on facet centres, not nodes)",
+        kind=int,
+        low=1,
+        high=16,
+    )
+    layers: int | None = parameter(
+        None, "shell layers (default: the resolution's)", kind=int, low=1, high=16
+    )
     #: particle meshes hold their sphere's volume (nodes moved outwards by ~1 %); False: inscribed
     #: in the sphere (e.g. touching spheres of an ordered cell with radius_factor 1)
     exact_volume: bool = True
@@ -96,7 +139,11 @@ class MeshSection:
         check_parameters(self, "mesh.")
         if self.rotation is not None:
             Q = np.asarray(self.rotation, dtype=float)
-            if Q.shape != (3, 3) or not np.allclose(Q @ Q.T, np.eye(3), atol=1e-12) or np.linalg.det(Q) < 0:
+            if (
+                Q.shape != (3, 3)
+                or not np.allclose(Q @ Q.T, np.eye(3), atol=1e-12)
+                or np.linalg.det(Q) < 0
+            ):
                 raise ValueError("mesh.rotation must be a (3, 3) proper rotation matrix")
 
     @property
@@ -113,10 +160,15 @@ class ContactSection:
 
     friction: float = parameter(0.1, "Coulomb friction coefficient mu (-)", low=0, high=2)
     gamma: float = parameter(0.0, "Dupre adhesion energy (mJ/mm^2)", low=0, high=1)
-    delta_max: float = parameter(5e-4, "opening at which adhesion vanishes (mm)", low=0, high=0.01, open_low=True)
-    asperity_yield: float = parameter(5.0, "asperity yield stress, p0 = 3 x it (MPa)", low=0, open_low=True)
-    penalty_factor: float = parameter(10.0, "penalty k = factor x E / h, h the contact element size (-)", low=0,
-                                      open_low=True)
+    delta_max: float = parameter(
+        5e-4, "opening at which adhesion vanishes (mm)", low=0, high=0.01, open_low=True
+    )
+    asperity_yield: float = parameter(
+        5.0, "asperity yield stress, p0 = 3 x it (MPa)", low=0, open_low=True
+    )
+    penalty_factor: float = parameter(
+        10.0, "penalty k = factor x E / h, h the contact element size (-)", low=0, open_low=True
+    )
 
     def __post_init__(self):
         check_parameters(self, "contact.")
@@ -127,13 +179,26 @@ class BoundarySection:
     """``[boundary]``: the boundary condition of the periodic volume (thesis table 2.2) and its
     duplicated particles (thesis §2.2.1)."""
 
-    condition: str = parameter("CLP", "GDH, GDF (driven particles), CLPS (simplified periodic) or CLP (periodic)",
-                               choices=tuple(KINDS))
-    images: bool | None = parameter(None, "CLP realized by contact with periodic images (default for CLP) or, "
-                                    "false, by tied copies (eq. 2.14)", kind=bool)
-    d_bc: float | None = parameter(None, "duplication distance d_bc as a multiple of the largest radius r_max "
-                                   "(default: thesis table 2.3: 1.8 CLP, 2.5 others) (-)", kind=float, low=0, high=10,
-                                   open_low=True)
+    condition: str = parameter(
+        "CLP",
+        "GDH, GDF (driven particles), CLPS (simplified periodic) or CLP (periodic)",
+        choices=tuple(KINDS),
+    )
+    images: bool | None = parameter(
+        None,
+        "CLP realized by contact with periodic images (default for CLP) or, "
+        "false, by tied copies (eq. 2.14)",
+        kind=bool,
+    )
+    d_bc: float | None = parameter(
+        None,
+        "duplication distance d_bc as a multiple of the largest radius r_max "
+        "(default: thesis table 2.3: 1.8 CLP, 2.5 others) (-)",
+        kind=float,
+        low=0,
+        high=10,
+        open_low=True,
+    )
     #: duplicate across edges and corners too (False: face copies only, e.g. the 12 copies of the
     #: ordered simple cubic cell, thesis §2.6)
     corners: bool = True
@@ -147,7 +212,9 @@ class BoundarySection:
     def __post_init__(self):
         check_parameters(self, "boundary.")
         if self.images is True and self.condition != "CLP":
-            raise ValueError(f"boundary.images = true realizes CLP only, got condition = {self.condition!r}")
+            raise ValueError(
+                f"boundary.images = true realizes CLP only, got condition = {self.condition!r}"
+            )
 
     @property
     def uses_images(self) -> bool:
@@ -164,15 +231,33 @@ class LoadingSection:
     """``[loading]``: the macroscopic path F0(t) (thesis §2.2.3): a compaction to a target
     density, an optional hold, further segments, or a stress control."""
 
-    path: str = parameter("isotropic", "isotropic or die (uniaxial strain along z) compaction",
-                          choices=("isotropic", "die"))
-    target_density: float = parameter(0.92, "relative density to reach, above the packing's initial one (-)",
-                                      low=0, high=1, open_low=True, open_high=True)
+    path: str = parameter(
+        "isotropic",
+        "isotropic or die (uniaxial strain along z) compaction",
+        choices=("isotropic", "die"),
+    )
+    target_density: float = parameter(
+        0.92,
+        "relative density to reach, above the packing's initial one (-)",
+        low=0,
+        high=1,
+        open_low=True,
+        open_high=True,
+    )
     duration: float = parameter(1e-3, "loading time, mass-scaled (s)", low=0, open_low=True)
-    profile: str = parameter("smooth-ramps", "amplitude of the compaction in time: constant strain rate between "
-                             "smooth ramps, or the Abaqus smooth step (peak rate mid-path)", choices=tuple(PROFILES))
-    hold: float = parameter(0.0, "relaxation hold at the final gradient after the loading, in units of the loading "
-                            "duration (rows with time > duration)", low=0, high=10)
+    profile: str = parameter(
+        "smooth-ramps",
+        "amplitude of the compaction in time: constant strain rate between "
+        "smooth ramps, or the Abaqus smooth step (peak rate mid-path)",
+        choices=tuple(PROFILES),
+    )
+    hold: float = parameter(
+        0.0,
+        "relaxation hold at the final gradient after the loading, in units of the loading "
+        "duration (rows with time > duration)",
+        low=0,
+        high=10,
+    )
     #: further segments after the compaction, ((duration s, increment gradient G (3, 3)), ...):
     #: e.g. the unload F^d and a reload F^r of thesis eq. 4.7-4.9
     segments_after: tuple = ()
@@ -184,10 +269,13 @@ class LoadingSection:
 
     def __post_init__(self):
         check_parameters(self, "loading.")
-        if len(self.segment_profiles) > len(self.segments_after) or any(p not in PROFILES
-                                                                        for p in self.segment_profiles):
-            raise ValueError(f"loading.segment_profiles must name one of {', '.join(PROFILES)} for at most the "
-                             f"{len(self.segments_after)} segments_after, got {self.segment_profiles}")
+        if len(self.segment_profiles) > len(self.segments_after) or any(
+            p not in PROFILES for p in self.segment_profiles
+        ):
+            raise ValueError(
+                f"loading.segment_profiles must name one of {', '.join(PROFILES)} for at most the "
+                f"{len(self.segments_after)} segments_after, got {self.segment_profiles}"
+            )
 
 
 @dataclass(frozen=True)
@@ -195,18 +283,34 @@ class SolverSection:
     """``[solver]``: the explicit (central differences, mass scaling, damping) or implicit
     (Newton, adaptive load steps) solver and its settings."""
 
-    kind: str = parameter("explicit", "explicit (central differences, mass scaling) or implicit (Newton; "
-                          "experimental for granular volumes)", choices=SOLVERS)
+    kind: str = parameter(
+        "explicit",
+        "explicit (central differences, mass scaling) or implicit (Newton; "
+        "experimental for granular volumes)",
+        choices=SOLVERS,
+    )
     increments: int = parameter(6000, "explicit increments over the loading", low=10)
     steps: int = parameter(100, "implicit load steps (adaptive, cut back when Newton fails)", low=1)
-    damping: float = parameter(0.0, "explicit viscous damping of the particles' rigid motion relative to the imposed "
-                               "flow (1/duration); it drags the particles towards the affine flow and adds a "
-                               "rate-dependent stress", low=0)
-    local_damping: float = parameter(0.7, "explicit local non-viscous damping alpha of the particles' rigid motion "
-                                     "(Cundall): removes oscillations, resists no steady motion (-)", low=0, high=1,
-                                     open_high=True)
-    constraint_mass: str = parameter("lumped", "explicit reduced mass of the constrained model: lumped row sums or "
-                                     "the consistent P^T M P", choices=CONSTRAINT_MASSES)
+    damping: float = parameter(
+        0.0,
+        "explicit viscous damping of the particles' rigid motion relative to the imposed "
+        "flow (1/duration); it drags the particles towards the affine flow and adds a "
+        "rate-dependent stress",
+        low=0,
+    )
+    local_damping: float = parameter(
+        0.7,
+        "explicit local non-viscous damping alpha of the particles' rigid motion "
+        "(Cundall): removes oscillations, resists no steady motion (-)",
+        low=0,
+        high=1,
+        open_high=True,
+    )
+    constraint_mass: str = parameter(
+        "lumped",
+        "explicit reduced mass of the constrained model: lumped row sums or the consistent P^T M P",
+        choices=CONSTRAINT_MASSES,
+    )
     #: implicit: pseudo-time drag k_i = regularization E V_i / h^2 towards the last converged
     #: state (V_i nodal volume, h contact element size): holds particles before contact
     regularization: float = 0.05
@@ -217,7 +321,9 @@ class SolverSection:
     def __post_init__(self):
         check_parameters(self, "solver.")
         if any(int(n) < 1 for n in self.segment_steps):
-            raise ValueError(f"solver.segment_steps must hold >= 1 implicit steps, got {self.segment_steps}")
+            raise ValueError(
+                f"solver.segment_steps must hold >= 1 implicit steps, got {self.segment_steps}"
+            )
 
 
 @dataclass(frozen=True)
@@ -225,10 +331,14 @@ class OutputSection:
     """``[output]``: where the results go and how often: history rows, ParaView frames,
     checkpoints."""
 
-    directory: str = parameter("results/isotropic", "results folder (a case file's default: results/<case file "
-                               "name>; --out overrides)")
+    directory: str = parameter(
+        "results/isotropic",
+        "results folder (a case file's default: results/<case file name>; --out overrides)",
+    )
     outputs: int = parameter(40, "history rows and ParaView frames", low=1, high=100000)
-    every: int = parameter(0, "explicit: a history row every so many increments (0: from outputs)", low=0)
+    every: int = parameter(
+        0, "explicit: a history row every so many increments (0: from outputs)", low=0
+    )
     visual: bool = parameter(True, "write ParaView files and PNG figures")
     checkpoint_every: int = parameter(10, "checkpoint every so many outputs (0: none)", low=0)
     checkpoint_keep: int = parameter(2, "newest checkpoints kept (0: all)", low=0)
@@ -239,9 +349,16 @@ class OutputSection:
 
 #: the case's sections in case-file order (``material`` is an ElastoPlastic, declared in
 #: :mod:`mpfem_fenicsx.material.parameters`)
-SECTIONS: dict[str, type] = {"material": ElastoPlastic, "packing": PackingSection, "mesh": MeshSection,
-                             "contact": ContactSection, "boundary": BoundarySection, "loading": LoadingSection,
-                             "solver": SolverSection, "output": OutputSection}
+SECTIONS: dict[str, type] = {
+    "material": ElastoPlastic,
+    "packing": PackingSection,
+    "mesh": MeshSection,
+    "contact": ContactSection,
+    "boundary": BoundarySection,
+    "loading": LoadingSection,
+    "solver": SolverSection,
+    "output": OutputSection,
+}
 
 
 @dataclass(frozen=True)
@@ -261,16 +378,24 @@ class CompactionCase:
     def __post_init__(self):
         for name, cls in SECTIONS.items():
             if not isinstance(getattr(self, name), cls):
-                raise TypeError(f"CompactionCase.{name} must be a {cls.__name__}, got {getattr(self, name)!r}")
+                raise TypeError(
+                    f"CompactionCase.{name} must be a {cls.__name__}, got {getattr(self, name)!r}"
+                )
         loading, solver = self.loading, self.solver
         if len(solver.segment_steps) > len(loading.segments_after):
-            raise ValueError(f"solver.segment_steps must hold implicit steps for at most the "
-                             f"{len(loading.segments_after)} loading.segments_after, got {solver.segment_steps}")
-        if loading.control is not None and (not boundary_kind(self.boundary.condition).periodic
-                                            or not solver_kind(solver.kind).stress_control):
-            raise ValueError(f"loading.control (stress-driven components) needs boundary.condition CLP or CLPS and "
-                             f"the explicit solver, got condition = {self.boundary.condition!r}, "
-                             f"solver.kind = {solver.kind!r}")
+            raise ValueError(
+                f"solver.segment_steps must hold implicit steps for at most the "
+                f"{len(loading.segments_after)} loading.segments_after, got {solver.segment_steps}"
+            )
+        if loading.control is not None and (
+            not boundary_kind(self.boundary.condition).periodic
+            or not solver_kind(solver.kind).stress_control
+        ):
+            raise ValueError(
+                f"loading.control (stress-driven components) needs boundary.condition CLP or CLPS and "
+                f"the explicit solver, got condition = {self.boundary.condition!r}, "
+                f"solver.kind = {solver.kind!r}"
+            )
 
     def updated(self, **changes: Any) -> CompactionCase:
         """A copy with some fields changed. Each keyword is a section's name (its value: a whole
@@ -301,7 +426,10 @@ class CompactionCase:
 
 
 #: the section of every field name (unique across the sections; the material's fields excluded)
-FIELD_SECTION: dict[str, str] = {f.name: name for name, cls in SECTIONS.items() if cls is not ElastoPlastic
-                                 for f in fields(cls)}
+FIELD_SECTION: dict[str, str] = {
+    f.name: name for name, cls in SECTIONS.items() if cls is not ElastoPlastic for f in fields(cls)
+}
 if len(FIELD_SECTION) != sum(len(fields(c)) for c in SECTIONS.values() if c is not ElastoPlastic):
-    raise TypeError("a field name repeats across the case's sections: CompactionCase.updated needs them unique")
+    raise TypeError(
+        "a field name repeats across the case's sections: CompactionCase.updated needs them unique"
+    )

@@ -1,9 +1,9 @@
 """Exit codes shared by ``mpfem`` and the demos: one code for bad input, one for a failed run.
 
-    0  done
-    2  bad input: a case, an option or a file refused before any computation (one line naming
-       the field and the allowed range)
-    3  the run diverged or did not converge (history so far and the last good checkpoint kept)
+0  done
+2  bad input: a case, an option or a file refused before any computation (one line naming
+   the field and the allowed range)
+3  the run diverged or did not converge (history so far and the last good checkpoint kept)
 """
 
 from __future__ import annotations

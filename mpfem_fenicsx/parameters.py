@@ -52,22 +52,46 @@ class Range:
             return "must be a finite number"
         if self.choices:
             return None if value in self.choices else f"is not allowed: must be {self.allowed()}"
-        bad_low = self.low is not None and (value <= self.low if self.open_low else value < self.low)
-        bad_high = self.high is not None and (value >= self.high if self.open_high else value > self.high)
-        return f"is out of range: must be {self.allowed()} [{self.doc}]" if bad_low or bad_high else None
+        bad_low = self.low is not None and (
+            value <= self.low if self.open_low else value < self.low
+        )
+        bad_high = self.high is not None and (
+            value >= self.high if self.open_high else value > self.high
+        )
+        return (
+            f"is out of range: must be {self.allowed()} [{self.doc}]"
+            if bad_low or bad_high
+            else None
+        )
 
 
-def parameter(default: Any, doc: str, *, kind: type | None = None, low: float | None = None,
-              high: float | None = None, open_low: bool = False, open_high: bool = False,
-              choices: tuple | None = None) -> Any:
+def parameter(
+    default: Any,
+    doc: str,
+    *,
+    kind: type | None = None,
+    low: float | None = None,
+    high: float | None = None,
+    open_low: bool = False,
+    open_high: bool = False,
+    choices: tuple | None = None,
+) -> Any:
     """A dataclass field with ``default`` and its :class:`Range` (``kind`` defaults to the
     default's type; a None default makes the parameter optional and needs ``kind``)."""
     if kind is None:
         if default is None:
             raise TypeError("parameter: an optional (None) default needs its kind")
         kind = type(default)
-    allowed = Range(doc, kind, low, high, open_low, open_high, None if choices is None else tuple(choices),
-                    optional=default is None)
+    allowed = Range(
+        doc,
+        kind,
+        low,
+        high,
+        open_low,
+        open_high,
+        None if choices is None else tuple(choices),
+        optional=default is None,
+    )
     return field(default=default, metadata={"range": allowed})
 
 
@@ -75,8 +99,16 @@ def parameter_of(cls: type, name: str, default: Any = MISSING) -> Any:
     """A dataclass field declared like ``cls.name`` (same meaning, unit and range), with the
     same default or ``default``: one declaration for a parameter two cases share."""
     a = parameter_range(cls, name)
-    return parameter(parameter_default(cls, name) if default is MISSING else default, a.doc, kind=a.kind, low=a.low,
-                     high=a.high, open_low=a.open_low, open_high=a.open_high, choices=a.choices)
+    return parameter(
+        parameter_default(cls, name) if default is MISSING else default,
+        a.doc,
+        kind=a.kind,
+        low=a.low,
+        high=a.high,
+        open_low=a.open_low,
+        open_high=a.open_high,
+        choices=a.choices,
+    )
 
 
 def parameter_range(cls: type, name: str) -> Range:

@@ -14,6 +14,7 @@ import warnings
 
 import numpy as np
 from mpi4py import MPI
+from petsc4py import PETSc
 
 import basix
 import basix.ufl
@@ -21,12 +22,10 @@ import dolfinx
 import dolfinx.fem
 import dolfinx.fem.petsc
 import ufl
-from petsc4py import PETSc
 
 from . import forms
 from .forms.kinematics import DeformationGradients, DeviatoricForces, VolumetricForces
 from .material import ElastoPlastic, HenckyJ2
-
 
 #: the Q1 hexahedron's vertices in dolfinx's lexicographic order (x fastest) on the unit cube
 HEX_VERTICES = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)])
@@ -36,19 +35,31 @@ def _hex_reference_gradients(xi: np.ndarray) -> np.ndarray:
     """(8, 3) gradients of the Q1 shape functions on the unit cube at the point ``xi`` (3,)."""
     factors = np.where(HEX_VERTICES == 1, xi, 1.0 - xi)  # the 1D shape functions at xi
     signs = np.where(HEX_VERTICES == 1, 1.0, -1.0)
-    return np.stack([signs[:, 0] * factors[:, 1] * factors[:, 2], factors[:, 0] * signs[:, 1] * factors[:, 2],
-                     factors[:, 0] * factors[:, 1] * signs[:, 2]], axis=1)
+    return np.stack(
+        [
+            signs[:, 0] * factors[:, 1] * factors[:, 2],
+            factors[:, 0] * signs[:, 1] * factors[:, 2],
+            factors[:, 0] * factors[:, 1] * signs[:, 2],
+        ],
+        axis=1,
+    )
 
 
 _GAUSS_1D = (0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0))
 #: (8, 8, 3) the Q1 reference gradients at the 2x2x2 Gauss points of the unit cube (weights 1/8 each)
-HEX_GAUSS_GRADIENTS = np.array([_hex_reference_gradients(np.array(xi))
-                                for xi in np.array(np.meshgrid(*[_GAUSS_1D] * 3, indexing="ij")).reshape(3, -1).T])
+HEX_GAUSS_GRADIENTS = np.array(
+    [
+        _hex_reference_gradients(np.array(xi))
+        for xi in np.array(np.meshgrid(*[_GAUSS_1D] * 3, indexing="ij")).reshape(3, -1).T
+    ]
+)
 #: (8, 3) the Q1 reference gradients at the centre, the point of the volumetric part (forms.QuadratureRules)
 HEX_CENTRE_GRADIENTS = _hex_reference_gradients(np.full(3, 0.5))
 
 
-def hexahedron_gradients(x: np.ndarray, reference_gradients: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def hexahedron_gradients(
+    x: np.ndarray, reference_gradients: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """det J (n,) and the physical shape-function gradients (n, 8, 3) (1/mm) of Q1 hexahedra with
     vertices ``x`` (n, 8, 3) (mm, lexicographic) at one point given by its ``reference_gradients``
     (8, 3); cells with det J = 0 there get zero gradients."""
@@ -80,8 +91,11 @@ def hexahedron_gauss_length(x: np.ndarray, reference: np.ndarray | None = None) 
     volume = np.zeros(n)
     for reference_gradients in HEX_GAUSS_GRADIENTS:
         det, grad = hexahedron_gradients(x, reference_gradients)
-        weight = np.abs(det if reference is None else np.linalg.det(np.einsum("cai,aj->cij", reference,
-                                                                             reference_gradients)))
+        weight = np.abs(
+            det
+            if reference is None
+            else np.linalg.det(np.einsum("cai,aj->cij", reference, reference_gradients))
+        )
         gradient_sum += weight / 8.0 * np.sum(grad * grad, axis=(1, 2))  # Gauss weight 1/8
         gradient_sum[det == 0.0] = np.inf
         volume += weight / 8.0
@@ -102,9 +116,16 @@ class SolidProblem:
             locking element, kept to show what the reduced rule avoids.
     """
 
-    def __init__(self, mesh: dolfinx.mesh.Mesh, material: ElastoPlastic, *, degree: int | None = None,
-                 tangent: bool = True, active_cells: np.ndarray | None = None,
-                 full_integration: bool = False):
+    def __init__(
+        self,
+        mesh: dolfinx.mesh.Mesh,
+        material: ElastoPlastic,
+        *,
+        degree: int | None = None,
+        tangent: bool = True,
+        active_cells: np.ndarray | None = None,
+        full_integration: bool = False,
+    ):
         self.mesh = mesh
         self.params = material
         self.comm = mesh.comm
@@ -113,11 +134,16 @@ class SolidProblem:
         self.V = dolfinx.fem.functionspace(mesh, ("Lagrange", degree, (3,)))
         self.u = dolfinx.fem.Function(self.V, name="displacement")
         self.rules = forms.QuadratureRules.for_cell(cell_name, degree)
-        if full_integration:  # the volumetric part on the deviatoric rule too (locks: for comparisons)
+        if (
+            full_integration
+        ):  # the volumetric part on the deviatoric rule too (locks: for comparisons)
             self.rules = forms.QuadratureRules(self.rules.deviatoric, self.rules.deviatoric)
         if cell_name == "tetrahedron" and degree == 1:
-            warnings.warn("P1 tetrahedra lock under isochoric plastic flow (one constraint per "
-                          "cell, no reduced rule): use hexahedra (SRI) or tet_order=2", stacklevel=2)
+            warnings.warn(
+                "P1 tetrahedra lock under isochoric plastic flow (one constraint per "
+                "cell, no reduced rule): use hexahedra (SRI) or tet_order=2",
+                stacklevel=2,
+            )
 
         tdim = mesh.topology.dim
         self.num_cells = mesh.topology.index_map(tdim).size_local
@@ -128,8 +154,9 @@ class SolidProblem:
         nq = self.num_cells * self.points_per_cell
 
         def quadrature_function(shape, name):
-            element = basix.ufl.quadrature_element(cell_name, value_shape=shape,
-                                                   degree=self.rules.deviatoric)
+            element = basix.ufl.quadrature_element(
+                cell_name, value_shape=shape, degree=self.rules.deviatoric
+            )
             fn = dolfinx.fem.Function(dolfinx.fem.functionspace(mesh, element), name=name)
             # the kernel writes (cell, point, component) in order: check the dof layout is that
             dofs = fn.function_space.dofmap.list[: self.num_cells]
@@ -152,9 +179,14 @@ class SolidProblem:
         # all cells active: the kernel writes straight into the quadrature Functions; otherwise it
         # works on the active points and update_material scatters the result
         self.material = HenckyJ2(
-            material, nq_mat, tangent,
+            material,
+            nq_mat,
+            tangent,
             P_dev=self.P_dev.x.array[:size].reshape(nq, 3, 3) if self._all_active else None,
-            A_dev=self.A_dev.x.array[: size * 9].reshape(nq, 3, 3, 3, 3) if tangent and self._all_active else None)
+            A_dev=self.A_dev.x.array[: size * 9].reshape(nq, 3, 3, 3, 3)
+            if tangent and self._all_active
+            else None,
+        )
 
         F = forms.deformation_gradient(self.u)
         self._F_expr = dolfinx.fem.Expression(F, self.points)
@@ -182,12 +214,18 @@ class SolidProblem:
         J = ufl.det(forms.deformation_gradient(self.u))
         self._volumetric_energy = dolfinx.fem.form(0.5 * bulk * ufl.ln(J) ** 2 * self.dx_vol)
         #: residual / Jacobian parts (deviatoric, volumetric), assembled one after the other
-        self.residual_ufl = forms.internal_work(self.u, v, self.P_dev, bulk, self.dx_dev, self.dx_vol)
+        self.residual_ufl = forms.internal_work(
+            self.u, v, self.P_dev, bulk, self.dx_dev, self.dx_vol
+        )
         self.residual_forms = [dolfinx.fem.form(f) for f in self.residual_ufl]
         self.jacobian_forms = None
         if tangent:
-            self.jacobian_forms = [dolfinx.fem.form(f) for f in forms.internal_work_tangent(
-                self.u, du, v, self.A_dev, bulk, self.dx_dev, self.dx_vol)]
+            self.jacobian_forms = [
+                dolfinx.fem.form(f)
+                for f in forms.internal_work_tangent(
+                    self.u, du, v, self.A_dev, bulk, self.dx_dev, self.dx_vol
+                )
+            ]
         # The deviatoric forms' only coefficient is the kernel's output, whose (point, component)
         # layout per material cell is exactly DOLFINx's packed layout: hand it over as the packed
         # coefficients instead of letting every assembly gather it again (a copy of 72 (P_dev) or
@@ -195,22 +233,33 @@ class SolidProblem:
         self._residual_key = self._packed_key(self.residual_forms[0], 9)
         # the same deviatoric force by a numba loop with the inverse Jacobians stored (35-40 %
         # less time than the FFCx assembly on hexahedra), when it reproduces the form
-        self._deviatoric_forces = DeviatoricForces(self.V, self.points, self.material_cells, self.point_volumes)
-        if not self._deviatoric_forces.matches(self.residual_forms[0], self.P_dev, self.material.P_dev):
+        self._deviatoric_forces = DeviatoricForces(
+            self.V, self.points, self.material_cells, self.point_volumes
+        )
+        if not self._deviatoric_forces.matches(
+            self.residual_forms[0], self.P_dev, self.material.P_dev
+        ):
             self._deviatoric_forces = None
         # the volumetric (SRI) force likewise; its points serve the explicit solver's bulk viscosity
         self._bulk = float(material.bulk)
-        self.volumetric_forces = VolumetricForces(self.V, *basix.make_quadrature(cell_type, self.rules.volumetric),
-                                                  self.material_cells)
+        self.volumetric_forces = VolumetricForces(
+            self.V, *basix.make_quadrature(cell_type, self.rules.volumetric), self.material_cells
+        )
         self._volumetric_loop = self.volumetric_forces.reproduces(
-            self.residual_forms[1], lambda array: self.volumetric_forces.add_volumetric(self.u, self._bulk, array),
-            [(self.u, 1.0)])
+            self.residual_forms[1],
+            lambda array: self.volumetric_forces.add_volumetric(self.u, self._bulk, array),
+            [(self.u, 1.0)],
+        )
         self._jacobian_key = self._packed_key(self.jacobian_forms[0], 81) if tangent else None
         # per-cell integrals of the Kirchhoff stress, on the residual's own quadrature rules
         self._cell_tensors = dolfinx.fem.functionspace(mesh, ("DG", 0, (3, 3)))
         w = ufl.TestFunction(self._cell_tensors)
-        self._stress_integral_forms = [dolfinx.fem.form(f) for f in forms.kirchhoff_stress_integrals(
-            self.u, w, self.P_dev, bulk, self.dx_dev, self.dx_vol)]
+        self._stress_integral_forms = [
+            dolfinx.fem.form(f)
+            for f in forms.kirchhoff_stress_integrals(
+                self.u, w, self.P_dev, bulk, self.dx_dev, self.dx_vol
+            )
+        ]
 
     def _packed_key(self, form, width: int):
         """Key of the form's packed coefficients if they are exactly the material array with
@@ -219,7 +268,7 @@ class SolidProblem:
         rows = self.material_cells.size
         if len(packed) != 1:
             return None
-        (key, array), = packed.items()
+        ((key, array),) = packed.items()
         return key if array.shape == (rows, self.points_per_cell * width) else None
 
     def _material_coefficients(self, key, values: np.ndarray):
@@ -246,7 +295,11 @@ class SolidProblem:
                 with b.localForm() as loc:
                     self.volumetric_forces.add_volumetric(self.u, self._bulk, loc.array)
                 continue
-            coeffs = self._material_coefficients(self._residual_key, self.material.P_dev) if k == 0 else None
+            coeffs = (
+                self._material_coefficients(self._residual_key, self.material.P_dev)
+                if k == 0
+                else None
+            )
             dolfinx.fem.petsc.assemble_vector(b, form, coeffs=coeffs)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
 
@@ -254,7 +307,11 @@ class SolidProblem:
         """K = consistent tangent stiffness (N/mm) at the current material state."""
         K.zeroEntries()
         for k, form in enumerate(self.jacobian_forms):
-            coeffs = self._material_coefficients(self._jacobian_key, self.material.A_dev) if k == 0 else None
+            coeffs = (
+                self._material_coefficients(self._jacobian_key, self.material.A_dev)
+                if k == 0
+                else None
+            )
             dolfinx.fem.petsc.assemble_matrix(K, form, coeffs=coeffs)
             K.assemble(PETSc.Mat.AssemblyType.FLUSH)
         K.assemble()
@@ -272,11 +329,13 @@ class SolidProblem:
         if not self._all_active:
             width = self.points_per_cell * 9
             cells = self.material_cells
-            self.P_dev.x.array[: self.num_cells * width].reshape(self.num_cells, width)[cells] = \
+            self.P_dev.x.array[: self.num_cells * width].reshape(self.num_cells, width)[cells] = (
                 self.material.P_dev.reshape(cells.size, width)
+            )
             if tangent:
-                self.A_dev.x.array[: self.num_cells * width * 9].reshape(self.num_cells, width * 9)[cells] = \
-                    self.material.A_dev.reshape(cells.size, width * 9)
+                self.A_dev.x.array[: self.num_cells * width * 9].reshape(self.num_cells, width * 9)[
+                    cells
+                ] = self.material.A_dev.reshape(cells.size, width * 9)
 
     def commit(self) -> None:
         self.material.commit()
@@ -317,7 +376,9 @@ class SolidProblem:
         """Hencky elastic energy of the current trial state, mJ: deviatoric part at the
         quadrature points + volumetric part 1/2 K ln(J)^2 with the volumetric (SRI) rule, i.e.
         the energy whose derivative is the internal force actually assembled."""
-        volumetric = self.comm.allreduce(dolfinx.fem.assemble_scalar(self._volumetric_energy), op=MPI.SUM)
+        volumetric = self.comm.allreduce(
+            dolfinx.fem.assemble_scalar(self._volumetric_energy), op=MPI.SUM
+        )
         return self.integrate_points(self.material.psi) + volumetric
 
     def lumped_mass(self, density) -> dolfinx.fem.Function:
@@ -326,7 +387,9 @@ class SolidProblem:
         v = ufl.TestFunction(self.V)
         dx = self._measure(2 * self.V.element.basix_element.degree)
         m = dolfinx.fem.Function(self.V, name="lumped_mass")
-        vec = dolfinx.fem.petsc.assemble_vector(dolfinx.fem.form(forms.lumped_mass_action(density, v, dx)))
+        vec = dolfinx.fem.petsc.assemble_vector(
+            dolfinx.fem.form(forms.lumped_mass_action(density, v, dx))
+        )
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         m.x.petsc_vec.array[:] = vec.array_r
         m.x.scatter_forward()
@@ -352,13 +415,53 @@ class SolidProblem:
         i, j = np.triu_indices(nv, 1)
         d = np.linalg.norm(x[:, i] - x[:, j], axis=-1).min(axis=1)
         if nv == 8 and self.mesh.topology.cell_name() == "hexahedron":  # lexicographic vertices
-            jac = np.stack([(x[:, 1] - x[:, 0] + x[:, 3] - x[:, 2] + x[:, 5] - x[:, 4] + x[:, 7] - x[:, 6]),
-                            (x[:, 2] - x[:, 0] + x[:, 3] - x[:, 1] + x[:, 6] - x[:, 4] + x[:, 7] - x[:, 5]),
-                            (x[:, 4] - x[:, 0] + x[:, 5] - x[:, 1] + x[:, 6] - x[:, 2] + x[:, 7] - x[:, 3])],
-                           axis=-1) / 4.0
+            jac = (
+                np.stack(
+                    [
+                        (
+                            x[:, 1]
+                            - x[:, 0]
+                            + x[:, 3]
+                            - x[:, 2]
+                            + x[:, 5]
+                            - x[:, 4]
+                            + x[:, 7]
+                            - x[:, 6]
+                        ),
+                        (
+                            x[:, 2]
+                            - x[:, 0]
+                            + x[:, 3]
+                            - x[:, 1]
+                            + x[:, 6]
+                            - x[:, 4]
+                            + x[:, 7]
+                            - x[:, 5]
+                        ),
+                        (
+                            x[:, 4]
+                            - x[:, 0]
+                            + x[:, 5]
+                            - x[:, 1]
+                            + x[:, 6]
+                            - x[:, 2]
+                            + x[:, 7]
+                            - x[:, 3]
+                        ),
+                    ],
+                    axis=-1,
+                )
+                / 4.0
+            )
             volume = np.abs(np.linalg.det(jac))  # centre-point volume
-            faces = np.array([[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 4, 5], [2, 3, 6, 7], [0, 2, 4, 6], [1, 3, 5, 7]])
-            area = 0.5 * np.linalg.norm(np.cross(x[:, faces[:, 3]] - x[:, faces[:, 0]],
-                                                 x[:, faces[:, 2]] - x[:, faces[:, 1]]), axis=-1).max(axis=1)
+            faces = np.array(
+                [[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 4, 5], [2, 3, 6, 7], [0, 2, 4, 6], [1, 3, 5, 7]]
+            )
+            area = 0.5 * np.linalg.norm(
+                np.cross(
+                    x[:, faces[:, 3]] - x[:, faces[:, 0]], x[:, faces[:, 2]] - x[:, faces[:, 1]]
+                ),
+                axis=-1,
+            ).max(axis=1)
             d = np.minimum(np.minimum(d, volume / area), hexahedron_gauss_length(x, reference))
         return d

@@ -36,8 +36,11 @@ from pathlib import Path
 
 #: names of the thread setter in the OpenBLAS builds in use (upstream, numpy's 64-bit-integer
 #: build and scipy's build of it)
-_BLAS_SETTERS = ("openblas_set_num_threads", "scipy_openblas_set_num_threads64_",
-                 "scipy_openblas_set_num_threads")
+_BLAS_SETTERS = (
+    "openblas_set_num_threads",
+    "scipy_openblas_set_num_threads64_",
+    "scipy_openblas_set_num_threads",
+)
 
 
 @dataclass(frozen=True)

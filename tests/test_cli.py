@@ -6,11 +6,11 @@ import subprocess
 
 import numpy as np
 import pytest
+from mpfem_fenicsx.meshes.packing import read_packing as read_packing_file
 
 from mpfem_fenicsx.cli.casefile import SCHEMA, example_case, load_case
 from mpfem_fenicsx.cli.main import main
 from mpfem_fenicsx.io import read_csv
-from mpfem_fenicsx.meshes.packing import read_packing as read_packing_file
 from test_parameters import just_outside  # the values a declared range must refuse
 
 TINY = "demos/cases/tiny.toml"
@@ -37,7 +37,10 @@ BAD_CASES = [
     ("[loading]\ntarget_density = 0.0\n", ["[loading] target_density", "> 0"]),
     ("[contact]\nfriction = -0.1\n", ["[contact] friction", ">= 0"]),
     ("[contact]\ngamma = -1e-3\n", ["[contact] gamma", ">= 0", "mJ/mm^2"]),
-    ("[boundary]\ncondition = 'PBC'\n", ["[boundary] condition", "'PBC'", "'GDH', 'GDF', 'CLPS', 'CLP'"]),
+    (
+        "[boundary]\ncondition = 'PBC'\n",
+        ["[boundary] condition", "'PBC'", "'GDH', 'GDF', 'CLPS', 'CLP'"],
+    ),
     ("[boundary]\ncondition = 'GDF'\nimages = true\n", ["[boundary] images", "CLP"]),
     ("[material]\nnu = 0.5\n", ["[material] nu", "< 0.5"]),
     ("[solver]\nincrements = 5\n", ["[solver] increments", ">= 10"]),
@@ -47,23 +50,52 @@ BAD_CASES = [
     ("[mesh]\nresolution = 'fine'\n", ["[mesh] resolution", "'chapter2', 'chapter4', 'coarse'"]),
     ("[packing]\nfile = 'missing.txt'\n", ["[packing] file", "no such file"]),
     ("[loading\n", ["not valid TOML"]),
-    ("[control]\npath = 'shear'\n", ["[control] path", "'none', 'pressure', 'triaxial', 'cycle', 'lode'"]),
+    (
+        "[control]\npath = 'shear'\n",
+        ["[control] path", "'none', 'pressure', 'triaxial', 'cycle', 'lode'"],
+    ),
     ("[control]\npath = 'cycle'\npressure = 2.0\n", ["[control] unload_to", "required"]),
-    ("[control]\npath = 'cycle'\npressure = 2.0\nunload_to = 3.0\n", ["[control] unload_to", "below pressure"]),
-    ("[control]\npath = 'cycle'\npressure = 2.0\nunload_to = 1.0\nreload_to = 0.5\n", ["reload_to", "above"]),
+    (
+        "[control]\npath = 'cycle'\npressure = 2.0\nunload_to = 3.0\n",
+        ["[control] unload_to", "below pressure"],
+    ),
+    (
+        "[control]\npath = 'cycle'\npressure = 2.0\nunload_to = 1.0\nreload_to = 0.5\n",
+        ["reload_to", "above"],
+    ),
     ("[control]\npath = 'lode'\npressure = 2.0\n", ["[control] q_max", "required"]),
-    ("[control]\npath = 'lode'\npressure = 2.0\nq_max = 1.0\nlode_angle = 400\n", ["[control] lode_angle",
-                                                                                         "<= 360"]),
+    (
+        "[control]\npath = 'lode'\npressure = 2.0\nq_max = 1.0\nlode_angle = 400\n",
+        ["[control] lode_angle", "<= 360"],
+    ),
     ("[control]\npath = 'pressure'\npressure = 2.0\nq_max = 1.0\n", ["[control] q_max", "lode"]),
-    ("[control]\npath = 'lode'\npressure = 2.0\nq_max = 1.0\nunload_to = 1.0\n", ["[control] unload_to", "cycle"]),
+    (
+        "[control]\npath = 'lode'\npressure = 2.0\nq_max = 1.0\nunload_to = 1.0\n",
+        ["[control] unload_to", "cycle"],
+    ),
     ("[control]\npath = 'triaxial'\n", ["[control] pressure", "required"]),
     ("[control]\npressure = 2.0\n", ["[control] pressure", "needs a [control] path"]),
     ("[control]\npath = 'triaxial'\npressure = -2.0\n", ["[control] pressure", "> 0"]),
-    ("[control]\npath = 'triaxial'\npressure = 2.0\naxial_strain = 0.8\n", ["[control] axial_strain", "<= 0.5"]),
-    ("[control]\npath = 'pressure'\npressure = 2.0\naxial_strain = 0.1\n", ["[control] axial_strain", "triaxial"]),
-    ("[control]\npath = 'triaxial'\npressure = 2.0\nmeasure = 'lw'\n", ["[control] measure", "'schmidt', 'volume'"]),
-    ("[control]\npath = 'triaxial'\npressure = 2.0\nintegral_time = -1.0\n", ["[control] integral_time", ">= 0"]),
-    ("[control]\npath = 'pressure'\npressure = 2.0\n[boundary]\ncondition = 'GDF'\n", ["control", "CLP or CLPS"]),
+    (
+        "[control]\npath = 'triaxial'\npressure = 2.0\naxial_strain = 0.8\n",
+        ["[control] axial_strain", "<= 0.5"],
+    ),
+    (
+        "[control]\npath = 'pressure'\npressure = 2.0\naxial_strain = 0.1\n",
+        ["[control] axial_strain", "triaxial"],
+    ),
+    (
+        "[control]\npath = 'triaxial'\npressure = 2.0\nmeasure = 'lw'\n",
+        ["[control] measure", "'schmidt', 'volume'"],
+    ),
+    (
+        "[control]\npath = 'triaxial'\npressure = 2.0\nintegral_time = -1.0\n",
+        ["[control] integral_time", ">= 0"],
+    ),
+    (
+        "[control]\npath = 'pressure'\npressure = 2.0\n[boundary]\ncondition = 'GDF'\n",
+        ["control", "CLP or CLPS"],
+    ),
 ]
 
 
@@ -79,15 +111,23 @@ def test_bad_case_exits_2_naming_the_field(tmp_path, capsys, text, words):
 
 def _packing_file(tmp_path, rows, cell=1.0):
     path = tmp_path / "packing.txt"
-    path.write_text(f"{cell} {cell} {cell}\n" + "".join(f"{x} {y} {z} {r}\n" for x, y, z, r in rows))
+    path.write_text(
+        f"{cell} {cell} {cell}\n" + "".join(f"{x} {y} {z} {r}\n" for x, y, z, r in rows)
+    )
     return path
 
 
-@pytest.mark.parametrize("rows, words", [
-    ([(0.2, 0.2, 0.2, 0.1), (0.35, 0.2, 0.2, 0.1), (0.7, 0.7, 0.7, 0.1)], ["overlap", "0", "1"]),
-    ([(0.2, 0.2, 0.2, 0.1), (1.3, 0.5, 0.5, 0.1)], ["particle 1", "outside"]),
-    ([(0.2, 0.2, 0.2, -0.1), (0.6, 0.6, 0.6, 0.1)], ["radius", "particle 0"]),
-])
+@pytest.mark.parametrize(
+    "rows, words",
+    [
+        (
+            [(0.2, 0.2, 0.2, 0.1), (0.35, 0.2, 0.2, 0.1), (0.7, 0.7, 0.7, 0.1)],
+            ["overlap", "0", "1"],
+        ),
+        ([(0.2, 0.2, 0.2, 0.1), (1.3, 0.5, 0.5, 0.1)], ["particle 1", "outside"]),
+        ([(0.2, 0.2, 0.2, -0.1), (0.6, 0.6, 0.6, 0.1)], ["radius", "particle 0"]),
+    ],
+)
 def test_bad_packing_file_is_rejected_with_sphere_indices(tmp_path, capsys, rows, words):
     _packing_file(tmp_path, rows)
     code = main(["run", _case(tmp_path, "[packing]\nfile = 'packing.txt'\n")])
@@ -96,18 +136,29 @@ def test_bad_packing_file_is_rejected_with_sphere_indices(tmp_path, capsys, rows
     for w in words:
         assert w in err, (w, err)
     # the same check through `mpfem pack --input`
-    assert main(["pack", "--input", str(tmp_path / "packing.txt"), "--out", str(tmp_path / "o.txt")]) == 2
+    assert (
+        main(["pack", "--input", str(tmp_path / "packing.txt"), "--out", str(tmp_path / "o.txt")])
+        == 2
+    )
 
 
 CHECK_REFUSES = [
     # (packing file text, case's [loading] lines, words of the one-line error): what `run` refuses
-    ("1 1 1\n0.2 0.2 0.2 0.1\n0.3 0.2 0.2 0.1\n0.7 0.7 0.7 0.1\n", "", ["overlap of particles 0 and 1"]),
+    (
+        "1 1 1\n0.2 0.2 0.2 0.1\n0.3 0.2 0.2 0.1\n0.7 0.7 0.7 0.1\n",
+        "",
+        ["overlap of particles 0 and 1"],
+    ),
     ("1 1 1\n0.2 0.2 0.2 0.1\n0.6 nan 0.6 0.1\n", "", ["particle 1", "outside the cell"]),
     ("1 1\n0.2 0.2 0.2 0.1\n", "", ["line 1", "cell line 'dx dy dz' must hold 3 numbers"]),
     ("", "", ["expected a cell line"]),
     ("1 1 1\n0.2 0.2 0.2 0.6\n", "", ["radius must be < min(cell)/2", "particle 0"]),
-    ("0.4 0.4 0.4\n" + "".join(f"{x} {y} {z} 0.1\n" for x in (0.1, 0.3) for y in (0.1, 0.3) for z in (0.1, 0.3)),
-     "[loading]\ntarget_density = 0.45\n", ["loading.target_density = 0.45", "0.508"]),
+    (
+        "0.4 0.4 0.4\n"
+        + "".join(f"{x} {y} {z} 0.1\n" for x in (0.1, 0.3) for y in (0.1, 0.3) for z in (0.1, 0.3)),
+        "[loading]\ntarget_density = 0.45\n",
+        ["loading.target_density = 0.45", "0.508"],
+    ),
 ]
 
 
@@ -136,7 +187,10 @@ def test_check_reads_a_dem_export_with_its_contact_overlaps(tmp_path, capsys):
     assert "read as yade" in out and "radius reduction x0.9893" in out, out
     assert "0.12 % overlaps" in out, out
     assert "valid: 3 particles from" in out, out
-    assert main(["pack", "--input", str(tmp_path / "yade.txt"), "--out", str(tmp_path / "ours.txt")]) == 0
+    assert (
+        main(["pack", "--input", str(tmp_path / "yade.txt"), "--out", str(tmp_path / "ours.txt")])
+        == 0
+    )
     assert read_packing_file(tmp_path / "ours.txt", validate=False).cell.tolist() == [1.0] * 3
     rows[1] = (0.2 + 0.194, 0.2, 0.2)
     (tmp_path / "yade.txt").write_text(header + "".join(f"{x} {y} {z} {r}\n" for x, y, z in rows))
@@ -144,27 +198,54 @@ def test_check_reads_a_dem_export_with_its_contact_overlaps(tmp_path, capsys):
     assert "overlap of particles 0 and 1 (image shift [0, 0, 0]): 6 %" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("demo, args, words", [
-    ("isotropic", ["--packing", "missing.txt"], ["No such file"]),
-    ("simple_cubic", ["--radius", "-1"], ["radius must be > 0 mm"]),
-    ("uniaxial", ["--log-strain", "-5"], ["--log-strain = -5.0 is out of range", "> 0 and <= 2"]),
-    ("hertz", ["--steps", "0"], ["--steps = 0 is out of range", ">= 1"]),
-    ("sphere_squeeze", ["--reduction", "2"], ["--reduction = 2.0 is out of range", "> 0 and < 0.6"]),
-    ("two_spheres", ["--gamma", "-1"], ["contact.gamma", ">= 0"]),
-    ("yield_surface", ["--target-density", "1.5"], ["--target-density = 1.5 is out of range", "> 0 and < 1"]),
-    ("triaxial", ["--particles", "1"], ["--particles = 1 is out of range", ">= 2 and <= 5000"]),
-    ("triaxial", ["--restart", "nowhere"], ["restart: no checkpoint in nowhere"]),
-    ("deviatoric_surface", ["--increments", "ten"], ["--increments: 'ten' is not an integer"]),
-    ("triaxial", ["--rate", "100"], ["--rate = 100.0 is out of range", "> 0 and <= 10", "strain per duration"]),
-    ("deviatoric_surface", ["--p-probe", "3"], ["p_probe must be in (0, p_load = 2.0)"]),
-    ("force_rupture", ["--phi-c", "2"], ["--phi-c = 2.0 is out of range", "> 0 and < 1"]),
-    ("yield_surface", ["--nphi", "2"], ["--nphi = 2 is out of range", ">= 3 and <= 720"]),
-    ("yield_surface", ["--reload-profile", "linear"], ["--reload-profile = 'linear' is not allowed",
-                                                       "'smooth-step', 'smooth-ramps'"]),
-])
+@pytest.mark.parametrize(
+    "demo, args, words",
+    [
+        ("isotropic", ["--packing", "missing.txt"], ["No such file"]),
+        ("simple_cubic", ["--radius", "-1"], ["radius must be > 0 mm"]),
+        (
+            "uniaxial",
+            ["--log-strain", "-5"],
+            ["--log-strain = -5.0 is out of range", "> 0 and <= 2"],
+        ),
+        ("hertz", ["--steps", "0"], ["--steps = 0 is out of range", ">= 1"]),
+        (
+            "sphere_squeeze",
+            ["--reduction", "2"],
+            ["--reduction = 2.0 is out of range", "> 0 and < 0.6"],
+        ),
+        ("two_spheres", ["--gamma", "-1"], ["contact.gamma", ">= 0"]),
+        (
+            "yield_surface",
+            ["--target-density", "1.5"],
+            ["--target-density = 1.5 is out of range", "> 0 and < 1"],
+        ),
+        ("triaxial", ["--particles", "1"], ["--particles = 1 is out of range", ">= 2 and <= 5000"]),
+        ("triaxial", ["--restart", "nowhere"], ["restart: no checkpoint in nowhere"]),
+        ("deviatoric_surface", ["--increments", "ten"], ["--increments: 'ten' is not an integer"]),
+        (
+            "triaxial",
+            ["--rate", "100"],
+            ["--rate = 100.0 is out of range", "> 0 and <= 10", "strain per duration"],
+        ),
+        ("deviatoric_surface", ["--p-probe", "3"], ["p_probe must be in (0, p_load = 2.0)"]),
+        ("force_rupture", ["--phi-c", "2"], ["--phi-c = 2.0 is out of range", "> 0 and < 1"]),
+        ("yield_surface", ["--nphi", "2"], ["--nphi = 2 is out of range", ">= 3 and <= 720"]),
+        (
+            "yield_surface",
+            ["--reload-profile", "linear"],
+            ["--reload-profile = 'linear' is not allowed", "'smooth-step', 'smooth-ramps'"],
+        ),
+    ],
+)
 def test_demos_exit_2_on_bad_input_like_mpfem(tmp_path, root, python, demo, args, words):
-    proc = subprocess.run([python, str(root / "demos" / f"{demo}.py"), *args, "--out", str(tmp_path / "o")],
-                          capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    proc = subprocess.run(
+        [python, str(root / "demos" / f"{demo}.py"), *args, "--out", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+    )
     err = proc.stderr.strip()
     assert proc.returncode == 2 and len(err.splitlines()) == 1 and f"{demo}.py: error: " in err, err
     for w in words:
@@ -174,17 +255,32 @@ def test_demos_exit_2_on_bad_input_like_mpfem(tmp_path, root, python, demo, args
 def test_dolfinx_imports_first_in_the_project_environment(tmp_path, root):
     """A user script whose first import is dolfinx (libmpi.so.12 sits in .venv/lib, which only
     mpi4py knew how to find): the bootstrap's .pth preloads it."""
-    proc = subprocess.run([str(root / ".venv" / "bin" / "python"), "-c",
-                           "import dolfinx, dolfinx.mesh\nfrom mpi4py import MPI\n"
-                           "m = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 1, 1, 1)\nprint(m.topology.dim)"],
-                          capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    proc = subprocess.run(
+        [
+            str(root / ".venv" / "bin" / "python"),
+            "-c",
+            "import dolfinx, dolfinx.mesh\nfrom mpi4py import MPI\n"
+            "m = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 1, 1, 1)\nprint(m.topology.dim)",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+    )
     assert proc.returncode == 0 and proc.stdout.strip() == "3", proc.stderr[-500:]
 
 
 def test_unreachable_target_density_exits_2(tmp_path, capsys):
     # simple cubic cell: rho0 = pi / 6 * 0.99^3 = 0.508 (meshed radii) > the target
-    _packing_file(tmp_path, [(x, y, z, 0.1) for x in (0.1, 0.3) for y in (0.1, 0.3) for z in (0.1, 0.3)], 0.4)
-    code = main(["run", _case(tmp_path, "[packing]\nfile = 'packing.txt'\n[loading]\ntarget_density = 0.45\n")])
+    _packing_file(
+        tmp_path, [(x, y, z, 0.1) for x in (0.1, 0.3) for y in (0.1, 0.3) for z in (0.1, 0.3)], 0.4
+    )
+    code = main(
+        [
+            "run",
+            _case(tmp_path, "[packing]\nfile = 'packing.txt'\n[loading]\ntarget_density = 0.45\n"),
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 2 and "loading.target_density = 0.45" in err and "0.508" in err, err
 
@@ -194,40 +290,85 @@ def test_example_case_is_valid_and_documents_every_key(tmp_path):
     for key in SCHEMA:
         assert f"[{key.section}]" in text and key.name in text
     case = load_case(_case(tmp_path, text))
-    assert (case.boundary.condition, case.loading.target_density, case.output.directory) == ("CLP", 0.92, "results/case")
+    assert (case.boundary.condition, case.loading.target_density, case.output.directory) == (
+        "CLP",
+        0.92,
+        "results/case",
+    )
     assert main(["init", str(tmp_path / "case.toml")]) == 2  # refuses to overwrite
 
 
 def test_control_keys_build_the_stress_control(tmp_path):
     """[control]: times and the servo's rate in units of the loading duration; the triaxial path's
     phases (all three normal stresses driven, then the lateral ones) and its targets."""
-    case = load_case(_case(tmp_path, "[loading]\nduration = 2e-3\n[control]\npath = 'triaxial'\npressure = 3.0\n"
-                                     "ramp = 0.5\nhold = 0.25\naxial_strain = 0.2\nrate = 0.2\nintegral_time = 0.05\n"))
+    case = load_case(
+        _case(
+            tmp_path,
+            "[loading]\nduration = 2e-3\n[control]\npath = 'triaxial'\npressure = 3.0\n"
+            "ramp = 0.5\nhold = 0.25\naxial_strain = 0.2\nrate = 0.2\nintegral_time = 0.05\n",
+        )
+    )
     control = case.loading.control
     assert control.duration == pytest.approx(2e-3 * (0.5 + 0.25 + 1.0))
-    assert control.rate == pytest.approx(100.0) and control.band == 0.75 and control.integral_time == pytest.approx(1e-4)
+    assert (
+        control.rate == pytest.approx(100.0)
+        and control.band == 0.75
+        and control.integral_time == pytest.approx(1e-4)
+    )
     assert np.array_equal(control.stress_driven(1e-3), np.eye(3, dtype=bool))
     assert np.array_equal(control.stress_driven(1.6e-3), np.diag([True, True, False]))
-    assert np.allclose(control.target(0.5e-3), 1.5 * np.eye(3)) and np.allclose(control.target(3e-3), 3 * np.eye(3))
-    F = [control(t) for t in np.linspace(0.0, control.duration, 701)]  # the servo phase, then the axial one
-    assert F[-1][2, 2] == pytest.approx(np.exp(-0.2), rel=1e-5)  # servo idle: only the axial strain moves
+    assert np.allclose(control.target(0.5e-3), 1.5 * np.eye(3)) and np.allclose(
+        control.target(3e-3), 3 * np.eye(3)
+    )
+    F = [
+        control(t) for t in np.linspace(0.0, control.duration, 701)
+    ]  # the servo phase, then the axial one
+    assert F[-1][2, 2] == pytest.approx(
+        np.exp(-0.2), rel=1e-5
+    )  # servo idle: only the axial strain moves
     # the axial rate rises over the first 30 % of the axial phase (no jolt), then stays constant
     L = [control.velocity_gradient(t)[2, 2] for t in (1.5e-3 + 1e-9, 1.8e-3, 2.1e-3, 3.0e-3)]
-    assert L[0] == pytest.approx(0, abs=1e-3) and L[1] == pytest.approx(0.5 * L[2]) and L[2] == pytest.approx(L[3])
-    pressure = load_case(_case(tmp_path, "[control]\npath = 'pressure'\npressure = 1.0\n", "p.toml")).loading.control
+    assert (
+        L[0] == pytest.approx(0, abs=1e-3)
+        and L[1] == pytest.approx(0.5 * L[2])
+        and L[2] == pytest.approx(L[3])
+    )
+    pressure = load_case(
+        _case(tmp_path, "[control]\npath = 'pressure'\npressure = 1.0\n", "p.toml")
+    ).loading.control
     assert pressure.duration == pytest.approx(1.3e-3)  # the defaults: those of demos/triaxial.py
     assert pressure.band == 0.25 and pressure.integral_time == pytest.approx(1e-4)
-    narrow = load_case(_case(tmp_path, "[control]\npath = 'pressure'\npressure = 1.0\nband_fraction = 0.15\n", "n.toml"))
-    assert narrow.loading.control.band == pytest.approx(0.15)  # a band given as a fraction of the pressure
+    narrow = load_case(
+        _case(
+            tmp_path,
+            "[control]\npath = 'pressure'\npressure = 1.0\nband_fraction = 0.15\n",
+            "n.toml",
+        )
+    )
+    assert narrow.loading.control.band == pytest.approx(
+        0.15
+    )  # a band given as a fraction of the pressure
     assert pressure.filter_time == pytest.approx(1e-5) and pressure.rate == pytest.approx(100.0)
     assert np.array_equal(pressure.stress_driven(1.2e-3), np.eye(3, dtype=bool))
-    cycle = load_case(_case(tmp_path, "[control]\npath = 'cycle'\npressure = 2.0\nunload_to = 0.5\nreload_to = 3.0\n"
-                                      "hold = 0.5\n", "c.toml")).loading.control
+    cycle = load_case(
+        _case(
+            tmp_path,
+            "[control]\npath = 'cycle'\npressure = 2.0\nunload_to = 0.5\nreload_to = 3.0\n"
+            "hold = 0.5\n",
+            "c.toml",
+        )
+    ).loading.control
     assert cycle.duration == pytest.approx(4.5e-3)  # three ramps of 1e-3 s, three holds of 0.5e-3 s
     levels = [cycle.target(t)[0, 0] for t in (0.5e-3, 1.2e-3, 2e-3, 2.7e-3, 3.5e-3, 4.4e-3)]
     assert levels == pytest.approx([1.0, 2.0, 1.25, 0.5, 1.75, 3.0])
-    lode = load_case(_case(tmp_path, "[control]\npath = 'lode'\npressure = 2.0\nq_max = 1.5\nlode_angle = 60\n"
-                                     "hold = 0\nshear_time = 2\n", "l.toml")).loading.control
+    lode = load_case(
+        _case(
+            tmp_path,
+            "[control]\npath = 'lode'\npressure = 2.0\nq_max = 1.5\nlode_angle = 60\n"
+            "hold = 0\nshear_time = 2\n",
+            "l.toml",
+        )
+    ).loading.control
     from mpfem_fenicsx.homogenization import stress_invariants
 
     assert lode.duration == pytest.approx(3e-3) and np.allclose(lode.target(0.5e-3), np.eye(3))
@@ -245,7 +386,9 @@ def test_restart_reads_history_rows_by_column_name():
     columns = ["time", "Gamma", "Gamma_model", "E_p"]
     assert _history_rows({"history": [[1.0, 2.0, 4.0]]}, columns)[0][:2] == [1.0, 2.0]
     assert np.isnan(_history_rows({"history": [[1.0, 2.0, 4.0]]}, columns)[0][2])
-    assert _history_rows({"history": [[4.0, 1.0]], "columns": ["E_p", "time"]}, columns)[0][::3] == [1.0, 4.0]
+    assert _history_rows({"history": [[4.0, 1.0]], "columns": ["E_p", "time"]}, columns)[0][
+        ::3
+    ] == [1.0, 4.0]
     with pytest.raises(CheckpointError, match="do not match"):
         _history_rows({"history": [[1.0, 2.0]]}, columns)
 
@@ -263,8 +406,11 @@ def test_a_dem_export_runs_at_the_defaults(tmp_path, capsys, root):
     out = str(tmp_path / "ours.txt")
     assert main(["pack", "--input", str(root / YADE_50), "--out", out]) == 0
     assert REDUCTION in capsys.readouterr().out
-    case = _case(tmp_path, f"[packing]\nfile = '{root / YADE_50}'\n[solver]\nincrements = 10\n"
-                           "[output]\noutputs = 1\nvisual = false\ncheckpoint_every = 0\n")
+    case = _case(
+        tmp_path,
+        f"[packing]\nfile = '{root / YADE_50}'\n[solver]\nincrements = 10\n"
+        "[output]\noutputs = 1\nvisual = false\ncheckpoint_every = 0\n",
+    )
     assert main(["run", case, "--check"]) == 0
     out = capsys.readouterr().out
     assert REDUCTION in out and "valid: 50 particles from" in out, out
@@ -277,15 +423,28 @@ def test_a_dem_export_runs_at_the_defaults(tmp_path, capsys, root):
 
 REFUSED_BY_RUN = [
     # (packing, further case lines, words of the one-line error): the YADE fixture ...
-    (f"file = '{YADE_50}'", "[mesh]\nradius_factor = 0.995\n",  # a user's factor is not lowered
-     ["radius_factor 0.995: the particle mesh's nodes lie at 1.0100 x",
-      "radius_factor <= 0.9896 (or leave"]),
-    (f"file = '{YADE_50}'", "[loading]\ntarget_density = 0.6\n",
-     ["loading.target_density = 0.6", "(0.6133, 1)"]),
+    (
+        f"file = '{YADE_50}'",
+        "[mesh]\nradius_factor = 0.995\n",  # a user's factor is not lowered
+        [
+            "radius_factor 0.995: the particle mesh's nodes lie at 1.0100 x",
+            "radius_factor <= 0.9896 (or leave",
+        ],
+    ),
+    (
+        f"file = '{YADE_50}'",
+        "[loading]\ntarget_density = 0.6\n",
+        ["loading.target_density = 0.6", "(0.6133, 1)"],
+    ),
     # ... and a generated packing (no overlap: no automatic reduction) with the coarse particle
-    ("particles = 24", "[mesh]\nresolution = 'coarse'\n",
-     ["radius_factor 0.99: the particle mesh's nodes lie at 1.0227 x",
-      "radius_factor <= 0.9778, more"]),
+    (
+        "particles = 24",
+        "[mesh]\nresolution = 'coarse'\n",
+        [
+            "radius_factor 0.99: the particle mesh's nodes lie at 1.0227 x",
+            "radius_factor <= 0.9778, more",
+        ],
+    ),
 ]
 
 
@@ -333,8 +492,14 @@ def test_pack_warns_when_lengths_look_like_metres(tmp_path, capsys):
 
 def test_pack_generates_a_valid_file(tmp_path):
     out = tmp_path / "p.txt"
-    assert main(["pack", "--particles", "30", "--seed", "4", "--fraction", "0.5", "--out", str(out)]) == 0
-    assert main(["pack", "--input", str(out), "--scale", "0.99", "--out", str(tmp_path / "q.txt")]) == 0
+    assert (
+        main(["pack", "--particles", "30", "--seed", "4", "--fraction", "0.5", "--out", str(out)])
+        == 0
+    )
+    assert (
+        main(["pack", "--input", str(out), "--scale", "0.99", "--out", str(tmp_path / "q.txt")])
+        == 0
+    )
     a, b = np.loadtxt(out, skiprows=1), np.loadtxt(tmp_path / "q.txt", skiprows=1)
     assert a.shape == (30, 4) and np.allclose(b[:, 3], 0.99 * a[:, 3], rtol=1e-14)
 
@@ -350,9 +515,16 @@ def _not_uniform(png):
 def tiny_run(tmp_path_factory, root):
     """`mpfem run` of the tiny case as a user runs it: the console script in a subprocess."""
     out = tmp_path_factory.mktemp("tiny") / "run"
-    mpfem = shutil.which("mpfem", path=str(root / ".venv" / "bin")) or str(root / ".venv" / "bin" / "mpfem")
-    proc = subprocess.run([mpfem, "run", str(root / TINY), "--out", str(out)], capture_output=True, text=True,
-                          cwd=root, timeout=900)
+    mpfem = shutil.which("mpfem", path=str(root / ".venv" / "bin")) or str(
+        root / ".venv" / "bin" / "mpfem"
+    )
+    proc = subprocess.run(
+        [mpfem, "run", str(root / TINY), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        cwd=root,
+        timeout=900,
+    )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return out, proc.stdout
 
@@ -397,14 +569,20 @@ def test_restart_reproduces_the_uninterrupted_run(tiny_run, tmp_path, root):
     for name in a:
         if name != "wall_time":
             np.testing.assert_array_equal(a[name], b[name], err_msg=name)
-    from mpfem_fenicsx.io.checkpoint import load_checkpoint
     from mpi4py import MPI
+
+    from mpfem_fenicsx.io.checkpoint import load_checkpoint
 
     end = f"step{TINY_STEPS:07d}"
     ca, _ = load_checkpoint(out / "checkpoints" / end, MPI.COMM_SELF)
     cb, _ = load_checkpoint(tmp_path / "checkpoints" / end, MPI.COMM_SELF)
     assert ca["solver/contact/alpha"].max() > 0.1  # adhesive memory exists and survived
-    for key in ("solver/u", "solver/contact/alpha", "solver/contact/sigma_max", "solver/material/eps_p"):
+    for key in (
+        "solver/u",
+        "solver/contact/alpha",
+        "solver/contact/sigma_max",
+        "solver/material/eps_p",
+    ):
         np.testing.assert_array_equal(ca[key], cb[key], err_msg=key)
 
 
@@ -434,8 +612,12 @@ def test_forced_divergence_keeps_checkpoint_and_history(tmp_path, capsys, monkey
 
 
 def test_console_script_exit_code(tmp_path, root):
-    proc = subprocess.run([str(root / ".venv" / "bin" / "mpfem"), "run", _case(tmp_path, "[contact]\nmu = 0.1\n")],
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [str(root / ".venv" / "bin" / "mpfem"), "run", _case(tmp_path, "[contact]\nmu = 0.1\n")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 2 and "unknown key [contact] mu" in proc.stderr
 
 
@@ -448,8 +630,23 @@ def test_mpirun_two_ranks_run_and_restart(tiny_run, tmp_path, root):
     half = tmp_path / "a" / "checkpoints" / f"step{TINY_STEPS // 2:07d}"
     for args in ([], ["--restart", str(half)]):
         dest = tmp_path / ("b" if args else "a")
-        proc = subprocess.run([str(bin_ / "mpirun"), "-n", "2", str(bin_ / "mpfem"), "run", str(root / TINY),
-                               "--out", str(dest), *args], capture_output=True, text=True, cwd=root, timeout=900)
+        proc = subprocess.run(
+            [
+                str(bin_ / "mpirun"),
+                "-n",
+                "2",
+                str(bin_ / "mpfem"),
+                "run",
+                str(root / TINY),
+                "--out",
+                str(dest),
+                *args,
+            ],
+            capture_output=True,
+            text=True,
+            cwd=root,
+            timeout=900,
+        )
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
         assert proc.stdout.count(f"step {TINY_STEPS}/{TINY_STEPS}") == 1  # progress on rank 0 only
     serial, a, b = (read_csv(p / "history.csv") for p in (out, tmp_path / "a", tmp_path / "b"))
@@ -457,16 +654,35 @@ def test_mpirun_two_ranks_run_and_restart(tiny_run, tmp_path, root):
         if name == "wall_time":
             continue
         family = name.rstrip("0123456789_")
-        scale = max(np.nanmax(np.abs(serial[k])) for k in serial if k.rstrip("0123456789_") == family) + 1e-30
+        scale = (
+            max(np.nanmax(np.abs(serial[k])) for k in serial if k.rstrip("0123456789_") == family)
+            + 1e-30
+        )
         # a ratio is compared where its denominator is above round-off: at rest (the first row,
         # energies of 1e-32 mJ) E_c / E_int is a ratio of summation noise (E_c, E_int are compared as such)
-        rows = serial["E_int"] > 1e-12 * np.nanmax(serial["E_int"]) if name == "E_c_over_E_int" else slice(None)
+        rows = (
+            serial["E_int"] > 1e-12 * np.nanmax(serial["E_int"])
+            if name == "E_c_over_E_int"
+            else slice(None)
+        )
         assert np.nanmax(np.abs(serial[name][rows] - a[name][rows])) <= 1e-5 * scale, name
         np.testing.assert_array_equal(a[name], b[name], err_msg=name)
     # a checkpoint of 2 ranks is refused by a serial restart, with the command to use
     from mpfem_fenicsx.cli.main import main as mpfem
 
-    assert mpfem(["run", str(root / TINY), "--out", str(tmp_path / "c"), "--restart", str(tmp_path / "a")]) == 2
+    assert (
+        mpfem(
+            [
+                "run",
+                str(root / TINY),
+                "--out",
+                str(tmp_path / "c"),
+                "--restart",
+                str(tmp_path / "a"),
+            ]
+        )
+        == 2
+    )
 
 
 def test_case_file_and_case_object_refuse_the_same_values(tmp_path):
@@ -482,8 +698,11 @@ def test_case_file_and_case_object_refuse_the_same_values(tmp_path):
         for value in just_outside(key.range):
             with pytest.raises(CaseError, match="out of range"):
                 key.check(value, "case")
-            with pytest.raises(ValueError, match=rf"{key.name} = .* is out of range: must be "
-                                                 rf"{key.allowed()}"):
+            with pytest.raises(
+                ValueError,
+                match=rf"{key.name} = .* is out of range: must be "
+                rf"{key.allowed()}",
+            ):
                 SECTIONS[key.section](**{key.name: value})
             probed += 1
         if key.default is not None:

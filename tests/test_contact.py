@@ -110,9 +110,14 @@ def test_penetration_is_found_for_a_steep_slave_face():
 
     from mpfem_fenicsx.loading import body_dofs
 
-    a = box_bodies_mesh([([-1, -1, -0.5], [1, 1, 0], (8, 8, 1)),  # base, top face z = 0
-                         # slab, 0.04 mm rows
-                         ([0, -0.3, 0], [0.6, 0.3, 0.2], (15, 6, 2))], MPI.COMM_SELF)
+    a = box_bodies_mesh(
+        [
+            ([-1, -1, -0.5], [1, 1, 0], (8, 8, 1)),  # base, top face z = 0
+            # slab, 0.04 mm rows
+            ([0, -0.3, 0], [0.6, 0.3, 0.2], (15, 6, 2)),
+        ],
+        MPI.COMM_SELF,
+    )
     prob = SolidProblem(a.mesh, LEAD, tangent=False)
     theta = np.radians(80.0)
     c, s = np.cos(theta), np.sin(theta)

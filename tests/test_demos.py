@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-
 from mpfem_fenicsx.meshes.packing import simple_cubic_packing, write_packing
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -45,34 +44,94 @@ class Smoke:
 #: history columns left empty where undefined (kinetic over internal energy while E_int <= 0)
 UNDEFINED = ("E_c_over_E_int",)
 SMOKE: dict[str, Smoke] = {
-    "cubic_cell": Smoke(("--increments", "200", "--target-density", "0.56"),
-                        ("history.csv", "stresses.png")),
-    "deviatoric_surface": Smoke(("--particles", "24", "--increments", "100", "--angles", "0"),
-                                ("fan.csv", "surface.csv", "deviatoric_surface.png")),
-    "die": Smoke(("--packing", "{packing}", "--mesh", "coarse", "--increments", "100",
-                  "--target-density", "0.6", "--outputs", "5", "--checkpoint-every", "0",
-                  "--no-visual"), ("history.csv", "packing.txt"), nan_ok=UNDEFINED),
+    "cubic_cell": Smoke(
+        ("--increments", "200", "--target-density", "0.56"), ("history.csv", "stresses.png")
+    ),
+    "deviatoric_surface": Smoke(
+        ("--particles", "24", "--increments", "100", "--angles", "0"),
+        ("fan.csv", "surface.csv", "deviatoric_surface.png"),
+    ),
+    "die": Smoke(
+        (
+            "--packing",
+            "{packing}",
+            "--mesh",
+            "coarse",
+            "--increments",
+            "100",
+            "--target-density",
+            "0.6",
+            "--outputs",
+            "5",
+            "--checkpoint-every",
+            "0",
+            "--no-visual",
+        ),
+        ("history.csv", "packing.txt"),
+        nan_ok=UNDEFINED,
+    ),
     "flat_contact": Smoke((), ("normal.csv", "tangential.csv", "flat_contact.png")),
-    "force_rupture": Smoke(("--particles", "24", "--increments", "100"),
-                           ("rupture.csv", "rupture_points.csv", "force_rupture.png")),
+    "force_rupture": Smoke(
+        ("--particles", "24", "--increments", "100"),
+        ("rupture.csv", "rupture_points.csv", "force_rupture.png"),
+    ),
     "hertz": Smoke(("--size-min", "0.05", "--steps", "3"), ("force.csv", "force.png")),
-    "isotropic": Smoke(("--packing", "{packing}", "--mesh", "coarse", "--increments", "100",
-                        "--target-density", "0.6", "--outputs", "5", "--checkpoint-every", "0",
-                        "--no-visual"), ("history.csv", "packing.txt"), nan_ok=UNDEFINED),
-    "simple_cubic": Smoke(("--loading", "isotropic", "--increments", "100", "--target-density",
-                           "0.6", "--no-visual"),
-                          ("isotropic/history.csv", "isotropic/checks.csv", "simple_cubic.png"),
-                          nan_ok=UNDEFINED),
+    "isotropic": Smoke(
+        (
+            "--packing",
+            "{packing}",
+            "--mesh",
+            "coarse",
+            "--increments",
+            "100",
+            "--target-density",
+            "0.6",
+            "--outputs",
+            "5",
+            "--checkpoint-every",
+            "0",
+            "--no-visual",
+        ),
+        ("history.csv", "packing.txt"),
+        nan_ok=UNDEFINED,
+    ),
+    "simple_cubic": Smoke(
+        ("--loading", "isotropic", "--increments", "100", "--target-density", "0.6", "--no-visual"),
+        ("isotropic/history.csv", "isotropic/checks.csv", "simple_cubic.png"),
+        nan_ok=UNDEFINED,
+    ),
     "sphere_squeeze": Smoke(("--reduction", "0.05"), ("implicit.csv",)),
-    "triaxial": Smoke(("--particles", "24", "--increments", "100", "--outputs", "5"),
-                      ("history.csv", "loading_path.png"), nan_ok=UNDEFINED),
-    "two_spheres": Smoke(("--ratios", "1.0", "--size-min", "0.1", "--load-steps", "2",
-                          "--unload-steps", "2"), ("summary.csv", "two_spheres.png")),
+    "triaxial": Smoke(
+        ("--particles", "24", "--increments", "100", "--outputs", "5"),
+        ("history.csv", "loading_path.png"),
+        nan_ok=UNDEFINED,
+    ),
+    "two_spheres": Smoke(
+        ("--ratios", "1.0", "--size-min", "0.1", "--load-steps", "2", "--unload-steps", "2"),
+        ("summary.csv", "two_spheres.png"),
+    ),
     "uniaxial": Smoke(("--log-strain", "0.05"), ("stress_strain.csv",)),
-    "yield_surface": Smoke(("--packing", "{packing}", "--mesh", "coarse", "--increments", "100",
-                            "--target-density", "0.6", "--nphi", "3", "--reload-steps", "10",
-                            "--outputs", "5", "--checkpoint-every", "0"),
-                           ("fan.csv", "surfaces.csv", "uniaxial.csv", "yield_surface.png")),
+    "yield_surface": Smoke(
+        (
+            "--packing",
+            "{packing}",
+            "--mesh",
+            "coarse",
+            "--increments",
+            "100",
+            "--target-density",
+            "0.6",
+            "--nphi",
+            "3",
+            "--reload-steps",
+            "10",
+            "--outputs",
+            "5",
+            "--checkpoint-every",
+            "0",
+        ),
+        ("fan.csv", "surfaces.csv", "uniaxial.csv", "yield_surface.png"),
+    ),
 }
 
 
@@ -83,8 +142,9 @@ def _run(demo: str, smoke: Smoke, out: Path) -> subprocess.CompletedProcess:
     write_packing(simple_cubic_packing(0.1).scaled(0.95), packing)
     options = [option.replace("{packing}", str(packing)) for option in smoke.options]
     command = [sys.executable, str(ROOT / "demos" / f"{demo}.py"), *options, "--out", str(out)]
-    return subprocess.run(command, capture_output=True, text=True, timeout=600, check=False,
-                          cwd=out.parent)
+    return subprocess.run(
+        command, capture_output=True, text=True, timeout=600, check=False, cwd=out.parent
+    )
 
 
 def _non_finite(path: Path, nan_ok: tuple[str, ...]) -> list[str]:

@@ -51,14 +51,16 @@ def test_history_page_documents_every_column():
     page = (ROOT / "docs" / "history.md").read_text()
     documented = set(re.findall(r"^\| `(\w+)`", page, flags=re.MULTILINE))
     # a tensor's nine columns are one row, written `X11` ... `X33`
-    missing = [c for c in COLUMNS
-               if c not in documented and re.sub(r"\d\d$", "11", c) not in documented]
+    missing = [
+        c for c in COLUMNS if c not in documented and re.sub(r"\d\d$", "11", c) not in documented
+    ]
     assert not missing, f"history columns missing from docs/history.md: {missing}"
 
 
 def test_a_demo_in_cells_reads_as_alternating_text_and_code(tmp_path):
     demo = tmp_path / "cells.py"
-    demo.write_text(textwrap.dedent('''\
+    demo.write_text(
+        textwrap.dedent('''\
         # ---
         # jupyter: {}
         # ---
@@ -77,7 +79,8 @@ def test_a_demo_in_cells_reads_as_alternating_text_and_code(tmp_path):
         # ```bash
         # # a shell comment
         # ```
-        '''))
+        ''')
+    )
     page = docs.demo_page(demo, "../cells.py")
     assert "jupyter" not in page and page.startswith("# A title\n")
     marks = ("# A title", "Some *text*.", "Only a docstring", "```python\nx = 1")
@@ -118,7 +121,7 @@ def test_readme_summary_stops_after_the_first_table_and_unlinks_files():
     assert kept.strip() == "![die](../validation/figures/die_sigma_m.png)"
 
 
-LOOSE = '''\
+LOOSE = """\
 Summary line, sign conventions:
 - a bullet whose text
   goes on, with |P|^T M |P| and sigma_vol_* columns
@@ -130,7 +133,7 @@ Text again, ``|x|`` kept, *emphasis* kept, *args escaped.
 
 Returns:
     (position, *values): the crossing
-'''
+"""
 
 
 def _docutils_messages(text: str) -> list[str]:
@@ -152,6 +155,16 @@ def test_loose_docstrings_become_rst_without_warnings():
 
 
 def test_valid_rst_is_left_as_it_is():
-    valid = ["Title text with :func:`f` and ``code``.", "", "- one", "- two", "", "Example::",
-             "", "    x = 1", "", "Done."]
+    valid = [
+        "Title text with :func:`f` and ``code``.",
+        "",
+        "- one",
+        "- two",
+        "",
+        "Example::",
+        "",
+        "    x = 1",
+        "",
+        "Done.",
+    ]
     assert docs.loose_rst(valid) == valid

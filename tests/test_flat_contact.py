@@ -82,7 +82,7 @@ def test_explicit_contact_reaches_the_same_state(tmp_path):
     assert gap == pytest.approx(-T1 / case.penalty, rel=1e-3)
     e = energies
     assert e.balance_error() < 1e-6 * e.external
-    assert e.contact == pytest.approx(0.5 * T1 ** 2 / case.penalty * 1.0, rel=1e-2)
+    assert e.contact == pytest.approx(0.5 * T1**2 / case.penalty * 1.0, rel=1e-2)
     assert e.internal == pytest.approx(e.elastic, rel=1e-3)
     assert e.kinetic < 1e-6 * e.external
 
@@ -104,7 +104,8 @@ def test_contact_history_survives_a_restart(tmp_path):
     bcs = PrescribedDisplacements(p1.V).add(base)
     top = block_dofs(lambda x: x[2] > 0.5 * case.height, 2)
     bcs.add(block_dofs(lambda x: x[2] > 0.5 * case.height, 0)).add(
-        block_dofs(lambda x: x[2] > 0.5 * case.height, 1)).add(top, lambda t: u_c * t)
+        block_dofs(lambda x: x[2] > 0.5 * case.height, 1)
+    ).add(top, lambda t: u_c * t)
     ImplicitSolver(p1, bcs, contact=c1).run(StepControl(t_end=1.0, dt=0.25, dt_max=0.25))
     np.savez(
         tmp_path / "state.npz",

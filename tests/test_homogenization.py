@@ -72,11 +72,11 @@ def test_fit_noise_hd_matches_sampled_fits():
         x = X @ F.T + 0.005 * rng.standard_normal((4000, 50, 3))
         Fs, cs = least_squares_gradient(X, x)
         residual = x - np.einsum("tij,nj->tni", Fs, X) - cs[:, None, :]
-        rms = np.sqrt(np.mean(np.sum(residual ** 2, axis=2), axis=1))
+        rms = np.sqrt(np.mean(np.sum(residual**2, axis=2), axis=1))
         h_v, h_d = strain_invariants(hencky_strain(Fs))
         predicted = gradient_fit_noise_hd(X, rms, h_v)
         assert predicted.shape == (4000,)
-        assert np.mean(h_d ** 2) / np.mean(predicted ** 2) == pytest.approx(1.0, abs=0.04)
+        assert np.mean(h_d**2) / np.mean(predicted**2) == pytest.approx(1.0, abs=0.04)
     with pytest.raises(ValueError, match="residual_rms"):
         gradient_fit_noise_hd(X, -1.0)
 
@@ -203,10 +203,10 @@ def test_stress_invariants_and_rendulic_signs():
 def test_relative_density_simple_cubic():
     r, a = 0.5, 1.0
     Vp = solid_volume([r])
-    assert np.isclose(relative_density(Vp, a ** 3, np.eye(3)), np.pi / 6)
+    assert np.isclose(relative_density(Vp, a**3, np.eye(3)), np.pi / 6)
     F = np.diag([0.9, 0.95, 0.85])
-    assert np.isclose(relative_density(Vp, a ** 3, F), np.pi / (6 * np.linalg.det(F)))  # eq. 2.17
-    stack = relative_density(Vp, a ** 3, np.stack([np.eye(3), F]))
+    assert np.isclose(relative_density(Vp, a**3, F), np.pi / (6 * np.linalg.det(F)))  # eq. 2.17
+    stack = relative_density(Vp, a**3, np.stack([np.eye(3), F]))
     assert stack.shape == (2,) and np.isclose(stack[1], np.pi / (6 * np.linalg.det(F)))
 
 
@@ -247,13 +247,13 @@ def test_love_weber_simple_cubic_with_periodic_images():
     forces = -fk[:, None] * np.eye(3)  # on the sphere by its +e_k image: towards -e_k
     w = contact_weights([0, 0, 0], [0, 0, 0], [0], [[0, 0, 0]], "CLPS", pair_shift=pair_shift)
     assert np.allclose(w, 1.0)
-    V = a ** 3 * np.prod(lam)
+    V = a**3 * np.prod(lam)
     sigma = love_weber_stress(forces, lv, V, weights=w)
     areas = np.array([lam[1] * lam[2], lam[0] * lam[2], lam[0] * lam[1]]) * a * a
     assert np.allclose(sigma, np.diag(-fk / areas))
     # hydrostatic contact forces f on an undeformed lattice: sigma_m = f 2r n_c / (3 V) = f / a^2
-    sm, sd = stress_invariants(love_weber_stress(-2.0 * np.eye(3), a * np.eye(3), a ** 3))
-    assert np.isclose(sm, 2.0 * a * 3 / (3 * a ** 3)) and np.isclose(sd, 0.0)
+    sm, sd = stress_invariants(love_weber_stress(-2.0 * np.eye(3), a * np.eye(3), a**3))
+    assert np.isclose(sm, 2.0 * a * 3 / (3 * a**3)) and np.isclose(sd, 0.0)
     # Schmidt: the constraint holds face k with the force -f_k e_k (inwards)
     reactions = -fk[:, None] * np.eye(3)
     assert np.allclose(schmidt_stress(reactions, F, [a, a, a]), sigma)
@@ -309,12 +309,12 @@ def test_counting_rules_solid_copies_gdf():
     assert np.all(w[~copy[i] & ~copy[j]] == 1.0)
     assert np.all(w[copy[i] & copy[j]] == 0.0)
     assert np.allclose(w[copy[i] ^ copy[j]], 0.5)
-    assert np.isclose(w.sum(), 3 * n ** 3)  # three physical contacts per particle
+    assert np.isclose(w.sum(), 3 * n**3)  # three physical contacts per particle
     lv = x[j] - x[i]
     forces = -f * lv / a
     V = (n * a) ** 3
     sigma = love_weber_stress(forces, lv, V, weights=w)
-    assert np.allclose(sigma, -f / a ** 2 * np.eye(3))
+    assert np.allclose(sigma, -f / a**2 * np.eye(3))
     assert not np.allclose(love_weber_stress(forces, lv, V), sigma)  # counting matters
     # the rule agrees with the independent grouping by branch vector (counted contacts)
     group, counts = physical_groups(x, original, i, j)
@@ -340,13 +340,13 @@ def test_counting_rules_clp_shells():
     w = contact_weights(i, j, original, shift, "CLP")
     assert np.all(w == 1.0)
     group, counts = physical_groups(x, original, i, j)
-    assert counts.size == 3 * n ** 3  # every physical contact is modelled
+    assert counts.size == 3 * n**3  # every physical contact is modelled
     rng = np.random.default_rng(5)
     share = rng.uniform(0.2, 1.0, i.size)
     share /= np.bincount(group, weights=share)[group]  # random split of f over the images
     lv = x[j] - x[i]
     sigma = love_weber_stress(-f * share[:, None] * lv / a, lv, (n * a) ** 3, weights=w)
-    assert np.allclose(sigma, -f / a ** 2 * np.eye(3))
+    assert np.allclose(sigma, -f / a**2 * np.eye(3))
 
 
 def test_coordination_counts_weighted_contacts_per_particle():

@@ -26,11 +26,13 @@ def test_off_screen_render_prints_no_x_server_warning(tmp_path, python):
     """Every off-screen picture printed VTK's "bad X server connection" warning."""
     import subprocess
 
-    script = ("import mpfem_fenicsx, pyvista\n"
-              "from mpfem_fenicsx.io.render import render_grid\n"
-              "grid = pyvista.Sphere().cast_to_unstructured_grid()\n"
-              "grid.cell_data['von Mises (MPa)'] = range(grid.n_cells)\n"
-              f"render_grid(grid, {str(tmp_path / 'sphere.png')!r})\n")
+    script = (
+        "import mpfem_fenicsx, pyvista\n"
+        "from mpfem_fenicsx.io.render import render_grid\n"
+        "grid = pyvista.Sphere().cast_to_unstructured_grid()\n"
+        "grid.cell_data['von Mises (MPa)'] = range(grid.n_cells)\n"
+        f"render_grid(grid, {str(tmp_path / 'sphere.png')!r})\n"
+    )
     env = {k: v for k, v in __import__("os").environ.items() if k != "DISPLAY"}
     proc = subprocess.run(
         [python, "-c", script], capture_output=True, text=True, timeout=300, env=env

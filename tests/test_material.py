@@ -76,8 +76,11 @@ def test_eigen_solver_on_tensors_within_rounding_of_the_identity():
     for _ in range(20000):
         c = rng.choice([1.0, 0.7, 1.3])
         a = c * np.eye(3)
-        for (i, j), k in zip([(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)],
-                             rng.integers(-3, 4, 6) * (rng.random(6) < 0.6), strict=True):
+        for (i, j), k in zip(
+            [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)],
+            rng.integers(-3, 4, 6) * (rng.random(6) < 0.6),
+            strict=True,
+        ):
             a[i, j] += k * eps * c / 2
             a[j, i] = a[i, j]
         matrices.append(a)
@@ -200,7 +203,7 @@ def test_consistent_tangent_matches_finite_differences(material):
         c = m.cp_inv[q]
         cp_inv = np.array([[c[0], c[3], c[4]], [c[3], c[1], c[5]], [c[4], c[5], c[2]]])
         w, R = np.linalg.eigh(cp_inv)
-        F[q] = R @ np.diag(w ** -0.5) @ R.T + 1e-5 * rng.standard_normal((3, 3))
+        F[q] = R @ np.diag(w**-0.5) @ R.T + 1e-5 * rng.standard_normal((3, 3))
     m.update(F)
     A = m.A_dev.copy()
     assert (m.eps_p_trial == m.eps_p).sum() == 5  # the unloaded points stay elastic

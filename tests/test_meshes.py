@@ -31,13 +31,14 @@ def test_particle_mesh_holds_its_sphere_volume(name):
     a = particle_mesh(
         [[0, 0, 0], [3.0, 0, 0]], radii, MPI.COMM_SELF, divisions=divisions, layers=layers
     )
-    exact = 4.0 / 3.0 * np.pi * radii ** 3
+    exact = 4.0 / 3.0 * np.pi * radii**3
     assert np.allclose(particle_volumes(a), exact, rtol=1e-10)
     ball = unit_ball_hex(divisions, layers)
     assert 1.0 < ball.radius_scale < 1.03
     assert np.allclose(np.linalg.norm(ball.points[ball.surface_nodes], axis=1), ball.radius_scale)
-    inscribed = particle_mesh([[0, 0, 0]], [1.0], MPI.COMM_SELF, divisions=divisions, layers=layers,
-                              exact_volume=False)
+    inscribed = particle_mesh(
+        [[0, 0, 0]], [1.0], MPI.COMM_SELF, divisions=divisions, layers=layers, exact_volume=False
+    )
     assert particle_volumes(inscribed)[0] < 0.995 * exact[0]  # 1.07 % (10x10) to 6.5 % (4x4) short
 
 
@@ -62,7 +63,7 @@ def test_many_particles_one_mesh_with_tags():
     facet_counts = np.bincount(a.facet_tags.values, minlength=3)
     assert facet_counts.tolist() == [216, 216, 216]
     vols = particle_volumes(a)
-    ratio = vols / (4.0 / 3.0 * np.pi * radii ** 3)
+    ratio = vols / (4.0 / 3.0 * np.pi * radii**3)
     assert np.allclose(ratio, ratio[0], rtol=1e-10)  # same shape, scaled
     # facets of particle i lie on its (volume-exact: slightly scaled) sphere
     x = a.mesh.geometry.x
@@ -81,8 +82,14 @@ def test_bad_radius_is_rejected(bad):
 
 
 def test_gmsh_tetrahedra_p2_volume():
-    a = particle_mesh([[0, 0, 0], [3, 0, 0]], [1.0, 0.5], MPI.COMM_SELF, cell_type="tetrahedron",
-                      tet_order=2, tet_size=0.4)
+    a = particle_mesh(
+        [[0, 0, 0], [3, 0, 0]],
+        [1.0, 0.5],
+        MPI.COMM_SELF,
+        cell_type="tetrahedron",
+        tet_order=2,
+        tet_size=0.4,
+    )
     exact = 4.0 / 3.0 * np.pi * np.array([1.0, 0.125])
     assert np.allclose(particle_volumes(a), exact, rtol=2e-3)
     assert set(np.unique(a.cell_tags.values)) == {0, 1}

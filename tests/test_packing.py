@@ -5,10 +5,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from mpfem_fenicsx.meshes.packing import (Packing, _periodic_pairs, assembly_particles, duplicate_particles,
-                                          generate_packing, read_packing, simple_cubic_packing,
-                                          write_packing)
+from mpfem_fenicsx.meshes.packing import (
+    Packing,
+    _periodic_pairs,
+    assembly_particles,
+    duplicate_particles,
+    generate_packing,
+    read_packing,
+    simple_cubic_packing,
+    write_packing,
+)
 
 R_MIN, R_MAX = 0.082, 0.147  # thesis radii, mm
 
@@ -24,9 +30,13 @@ def simple_cubic(r=1.0):
 
 
 def contact_numbers(packing, gap_tol):
-    i, j, _, dist = _periodic_pairs(packing.centres, packing.radii, packing.cell, 2 * packing.radii.max())
+    i, j, _, dist = _periodic_pairs(
+        packing.centres, packing.radii, packing.cell, 2 * packing.radii.max()
+    )
     c = dist - packing.radii[i] - packing.radii[j] < gap_tol
-    return np.bincount(i[c], minlength=packing.num_particles) + np.bincount(j[c], minlength=packing.num_particles)
+    return np.bincount(i[c], minlength=packing.num_particles) + np.bincount(
+        j[c], minlength=packing.num_particles
+    )
 
 
 # ---------------------------------------------------------------------------------- Packing
@@ -36,7 +46,9 @@ def test_simple_cubic_packing_properties():
     p = simple_cubic(0.5).validate()
     assert p.num_particles == 8
     assert p.solid_fraction == pytest.approx(np.pi / 6)
-    assert p.max_overlap() == 0.0  # every sphere touches its 6 neighbours, two of them through a face
+    assert (
+        p.max_overlap() == 0.0
+    )  # every sphere touches its 6 neighbours, two of them through a face
     assert (contact_numbers(p, 1e-12) == 6).all()
     q = p.scaled(0.99)
     assert np.array_equal(q.radii, 0.99 * p.radii) and np.array_equal(q.centres, p.centres)
@@ -45,14 +57,25 @@ def test_simple_cubic_packing_properties():
     assert p.scaled(1.01).max_overlap() == pytest.approx((1.01 - 1.0) / 0.505)
 
 
-@pytest.mark.parametrize("centres, radii, match", [
-    ([[1.0, 1, 1], [1.9, 1, 1]], [0.5, 0.5], r"overlap of particles 0 and 1"),
-    ([[0.1, 1, 1], [3.8, 1, 1]], [0.2, 0.2], r"overlap of particles 0 and 1 \(image shift \[-1, 0, 0\]\)"),
-    ([[1.0, 1, 1], [4.0, 1, 1]], [0.5, 0.5], r"centre of particle 1 outside the cell: x=4.0"),
-    ([[1.0, 1, -0.1], [3.0, 1, 1]], [0.5, 0.5], r"centre of particle 0 outside the cell: z=-0.1"),
-    ([[1.0, 1, 1], [3.0, 1, 1]], [0.5, -0.5], r"radius must be > 0 mm; particle 1"),
-    ([[1.0, 1, 1], [3.0, 1, 1]], [0.5, 2.5], r"radius must be < min\(cell\)/2"),
-])
+@pytest.mark.parametrize(
+    "centres, radii, match",
+    [
+        ([[1.0, 1, 1], [1.9, 1, 1]], [0.5, 0.5], r"overlap of particles 0 and 1"),
+        (
+            [[0.1, 1, 1], [3.8, 1, 1]],
+            [0.2, 0.2],
+            r"overlap of particles 0 and 1 \(image shift \[-1, 0, 0\]\)",
+        ),
+        ([[1.0, 1, 1], [4.0, 1, 1]], [0.5, 0.5], r"centre of particle 1 outside the cell: x=4.0"),
+        (
+            [[1.0, 1, -0.1], [3.0, 1, 1]],
+            [0.5, 0.5],
+            r"centre of particle 0 outside the cell: z=-0.1",
+        ),
+        ([[1.0, 1, 1], [3.0, 1, 1]], [0.5, -0.5], r"radius must be > 0 mm; particle 1"),
+        ([[1.0, 1, 1], [3.0, 1, 1]], [0.5, 2.5], r"radius must be < min\(cell\)/2"),
+    ],
+)
 def test_validate_errors(centres, radii, match):
     with pytest.raises(ValueError, match=match):
         Packing([4.0, 4.0, 4.0], centres, radii).validate()
@@ -95,14 +118,20 @@ def test_read_comments_and_blank_lines(tmp_path):
     assert p.cell.tolist() == [4, 4, 4] and p.num_particles == 2 and p.radii.tolist() == [1, 1]
 
 
-@pytest.mark.parametrize("text, match", [
-    ("4 4 4\n1 1 1 0.5\n3 1 1\n", r"line 3: sphere line 'x y z r' must hold 4 numbers, got 3"),
-    ("# c\n4 4\n1 1 1 0.5\n", r"line 2: cell line 'dx dy dz' must hold 3 numbers"),
-    ("4 4 4\n1 1 one 0.5\n", r"line 2: sphere line 'x y z r' must hold 4 numbers, got '1 1 one 0.5'"),
-    ("4 4 4\n", r"at least one sphere line"),
-    ("4 4 4\n1 1 1 1\n2.5 1 1 1\n", r"overlap of particles 0 and 1"),
-    ("4 4 4\n1 1 1 -1\n", r"radius must be > 0 mm"),
-])
+@pytest.mark.parametrize(
+    "text, match",
+    [
+        ("4 4 4\n1 1 1 0.5\n3 1 1\n", r"line 3: sphere line 'x y z r' must hold 4 numbers, got 3"),
+        ("# c\n4 4\n1 1 1 0.5\n", r"line 2: cell line 'dx dy dz' must hold 3 numbers"),
+        (
+            "4 4 4\n1 1 one 0.5\n",
+            r"line 2: sphere line 'x y z r' must hold 4 numbers, got '1 1 one 0.5'",
+        ),
+        ("4 4 4\n", r"at least one sphere line"),
+        ("4 4 4\n1 1 1 1\n2.5 1 1 1\n", r"overlap of particles 0 and 1"),
+        ("4 4 4\n1 1 1 -1\n", r"radius must be > 0 mm"),
+    ],
+)
 def test_read_errors(tmp_path, text, match):
     path = tmp_path / "bad.txt"
     path.write_text(text)
@@ -131,7 +160,9 @@ def test_generator_reproducible_by_seed():
 
 def test_generator_jammed_reproducible(jammed50):
     again = generate_packing(50, R_MIN, R_MAX, seed=0)
-    assert np.array_equal(again.centres, jammed50.centres) and np.array_equal(again.cell, jammed50.cell)
+    assert np.array_equal(again.centres, jammed50.centres) and np.array_equal(
+        again.cell, jammed50.cell
+    )
 
 
 def test_target_fraction_reached_overlap_free():
@@ -181,16 +212,19 @@ def test_generator_1000_particles():
 # ----------------------------------------------------------------------------- duplicates
 
 
-@pytest.mark.parametrize("d_bc, faces, corners, expected", [
-    # x_min = r, x_max = 3r: with d_bc = 1.5 r one layer is near each plane
-    (1.5, "all", True, 8 + 16 + 32),  # x: 4 + 4; y: all 16; z: all 32 -> 4^3 - 8
-    (1.5, "half", True, 4 + 6 + 9),  # + side only: half of 8, 12, 18 -> 3^3 - 8
-    (1.5, "all", False, 3 * 8),  # faces only
-    (1.5, "half", False, 3 * 4),  # thesis §2.6: simple cubic with CLP, 12 copies
-    (2.5, "all", True, 8 * 27 - 8),  # every particle near both planes of every axis
-    (2.5, "half", True, 8 + 16 + 32),
-    (0.5, "all", True, 56),  # the extreme layers are at distance 0 < d_bc
-])
+@pytest.mark.parametrize(
+    "d_bc, faces, corners, expected",
+    [
+        # x_min = r, x_max = 3r: with d_bc = 1.5 r one layer is near each plane
+        (1.5, "all", True, 8 + 16 + 32),  # x: 4 + 4; y: all 16; z: all 32 -> 4^3 - 8
+        (1.5, "half", True, 4 + 6 + 9),  # + side only: half of 8, 12, 18 -> 3^3 - 8
+        (1.5, "all", False, 3 * 8),  # faces only
+        (1.5, "half", False, 3 * 4),  # thesis §2.6: simple cubic with CLP, 12 copies
+        (2.5, "all", True, 8 * 27 - 8),  # every particle near both planes of every axis
+        (2.5, "half", True, 8 + 16 + 32),
+        (0.5, "all", True, 56),  # the extreme layers are at distance 0 < d_bc
+    ],
+)
 def test_duplicates_simple_cubic(d_bc, faces, corners, expected):
     p = simple_cubic(1.0)
     d = duplicate_particles(p, d_bc, faces=faces, corners=corners)
@@ -214,9 +248,15 @@ def test_duplicates_match_rule(jammed50, faces):
     lo, hi = p.centres.min(axis=0), p.centres.max(axis=0)
     expected = set()
     for i, c in enumerate(p.centres):
-        choices = [[0] + ([1] if c[a] - lo[a] < d_bc else []) + ([-1] if faces == "all" and hi[a] - c[a] < d_bc
-                                                                 else []) for a in range(3)]
-        expected |= {(i, *s) for s in np.array(np.meshgrid(*choices)).reshape(3, -1).T.tolist() if any(s)}
+        choices = [
+            [0]
+            + ([1] if c[a] - lo[a] < d_bc else [])
+            + ([-1] if faces == "all" and hi[a] - c[a] < d_bc else [])
+            for a in range(3)
+        ]
+        expected |= {
+            (i, *s) for s in np.array(np.meshgrid(*choices)).reshape(3, -1).T.tolist() if any(s)
+        }
     got = {tuple(k) for k in np.column_stack([d.original, d.shift]).tolist()}
     assert got == expected and len(got) == d.num_copies
     assert np.allclose(d.centres, p.centres[d.original] + d.shift * p.cell, rtol=0, atol=1e-15)
@@ -264,15 +304,19 @@ def test_every_periodic_neighbour_pair_is_realized_once_by_clp_copies(jammed50):
     near = dist * shrink < p.radii[i] + p.radii[j]
     mixed = near & np.any(s > 0, axis=1) & np.any(s < 0, axis=1)
     assert near.sum() > 100 and mixed.sum() > 0  # the case that copies on half of the faces miss
-    counts = [realizations(allowed, a.original, a.shift, *k) for k in zip(i[near], j[near], s[near])]
+    counts = [
+        realizations(allowed, a.original, a.shift, *k) for k in zip(i[near], j[near], s[near])
+    ]
     assert counts == [1] * int(near.sum())
 
 
 # ------------------------------------------------------------------------------ DEM exports
 # What DEM codes write (issue 25): YADE's export.text (#format x_y_z_r, the cell in a header a
 # script adds, or given), LAMMPS / LIGGGHTS dumps (box bounds, x y z radius among other columns).
-YADE_HEADER = ("# dx dy dz (mm) = 0.827 0.827 0.827 ; solid_fraction = 0.02 ; N = 3\n"
-               "0.1 0.2 0.3 0.08\n0.2595 0.2 0.3 0.08\n0.85 0.5 0.5 0.07\n")  # 3rd centre outside: wrapped
+YADE_HEADER = (
+    "# dx dy dz (mm) = 0.827 0.827 0.827 ; solid_fraction = 0.02 ; N = 3\n"
+    "0.1 0.2 0.3 0.08\n0.2595 0.2 0.3 0.08\n0.85 0.5 0.5 0.07\n"
+)  # 3rd centre outside: wrapped
 YADE_FORMAT = "#format x_y_z_r_matId\n0.1 0.2 0.3 0.08 1\n0.5 0.5 0.5 0.07 1\n"
 LAMMPS_DUMP = """ITEM: TIMESTEP
 0
@@ -317,16 +361,28 @@ def test_dem_exports_are_read_as_they_come(tmp_path):
     with pytest.raises(ValueError, match="without its periodic cell.*--cell"):
         read_packing(formatted)
     q = read_packing(formatted, cell=(1, 1, 1), length_scale=2.0)  # e.g. a file in other units
-    assert q.cell.tolist() == [2, 2, 2] and q.radii.tolist() == [0.16, 0.14] and q.centres[1].tolist() == [1, 1, 1]
+    assert (
+        q.cell.tolist() == [2, 2, 2]
+        and q.radii.tolist() == [0.16, 0.14]
+        and q.centres[1].tolist() == [1, 1, 1]
+    )
     dump = tmp_path / "dump.liggghts"
     dump.write_text(LAMMPS_DUMP)
     d = read_packing(dump)  # the last snapshot, its box's lower corner as the origin, diameter / 2
-    assert packing_format(dump) == "lammps" and d.num_particles == 2 and d.cell.tolist() == pytest.approx([0.8] * 3)
+    assert (
+        packing_format(dump) == "lammps"
+        and d.num_particles == 2
+        and d.cell.tolist() == pytest.approx([0.8] * 3)
+    )
     assert d.radii.tolist() == [0.1, 0.08]
     np.testing.assert_allclose(d.centres, [[0.4] * 3, [0.75, 0.01, 0.6]], atol=1e-12)
     tri = tmp_path / "tri.dump"
-    tri.write_text(LAMMPS_DUMP.replace("BOX BOUNDS pp pp pp\n-0.4 0.4\n-0.4 0.4\n-0.4 0.4",
-                                       "BOX BOUNDS xy xz yz pp pp pp\n-0.4 0.4 0\n-0.4 0.4 0\n-0.4 0.4 0"))
+    tri.write_text(
+        LAMMPS_DUMP.replace(
+            "BOX BOUNDS pp pp pp\n-0.4 0.4\n-0.4 0.4\n-0.4 0.4",
+            "BOX BOUNDS xy xz yz pp pp pp\n-0.4 0.4 0\n-0.4 0.4 0\n-0.4 0.4 0",
+        )
+    )
     with pytest.raises(ValueError, match="triclinic"):
         read_packing(tri)
 
@@ -364,8 +420,12 @@ def test_the_yade_fixture_is_its_recipe():
 
     read, made = read_packing(YADE_50, validate=False), yade_50_recipe()
     np.testing.assert_allclose(read.cell, made.cell, rtol=1e-11)
-    np.testing.assert_allclose(np.column_stack([read.centres, read.radii]),
-                               np.column_stack([made.centres, made.radii]), rtol=1e-11, atol=1e-12)
+    np.testing.assert_allclose(
+        np.column_stack([read.centres, read.radii]),
+        np.column_stack([made.centres, made.radii]),
+        rtol=1e-11,
+        atol=1e-12,
+    )
     assert read.max_overlap() == pytest.approx(0.0012, rel=1e-6)
     assert unit_ball_hex(6, 1).radius_scale == NODE_SCALE
 
@@ -382,16 +442,19 @@ def test_admission_lowers_the_default_reduction_for_a_dem_export_and_says_so():
     assert p.scaled(a.radius_factor * NODE_SCALE).max_overlap() == 0.0
     assert p.contact_ratio() / (a.radius_factor * NODE_SCALE) - 1 >= START_GAP
     assert a.rho0 == pytest.approx(p.solid_fraction * 0.9895**3, rel=1e-14)
-    assert a.notes == ("radius reduction x0.9895 (instead of x0.99) for the packing's 0.12 % "
-                       "overlaps and the particle's nodes at 1.0100 x its radius",)
+    assert a.notes == (
+        "radius reduction x0.9895 (instead of x0.99) for the packing's 0.12 % "
+        "overlaps and the particle's nodes at 1.0100 x its radius",
+    )
 
 
 def test_admission_keeps_the_factor_that_works_and_refuses_one_too_large(jammed50):
     """A generated packing (no overlap) keeps 0.99 (its run is unchanged bit for bit: the same
     rho0 as V_p / V0 of the reduced radii); a factor that does not work is refused with the
     largest one that does, automatic or not, when the packing itself does not overlap."""
-    from mpfem_fenicsx.homogenization import solid_volume
     from mpfem_fenicsx.meshes.admission import admit_packing
+
+    from mpfem_fenicsx.homogenization import solid_volume
 
     a = admit_packing(jammed50, 0.99, NODE_SCALE, target_density=0.92, automatic=True)
     assert (a.radius_factor, a.automatic, a.notes) == (0.99, False, ())
@@ -411,8 +474,11 @@ def test_admission_refuses_overlaps_beyond_a_dem_contact_and_unreachable_densiti
 
     centres = [[0.2, 0.2, 0.2], [0.394, 0.2, 0.2], [0.7, 0.7, 0.7]]
     p = Packing([1, 1, 1], centres, [0.1, 0.1, 0.1])  # 6 % overlap
-    with pytest.raises(ValueError, match=r"^overlap of particles 0 and 1 \(image shift \[0, 0, 0\]"
-                                         r"\): 6 % of the smaller radius, beyond the 2 % .* <= 0.9603"):
+    with pytest.raises(
+        ValueError,
+        match=r"^overlap of particles 0 and 1 \(image shift \[0, 0, 0\]"
+        r"\): 6 % of the smaller radius, beyond the 2 % .* <= 0.9603",
+    ):
         admit_packing(p, 0.99, NODE_SCALE, automatic=True)
     assert admit_packing(p, 0.96, NODE_SCALE).radius_factor == 0.96  # a user's: taken as given
     ok = read_packing(YADE_50, validate=False)
@@ -432,7 +498,9 @@ def test_lengths_in_metres_get_a_one_line_warning(tmp_path):
     metres = read_packing(dump, length_scale=1e-3)
     notes = admit_packing(metres, 0.99, NODE_SCALE).notes
     assert len(notes) == 1 and notes[0] == metres_warning(metres)
-    assert notes[0].startswith("WARNING: the packing's lengths look like metres (largest radius "
-                               "0.0001 mm, cell 0.0008 x 0.0008 x 0.0008 mm)")
+    assert notes[0].startswith(
+        "WARNING: the packing's lengths look like metres (largest radius "
+        "0.0001 mm, cell 0.0008 x 0.0008 x 0.0008 mm)"
+    )
     assert "--length-scale 1000" in notes[0]
     assert metres_warning(Packing([1, 1, 1], [[0.5] * 3], [5e-4])) is not None  # r under 1 um

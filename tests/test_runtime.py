@@ -22,8 +22,13 @@ def _clean_env() -> dict:
 def _run(code: str, env: dict | None = None) -> dict:
     """Run ``code`` in a fresh interpreter (no OPENBLAS_NUM_THREADS / NUMBA_NUM_THREADS unless
     ``env`` sets them); its last output line, JSON, decoded."""
-    done = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True,
-                          env={**_clean_env(), **(env or {})}, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        capture_output=True,
+        env={**_clean_env(), **(env or {})},
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     return json.loads(done.stdout.strip().splitlines()[-1])
 
@@ -117,8 +122,13 @@ def test_two_ranks_on_a_node_share_its_cores_for_numba():
             print(json.dumps(rows))
     """)
     mpirun = str(Path(sys.executable).parent / "mpirun")
-    done = subprocess.run([mpirun, "-n", "2", sys.executable, "-c", code], env=_clean_env(),
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [mpirun, "-n", "2", sys.executable, "-c", code],
+        env=_clean_env(),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     rows = json.loads(done.stdout.strip().splitlines()[-1])
     assert len(rows) == 2 and all(a == b == share for a, b, share in rows), rows

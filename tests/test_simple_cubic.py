@@ -1,7 +1,6 @@
 """Simple cubic cell (thesis §2.6): the homogenization of a whole compaction run checked
 against the exact answers of an ordered packing, isotropic and die loading to rho = 0.95."""
 
-
 import numpy as np
 import pytest
 from mpi4py import MPI

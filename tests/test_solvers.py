@@ -2,13 +2,13 @@
 
 import numpy as np
 import pytest
+from mpfem_fenicsx.meshes import particle_mesh
 from mpi4py import MPI
 
 import dolfinx
 
 from mpfem_fenicsx.loading import PrescribedDisplacements, SmoothStep, component_dofs
 from mpfem_fenicsx.material import LEAD
-from mpfem_fenicsx.meshes import particle_mesh
 from mpfem_fenicsx.problem import HEX_VERTICES, SolidProblem
 from mpfem_fenicsx.solvers import ImplicitSolver, StepControl
 from mpfem_fenicsx.solvers.explicit import ExplicitSettings, ExplicitSolver
@@ -18,7 +18,9 @@ def _squeeze_bcs(V, travel):
     cap = lambda x, s: s * x[2] >= 0.75 - 1e-9  # noqa: E731
     bcs = PrescribedDisplacements(V)
     top = component_dofs(V, lambda x: cap(x, 1), 2)
-    bcs.add(top, lambda t: -travel * t).add(component_dofs(V, lambda x: cap(x, -1), 2), lambda t: travel * t)
+    bcs.add(top, lambda t: -travel * t).add(
+        component_dofs(V, lambda x: cap(x, -1), 2), lambda t: travel * t
+    )
     bcs.add(component_dofs(V, lambda x: (np.abs(x[0]) < 1e-9) & (np.abs(x[2]) >= 0.75 - 1e-9), 0))
     bcs.add(component_dofs(V, lambda x: (np.abs(x[1]) < 1e-9) & (np.abs(x[2]) >= 0.75 - 1e-9), 1))
     return bcs, top
@@ -44,28 +46,41 @@ def test_cut_backs_recover_a_too_large_increment():
 
 def test_stable_increment_and_mass_scaling():
     n, length = 4, 1.0
-    mesh = dolfinx.mesh.create_box(MPI.COMM_SELF, [[0, 0, 0], [length] * 3], [n] * 3,
-                                   dolfinx.mesh.CellType.hexahedron)
+    mesh = dolfinx.mesh.create_box(
+        MPI.COMM_SELF, [[0, 0, 0], [length] * 3], [n] * 3, dolfinx.mesh.CellType.hexahedron
+    )
     prob = SolidProblem(mesh, LEAD, tangent=False)
-    bcs = PrescribedDisplacements(prob.V).add(component_dofs(prob.V, lambda x: np.isclose(x[0], 0), 0))
+    bcs = PrescribedDisplacements(prob.V).add(
+        component_dofs(prob.V, lambda x: np.isclose(x[0], 0), 0)
+    )
     xi = 0.06
-    expected = 0.9 * (length / n) / LEAD.dilatational_wave_speed * (np.sqrt(1 + xi ** 2) - xi)
+    expected = 0.9 * (length / n) / LEAD.dilatational_wave_speed * (np.sqrt(1 + xi**2) - xi)
     free = ExplicitSolver(prob, bcs, ExplicitSettings(t_end=1e-5))
     assert free.dt == pytest.approx(expected, rel=1e-12)
-    assert free.total_mass == pytest.approx(LEAD.density * length ** 3, rel=1e-12)
+    assert free.total_mass == pytest.approx(LEAD.density * length**3, rel=1e-12)
     target = 10 * expected
-    scaled = ExplicitSolver(prob, bcs, ExplicitSettings(t_end=1e-5, target_dt=target, deformation_margin=1.0))
+    scaled = ExplicitSolver(
+        prob, bcs, ExplicitSettings(t_end=1e-5, target_dt=target, deformation_margin=1.0)
+    )
     assert scaled.dt == target
     assert scaled.mass_scaling_max == pytest.approx(100.0, rel=1e-10)
-    assert scaled.total_mass == pytest.approx(100.0 * LEAD.density * length ** 3, rel=1e-10)
+    assert scaled.total_mass == pytest.approx(100.0 * LEAD.density * length**3, rel=1e-10)
 
 
 #: a cell of the isotropic CLPS run at 12 000 increments, folded at the edge of a copy's coupling zone
 #: (two corners pushed inside; vertices in mm, lexicographic order; bench/README.md, element_frequencies.py)
-FOLDED_CELL = np.array([[0.359428, -0.188714, 0.456085], [0.374347, -0.201915, 0.465375],
-                        [0.351191, -0.169286, 0.465198], [0.367394, -0.175300, 0.471781],
-                        [0.363333, -0.184883, 0.475242], [0.373256, -0.200636, 0.482225],
-                        [0.351715, -0.173551, 0.483331], [0.366501, -0.179018, 0.488062]])
+FOLDED_CELL = np.array(
+    [
+        [0.359428, -0.188714, 0.456085],
+        [0.374347, -0.201915, 0.465375],
+        [0.351191, -0.169286, 0.465198],
+        [0.367394, -0.175300, 0.471781],
+        [0.363333, -0.184883, 0.475242],
+        [0.373256, -0.200636, 0.482225],
+        [0.351715, -0.173551, 0.483331],
+        [0.366501, -0.179018, 0.488062],
+    ]
+)
 
 
 def test_stable_length_bounds_the_highest_frequency_of_a_folded_cell():
@@ -79,17 +94,26 @@ def test_stable_length_bounds_the_highest_frequency_of_a_folded_cell():
 
     import basix.ufl
     import ufl
+
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
     from element_frequencies import elasticity_matrix, element_highest_omega2
 
     element = basix.ufl.element("Lagrange", "hexahedron", 1, shape=(3,))
     c_d = LEAD.dilatational_wave_speed
     cube = HEX_VERTICES.astype(float) * 0.02
-    for vertices, reference in ((cube, 2 * np.sqrt((1 + LEAD.nu) / (1 - LEAD.nu))), (FOLDED_CELL, None)):
-        mesh = dolfinx.mesh.create_mesh(MPI.COMM_SELF, np.arange(8, dtype=np.int64)[None], ufl.Mesh(element), vertices)
+    for vertices, reference in (
+        (cube, 2 * np.sqrt((1 + LEAD.nu) / (1 - LEAD.nu))),
+        (FOLDED_CELL, None),
+    ):
+        mesh = dolfinx.mesh.create_mesh(
+            MPI.COMM_SELF, np.arange(8, dtype=np.int64)[None], ufl.Mesh(element), vertices
+        )
         length = SolidProblem(mesh, LEAD, tangent=False).min_cell_length()[0]
-        omega = np.sqrt(element_highest_omega2(vertices[None], elasticity_matrix(LEAD.E, LEAD.nu),
-                                               np.array([LEAD.density])))[0]
+        omega = np.sqrt(
+            element_highest_omega2(
+                vertices[None], elasticity_matrix(LEAD.E, LEAD.nu), np.array([LEAD.density])
+            )
+        )[0]
         if reference is not None:
             assert length == pytest.approx(0.02, rel=1e-12)
             assert omega * length / c_d == pytest.approx(reference, rel=1e-10)
@@ -100,11 +124,22 @@ def test_stable_length_bounds_the_highest_frequency_of_a_folded_cell():
 #: a cell of copy 147 of the isotropic CLPS run (6000 increments, step 5700, after the fix above):
 #: a cube of edge 0.014967597 mm in the coupling zone, squeezed at one Gauss point (J 0.018 there,
 #: 1.0 at the centre, where the volumetric part is integrated); current vertices (mm, lexicographic)
-SQUEEZED_CELL_ORIGIN, SQUEEZED_CELL_EDGE = np.array([0.316803567, -0.294636775, 0.476693410]), 0.014967597
-SQUEEZED_CELL = np.array([[0.334255397, -0.202675520, 0.443779183], [0.352069187, -0.202742743, 0.441526467],
-                          [0.329254689, -0.181069036, 0.451798893], [0.348437279, -0.176796127, 0.450335157],
-                          [0.340961372, -0.185731255, 0.454463796], [0.359275421, -0.189388673, 0.457075197],
-                          [0.333241389, -0.174562824, 0.466584106], [0.350635388, -0.170897463, 0.467112491]])
+SQUEEZED_CELL_ORIGIN, SQUEEZED_CELL_EDGE = (
+    np.array([0.316803567, -0.294636775, 0.476693410]),
+    0.014967597,
+)
+SQUEEZED_CELL = np.array(
+    [
+        [0.334255397, -0.202675520, 0.443779183],
+        [0.352069187, -0.202742743, 0.441526467],
+        [0.329254689, -0.181069036, 0.451798893],
+        [0.348437279, -0.176796127, 0.450335157],
+        [0.340961372, -0.185731255, 0.454463796],
+        [0.359275421, -0.189388673, 0.457075197],
+        [0.333241389, -0.174562824, 0.466584106],
+        [0.350635388, -0.170897463, 0.467112491],
+    ]
+)
 
 
 def test_deformed_stable_length_bounds_the_tangent_of_a_squeezed_cell():
@@ -118,27 +153,37 @@ def test_deformed_stable_length_bounds_the_tangent_of_a_squeezed_cell():
 
     import basix.ufl
     import ufl
+
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
     from element_frequencies import elasticity_matrix, element_highest_omega2
 
     reference = SQUEEZED_CELL_ORIGIN + HEX_VERTICES * SQUEEZED_CELL_EDGE
     element = basix.ufl.element("Lagrange", "hexahedron", 1, shape=(3,))
-    mesh = dolfinx.mesh.create_mesh(MPI.COMM_SELF, np.arange(8, dtype=np.int64)[None], ufl.Mesh(element), reference)
+    mesh = dolfinx.mesh.create_mesh(
+        MPI.COMM_SELF, np.arange(8, dtype=np.int64)[None], ufl.Mesh(element), reference
+    )
     problem = SolidProblem(mesh, LEAD, tangent=False)
     dof_points = problem.V.tabulate_dof_coordinates()
     vertex = np.argmin(np.linalg.norm(dof_points[:, None] - reference[None], axis=-1), axis=1)
     problem.u.x.array[:] = (SQUEEZED_CELL - reference)[vertex].ravel()
     length = problem.min_cell_length(deformed=True)[0]
-    omega = np.sqrt(element_highest_omega2(SQUEEZED_CELL[None], elasticity_matrix(LEAD.E, LEAD.nu),
-                                           np.array([LEAD.density]), volumetric=LEAD.bulk,
-                                           reference=reference[None]))[0]
+    omega = np.sqrt(
+        element_highest_omega2(
+            SQUEEZED_CELL[None],
+            elasticity_matrix(LEAD.E, LEAD.nu),
+            np.array([LEAD.density]),
+            volumetric=LEAD.bulk,
+            reference=reference[None],
+        )
+    )[0]
     assert omega * length / LEAD.dilatational_wave_speed <= 8 / np.sqrt(3)
 
 
 def test_explicit_is_stable_at_the_scaled_increment():
     """A free elastic block set in motion by a smooth step keeps bounded energy (no blow-up)."""
-    mesh = dolfinx.mesh.create_box(MPI.COMM_SELF, [[0, 0, 0], [1, 1, 1]], [3] * 3,
-                                   dolfinx.mesh.CellType.hexahedron)
+    mesh = dolfinx.mesh.create_box(
+        MPI.COMM_SELF, [[0, 0, 0], [1, 1, 1]], [3] * 3, dolfinx.mesh.CellType.hexahedron
+    )
     prob = SolidProblem(mesh, LEAD, tangent=False)
     amp = SmoothStep(2e-4)
     bcs = PrescribedDisplacements(prob.V)
@@ -151,7 +196,6 @@ def test_explicit_is_stable_at_the_scaled_increment():
     assert e.balance_error() < 1e-6 * e.external
 
 
-
 def test_energy_balance_counts_the_kinetic_energy_mass_scaling_adds():
     """Variable mass scaling raises the mass of squeezed elements while they move: the kinetic
     energy 1/2 w'^T dM w' it adds is tallied (E_mass), and W_ext + E_mass balances the rest to
@@ -159,8 +203,11 @@ def test_energy_balance_counts_the_kinetic_energy_mass_scaling_adds():
     a = particle_mesh([[0, 0, 0]], [1.0], MPI.COMM_SELF)
     prob = SolidProblem(a.mesh, LEAD, tangent=False)
     bcs, _ = _squeeze_bcs(prob.V, 0.4)
-    s = ExplicitSolver(prob, bcs, ExplicitSettings(t_end=1e-3, target_dt=2e-5, deformation_margin=1.0,
-                                                   rescale_every=10))
+    s = ExplicitSolver(
+        prob,
+        bcs,
+        ExplicitSettings(t_end=1e-3, target_dt=2e-5, deformation_margin=1.0, rescale_every=10),
+    )
     s.run()
     e = s.energies
     assert e.mass_scaling > 1e-3 * e.external  # the squeeze raised masses of moving nodes
@@ -172,10 +219,13 @@ def test_energy_balance_of_a_start_out_of_equilibrium_misses_the_start_up_term()
     """Released from a pre-strained state (f_0 != 0), the one-sided first step leaves the balance
     off by exactly 1/2 (dt/2 a_0)^T M (dt/2 a_0), whatever follows (solvers.explicit docstring);
     from an equilibrium start it is zero (the other balance tests)."""
-    mesh = dolfinx.mesh.create_box(MPI.COMM_SELF, [[0, 0, 0], [1, 1, 1]], [3] * 3,
-                                   dolfinx.mesh.CellType.hexahedron)
+    mesh = dolfinx.mesh.create_box(
+        MPI.COMM_SELF, [[0, 0, 0], [1, 1, 1]], [3] * 3, dolfinx.mesh.CellType.hexahedron
+    )
     prob = SolidProblem(mesh, LEAD, tangent=False)
-    s = ExplicitSolver(prob, PrescribedDisplacements(prob.V), ExplicitSettings(t_end=1e-5, target_dt=2e-7))
+    s = ExplicitSolver(
+        prob, PrescribedDisplacements(prob.V), ExplicitSettings(t_end=1e-5, target_dt=2e-7)
+    )
     s.x.array[:] = 1e-5 * np.random.default_rng(0).standard_normal(s.x.array.size)
     s.advance()
     start_up = 0.5 * np.sum(s.mass_red.array * (0.5 * s.dt * s.a_red.array) ** 2)
@@ -191,7 +241,9 @@ def test_bulk_viscosity_coefficients_are_checked_and_may_be_integers():
     "Unsupported dtype"); a negative one is refused by name."""
     settings = ExplicitSettings(t_end=1e-5, bulk_viscosity_linear=0, bulk_viscosity_quadratic=0)
     assert isinstance(settings.bulk_viscosity_linear, float)
-    mesh = dolfinx.mesh.create_box(MPI.COMM_SELF, [[0, 0, 0], [1, 1, 1]], [2] * 3, dolfinx.mesh.CellType.hexahedron)
+    mesh = dolfinx.mesh.create_box(
+        MPI.COMM_SELF, [[0, 0, 0], [1, 1, 1]], [2] * 3, dolfinx.mesh.CellType.hexahedron
+    )
     prob = SolidProblem(mesh, LEAD, tangent=False)
     ExplicitSolver(prob, PrescribedDisplacements(prob.V), settings)
     with pytest.raises(ValueError, match="bulk_viscosity_quadratic must be >= 0"):
@@ -204,11 +256,11 @@ def test_both_solvers_are_the_solver_interface():
     the protocols states its contract (a docstring or a ``#:`` comment)."""
     import inspect
 
-    from mpfem_fenicsx.solvers import DynamicSolver, Solver, StaticSolver, create_solver
-    from mpfem_fenicsx.solvers import interface
+    from mpfem_fenicsx.solvers import DynamicSolver, Solver, StaticSolver, create_solver, interface
 
-    mesh = dolfinx.mesh.create_box(MPI.COMM_SELF, [[0, 0, 0], [1, 1, 1]], [1] * 3,
-                                   dolfinx.mesh.CellType.hexahedron)
+    mesh = dolfinx.mesh.create_box(
+        MPI.COMM_SELF, [[0, 0, 0], [1, 1, 1]], [1] * 3, dolfinx.mesh.CellType.hexahedron
+    )
     prob = SolidProblem(mesh, LEAD, tangent=True)
     fixed = component_dofs(prob.V, lambda x: np.isclose(x[0], 0), 0)
     bcs = PrescribedDisplacements(prob.V).add(fixed)

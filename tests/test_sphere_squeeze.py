@@ -15,8 +15,12 @@ def squeezed(tmp_path_factory):
     implicit = run_sphere_squeeze(
         SqueezeCase(solver="implicit"), out_dir=out, comm=MPI.COMM_SELF, log=quiet
     )
-    explicit = run_sphere_squeeze(SqueezeCase(solver="explicit", explicit_steps=6000), out_dir=out,
-                                  comm=MPI.COMM_SELF, log=quiet)
+    explicit = run_sphere_squeeze(
+        SqueezeCase(solver="explicit", explicit_steps=6000),
+        out_dir=out,
+        comm=MPI.COMM_SELF,
+        log=quiet,
+    )
     return implicit.history, explicit.history
 
 
@@ -31,14 +35,14 @@ def test_deforms_plastically_with_growing_force(squeezed):
     force = implicit.column("force_N")
     assert np.all(np.diff(force) > 0)
     # far beyond the elastic limit: the cap force exceeds sigma_0 times the cap area
-    assert force[-1] > 5.0 * np.pi * (1 - 0.75 ** 2)
+    assert force[-1] > 5.0 * np.pi * (1 - 0.75**2)
 
 
 def test_implicit_and_explicit_reaction_forces_agree(squeezed):
     implicit, explicit = squeezed
     h_imp, f_imp = implicit.column("height_reduction"), implicit.column("force_N")
     h_exp, f_exp = explicit.column("height_reduction"), explicit.column("force_N")
-    check = (h_exp > 0.05)  # past the elastic transient at the start of the smooth step
+    check = h_exp > 0.05  # past the elastic transient at the start of the smooth step
     f_interp = np.interp(h_exp[check], h_imp, f_imp)
     assert np.abs(f_exp[check] / f_interp - 1.0).max() < 0.05
     assert f_exp[-1] == pytest.approx(f_imp[-1], rel=0.02)

@@ -19,8 +19,14 @@ from mpfem_fenicsx.workflows.two_spheres import TwoSphereCase, run_two_spheres
 
 @pytest.fixture(scope="module")
 def elastic_pair(tmp_path_factory):
-    case = TwoSphereCase(ratio=1.0, size_min=0.05, approach=0.012, load_steps=6, unload_steps=0,
-                         material=replace(STEEL_LINEAR, sigma_0=1e6))
+    case = TwoSphereCase(
+        ratio=1.0,
+        size_min=0.05,
+        approach=0.012,
+        load_steps=6,
+        unload_steps=0,
+        material=replace(STEEL_LINEAR, sigma_0=1e6),
+    )
     return case, run_two_spheres(
         case, tmp_path_factory.mktemp("two_spheres"), MPI.COMM_SELF, log=lambda *a: None
     )
@@ -31,8 +37,8 @@ def test_elastic_pair_follows_hertz(elastic_pair):
     data = res.history.array()
     approach, force = data[:, 1], data[:, 2]
     assert approach[-1] == pytest.approx(case.approach * case.radius)
-    e_star = case.material.E / (2 * (1 - case.material.nu ** 2))
-    hertz = 4.0 / 3.0 * e_star * np.sqrt(case.radius / 2) * approach ** 1.5
+    e_star = case.material.E / (2 * (1 - case.material.nu**2))
+    hertz = 4.0 / 3.0 * e_star * np.sqrt(case.radius / 2) * approach**1.5
     resolved = approach >= 0.006 * case.radius  # contact radius >= 2 contact hexahedra
     assert resolved.sum() >= 3
     assert np.abs(force[resolved] / hertz[resolved] - 1).max() < 0.05
@@ -64,8 +70,9 @@ def test_plastic_adhesive_pair_unloads_by_peeling_to_separation(tmp_path):
     the contact radius moves by whole rings of nodes (h / a0 ~ 0.3 here), 8 % of F0 rms
     (measured 5.3 % over 9 samples; 5.4 % over the full 0.02 r case, see the workflow's
     docstring)."""
-    case = TwoSphereCase(ratio=1.0, size_min=0.05, approach=0.006, load_steps=3, unload_steps=12,
-                         unload_to=0.0048)
+    case = TwoSphereCase(
+        ratio=1.0, size_min=0.05, approach=0.006, load_steps=3, unload_steps=12, unload_to=0.0048
+    )
     res = run_two_spheres(case, tmp_path, MPI.COMM_SELF, log=lambda *a: None)
     data = res.history.array()
     t, force, radius = data[:, 0], data[:, 2], data[:, 3]
@@ -102,7 +109,7 @@ def test_elastic_wedge_follows_hertz(tmp_path):
     res = run_two_spheres(case, tmp_path, MPI.COMM_SELF, log=lambda *a: None)
     data = res.history.array()
     approach, force, radius = data[:, 1], data[:, 2], data[:, 3]
-    hertz = 4.0 / 3.0 * case.e_star * np.sqrt(case.radius / 2) * approach ** 1.5
+    hertz = 4.0 / 3.0 * case.e_star * np.sqrt(case.radius / 2) * approach**1.5
     resolved = approach >= 0.002 * case.radius
     assert resolved.sum() >= 3
     assert np.abs(force[resolved] / hertz[resolved] - 1).max() < 0.02, force / hertz

@@ -680,7 +680,9 @@ def test_die_clp_density_definition_on_a_small_volume(tmp_path):
     by +-7 % as contacts form. Measured band means and their history: validation/README.md,
     CI-sized subset (2026-11-28: 3.328 faceted vs 3.414 MPa exact, -2.5 %)."""
     exact = _die_compaction(tmp_path, "exact", condition="CLP", increments=1500)
-    faceted = _die_compaction(tmp_path, "faceted", condition="CLP", increments=1500, exact_volume=False)
+    faceted = _die_compaction(
+        tmp_path, "faceted", condition="CLP", increments=1500, exact_volume=False
+    )
     # the inscribed particle holds less solid
     assert faceted["rho_fe"][0] < 0.95 * exact["rho_fe"][0]
     a = _band_mean(exact, "sigma_m", 0.68, 0.76, "rho_fe")
@@ -757,7 +759,6 @@ def test_list_tells_where_a_killed_run_resumes(tmp_path, monkeypatch):
     import json
 
     from validation import run
-
     from validation.cases import CASES
 
     monkeypatch.setattr(run, "RUNS", tmp_path)

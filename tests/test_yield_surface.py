@@ -66,8 +66,6 @@ def test_uniaxial_strengths_of_an_ellipse():
 def fan(tmp_path_factory):
     """Simple cubic cell (8 spheres, CLP), adhesive (gamma = 1e-2), isotropic compaction to
     rho = 0.70 in 600 increments, unload, 4 reloads of 200 increments with A = 3 |h_v^d|."""
-    from dataclasses import replace
-
     from mpi4py import MPI
 
     from mpfem_fenicsx.workflows.simple_cubic import simple_cubic_case
@@ -309,7 +307,6 @@ def test_reload_profile_sets_the_reload_strain_in_time(fan, tmp_path):
 
 
 def replace_out(case, out):
-    from dataclasses import replace
 
     return case.updated(directory=str(out))
 

@@ -59,8 +59,15 @@ TOLERANCE = 0.15
 STAGE_CONSTRAINT_MASS = {"CLP": "lumped", "CLPS": "consistent", "GDF": "lumped", "GDH": "lumped"}
 
 #: the chapter-2 set-up every case starts from (its options override these)
-CHAPTER2_SETUP = dict(particles=50, seed=1, increments=6000, outputs=40, visual=False, checkpoint_every=2,
-                      exact_volume=False)
+CHAPTER2_SETUP = dict(
+    particles=50,
+    seed=1,
+    increments=6000,
+    outputs=40,
+    visual=False,
+    checkpoint_every=2,
+    exact_volume=False,
+)
 
 
 @dataclass(frozen=True)
@@ -94,8 +101,12 @@ class Case:
 def die_case(bc: str) -> Case:
     """Die compaction ("matrice", uniaxial strain along z) to rho_f = 0.95 (thesis §2.7), with the
     condition's reduced mass (``STAGE_CONSTRAINT_MASS``)."""
-    return Case(f"die_{bc}", dict(path="die", condition=bc, target_density=0.95,
-                                  constraint_mass=STAGE_CONSTRAINT_MASS[bc]))
+    return Case(
+        f"die_{bc}",
+        dict(
+            path="die", condition=bc, target_density=0.95, constraint_mass=STAGE_CONSTRAINT_MASS[bc]
+        ),
+    )
 
 
 def slower_case(reference: Case, increments: int) -> Case:
@@ -103,8 +114,11 @@ def slower_case(reference: Case, increments: int) -> Case:
     increment shrinks as 1 / increments and the scaled masses as its square (less inertia, the same
     path). Whether the stage's 6000 increments converge its curve and end value; ``repeats`` names
     the 6000-increment run."""
-    return Case(f"{reference.name}_n{increments}", {**reference.options, "increments": increments},
-                repeats=reference.name)
+    return Case(
+        f"{reference.name}_n{increments}",
+        {**reference.options, "increments": increments},
+        repeats=reference.name,
+    )
 
 
 def slow_die_case(bc: str, increments: int, d_bc: float | None = None) -> Case:
@@ -121,8 +135,11 @@ def lumped_mass_die_case(bc: str, increments: int | None = None) -> Case:
     options = {**reference.options, "constraint_mass": "lumped"}
     if increments is not None:
         options["increments"] = increments
-    return Case(f"{reference.name}_lumped_mass" + ("" if increments is None else f"_n{increments}"), options,
-                repeats=reference.name)
+    return Case(
+        f"{reference.name}_lumped_mass" + ("" if increments is None else f"_n{increments}"),
+        options,
+        repeats=reference.name,
+    )
 
 
 def dbc_reference_case(bc: str) -> Case:
@@ -130,20 +147,32 @@ def dbc_reference_case(bc: str) -> Case:
     die stage's run, or its lumped-mass repeat where the die stage uses the consistent mass (the
     d_bc runs are lumped: one reduced mass along the study)."""
     reference = die_case(bc)
-    return reference if reference.options["constraint_mass"] == "lumped" else lumped_mass_die_case(bc)
+    return (
+        reference if reference.options["constraint_mass"] == "lumped" else lumped_mass_die_case(bc)
+    )
 
 
 def exact_volume_die_case() -> Case:
     """Die CLP on the library's default particle, which holds its sphere's volume: rho
     = 0.95 is then 0.95 of real solid, where the thesis' faceted particles hold ~0.92."""
-    return Case("die_CLP_exact_volume", dict(path="die", condition="CLP", target_density=0.95, exact_volume=True))
+    return Case(
+        "die_CLP_exact_volume",
+        dict(path="die", condition="CLP", target_density=0.95, exact_volume=True),
+    )
 
 
 def isotropic_case(bc: str) -> Case:
     """Isotropic compaction to rho_f = 0.95 (thesis §2.7, fig. 2.24a-b, 2.25a), with the condition's
     reduced mass (``STAGE_CONSTRAINT_MASS``)."""
-    return Case(f"isotropic_{bc}", dict(path="isotropic", condition=bc, target_density=0.95,
-                                        constraint_mass=STAGE_CONSTRAINT_MASS[bc]))
+    return Case(
+        f"isotropic_{bc}",
+        dict(
+            path="isotropic",
+            condition=bc,
+            target_density=0.95,
+            constraint_mass=STAGE_CONSTRAINT_MASS[bc],
+        ),
+    )
 
 
 def dbc_case(bc: str, d_bc: float) -> Case:
@@ -161,8 +190,10 @@ def size_case(particles: int, bc: str = "GDF", seed: int = 1) -> Case:
     free of the packings' spread; ``seed`` another packing of the same size (the spread that a
     difference between sizes must exceed)."""
     suffix = "" if seed == 1 else f"_seed{seed}"
-    return Case(f"size_{bc}_{particles}{suffix}", dict(path="isotropic", condition=bc, target_density=0.95,
-                                                       particles=particles, seed=seed))
+    return Case(
+        f"size_{bc}_{particles}{suffix}",
+        dict(path="isotropic", condition=bc, target_density=0.95, particles=particles, seed=seed),
+    )
 
 
 def adhesive_case(loading: str, delta_max: float | None = None, bc: str = "CLP") -> Case:
@@ -170,10 +201,14 @@ def adhesive_case(loading: str, delta_max: float | None = None, bc: str = "CLP")
     the library's 0.5 um of the thesis text, or e.g. appendix A's 0.2 um). bc "GDF" is the
     thesis' own chapter-4 model (346 particles: the 50 of the volume and their copies, §4.5
     conclusion); "CLP" the periodic volume."""
-    options = dict(path=loading, condition=bc, gamma=1e-2, target_density=max(THESIS_GAMMA_L[loading]))
+    options = dict(
+        path=loading, condition=bc, gamma=1e-2, target_density=max(THESIS_GAMMA_L[loading])
+    )
     if delta_max is None:
         return Case(f"{loading}_{bc}_gamma1e-2", options)
-    return Case(f"{loading}_{bc}_gamma1e-2_dmax{1e3 * delta_max:g}um", {**options, "delta_max": delta_max})
+    return Case(
+        f"{loading}_{bc}_gamma1e-2_dmax{1e3 * delta_max:g}um", {**options, "delta_max": delta_max}
+    )
 
 
 def hardening_case(n: float) -> Case:
@@ -181,8 +216,10 @@ def hardening_case(n: float) -> Case:
     and the library: 0.35)."""
     from mpfem_fenicsx.material import LEAD
 
-    return Case(f"die_CLP_n{n:g}", dict(path="die", condition="CLP", target_density=0.95,
-                                         material=replace(LEAD, n=n)))
+    return Case(
+        f"die_CLP_n{n:g}",
+        dict(path="die", condition="CLP", target_density=0.95, material=replace(LEAD, n=n)),
+    )
 
 
 @dataclass(frozen=True)
@@ -216,8 +253,11 @@ class FanCase:
     @property
     def is_thesis_fan(self) -> bool:
         """The thesis' reloads (A = 1.5 h_v^d at the default rate, smooth step), not a variant of them."""
-        return (self.amplitude_factor == 1.5 and self.min_reload_increments == 400
-                and self.reload_profile == "smooth-step")
+        return (
+            self.amplitude_factor == 1.5
+            and self.min_reload_increments == 400
+            and self.reload_profile == "smooth-step"
+        )
 
     @property
     def shares_loading_with(self) -> str | None:
@@ -233,10 +273,15 @@ class FanCase:
     @property
     def reload_label(self) -> str:
         """How the reloads differ from the thesis' ("" for a thesis fan), for legends."""
-        return ((f", A {self.amplitude_factor:g} h_v^d" if self.amplitude_factor != 1.5 else "")
-                + (f", reloads >= {self.min_reload_increments} increments" if self.min_reload_increments != 400
-                   else "")
-                + (f", {self.reload_profile} reloads" if self.reload_profile != "smooth-step" else ""))
+        return (
+            (f", A {self.amplitude_factor:g} h_v^d" if self.amplitude_factor != 1.5 else "")
+            + (
+                f", reloads >= {self.min_reload_increments} increments"
+                if self.min_reload_increments != 400
+                else ""
+            )
+            + (f", {self.reload_profile} reloads" if self.reload_profile != "smooth-step" else "")
+        )
 
     def yield_surface_case(self, out_dir: str):
         import math
@@ -246,26 +291,54 @@ class FanCase:
 
         chapter2 = Case("chapter2", dict(path=self.loading, condition="CLP", target_density=0.95))
         reference = chapter2.compaction_case(out_dir)
-        rho0 = initial_packing(reference.packing, reference.mesh, reference.loading.target_density).rho0
+        rho0 = initial_packing(
+            reference.packing, reference.mesh, reference.loading.target_density
+        ).rho0
         share = math.log(self.rho_f / rho0) / math.log(0.95 / rho0)
-        base = reference.updated(target_density=self.rho_f, gamma=self.gamma,
-                                 increments=max(100, round(share * reference.solver.increments)),
-                                 duration=share * reference.loading.duration, checkpoint_every=4)
-        return YieldSurfaceCase(base=base, nphi=self.nphi, amplitude_factor=self.amplitude_factor,
-                                min_increments=self.min_reload_increments, reload_profile=self.reload_profile,
-                                out_dir=out_dir)
+        base = reference.updated(
+            target_density=self.rho_f,
+            gamma=self.gamma,
+            increments=max(100, round(share * reference.solver.increments)),
+            duration=share * reference.loading.duration,
+            checkpoint_every=4,
+        )
+        return YieldSurfaceCase(
+            base=base,
+            nphi=self.nphi,
+            amplitude_factor=self.amplitude_factor,
+            min_increments=self.min_reload_increments,
+            reload_profile=self.reload_profile,
+            out_dir=out_dir,
+        )
 
 
-def fan_case(loading: str, rho_f: float, gamma: float = 1e-2, amplitude_factor: float = 1.5,
-             min_reload_increments: int = 400, reload_profile: str = "smooth-step",
-             reference: str | None = None) -> FanCase:
+def fan_case(
+    loading: str,
+    rho_f: float,
+    gamma: float = 1e-2,
+    amplitude_factor: float = 1.5,
+    min_reload_increments: int = 400,
+    reload_profile: str = "smooth-step",
+    reference: str | None = None,
+) -> FanCase:
     """The fan after a ``loading`` compaction to ``rho_f`` (a row of table 4.2 with gamma 1e-2)."""
-    name = (f"fan_{loading}_{rho_f:g}" + ("" if gamma == 1e-2 else f"_gamma{gamma:g}")
-            + ("" if amplitude_factor == 1.5 else f"_A{amplitude_factor:g}")
-            + ("" if min_reload_increments == 400 else f"_n{min_reload_increments}")
-            + ("" if reload_profile == "smooth-step" else f"_{reload_profile.removeprefix('smooth-')}"))
-    return FanCase(name, loading, rho_f, gamma, amplitude_factor=amplitude_factor,
-                   min_reload_increments=min_reload_increments, reload_profile=reload_profile, reference=reference)
+    name = (
+        f"fan_{loading}_{rho_f:g}"
+        + ("" if gamma == 1e-2 else f"_gamma{gamma:g}")
+        + ("" if amplitude_factor == 1.5 else f"_A{amplitude_factor:g}")
+        + ("" if min_reload_increments == 400 else f"_n{min_reload_increments}")
+        + ("" if reload_profile == "smooth-step" else f"_{reload_profile.removeprefix('smooth-')}")
+    )
+    return FanCase(
+        name,
+        loading,
+        rho_f,
+        gamma,
+        amplitude_factor=amplitude_factor,
+        min_reload_increments=min_reload_increments,
+        reload_profile=reload_profile,
+        reference=reference,
+    )
 
 
 #: stage -> cases; `python validation/run.py STAGE` runs them, each stage on its own
@@ -277,30 +350,55 @@ STAGES = {
     #: mass, which loses 42 % of its stress as the ramp decelerates at 6000, and at 12 000; CLPS at
     #: 1.0 r_max (146 particles, lumped, the same 30-40 % end loss): the rate question at a third the cost;
     #: the isotropic CLPS at 12 000 (at 6000 it fails its quasi-static check at rest)
-    "increments": [slow_die_case("CLPS", 12000), lumped_mass_die_case("CLPS"), lumped_mass_die_case("CLPS", 12000),
-                   slow_die_case("GDF", 12000), slow_die_case("CLPS", 12000, d_bc=1.0),
-                   slower_case(isotropic_case("CLPS"), 12000)],
+    "increments": [
+        slow_die_case("CLPS", 12000),
+        lumped_mass_die_case("CLPS"),
+        lumped_mass_die_case("CLPS", 12000),
+        slow_die_case("GDF", 12000),
+        slow_die_case("CLPS", 12000, d_bc=1.0),
+        slower_case(isotropic_case("CLPS"), 12000),
+    ],
     #: with isotropic_GDF and isotropic_CLP (50 particles, seed 1); a second 50-particle packing
     #: gives the spread of the 50-particle values
-    "size": [size_case(150), size_case(150, "CLP"), size_case(50, seed=2), size_case(50, "CLP", seed=2)],
-    "gamma": [adhesive_case("isotropic"), adhesive_case("isotropic", bc="GDF"), adhesive_case("die"),
-              adhesive_case("die", bc="GDF")],
+    "size": [
+        size_case(150),
+        size_case(150, "CLP"),
+        size_case(50, seed=2),
+        size_case(50, "CLP", seed=2),
+    ],
+    "gamma": [
+        adhesive_case("isotropic"),
+        adhesive_case("isotropic", bc="GDF"),
+        adhesive_case("die"),
+        adhesive_case("die", bc="GDF"),
+    ],
     #: the thesis' contradictions: n 0.35 (table 2.1) / 0.36 (input file), delta_max 0.5 um
     #: (text) / 0.2 um (appendix A); we use 0.35 and 0.5 um
     "sensitivity": [hardening_case(0.36), adhesive_case("die", delta_max=2e-4)],
     #: chapter 4: Gamma_l of table 4.2 for two isotropic rows and one die row, and the trends of
     #: §4.3-4.5 (growth with rho_f, rotation under die loading, adhesion: sigma_m < 0 reached)
-    "fans": [fan_case("isotropic", 0.79), fan_case("isotropic", 0.87), fan_case("die", 0.82),
-             fan_case("isotropic", 0.87, gamma=0.0), fan_case("isotropic", 0.79, amplitude_factor=5.0),
-             # the reloads' discretization: 3x slower reloads (rate), and the die fan carried to
-             # 3 h_v^d at the thesis fan's rate (its yield surface is open at 1.5 h_v^d)
-             fan_case("isotropic", 0.79, min_reload_increments=1200),
-             fan_case("die", 0.82, amplitude_factor=3.0, min_reload_increments=800),
-             # the reloads' profile: a constant strain rate, at the thesis fan's; then twice as
-             # far at that rate, so that W2 <= 0 is reached at full rate, not while decelerating
-             fan_case("isotropic", 0.79, reload_profile="smooth-ramps"),
-             fan_case("isotropic", 0.79, amplitude_factor=3.0, min_reload_increments=800, reload_profile="smooth-ramps",
-                      reference="fan_isotropic_0.79_ramps")],
+    "fans": [
+        fan_case("isotropic", 0.79),
+        fan_case("isotropic", 0.87),
+        fan_case("die", 0.82),
+        fan_case("isotropic", 0.87, gamma=0.0),
+        fan_case("isotropic", 0.79, amplitude_factor=5.0),
+        # the reloads' discretization: 3x slower reloads (rate), and the die fan carried to
+        # 3 h_v^d at the thesis fan's rate (its yield surface is open at 1.5 h_v^d)
+        fan_case("isotropic", 0.79, min_reload_increments=1200),
+        fan_case("die", 0.82, amplitude_factor=3.0, min_reload_increments=800),
+        # the reloads' profile: a constant strain rate, at the thesis fan's; then twice as
+        # far at that rate, so that W2 <= 0 is reached at full rate, not while decelerating
+        fan_case("isotropic", 0.79, reload_profile="smooth-ramps"),
+        fan_case(
+            "isotropic",
+            0.79,
+            amplitude_factor=3.0,
+            min_reload_increments=800,
+            reload_profile="smooth-ramps",
+            reference="fan_isotropic_0.79_ramps",
+        ),
+    ],
 }
 #: every case of every stage by name
 CASES = {case.name: case for cases in STAGES.values() for case in cases}

@@ -14,16 +14,35 @@ import re
 from pathlib import Path
 
 import numpy as np
+from mpfem_fenicsx.meshes.packing import read_packing
 
-from .cases import (CASES, CHAPTER2_SETUP, CLP_DRIFT_LIMIT, DBC_GRID, DBC_READ_AT, DBC_STABLE_WITHIN, DRIFT_READ_AT,
-                   PATH_READ_AT, STAGES, THESIS_DIE_SIGMA_M, THESIS_DIVERGENCE_HV, THESIS_GAMMA_L, THESIS_GDF_DRIFT,
-                   THESIS_NONPERIODIC_GAP, THESIS_STABLE_DBC, TOLERANCE, FanCase, dbc_reference_case, die_case)
 from mpfem_fenicsx.homogenization import gradient_fit_noise_hd
 from mpfem_fenicsx.homogenization.surfaces import MIN_GAMMA_COLLAPSE
 from mpfem_fenicsx.io.history import read_csv
 from mpfem_fenicsx.io.plots import rendulic_frame
-from mpfem_fenicsx.meshes.packing import read_packing
 from mpfem_fenicsx.workflows.history_recorder import carrier_share, quasi_static_check
+
+from .cases import (
+    CASES,
+    CHAPTER2_SETUP,
+    CLP_DRIFT_LIMIT,
+    DBC_GRID,
+    DBC_READ_AT,
+    DBC_STABLE_WITHIN,
+    DRIFT_READ_AT,
+    PATH_READ_AT,
+    STAGES,
+    THESIS_DIE_SIGMA_M,
+    THESIS_DIVERGENCE_HV,
+    THESIS_GAMMA_L,
+    THESIS_GDF_DRIFT,
+    THESIS_NONPERIODIC_GAP,
+    THESIS_STABLE_DBC,
+    TOLERANCE,
+    FanCase,
+    dbc_reference_case,
+    die_case,
+)
 
 
 def at_density(history: dict, column: str, rho: float, density: str = "rho") -> float:
@@ -56,17 +75,25 @@ def load_runs(runs: Path) -> dict[str, dict]:
                 with open(run_dir / "surfaces.csv") as fh:
                     for r in csv.DictReader(fh):
                         surfaces.setdefault(r["kind"], []).append(
-                            [float(r[c]) for c in ("phi", "sigma_m", "sigma_tilde_d")])
+                            [float(r[c]) for c in ("phi", "sigma_m", "sigma_tilde_d")]
+                        )
                 unloaded = json.loads((run_dir / "unloaded.json").read_text())
                 gamma = read_csv(run_dir / "fan.csv")["Gamma"]
-                done[case.name] = {"case": case, "wall_s": wall, "unloaded": unloaded,
-                                   "summary": json.loads((run_dir / "summary.json").read_text()),
-                                   "surfaces": {k: np.array(v) for k, v in surfaces.items()},
-                                   "gamma_drop": 1.0 - float(np.nanmin(gamma)) / unloaded["Gamma_unloaded"]}
+                done[case.name] = {
+                    "case": case,
+                    "wall_s": wall,
+                    "unloaded": unloaded,
+                    "summary": json.loads((run_dir / "summary.json").read_text()),
+                    "surfaces": {k: np.array(v) for k, v in surfaces.items()},
+                    "gamma_drop": 1.0 - float(np.nanmin(gamma)) / unloaded["Gamma_unloaded"],
+                }
             else:
                 packing = run_dir / "packing.txt"
-                done[case.name] = {"history": read_csv(run_dir / "history.csv"), "wall_s": wall,
-                                   "packing": read_packing(packing, validate=False) if packing.exists() else None}
+                done[case.name] = {
+                    "history": read_csv(run_dir / "history.csv"),
+                    "wall_s": wall,
+                    "packing": read_packing(packing, validate=False) if packing.exists() else None,
+                }
     return done
 
 
@@ -75,40 +102,59 @@ def quasi_static_cell(history: dict) -> str:
     explicit run logs at its end): passed / failed (share of the work through the carrier / out of
     balance at rest)."""
     check = quasi_static_check(history)
-    return (f"{'passed' if check.passed else 'failed'} ({100 * check.carrier_share:.0f} % / "
-            f"{check.unbalanced_at_rest:.2g})")
+    return (
+        f"{'passed' if check.passed else 'failed'} ({100 * check.carrier_share:.0f} % / "
+        f"{check.unbalanced_at_rest:.2g})"
+    )
 
 
 def schmidt_mean(history: dict) -> np.ndarray:
     """Per row, the mean of the Schmidt stress (eq. 2.19, MPa, compression > 0)."""
-    return (history["sigma_schmidt_11"] + history["sigma_schmidt_22"] + history["sigma_schmidt_33"]) / 3
+    return (
+        history["sigma_schmidt_11"] + history["sigma_schmidt_22"] + history["sigma_schmidt_33"]
+    ) / 3
 
 
 def row(case, quantity, thesis, ours, *, tolerance=TOLERANCE) -> dict:
     """A summary row met when ours is within ``tolerance`` of the thesis' number."""
     deviation = ours / thesis - 1.0
     status = "met" if np.isfinite(deviation) and abs(deviation) <= tolerance else "not met"
-    return dict(case=case, quantity=quantity, thesis=thesis, ours=ours, deviation=deviation, status=status)
+    return dict(
+        case=case, quantity=quantity, thesis=thesis, ours=ours, deviation=deviation, status=status
+    )
 
 
 def judged_row(case, quantity, thesis, ours, met: bool, deviation=float("nan")) -> dict:
     """A summary row whose status another rule decided (a band, an ordering, a trend)."""
-    return dict(case=case, quantity=quantity, thesis=thesis, ours=ours, deviation=deviation,
-                status="met" if met else "not met")
+    return dict(
+        case=case,
+        quantity=quantity,
+        thesis=thesis,
+        ours=ours,
+        deviation=deviation,
+        status="met" if met else "not met",
+    )
 
 
 def die_rows(done: dict) -> tuple[list[dict], list[str]]:
     """Thesis §2.7: die compaction to rho_f = 0.95, sigma_m at rho = 0.95 per condition (on the
     thesis' faceted particle, rho from the spheres' volume), the ordering CLP > CLPS > GDF, and
     CLP on particles holding their sphere's volume."""
-    rows, lines = [], ["| condition | thesis sigma_m at rho 0.95 (§2.7) | ours at rho_imposed 0.95 (end) | "
-                       "rho (centroids, end) | solid fraction of the meshes (end) | deviation | status | "
-                       "work through the carrier / W_ext (end) | quasi-static check (carrier / out of "
-                       "balance at rest; limits 10 % / 0.05) | wall |",
-                       "|---|---|---|---|---|---|---|---|---|---|"]
+    rows, lines = (
+        [],
+        [
+            "| condition | thesis sigma_m at rho 0.95 (§2.7) | ours at rho_imposed 0.95 (end) | "
+            "rho (centroids, end) | solid fraction of the meshes (end) | deviation | status | "
+            "work through the carrier / W_ext (end) | quasi-static check (carrier / out of "
+            "balance at rest; limits 10 % / 0.05) | wall |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ],
+    )
     ours = {}
     conditions = [(f"die_{bc}", bc, bc) for bc in ("CLP", "CLPS", "GDF", "GDH")]
-    conditions.append(("die_CLP_exact_volume", "CLP, particles holding their sphere's volume", "CLP"))
+    conditions.append(
+        ("die_CLP_exact_volume", "CLP, particles holding their sphere's volume", "CLP")
+    )
     for name, label, bc in conditions:
         run = done.get(name)
         thesis = THESIS_DIE_SIGMA_M.get(bc, "(none)")
@@ -119,25 +165,41 @@ def die_rows(done: dict) -> tuple[list[dict], list[str]]:
         ours[name] = at_density(h, "sigma_m", 0.95, "rho_imposed")
         cells = f"| {label} | {thesis} | {ours[name]:.2f} | {h['rho'][-1]:.4f} | {h['rho_fe'][-1]:.4f} |"
         if bc in THESIS_DIE_SIGMA_M:
-            quantity = "sigma_m at rho 0.95 (MPa)" + (", particles holding their sphere's volume"
-                                                      if name.endswith("exact_volume") else "")
+            quantity = "sigma_m at rho 0.95 (MPa)" + (
+                ", particles holding their sphere's volume" if name.endswith("exact_volume") else ""
+            )
             r = row(name, quantity, thesis, ours[name])
             rows.append(r)
             cells += f" {100 * r['deviation']:+.1f} % | {r['status']} |"
         else:
             cells += " | |"
-        lines.append(cells + f" {100 * carrier_share(h)[-1]:.0f} % | {quasi_static_cell(h)} | "
-                             f"{run['wall_s'] / 60:.0f} min |")
+        lines.append(
+            cells + f" {100 * carrier_share(h)[-1]:.0f} % | {quasi_static_cell(h)} | "
+            f"{run['wall_s'] / 60:.0f} min |"
+        )
     if all(f"die_{bc}" in ours for bc in ("CLP", "CLPS", "GDF")):
         read = [quasi_static_die_run(done, bc) for bc in ("CLP", "CLPS", "GDF")]
-        values = [at_density(done[name]["history"], "sigma_m", 0.95, "rho_imposed") for name in read]
+        values = [
+            at_density(done[name]["history"], "sigma_m", 0.95, "rho_imposed") for name in read
+        ]
         ordered = values[0] > values[1] > values[2]
-        rows.append(judged_row("die", "ordering CLP > CLPS > GDF", 1.0, float(ordered), ordered,
-                               deviation=0.0 if ordered else float("nan")))
-        lines += ["", "The ordering CLP > CLPS > GDF read on " + ", ".join(
-            f"`{name}` ({value:.2f} MPa)" for name, value in zip(read, values))
+        rows.append(
+            judged_row(
+                "die",
+                "ordering CLP > CLPS > GDF",
+                1.0,
+                float(ordered),
+                ordered,
+                deviation=0.0 if ordered else float("nan"),
+            )
+        )
+        lines += [
+            "",
+            "The ordering CLP > CLPS > GDF read on "
+            + ", ".join(f"`{name}` ({value:.2f} MPa)" for name, value in zip(read, values))
             + f": {'met' if ordered else 'not met'} (each condition's die run, or its repeat with more "
-            "increments or another reduced mass where only the repeat passes its quasi-static check)."]
+            "increments or another reduced mass where only the repeat passes its quasi-static check).",
+        ]
     return rows, lines
 
 
@@ -150,7 +212,11 @@ def quasi_static_die_run(done: dict, bc: str) -> str:
     if quasi_static_check(done[name]["history"]).passed:
         return name
     for case in STAGES["increments"]:
-        if case.repeats == name and case.name in done and quasi_static_check(done[case.name]["history"]).passed:
+        if (
+            case.repeats == name
+            and case.name in done
+            and quasi_static_check(done[case.name]["history"]).passed
+        ):
             return case.name
     return name
 
@@ -162,11 +228,16 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
     (rho_imposed 0.90, 0.93), at its peak and at the end; a die variant's end at the thesis' d_bc
     is compared with the thesis (§2.7) like the die stage's (at another d_bc, or isotropic, it is
     not)."""
-    rows, lines = [], ["| condition | increments | reduced mass | sigma_m at rho_imposed 0.90 / 0.93 (MPa) | "
-                       "peak (MPa, at rho_imposed) "
-                       "| end (MPa) | unbalanced at the end | work through the carrier / W_ext (end) | "
-                       "quasi-static check | deviation from the thesis | status | wall |",
-                       "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    rows, lines = (
+        [],
+        [
+            "| condition | increments | reduced mass | sigma_m at rho_imposed 0.90 / 0.93 (MPa) | "
+            "peak (MPa, at rho_imposed) "
+            "| end (MPa) | unbalanced at the end | work through the carrier / W_ext (end) | "
+            "quasi-static check | deviation from the thesis | status | wall |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        ],
+    )
     groups = {}  # the repeated run -> its variants, in the stage's order
     for case in STAGES["increments"]:
         groups.setdefault(case.repeats, []).append(case)
@@ -174,31 +245,54 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
         repeated = CASES[repeated_name]
         bc = repeated.options["condition"]
         die = repeated.options["path"] == "die"
-        compared = die and "d_bc" not in repeated.options  # the thesis' value: die, at its d_bc (table 2.3)
-        condition = (bc if compared else f"{bc} at d_bc {repeated.d_bc:g} r_max" if die
-                     else f"{bc}, {repeated.options['loading']}")
+        compared = (
+            die and "d_bc" not in repeated.options
+        )  # the thesis' value: die, at its d_bc (table 2.3)
+        condition = (
+            bc
+            if compared
+            else f"{bc} at d_bc {repeated.d_bc:g} r_max"
+            if die
+            else f"{bc}, {repeated.options['loading']}"
+        )
         not_compared = "(other d_bc) |" if die else "(not in the thesis) |"
         for case in [repeated, *variants]:
             mass = case.options.get("constraint_mass", "lumped")
             run = done.get(case.name)
             if run is None:
-                lines.append(f"| {condition} | {case.increments} | {mass} | not run yet | | | | | | | | |")
+                lines.append(
+                    f"| {condition} | {case.increments} | {mass} | not run yet | | | | | | | | |"
+                )
                 continue
             h = run["history"]
             end = at_density(h, "sigma_m", 0.95, "rho_imposed")
             k = int(np.argmax(h["sigma_m"]))
-            differences = ([f"{mass} mass"] if mass != repeated.options.get("constraint_mass", "lumped") else []) + (
-                [f"{case.increments} increments"] if case.increments != repeated.increments else [])
+            differences = (
+                [f"{mass} mass"]
+                if mass != repeated.options.get("constraint_mass", "lumped")
+                else []
+            ) + (
+                [f"{case.increments} increments"] if case.increments != repeated.increments else []
+            )
             variant = "".join(f", {d}" for d in differences)
-            r = row(case.name, "sigma_m at rho 0.95 (MPa)" + variant, THESIS_DIE_SIGMA_M.get(bc, np.nan), end)
+            r = row(
+                case.name,
+                "sigma_m at rho 0.95 (MPa)" + variant,
+                THESIS_DIE_SIGMA_M.get(bc, np.nan),
+                end,
+            )
             if case is not repeated and compared:  # the repeated run's row is the die stage's
                 rows.append(r)
-            deviation = f"{100 * r['deviation']:+.1f} % | {r['status']}" if compared else not_compared
-            lines.append(f"| {condition} | {case.increments} | {mass} | {at_density(h, 'sigma_m', 0.90, 'rho_imposed'):.2f} / "
-                         f"{at_density(h, 'sigma_m', 0.93, 'rho_imposed'):.2f} | {h['sigma_m'][k]:.2f} "
-                         f"({h['rho_imposed'][k]:.3f}) | {end:.2f} | {h['unbalanced'][-1]:.2f} | "
-                         f"{100 * carrier_share(h)[-1]:.0f} % | {quasi_static_cell(h)} | "
-                         f"{deviation} | {run['wall_s'] / 60:.0f} min |")
+            deviation = (
+                f"{100 * r['deviation']:+.1f} % | {r['status']}" if compared else not_compared
+            )
+            lines.append(
+                f"| {condition} | {case.increments} | {mass} | {at_density(h, 'sigma_m', 0.90, 'rho_imposed'):.2f} / "
+                f"{at_density(h, 'sigma_m', 0.93, 'rho_imposed'):.2f} | {h['sigma_m'][k]:.2f} "
+                f"({h['rho_imposed'][k]:.3f}) | {end:.2f} | {h['unbalanced'][-1]:.2f} | "
+                f"{100 * carrier_share(h)[-1]:.0f} % | {quasi_static_cell(h)} | "
+                f"{deviation} | {run['wall_s'] / 60:.0f} min |"
+            )
     return rows, lines
 
 
@@ -226,7 +320,9 @@ def drift_noise(run: dict) -> np.ndarray:
     h, packing = run["history"], run.get("packing")
     if packing is None or "nonaffine" not in h:
         return np.full(len(h["h_v"]), np.nan)
-    return gradient_fit_noise_hd(packing.centres, h["nonaffine"] * float(np.mean(packing.radii)), h["h_v"])
+    return gradient_fit_noise_hd(
+        packing.centres, h["nonaffine"] * float(np.mean(packing.radii)), h["h_v"]
+    )
 
 
 def drift_above_noise(h_d, noise, h_v):
@@ -239,9 +335,16 @@ def path_ratio(history: dict, reference: dict) -> float:
     """Mean of sigma_d / the reference's sigma_d where each first reaches sigma_m = PATH_READ_AT
     (MPa), over the levels both reach: how far above (> 1) or below a run's stress path lies at
     equal pressure (NaN when they share no level)."""
-    ratios = np.array([at_density(history, "sigma_d", s, "sigma_m") / at_density(reference, "sigma_d", s, "sigma_m")
-                       for s in PATH_READ_AT])
-    return float(np.mean(ratios[np.isfinite(ratios)])) if np.isfinite(ratios).any() else float("nan")
+    ratios = np.array(
+        [
+            at_density(history, "sigma_d", s, "sigma_m")
+            / at_density(reference, "sigma_d", s, "sigma_m")
+            for s in PATH_READ_AT
+        ]
+    )
+    return (
+        float(np.mean(ratios[np.isfinite(ratios)])) if np.isfinite(ratios).any() else float("nan")
+    )
 
 
 def periodic_rows(done: dict) -> tuple[list[dict], list[str]]:
@@ -250,9 +353,11 @@ def periodic_rows(done: dict) -> tuple[list[dict], list[str]]:
     sigma_d(sigma_m) are alike except GDH's under die loading, higher (fig. 2.24b, d)."""
     rows = []
     levels = " / ".join(f"{s:g}" for s in PATH_READ_AT)
-    lines = ["| loading | condition | end sigma_m (MPa) | below CLP at the end (thesis < 20 %) | h_v where CLP rises "
-             f"above it (thesis) | sigma_d / CLP's at equal sigma_m ({levels} MPa, mean) | status |",
-             "|---|---|---|---|---|---|---|"]
+    lines = [
+        "| loading | condition | end sigma_m (MPa) | below CLP at the end (thesis < 20 %) | h_v where CLP rises "
+        f"above it (thesis) | sigma_d / CLP's at equal sigma_m ({levels} MPa, mean) | status |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for loading in ("isotropic", "die"):
         clp = done.get(f"{loading}_CLP")
         for bc in ("CLP", "CLPS", "GDF", "GDH"):
@@ -265,24 +370,51 @@ def periodic_rows(done: dict) -> tuple[list[dict], list[str]]:
             if bc in ("GDF", "GDH") and clp is not None:
                 gap = 1.0 - h["sigma_m"][-1] / clp["history"]["sigma_m"][-1]
                 ok = 0.0 <= gap < THESIS_NONPERIODIC_GAP
-                rows.append(judged_row(f"{loading}_{bc}", "sigma_m below CLP at the end (fraction)",
-                                       THESIS_NONPERIODIC_GAP, float(gap), ok))
+                rows.append(
+                    judged_row(
+                        f"{loading}_{bc}",
+                        "sigma_m below CLP at the end (fraction)",
+                        THESIS_NONPERIODIC_GAP,
+                        float(gap),
+                        ok,
+                    )
+                )
                 crossing = divergence_hv(clp["history"], h)
-                r = row(f"{loading}_{bc}", "h_v where CLP rises above it", THESIS_DIVERGENCE_HV[loading], crossing)
+                r = row(
+                    f"{loading}_{bc}",
+                    "h_v where CLP rises above it",
+                    THESIS_DIVERGENCE_HV[loading],
+                    crossing,
+                )
                 rows.append(r)
-                cells[:2] = [f"{100 * gap:.1f} %", f"{crossing:.3f} ({THESIS_DIVERGENCE_HV[loading]})"]
+                cells[:2] = [
+                    f"{100 * gap:.1f} %",
+                    f"{crossing:.3f} ({THESIS_DIVERGENCE_HV[loading]})",
+                ]
                 status += ["met" if ok else "not met", r["status"]]
             if loading == "die" and bc != "CLP" and clp is not None:
                 ratio = path_ratio(h, clp["history"])
                 higher = bc == "GDH"  # the thesis' exception; the others alike
                 ok = ratio > 1.0 + TOLERANCE if higher else abs(ratio - 1.0) <= TOLERANCE
-                rows.append(judged_row(f"{loading}_{bc}", "sigma_d / CLP's at equal sigma_m "
-                                       + ("(thesis: higher)" if higher else "(thesis: alike)"), 1.0, ratio, ok,
-                                       deviation=ratio - 1.0))
+                rows.append(
+                    judged_row(
+                        f"{loading}_{bc}",
+                        "sigma_d / CLP's at equal sigma_m "
+                        + ("(thesis: higher)" if higher else "(thesis: alike)"),
+                        1.0,
+                        ratio,
+                        ok,
+                        deviation=ratio - 1.0,
+                    )
+                )
                 cells[2] = f"{ratio:.3f} ({'higher' if higher else 'alike'})"
                 status.append("met" if ok else "not met")
             verdict = ("met" if all(s == "met" for s in status) else "not met") if status else ""
-            lines.append(f"| {loading} | {bc} | {h['sigma_m'][-1]:.2f} | " + " | ".join(cells) + f" | {verdict} |")
+            lines.append(
+                f"| {loading} | {bc} | {h['sigma_m'][-1]:.2f} | "
+                + " | ".join(cells)
+                + f" | {verdict} |"
+            )
     return rows, lines
 
 
@@ -291,9 +423,13 @@ def drift_rows(done: dict) -> tuple[list[dict], list[str]]:
     %), CLP about 0 (here: below 3 %). The drift is judged above the noise the centroid fit reads
     from the non-affine motion (``drift_noise``), taken out in quadrature."""
     rows = []
-    lines = ["| condition | end h_d / abs(h_v) | the centroid fit's noise / abs(h_v), end | drift above the noise / "
-             "abs(h_v), end (thesis) | h_d / noise at rho_imposed " + " / ".join(f"{r:g}" for r in DRIFT_READ_AT)
-             + " / end | status |", "|---|---|---|---|---|---|"]
+    lines = [
+        "| condition | end h_d / abs(h_v) | the centroid fit's noise / abs(h_v), end | drift above the noise / "
+        "abs(h_v), end (thesis) | h_d / noise at rho_imposed "
+        + " / ".join(f"{r:g}" for r in DRIFT_READ_AT)
+        + " / end | status |",
+        "|---|---|---|---|---|---|",
+    ]
     for bc in ("CLP", "CLPS", "GDF", "GDH"):
         run = done.get(f"isotropic_{bc}")
         if run is None:
@@ -304,17 +440,29 @@ def drift_rows(done: dict) -> tuple[list[dict], list[str]]:
         above = float(drift_above_noise(h["h_d"][-1], noise[-1], h["h_v"][-1]))
         with np.errstate(invalid="ignore", divide="ignore"):  # 0 / 0 before the first contact
             ratio = h["h_d"] / noise
-        ratios = [at_density(dict(h, ratio=ratio), "ratio", r, "rho_imposed") for r in DRIFT_READ_AT]
+        ratios = [
+            at_density(dict(h, ratio=ratio), "ratio", r, "rho_imposed") for r in DRIFT_READ_AT
+        ]
         thesis, verdict = "", ""
         if bc in ("GDF", "CLP"):
             lo, hi = THESIS_GDF_DRIFT if bc == "GDF" else (0.0, CLP_DRIFT_LIMIT)
             ok = lo <= above <= hi
-            rows.append(judged_row(f"isotropic_{bc}", "h_d / abs(h_v) at the end, above the centroid fit's noise",
-                                   0.5 * (lo + hi), above, ok))
+            rows.append(
+                judged_row(
+                    f"isotropic_{bc}",
+                    "h_d / abs(h_v) at the end, above the centroid fit's noise",
+                    0.5 * (lo + hi),
+                    above,
+                    ok,
+                )
+            )
             thesis, verdict = f" ({lo:g}-{hi:g})", "met" if ok else "not met"
-        lines.append(f"| {bc} | {h['h_d'][-1] / abs(h['h_v'][-1]):.4f} | {noise[-1] / abs(h['h_v'][-1]):.4f} | "
-                     f"{above:.4f}{thesis} | " + " / ".join(f"{r:.1f}" for r in ratios + [float(ratio[-1])])
-                     + f" | {verdict} |")
+        lines.append(
+            f"| {bc} | {h['h_d'][-1] / abs(h['h_v'][-1]):.4f} | {noise[-1] / abs(h['h_v'][-1]):.4f} | "
+            f"{above:.4f}{thesis} | "
+            + " / ".join(f"{r:.1f}" for r in ratios + [float(ratio[-1])])
+            + f" | {verdict} |"
+        )
     return rows, lines
 
 
@@ -331,8 +479,9 @@ def stable_dbc(d_bc: list[float], readings: list, within: float = DBC_STABLE_WIT
         deviation = np.abs(s / s[-1] - 1.0)
     # close: within where both read, and at least one point read by both (a run that reaches none
     # of the reference's reading densities says nothing in its favour)
-    close = (np.all(np.isnan(deviation) | (deviation <= within), axis=1)
-             & np.any(np.isfinite(deviation), axis=1))
+    close = np.all(np.isnan(deviation) | (deviation <= within), axis=1) & np.any(
+        np.isfinite(deviation), axis=1
+    )
     k = len(d) - 1
     while k > 0 and close[k - 1]:
         k -= 1
@@ -374,11 +523,16 @@ def dbc_rows(done: dict) -> tuple[list[dict], list[str]]:
     both runs reach). With two finished runs or more the verdicts read those and name the runs
     still missing."""
     reads = " / ".join(f"{rho:g}" for rho in DBC_READ_AT)
-    rows, lines = [], [f"| condition | sigma_m (MPa) at rho_imposed {reads} / end, per d_bc / r_max (end in "
-                       "brackets: not quasi-static, left out) | stable from (ours, rho_imposed) | sigma_m (MPa) at "
-                       f"rho {reads} (eq. 2.4: the centroids' F, the thesis' abscissa; - where not reached) | "
-                       "stable from (ours, eq. 2.4) | thesis table 2.3 | status (rho_imposed / eq. 2.4) |",
-                       "|---|---|---|---|---|---|---|"]
+    rows, lines = (
+        [],
+        [
+            f"| condition | sigma_m (MPa) at rho_imposed {reads} / end, per d_bc / r_max (end in "
+            "brackets: not quasi-static, left out) | stable from (ours, rho_imposed) | sigma_m (MPa) at "
+            f"rho {reads} (eq. 2.4: the centroids' F, the thesis' abscissa; - where not reached) | "
+            "stable from (ours, eq. 2.4) | thesis table 2.3 | status (rho_imposed / eq. 2.4) |",
+            "|---|---|---|---|---|---|---|",
+        ],
+    )
     for bc in DBC_GRID:
         runs = dbc_runs(done, bc)
         finished = {d: r["history"] for d, r in sorted(runs.items()) if r is not None}
@@ -394,33 +548,55 @@ def dbc_rows(done: dict) -> tuple[list[dict], list[str]]:
                 if brackets and not np.isfinite(v[-1]):
                     text[-1] = f"({finished[d]['sigma_m'][-1]:.2f})"
                 return f"{d:g}: " + " / ".join(text)
+
             return "; ".join(cell(d) for d in sorted(runs))
 
         if len(finished) < 2:
-            lines.append(f"| {bc} | {cells(imposed, True)} | | {cells(centroids, False)} | | "
-                         f"{THESIS_STABLE_DBC[bc]} | |")
+            lines.append(
+                f"| {bc} | {cells(imposed, True)} | | {cells(centroids, False)} | | "
+                f"{THESIS_STABLE_DBC[bc]} | |"
+            )
             continue
         missing = [f"{d:g}" for d in sorted(runs) if d not in finished]
         said, verdicts = [], []
-        for readings, quantity in ((imposed, "stable d_bc / r_max"),
-                                   (centroids, "stable d_bc / r_max at equal rho (eq. 2.4)")):
+        for readings, quantity in (
+            (imposed, "stable d_bc / r_max"),
+            (centroids, "stable d_bc / r_max at equal rho (eq. 2.4)"),
+        ):
             ours = stable_dbc(list(readings), list(readings.values()))
             ok = ours <= THESIS_STABLE_DBC[bc]
-            rows.append(judged_row(f"dbc_{bc}", quantity, THESIS_STABLE_DBC[bc], ours, ok,
-                                   deviation=ours / THESIS_STABLE_DBC[bc] - 1))
-            text = f"{ours:g}" if ours < max(finished) else f"{ours:g} (the largest run: not shown stable)"
+            rows.append(
+                judged_row(
+                    f"dbc_{bc}",
+                    quantity,
+                    THESIS_STABLE_DBC[bc],
+                    ours,
+                    ok,
+                    deviation=ours / THESIS_STABLE_DBC[bc] - 1,
+                )
+            )
+            text = (
+                f"{ours:g}"
+                if ours < max(finished)
+                else f"{ours:g} (the largest run: not shown stable)"
+            )
             if missing:  # a verdict on the finished runs, to be read again when the others land
                 text += f", {' / '.join(missing)} r_max not run yet"
             said.append(text)
             verdicts.append("met" if ok else "not met")
-        lines.append(f"| {bc} | {cells(imposed, True)} | {said[0]} | {cells(centroids, False)} | {said[1]} | "
-                     f"{THESIS_STABLE_DBC[bc]} | {' / '.join(verdicts)} |")
+        lines.append(
+            f"| {bc} | {cells(imposed, True)} | {said[0]} | {cells(centroids, False)} | {said[1]} | "
+            f"{THESIS_STABLE_DBC[bc]} | {' / '.join(verdicts)} |"
+        )
     return rows, lines
 
 
 #: the size stage's runs: (particles, packing seed, GDF run, the CLP run on the same packing)
-SIZE_PAIRS = ((50, 1, "isotropic_GDF", "isotropic_CLP"), (50, 2, "size_GDF_50_seed2", "size_CLP_50_seed2"),
-              (150, 1, "size_GDF_150", "size_CLP_150"))
+SIZE_PAIRS = (
+    (50, 1, "isotropic_GDF", "isotropic_CLP"),
+    (50, 2, "size_GDF_50_seed2", "size_CLP_50_seed2"),
+    (150, 1, "size_GDF_150", "size_CLP_150"),
+)
 SIZE_SMALL, SIZE_LARGE = 50, 150  # the sizes compared
 
 
@@ -435,10 +611,12 @@ def size_rows(done: dict) -> tuple[list[dict], list[str]]:
     quantity against the whole path. A quantity "falls with N" when the 150-particle value lies
     below every finished 50-particle packing's: a second 50-particle packing makes the test
     stricter by its spread."""
-    lines = ["| particles | packing (seed) | run | end sigma_d (MPa) | end h_d | the centroid fit's noise, end | "
-             "end h_d above the noise | mean sigma_d / sigma_m (sigma_m > 1 MPa) | sigma_m at rho 0.90 (centroids, MPa) | "
-             "gap to CLP there | end sigma_m (rho_imposed 0.95, MPa) | rho of the centroids, end | below CLP at the end |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| particles | packing (seed) | run | end sigma_d (MPa) | end h_d | the centroid fit's noise, end | "
+        "end h_d above the noise | mean sigma_d / sigma_m (sigma_m > 1 MPa) | sigma_m at rho 0.90 (centroids, MPa) | "
+        "gap to CLP there | end sigma_m (rho_imposed 0.95, MPa) | rho of the centroids, end | below CLP at the end |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     rows, values = [], {}  # values[particles]: the GDF runs' quantities, one tuple per packing
     for particles, seed, *names in SIZE_PAIRS:
         clp = done.get(names[1])
@@ -449,22 +627,39 @@ def size_rows(done: dict) -> tuple[list[dict], list[str]]:
                 continue
             h = run["history"]
             s90 = at_density(h, "sigma_m", 0.90)
-            gap = (1 - s90 / at_density(clp["history"], "sigma_m", 0.90)) if clp is not None else float("nan")
-            below = (1 - h["sigma_m"][-1] / clp["history"]["sigma_m"][-1]) if clp is not None else float("nan")
+            gap = (
+                (1 - s90 / at_density(clp["history"], "sigma_m", 0.90))
+                if clp is not None
+                else float("nan")
+            )
+            below = (
+                (1 - h["sigma_m"][-1] / clp["history"]["sigma_m"][-1])
+                if clp is not None
+                else float("nan")
+            )
             noise = drift_noise(run)[-1]
             h_d = float(drift_above_noise(h["h_d"][-1], noise, h["h_v"][-1]) * abs(h["h_v"][-1]))
             loaded = h["sigma_m"] > 1.0
-            path = float(np.mean(h["sigma_d"][loaded] / h["sigma_m"][loaded])) if loaded.any() else float("nan")
+            path = (
+                float(np.mean(h["sigma_d"][loaded] / h["sigma_m"][loaded]))
+                if loaded.any()
+                else float("nan")
+            )
             if name == names[0]:
                 values.setdefault(particles, []).append((h["sigma_d"][-1], path, h_d, abs(below)))
-            lines.append(f"| {particles} | {seed} | {name} | {h['sigma_d'][-1]:.3f} | {h['h_d'][-1]:.4f} | {noise:.4f} | "
-                         f"{h_d:.4f} | {path:.4f} | {s90:.2f} | {100 * gap:+.1f} % | {h['sigma_m'][-1]:.2f} | "
-                         f"{h['rho'][-1]:.4f} | {100 * below:+.1f} % |")
+            lines.append(
+                f"| {particles} | {seed} | {name} | {h['sigma_d'][-1]:.3f} | {h['h_d'][-1]:.4f} | {noise:.4f} | "
+                f"{h_d:.4f} | {path:.4f} | {s90:.2f} | {100 * gap:+.1f} % | {h['sigma_m'][-1]:.2f} | "
+                f"{h['rho'][-1]:.4f} | {100 * below:+.1f} % |"
+            )
     small, large = values.get(SIZE_SMALL, []), values.get(SIZE_LARGE, [])
     if small and large:
-        quantities = ["end sigma_d falls with N", "sigma_d / sigma_m along the path (mean, sigma_m > 1 MPa) falls with N",
-                      "end h_d above the centroid fit's noise falls with N",
-                      "end gap to CLP on the same packing (rho_imposed 0.95) falls with N"]
+        quantities = [
+            "end sigma_d falls with N",
+            "sigma_d / sigma_m along the path (mean, sigma_m > 1 MPa) falls with N",
+            "end h_d above the centroid fit's noise falls with N",
+            "end gap to CLP on the same packing (rho_imposed 0.95) falls with N",
+        ]
         for k, quantity in enumerate(quantities):
             small_k = [v[k] for v in small if np.isfinite(v[k])]
             if not small_k or not np.isfinite(large[0][k]):
@@ -472,36 +667,57 @@ def size_rows(done: dict) -> tuple[list[dict], list[str]]:
             ok = large[0][k] < min(small_k)
             if len(small_k) > 1:
                 quantity += f" (below each of {len(small_k)} 50-particle packings)"
-            rows.append(judged_row("size_GDF", quantity, 1.0, float(ok), ok, deviation=0.0 if ok else float("nan")))
+            rows.append(
+                judged_row(
+                    "size_GDF", quantity, 1.0, float(ok), ok, deviation=0.0 if ok else float("nan")
+                )
+            )
     return rows, lines
 
 
 def sensitivity_lines(done: dict) -> tuple[list[dict], list[str]]:
     """The thesis' contradictions: the values used against the other one (no thesis number:
     shown in the README, not compared in summary.csv)."""
-    lines = ["| parameter | used (run) | other value (run) | end sigma_m used / other (MPa) | end Gamma used / other "
-             "(1/mm) |", "|---|---|---|---|---|"]
-    for parameter, used, other in (("hardening exponent n: 0.35 (table 2.1) / 0.36 (input file)", "die_CLP",
-                                    "die_CLP_n0.36"),
-                                   ("delta_max: 0.5 um (text) / 0.2 um (appendix A)", "die_CLP_gamma1e-2",
-                                    "die_CLP_gamma1e-2_dmax0.2um")):
+    lines = [
+        "| parameter | used (run) | other value (run) | end sigma_m used / other (MPa) | end Gamma used / other "
+        "(1/mm) |",
+        "|---|---|---|---|---|",
+    ]
+    for parameter, used, other in (
+        ("hardening exponent n: 0.35 (table 2.1) / 0.36 (input file)", "die_CLP", "die_CLP_n0.36"),
+        (
+            "delta_max: 0.5 um (text) / 0.2 um (appendix A)",
+            "die_CLP_gamma1e-2",
+            "die_CLP_gamma1e-2_dmax0.2um",
+        ),
+    ):
         a, b = done.get(used), done.get(other)
         if a is None or b is None:
-            lines.append(f"| {parameter} | {used}{'' if a else ' (not run yet)'} | {other}"
-                         f"{'' if b else ' (not run yet)'} | | |")
+            lines.append(
+                f"| {parameter} | {used}{'' if a else ' (not run yet)'} | {other}"
+                f"{'' if b else ' (not run yet)'} | | |"
+            )
             continue
         ha, hb = a["history"], b["history"]
-        lines.append(f"| {parameter} | {used} | {other} | {ha['sigma_m'][-1]:.3f} / {hb['sigma_m'][-1]:.3f} "
-                     f"({100 * (hb['sigma_m'][-1] / ha['sigma_m'][-1] - 1):+.1f} %) | "
-                     f"{ha['Gamma'][-1]:.2f} / {hb['Gamma'][-1]:.2f} |")
+        lines.append(
+            f"| {parameter} | {used} | {other} | {ha['sigma_m'][-1]:.3f} / {hb['sigma_m'][-1]:.3f} "
+            f"({100 * (hb['sigma_m'][-1] / ha['sigma_m'][-1] - 1):+.1f} %) | "
+            f"{ha['Gamma'][-1]:.2f} / {hb['Gamma'][-1]:.2f} |"
+        )
     return [], lines
 
 
 def stress_rows(done: dict) -> tuple[list[dict], list[str]]:
     """Thesis fig. 2.21: Love-Weber, Schmidt and the volume average "quasiment identiques" on the
     CLP volume: compared at the end and over the loaded rows (sigma_m > 1 MPa)."""
-    rows, lines = [], ["| case | end: Love-Weber / Schmidt / volume average | max gap Schmidt vs LW (loaded rows) | "
-                       "max gap volume vs LW | status (within 2 %) |", "|---|---|---|---|---|"]
+    rows, lines = (
+        [],
+        [
+            "| case | end: Love-Weber / Schmidt / volume average | max gap Schmidt vs LW (loaded rows) | "
+            "max gap volume vs LW | status (within 2 %) |",
+            "|---|---|---|---|---|",
+        ],
+    )
     for name in ("die_CLP", "isotropic_CLP_gamma1e-2"):
         run = done.get(name)
         if run is None:
@@ -513,12 +729,20 @@ def stress_rows(done: dict) -> tuple[list[dict], list[str]]:
         loaded = lw > 1.0
         gap_s = float(np.abs(schmidt[loaded] / lw[loaded] - 1).max())
         gap_v = float(np.abs(vol[loaded] / lw[loaded] - 1).max())
-        for quantity, ours in (("sigma_m Schmidt / Love-Weber, end", schmidt[-1] / lw[-1]),
-                               ("sigma_m volume average / Love-Weber, end", vol[-1] / lw[-1])):
+        for quantity, ours in (
+            ("sigma_m Schmidt / Love-Weber, end", schmidt[-1] / lw[-1]),
+            ("sigma_m volume average / Love-Weber, end", vol[-1] / lw[-1]),
+        ):
             rows.append(row(name, quantity, 1.0, float(ours), tolerance=0.02))
-        status = "met" if max(abs(schmidt[-1] / lw[-1] - 1), abs(vol[-1] / lw[-1] - 1)) <= 0.02 else "not met"
-        lines.append(f"| {name} | {lw[-1]:.3f} / {schmidt[-1]:.3f} / {vol[-1]:.3f} | {100 * gap_s:.1f} % | "
-                     f"{100 * gap_v:.1f} % | {status} (end) |")
+        status = (
+            "met"
+            if max(abs(schmidt[-1] / lw[-1] - 1), abs(vol[-1] / lw[-1] - 1)) <= 0.02
+            else "not met"
+        )
+        lines.append(
+            f"| {name} | {lw[-1]:.3f} / {schmidt[-1]:.3f} / {vol[-1]:.3f} | {100 * gap_s:.1f} % | "
+            f"{100 * gap_v:.1f} % | {status} (end) |"
+        )
     return rows, lines
 
 
@@ -529,35 +753,55 @@ def gamma_rows(done: dict) -> tuple[list[dict], list[str]]:
     of the model (Gamma_model, its footnote 4 of §4.4.1). Status on the GDF model's Gamma_model.
     For reference, not compared: Gamma_model of the chapter-2 GDF run (no adhesion), which isolates
     the definition of S from the adhesion."""
-    rows, lines = [], ["| loading | rho_f | thesis Gamma_l (table 4.2) | CLP: Gamma | GDF: Gamma (volume) | "
-                       "GDF: Gamma_model (every contact) | deviation (Gamma_model) | status | "
-                       "GDF without adhesion: Gamma_model |",
-                       "|---|---|---|---|---|---|---|---|---|"]
+    rows, lines = (
+        [],
+        [
+            "| loading | rho_f | thesis Gamma_l (table 4.2) | CLP: Gamma | GDF: Gamma (volume) | "
+            "GDF: Gamma_model (every contact) | deviation (Gamma_model) | status | "
+            "GDF without adhesion: Gamma_model |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ],
+    )
     for loading, table in THESIS_GAMMA_L.items():
         clp, gdf = done.get(f"{loading}_CLP_gamma1e-2"), done.get(f"{loading}_GDF_gamma1e-2")
         dry = done.get(f"{loading}_GDF")  # the chapter-2 run, gamma = 0
         for rho_f, thesis in table.items():
             cells = []
-            for name, run, column in ((f"{loading}_CLP_gamma1e-2", clp, "Gamma"),
-                                      (f"{loading}_GDF_gamma1e-2", gdf, "Gamma"),
-                                      (f"{loading}_GDF_gamma1e-2", gdf, "Gamma_model")):
+            for name, run, column in (
+                (f"{loading}_CLP_gamma1e-2", clp, "Gamma"),
+                (f"{loading}_GDF_gamma1e-2", gdf, "Gamma"),
+                (f"{loading}_GDF_gamma1e-2", gdf, "Gamma_model"),
+            ):
                 if run is None:
                     cells.append(None)
                     continue
-                value = at_density(run["history"], column, rho_f, "rho_imposed") \
-                    if column in run["history"] else float("nan")
+                value = (
+                    at_density(run["history"], column, rho_f, "rho_imposed")
+                    if column in run["history"]
+                    else float("nan")
+                )
                 cells.append(value)
                 rows.append(row(name, f"{column} at rho_f {rho_f} (mm^-1)", thesis, value))
             text = ["not run yet" if v is None else f"{v:.2f}" for v in cells]
             last = rows[-1] if cells[2] is not None else None
-            dry_text = ("not run yet" if dry is None else "not recorded" if "Gamma_model" not in dry["history"]
-                        else f"{at_density(dry['history'], 'Gamma_model', rho_f, 'rho_imposed'):.2f}")
+            dry_text = (
+                "not run yet"
+                if dry is None
+                else "not recorded"
+                if "Gamma_model" not in dry["history"]
+                else f"{at_density(dry['history'], 'Gamma_model', rho_f, 'rho_imposed'):.2f}"
+            )
             verdict = " | |"
             if last is not None:
-                deviation = (f"{100 * last['deviation']:+.1f} %" if np.isfinite(last["deviation"])
-                             else "(rho_f below the packing's start)")
+                deviation = (
+                    f"{100 * last['deviation']:+.1f} %"
+                    if np.isfinite(last["deviation"])
+                    else "(rho_f below the packing's start)"
+                )
                 verdict = f"{deviation} | {last['status']} |"
-            lines.append(f"| {loading} | {rho_f} | {thesis} | {' | '.join(text)} | {verdict} {dry_text} |")
+            lines.append(
+                f"| {loading} | {rho_f} | {thesis} | {' | '.join(text)} | {verdict} {dry_text} |"
+            )
     return rows, lines
 
 
@@ -589,7 +833,9 @@ def surface_axis_deg(points: np.ndarray) -> float:
     """Orientation of a closed surface in the (sigma_m, sigma~_d) plane: the angle (deg, from the
     sigma_m axis, in (-90, 90]) of the major axis of its polygon (the points sorted by phi,
     resampled uniformly along the perimeter so that dense stretches do not weigh more)."""
-    loop = np.vstack([points[np.argsort(points[:, 0]), 1:], points[np.argsort(points[:, 0])[:1], 1:]])
+    loop = np.vstack(
+        [points[np.argsort(points[:, 0]), 1:], points[np.argsort(points[:, 0])[:1], 1:]]
+    )
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(loop, axis=0), axis=1))])
     t = np.linspace(0.0, arc[-1], 721)[:-1]
     xy = np.column_stack([np.interp(t, arc, loop[:, 0]), np.interp(t, arc, loop[:, 1])])
@@ -602,14 +848,21 @@ def surface_axis_deg(points: np.ndarray) -> float:
 def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
     """Thesis table 4.2 (Gamma_l from a fan, §4.4) and the fans' surfaces: one row per fan of
     the fans stage. Status on Gamma_l for the fans with gamma 1e-2 at a row of the table."""
-    rows, lines = [], ["| fan | loading, rho_f, gamma (mJ/mm^2), A / h_v^d, min reload increments, reload profile | sigma_m loaded / unloaded (MPa) | yield points | "
-                       "Gamma unloaded (1/mm) | Gamma_l ours (1/mm) | thesis Gamma_l (table 4.2) | deviation | status | "
-                       "uniaxial compressive yield / tensile rupture (MPa) | wall |",
-                       "|---|---|---|---|---|---|---|---|---|---|---|"]
+    rows, lines = (
+        [],
+        [
+            "| fan | loading, rho_f, gamma (mJ/mm^2), A / h_v^d, min reload increments, reload profile | sigma_m loaded / unloaded (MPa) | yield points | "
+            "Gamma unloaded (1/mm) | Gamma_l ours (1/mm) | thesis Gamma_l (table 4.2) | deviation | status | "
+            "uniaxial compressive yield / tensile rupture (MPa) | wall |",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
+        ],
+    )
     for case in STAGES["fans"]:
         fan = done.get(case.name)
-        head = (f"| {case.name} | {case.loading}, {case.rho_f:g}, {case.gamma:g}, {case.amplitude_factor:g}, "
-                f"{case.min_reload_increments}, {case.reload_profile} |")
+        head = (
+            f"| {case.name} | {case.loading}, {case.rho_f:g}, {case.gamma:g}, {case.amplitude_factor:g}, "
+            f"{case.min_reload_increments}, {case.reload_profile} |"
+        )
         if fan is None:
             lines.append(head + " not run yet | | | | | | | | |")
             continue
@@ -622,20 +875,29 @@ def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
             r = row(case.name, f"Gamma_l from a fan at rho_f {case.rho_f} (mm^-1)", thesis, g_l)
             rows.append(r)
             drop = 100 * fan.get("gamma_drop", np.nan)
-            status = (f"{100 * r['deviation']:+.1f} % | {r['status']}" if np.isfinite(g_l) else
-                      f"- | not met: no contact collapse within the reloads (Gamma falls by at most {drop:.1f} %)"
-                      if not drop >= 100 * MIN_GAMMA_COLLAPSE else
-                      f"- | not met: Gamma falls by up to {drop:.1f} %, gradually: the iso-Gamma curves do not "
-                      f"superpose")
+            status = (
+                f"{100 * r['deviation']:+.1f} % | {r['status']}"
+                if np.isfinite(g_l)
+                else f"- | not met: no contact collapse within the reloads (Gamma falls by at most {drop:.1f} %)"
+                if not drop >= 100 * MIN_GAMMA_COLLAPSE
+                else f"- | not met: Gamma falls by up to {drop:.1f} %, gradually: the iso-Gamma curves do not "
+                f"superpose"
+            )
         crossing = len(fan["surfaces"].get(f"gamma_{g_l:.6g}", ()))
-        g_text = f"{g_l:.2f} ({crossing}/{case.nphi} reloads cross it)" if np.isfinite(g_l) else "none"
+        g_text = (
+            f"{g_l:.2f} ({crossing}/{case.nphi} reloads cross it)" if np.isfinite(g_l) else "none"
+        )
         rupture = rupture_kind(fan)
-        strengths = (f"{uniaxial(fan, 'yield', 'compressive'):.3g} / {uniaxial(fan, rupture, 'tensile'):.3g} "
-                     f"({'Gamma_l' if rupture and rupture.startswith('gamma') else rupture or 'no rupture'})")
-        lines.append(f"{head} {unloaded['sigma_m_loaded']:.3f} / {unloaded['sigma_m_unloaded']:.3f} | "
-                     f"{summary['points'].get('yield', 0)}/{case.nphi} | {unloaded['Gamma_unloaded']:.2f} | "
-                     f"{g_text} | {thesis if thesis is not None else '-'} | {status} | "
-                     f"{strengths} | {fan['wall_s'] / 60:.0f} min |")
+        strengths = (
+            f"{uniaxial(fan, 'yield', 'compressive'):.3g} / {uniaxial(fan, rupture, 'tensile'):.3g} "
+            f"({'Gamma_l' if rupture and rupture.startswith('gamma') else rupture or 'no rupture'})"
+        )
+        lines.append(
+            f"{head} {unloaded['sigma_m_loaded']:.3f} / {unloaded['sigma_m_unloaded']:.3f} | "
+            f"{summary['points'].get('yield', 0)}/{case.nphi} | {unloaded['Gamma_unloaded']:.2f} | "
+            f"{g_text} | {thesis if thesis is not None else '-'} | {status} | "
+            f"{strengths} | {fan['wall_s'] / 60:.0f} min |"
+        )
     return rows, lines
 
 
@@ -651,7 +913,9 @@ def surface_shift(fan: dict, ref: dict, kind: str) -> tuple[float, int]:
     for phi, m, d in b:
         same = a[np.isclose(a[:, 0], phi)]
         if len(same):
-            shifts.append(np.linalg.norm(same[0, 1:] - centre) / np.linalg.norm([m - centre[0], d]) - 1.0)
+            shifts.append(
+                np.linalg.norm(same[0, 1:] - centre) / np.linalg.norm([m - centre[0], d]) - 1.0
+            )
     return (float(np.max(np.abs(shifts))), len(shifts)) if shifts else (float("nan"), 0)
 
 
@@ -661,10 +925,13 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
     reloads' discretization and how far the surfaces move (a threshold surface must not depend on
     how far or how fast the reloads go once they are quasi-static), point by point in the
     directions where both fans cross it."""
-    lines = ["| fan | compared with | reload A (1e-3) / increments / mean strain rate (1/s) / profile | yield points | "
-             "yield: largest shift (common directions) | W2: largest shift (common directions) | "
-             "uniaxial compressive yield (MPa) | tensile rupture (MPa) | isotropic recompression yield / loaded "
-             "sigma_m | reading |", "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| fan | compared with | reload A (1e-3) / increments / mean strain rate (1/s) / profile | yield points | "
+        "yield: largest shift (common directions) | W2: largest shift (common directions) | "
+        "uniaxial compressive yield (MPa) | tensile rupture (MPa) | isotropic recompression yield / loaded "
+        "sigma_m | reading |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for case in STAGES["fans"]:
         if case.is_thesis_fan:
             continue
@@ -675,24 +942,34 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
 
         def discretization(f):
             r = f["summary"].get("reload")
-            return "?" if r is None else (f"{1e3 * r['amplitude']:.3g} / {r['steps']} / {r['strain_rate_per_s']:.3g}"
-                                          f" / {r.get('profile', 'smooth-step')}")
+            return (
+                "?"
+                if r is None
+                else (
+                    f"{1e3 * r['amplitude']:.3g} / {r['steps']} / {r['strain_rate_per_s']:.3g}"
+                    f" / {r.get('profile', 'smooth-step')}"
+                )
+            )
 
         def change(kind, which):
             ours, theirs = (uniaxial(f, kind(f), which) for f in (fan, ref))
-            return f"{ours:.3g} vs {theirs:.3g}" + (f" ({100 * (ours / theirs - 1):+.0f} %)"
-                                                    if np.isfinite(ours / theirs) else "")
+            return f"{ours:.3g} vs {theirs:.3g}" + (
+                f" ({100 * (ours / theirs - 1):+.0f} %)" if np.isfinite(ours / theirs) else ""
+            )
 
         shifts = {kind: surface_shift(fan, ref, kind) for kind in ("yield", "w2")}
         reading = "; ".join(
             f"{kind} {'not compared' if not n else f'within {100 * x:.1f} %' if x <= 0.05 else f'moves by up to {100 * x:.0f} %'}"
-            for kind, (x, n) in shifts.items())
-        lines.append(f"| {case.name} | {case.compared_with} | {discretization(fan)} vs {discretization(ref)} | "
-                     f"{fan['summary']['points'].get('yield', 0)} vs {ref['summary']['points'].get('yield', 0)} "
-                     f"of {case.nphi} | "
-                     + " | ".join(f"{100 * x:.1f} % ({n})" if n else "-" for x, n in shifts.values())
-                     + f" | {change(lambda f: 'yield', 'compressive')} | {change(rupture_kind, 'tensile')} | "
-                     f"{recompression_ratio(fan):.3f} vs {recompression_ratio(ref):.3f} | {reading} |")
+            for kind, (x, n) in shifts.items()
+        )
+        lines.append(
+            f"| {case.name} | {case.compared_with} | {discretization(fan)} vs {discretization(ref)} | "
+            f"{fan['summary']['points'].get('yield', 0)} vs {ref['summary']['points'].get('yield', 0)} "
+            f"of {case.nphi} | "
+            + " | ".join(f"{100 * x:.1f} % ({n})" if n else "-" for x, n in shifts.values())
+            + f" | {change(lambda f: 'yield', 'compressive')} | {change(rupture_kind, 'tensile')} | "
+            f"{recompression_ratio(fan):.3f} vs {recompression_ratio(ref):.3f} | {reading} |"
+        )
     return [], lines
 
 
@@ -700,8 +977,12 @@ def closed_yield_fan(fans: dict, name: str) -> str:
     """``name``, or, if its yield surface is open, the fan sharing its loading with reloads at the
     same strain rate (within 1 %) and profile but further (a larger A) whose yield surface is
     closed: the yield points do not depend on A at a given rate (the reload study), more reach them."""
+
     def closed(n):
-        return fans.get(n) is not None and len(fans[n]["surfaces"].get("yield", ())) == fans[n]["case"].nphi
+        return (
+            fans.get(n) is not None
+            and len(fans[n]["surfaces"].get("yield", ())) == fans[n]["case"].nphi
+        )
 
     def reloads(n):  # the recorded mean strain rate and profile of the reloads
         r = fans[n]["summary"].get("reload") or {}
@@ -726,46 +1007,91 @@ def trend_lines(done: dict) -> tuple[list[dict], list[str]]:
     def add(trend, names, numbers, shown):
         missing = [n for n in names if fans.get(n) is None]
         waiting = "; ".join(x for x in (numbers, f"not run yet: {', '.join(missing)}") if x)
-        lines.append(f"| {trend} | {', '.join(names)} | " + (f"{waiting} | |" if missing
-                                                             else f"{numbers} | {'shown' if shown else 'not shown'} |"))
+        lines.append(
+            f"| {trend} | {', '.join(names)} | "
+            + (
+                f"{waiting} | |"
+                if missing
+                else f"{numbers} | {'shown' if shown else 'not shown'} |"
+            )
+        )
 
     a, b = "fan_isotropic_0.87", "fan_isotropic_0.87_gamma0"
     if fans[a] and fans[b] and "yield" in fans[a]["surfaces"] and "yield" in fans[b]["surfaces"]:
         low_a, low_b = (float(fans[n]["surfaces"]["yield"][:, 1].min()) for n in (a, b))
-        add("with gamma = 1e-2 the yield surface reaches sigma_m < 0 (§4.3.2, fig. 4.7)", [a, b],
-            f"lowest yield sigma_m {low_a:.3f} MPa with adhesion, {low_b:.3f} without", low_a < 0 <= low_b + 1e-3)
+        add(
+            "with gamma = 1e-2 the yield surface reaches sigma_m < 0 (§4.3.2, fig. 4.7)",
+            [a, b],
+            f"lowest yield sigma_m {low_a:.3f} MPa with adhesion, {low_b:.3f} without",
+            low_a < 0 <= low_b + 1e-3,
+        )
     else:
-        known = "; ".join(f"{n}: lowest yield sigma_m {float(fans[n]['surfaces']['yield'][:, 1].min()):.3f} MPa"
-                          for n in (a, b) if fans[n] and "yield" in fans[n]["surfaces"])
-        add("with gamma = 1e-2 the yield surface reaches sigma_m < 0 (§4.3.2, fig. 4.7)", [a, b], known, False)
-    adhesive = [closed_yield_fan(fans, c.name) for c in STAGES["fans"] if c.gamma > 0 and c.is_thesis_fan]
-    pairs = [(n, uniaxial(fans[n], "yield", "compressive"), uniaxial(fans[n], rupture_kind(fans[n]), "tensile"))
-             for n in adhesive if fans[n]]
-    add("uniaxial compressive yield > tensile rupture (§4.5)", adhesive,
+        known = "; ".join(
+            f"{n}: lowest yield sigma_m {float(fans[n]['surfaces']['yield'][:, 1].min()):.3f} MPa"
+            for n in (a, b)
+            if fans[n] and "yield" in fans[n]["surfaces"]
+        )
+        add(
+            "with gamma = 1e-2 the yield surface reaches sigma_m < 0 (§4.3.2, fig. 4.7)",
+            [a, b],
+            known,
+            False,
+        )
+    adhesive = [
+        closed_yield_fan(fans, c.name) for c in STAGES["fans"] if c.gamma > 0 and c.is_thesis_fan
+    ]
+    pairs = [
+        (
+            n,
+            uniaxial(fans[n], "yield", "compressive"),
+            uniaxial(fans[n], rupture_kind(fans[n]), "tensile"),
+        )
+        for n in adhesive
+        if fans[n]
+    ]
+    add(
+        "uniaxial compressive yield > tensile rupture (§4.5)",
+        adhesive,
         "; ".join(f"{n}: {c:.3g} / {t:.3g} MPa" for n, c, t in pairs),
-        bool(pairs) and all(np.isfinite(c) and np.isfinite(t) and c > t for _, c, t in pairs))
+        bool(pairs) and all(np.isfinite(c) and np.isfinite(t) and c > t for _, c, t in pairs),
+    )
     lo, hi = "fan_isotropic_0.79", "fan_isotropic_0.87"
     if fans[lo] and fans[hi]:
-        s = {n: (uniaxial(fans[n], "yield", "compressive"), uniaxial(fans[n], rupture_kind(fans[n]), "tensile"))
-             for n in (lo, hi)}
-        add("both grow with rho_f (§4.3.1, §4.5)", [lo, hi],
+        s = {
+            n: (
+                uniaxial(fans[n], "yield", "compressive"),
+                uniaxial(fans[n], rupture_kind(fans[n]), "tensile"),
+            )
+            for n in (lo, hi)
+        }
+        add(
+            "both grow with rho_f (§4.3.1, §4.5)",
+            [lo, hi],
             f"compressive {s[lo][0]:.3g} -> {s[hi][0]:.3g} MPa, tensile {s[lo][1]:.3g} -> {s[hi][1]:.3g} MPa",
-            s[hi][0] > s[lo][0] and s[hi][1] > s[lo][1])
+            s[hi][0] > s[lo][0] and s[hi][1] > s[lo][1],
+        )
     else:
         add("both grow with rho_f (§4.3.1, §4.5)", [lo, hi], "", False)
     die, iso = closed_yield_fan(fans, "fan_die_0.82"), ("fan_isotropic_0.79", "fan_isotropic_0.87")
     # the yield surfaces where every one is closed, else Hill's W2 surfaces (closed more often)
     for kind in ("yield", "w2"):
-        closed = {n: fans[n]["surfaces"][kind] for n in (die, *iso)
-                  if fans[n] and len(fans[n]["surfaces"].get(kind, ())) == fans[n]["case"].nphi}
+        closed = {
+            n: fans[n]["surfaces"][kind]
+            for n in (die, *iso)
+            if fans[n] and len(fans[n]["surfaces"].get(kind, ())) == fans[n]["case"].nphi
+        }
         if die in closed and any(n in closed for n in iso):
             break
     if die in closed and any(n in closed for n in iso):
         angles = {n: surface_axis_deg(p) for n, p in closed.items()}
         turn = min(abs(angles[die] - angles[n]) for n in iso if n in angles)
-        add("die-loaded surfaces rotate (§4.3.1, fig. 4.7b, d)", [die, *iso],
+        add(
+            "die-loaded surfaces rotate (§4.3.1, fig. 4.7b, d)",
+            [die, *iso],
             f"major axis of the {'yield' if kind == 'yield' else 'W2 rupture'} surfaces from the sigma_m axis: "
-            + ", ".join(f"{n} {a:+.1f} deg" for n, a in angles.items()), turn > 5.0)
+            + ", ".join(f"{n} {a:+.1f} deg" for n, a in angles.items()),
+            turn > 5.0,
+        )
     else:
         add("die-loaded surfaces rotate (§4.3.1, fig. 4.7b, d)", [die, *iso], "", False)
     return [], lines
@@ -777,8 +1103,13 @@ RHO_CENTROIDS_LABEL = "relative density (eq. 2.4: the centroids' fitted F)"
 CONDITION_COLOURS = {"CLP": "C0", "CLPS": "C1", "GDF": "C2", "GDH": "C3"}
 
 
-def _axis(ax, xlabel: str | None = None, ylabel: str | None = None, title: str | None = None,
-          legend: float | None = 7) -> None:
+def _axis(
+    ax,
+    xlabel: str | None = None,
+    ylabel: str | None = None,
+    title: str | None = None,
+    legend: float | None = 7,
+) -> None:
     """Label, legend (font size; None: no legend) and grid of one panel."""
     for set_text, text in ((ax.set_xlabel, xlabel), (ax.set_ylabel, ylabel), (ax.set_title, title)):
         if text is not None:
@@ -817,42 +1148,118 @@ def figures(done: dict, out: Path) -> None:
         run = done.get(f"die_{bc}")
         stage_mass = die_case(bc).options["constraint_mass"]
         if run is not None:
-            ax.plot(run["history"]["rho_imposed"], run["history"]["sigma_m"], color=colour,
-                    label=f"{bc}" + (f", {stage_mass} mass" if stage_mass != "lumped" else "") + " (ours)")
-        for case in STAGES["increments"]:  # the same run with more increments or another reduced mass
+            ax.plot(
+                run["history"]["rho_imposed"],
+                run["history"]["sigma_m"],
+                color=colour,
+                label=f"{bc}"
+                + (f", {stage_mass} mass" if stage_mass != "lumped" else "")
+                + " (ours)",
+            )
+        for case in STAGES[
+            "increments"
+        ]:  # the same run with more increments or another reduced mass
             variant = done.get(case.name)
-            if (case.options["condition"] == bc and case.options["path"] == "die" and "d_bc" not in case.options
-                    and variant is not None):
+            if (
+                case.options["condition"] == bc
+                and case.options["path"] == "die"
+                and "d_bc" not in case.options
+                and variant is not None
+            ):
                 mass = case.options.get("constraint_mass", "lumped")
-                style = "-." if mass == stage_mass else ":" if case.increments == CHAPTER2_SETUP["increments"] else "--"
-                ax.plot(variant["history"]["rho_imposed"], variant["history"]["sigma_m"], ls=style, lw=1.2,
-                        color=colour, label=f"{bc}, {case.increments} increments, {mass} mass (ours)")
+                style = (
+                    "-."
+                    if mass == stage_mass
+                    else ":"
+                    if case.increments == CHAPTER2_SETUP["increments"]
+                    else "--"
+                )
+                ax.plot(
+                    variant["history"]["rho_imposed"],
+                    variant["history"]["sigma_m"],
+                    ls=style,
+                    lw=1.2,
+                    color=colour,
+                    label=f"{bc}, {case.increments} increments, {mass} mass (ours)",
+                )
         if bc in THESIS_DIE_SIGMA_M:
-            ax.plot([0.95], [THESIS_DIE_SIGMA_M[bc]], "x", color=colour, ms=9, mew=2, label=f"{bc} thesis §2.7")
+            ax.plot(
+                [0.95],
+                [THESIS_DIE_SIGMA_M[bc]],
+                "x",
+                color=colour,
+                ms=9,
+                mew=2,
+                label=f"{bc} thesis §2.7",
+            )
     if "die_CLP_exact_volume" in done:
         h = done["die_CLP_exact_volume"]["history"]
-        ax.plot(h["rho_imposed"], h["sigma_m"], "--", color="C0", label="CLP, particles holding their sphere's volume")
-    _save(fig, ax, "sigma_m (MPa, Love-Weber)", "Die compaction, 50 lead particles", out / "die_sigma_m.png")
+        ax.plot(
+            h["rho_imposed"],
+            h["sigma_m"],
+            "--",
+            color="C0",
+            label="CLP, particles holding their sphere's volume",
+        )
+    _save(
+        fig,
+        ax,
+        "sigma_m (MPa, Love-Weber)",
+        "Die compaction, 50 lead particles",
+        out / "die_sigma_m.png",
+    )
 
     fig, ax = plt.subplots(figsize=(6, 4.2))
     for (loading, table), colour in zip(THESIS_GAMMA_L.items(), ("C0", "C1")):
         run = done.get(f"{loading}_CLP_gamma1e-2")
         if run is not None:
-            ax.plot(run["history"]["rho_imposed"], run["history"]["Gamma"], color=colour,
-                    label=f"{loading}, CLP, gamma 1e-2 (ours)")
+            ax.plot(
+                run["history"]["rho_imposed"],
+                run["history"]["Gamma"],
+                color=colour,
+                label=f"{loading}, CLP, gamma 1e-2 (ours)",
+            )
         run = done.get(f"{loading}_GDF_gamma1e-2")
         if run is not None and "Gamma_model" in run["history"]:
-            ax.plot(run["history"]["rho_imposed"], run["history"]["Gamma_model"], "--", color=colour,
-                    label=f"{loading}, GDF, every contact of the model (ours)")
-        ax.plot(list(table), list(table.values()), "x", color=colour, ms=9, mew=2,
-                label=f"{loading}: Gamma_l, thesis table 4.2")
+            ax.plot(
+                run["history"]["rho_imposed"],
+                run["history"]["Gamma_model"],
+                "--",
+                color=colour,
+                label=f"{loading}, GDF, every contact of the model (ours)",
+            )
+        ax.plot(
+            list(table),
+            list(table.values()),
+            "x",
+            color=colour,
+            ms=9,
+            mew=2,
+            label=f"{loading}: Gamma_l, thesis table 4.2",
+        )
     for case in STAGES["fans"]:
         fan = done.get(case.name)
-        if fan is not None and case.gamma == 1e-2 and fan["summary"]["Gamma_limit_per_mm"] is not None:
-            ax.plot([case.rho_f], [fan["summary"]["Gamma_limit_per_mm"]], "o", mfc="none", ms=8,
-                    color="C0" if case.loading == "isotropic" else "C1", label=f"{case.name}: Gamma_l (ours)")
-    _save(fig, ax, "specific contact surface Gamma (1/mm)", "Adhesive compaction, 50 particles",
-          out / "gamma.png")
+        if (
+            fan is not None
+            and case.gamma == 1e-2
+            and fan["summary"]["Gamma_limit_per_mm"] is not None
+        ):
+            ax.plot(
+                [case.rho_f],
+                [fan["summary"]["Gamma_limit_per_mm"]],
+                "o",
+                mfc="none",
+                ms=8,
+                color="C0" if case.loading == "isotropic" else "C1",
+                label=f"{case.name}: Gamma_l (ours)",
+            )
+    _save(
+        fig,
+        ax,
+        "specific contact surface Gamma (1/mm)",
+        "Adhesive compaction, 50 particles",
+        out / "gamma.png",
+    )
 
     periodic_figure(done, out / "periodic.png")
     dbc_figure(done, out / "dbc.png")
@@ -865,15 +1272,31 @@ def figures(done: dict, out: Path) -> None:
     shown = [closed_yield_fan(by_name, c.name) for c, _ in fans if c.is_thesis_fan]
     thesis = [(c, f) for c, f in fans if c.name in shown]
     if thesis:
-        fan_figure(thesis, "Fans of the 50-particle CLP volume (thesis fig. 4.7, 4.18)", out / "fans.png")
+        fan_figure(
+            thesis, "Fans of the 50-particle CLP volume (thesis fig. 4.7, 4.18)", out / "fans.png"
+        )
     # every variant next to the thesis fan whose loading it shares: the reloads' discretization
-    studied = [(c, f) for c, f in fans if any(v.shares_loading_with == c.name for v, _ in fans) or not c.is_thesis_fan]
+    studied = [
+        (c, f)
+        for c, f in fans
+        if any(v.shares_loading_with == c.name for v, _ in fans) or not c.is_thesis_fan
+    ]
     if any(not c.is_thesis_fan for c, _ in studied):
-        fan_figure(studied, "Fans: reload amplitude and rate (same loadings)", out / "fan_reloads.png")
+        fan_figure(
+            studied, "Fans: reload amplitude and rate (same loadings)", out / "fan_reloads.png"
+        )
 
 
 def _not_run(ax, what: str) -> None:
-    ax.text(0.5, 0.5, f"{what}: not run yet", ha="center", va="center", transform=ax.transAxes, color="0.4")
+    ax.text(
+        0.5,
+        0.5,
+        f"{what}: not run yet",
+        ha="center",
+        va="center",
+        transform=ax.transAxes,
+        color="0.4",
+    )
 
 
 def periodic_figure(done: dict, path: Path) -> None:
@@ -890,15 +1313,28 @@ def periodic_figure(done: dict, path: Path) -> None:
         for bc, colour in CONDITION_COLOURS.items():
             run = done.get(f"{loading}_{bc}")
             if run is not None:
-                ax.plot(run["history"]["h_v"], run["history"]["sigma_m"], color=colour, label=f"{bc} (ours)")
+                ax.plot(
+                    run["history"]["h_v"],
+                    run["history"]["sigma_m"],
+                    color=colour,
+                    label=f"{bc} (ours)",
+                )
                 drawn = True
-        ax.axvline(THESIS_DIVERGENCE_HV[loading], ls=":", color="k",
-                   label=f"thesis: CLP above the others past h_v {THESIS_DIVERGENCE_HV[loading]}")
+        ax.axvline(
+            THESIS_DIVERGENCE_HV[loading],
+            ls=":",
+            color="k",
+            label=f"thesis: CLP above the others past h_v {THESIS_DIVERGENCE_HV[loading]}",
+        )
         if not drawn:
             _not_run(ax, loading)
         ax.invert_xaxis()
-        _axis(ax, "h_v (volume, log volumetric strain)", "sigma_m (MPa, Love-Weber)",
-              f"{loading} compaction, 50 particles")
+        _axis(
+            ax,
+            "h_v (volume, log volumetric strain)",
+            "sigma_m (MPa, Love-Weber)",
+            f"{loading} compaction, 50 particles",
+        )
     ax = axes[2]
     ax.axhspan(*THESIS_GDF_DRIFT, color="C2", alpha=0.15, label="thesis GDF, isotropic (fig. 2.8a)")
     ax.axhline(CLP_DRIFT_LIMIT, ls=":", color="C0", label="CLP limit used here")
@@ -908,9 +1344,21 @@ def periodic_figure(done: dict, path: Path) -> None:
         if run is not None:
             h = run["history"]
             loaded = h["h_v"] < -0.02  # the ratio is noise at the first increments
-            ax.plot(h["h_v"][loaded], h["h_d"][loaded] / np.abs(h["h_v"][loaded]), color=colour, label=f"{bc} (ours)")
+            ax.plot(
+                h["h_v"][loaded],
+                h["h_d"][loaded] / np.abs(h["h_v"][loaded]),
+                color=colour,
+                label=f"{bc} (ours)",
+            )
             noise = drift_noise(run)[loaded] / np.abs(h["h_v"][loaded])
-            ax.plot(h["h_v"][loaded], noise, color=colour, ls="--", lw=0.9, label=f"{bc}: the centroid fit's noise")
+            ax.plot(
+                h["h_v"][loaded],
+                noise,
+                color=colour,
+                ls="--",
+                lw=0.9,
+                label=f"{bc}: the centroid fit's noise",
+            )
             drawn = True
     if not drawn:
         _not_run(ax, "isotropic")
@@ -921,7 +1369,12 @@ def periodic_figure(done: dict, path: Path) -> None:
     for bc, colour in CONDITION_COLOURS.items():
         run = done.get(f"die_{bc}")
         if run is not None:
-            ax.plot(run["history"]["sigma_m"], run["history"]["sigma_d"], color=colour, label=f"{bc} (ours)")
+            ax.plot(
+                run["history"]["sigma_m"],
+                run["history"]["sigma_d"],
+                color=colour,
+                label=f"{bc} (ours)",
+            )
             drawn = True
     for level in PATH_READ_AT:
         ax.axvline(level, color="0.8", lw=0.8, zorder=0)
@@ -959,23 +1412,44 @@ def _dbc_panels(done: dict, axes, density: str) -> None:
             if run is None:
                 continue
             label = "periodic images (no d_bc)" if d == "images" else f"d_bc {d:g} r_max"
-            ax.plot(run["history"][density], run["history"]["sigma_m"], color=colour,
-                    ls="--" if d == "images" else "-", label=label)
+            ax.plot(
+                run["history"][density],
+                run["history"]["sigma_m"],
+                color=colour,
+                ls="--" if d == "images" else "-",
+                label=label,
+            )
             drawn = True
-            for case in STAGES["increments"]:  # the same d_bc and (lumped) mass with more increments, dotted
+            for case in STAGES[
+                "increments"
+            ]:  # the same d_bc and (lumped) mass with more increments, dotted
                 slow = done.get(case.name)
-                if (slow is not None and case.options["condition"] == bc and case.options["path"] == "die" and case.d_bc == d
-                        and case.increments != CHAPTER2_SETUP["increments"]
-                        and case.options.get("constraint_mass", "lumped") == "lumped"):
-                    ax.plot(slow["history"][density], slow["history"]["sigma_m"], ":", color=colour,
-                            label=f"{label}, {case.increments} increments")
+                if (
+                    slow is not None
+                    and case.options["condition"] == bc
+                    and case.options["path"] == "die"
+                    and case.d_bc == d
+                    and case.increments != CHAPTER2_SETUP["increments"]
+                    and case.options.get("constraint_mass", "lumped") == "lumped"
+                ):
+                    ax.plot(
+                        slow["history"][density],
+                        slow["history"]["sigma_m"],
+                        ":",
+                        color=colour,
+                        label=f"{label}, {case.increments} increments",
+                    )
         if not drawn:
             _not_run(ax, bc)
         for rho in DBC_READ_AT:  # where the table reads the curves (and at their end)
             ax.axvline(rho, color="0.8", lw=0.8, zorder=0)
-        lumped = " (lumped mass)" if die_case(bc).options["constraint_mass"] != "lumped" else ""  # the d_bc runs'
+        lumped = (
+            " (lumped mass)" if die_case(bc).options["constraint_mass"] != "lumped" else ""
+        )  # the d_bc runs'
         xlabel = RHO_IMPOSED_LABEL if density == "rho_imposed" else RHO_CENTROIDS_LABEL
-        _axis(ax, xlabel, title=f"die {bc}{lumped}: thesis stable from {THESIS_STABLE_DBC[bc]} r_max")
+        _axis(
+            ax, xlabel, title=f"die {bc}{lumped}: thesis stable from {THESIS_STABLE_DBC[bc]} r_max"
+        )
     axes[0].set_ylabel("sigma_m (MPa, Love-Weber)")
 
 
@@ -987,17 +1461,32 @@ def size_figure(done: dict, path: Path) -> None:
 
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
     styles = {(50, 1): "-", (50, 2): ":", (150, 1): "--"}
-    runs = [(name, f"{bc}, {particles} particles" + (f" (packing {seed})" if seed != 1 else ""), colour,
-             styles[particles, seed])
-            for particles, seed, *names in SIZE_PAIRS for name, bc, colour in zip(names, ("GDF", "CLP"), ("C2", "C0"))]
-    panels = (("rho", "sigma_m", "relative density (volume's centroids)", "sigma_m (MPa)"),
-              ("rho_imposed", "sigma_m", "relative density (imposed)", "sigma_m (MPa)"),
-              ("rho", "sigma_d", "relative density (volume's centroids)", "sigma_d (MPa)"))
+    runs = [
+        (
+            name,
+            f"{bc}, {particles} particles" + (f" (packing {seed})" if seed != 1 else ""),
+            colour,
+            styles[particles, seed],
+        )
+        for particles, seed, *names in SIZE_PAIRS
+        for name, bc, colour in zip(names, ("GDF", "CLP"), ("C2", "C0"))
+    ]
+    panels = (
+        ("rho", "sigma_m", "relative density (volume's centroids)", "sigma_m (MPa)"),
+        ("rho_imposed", "sigma_m", "relative density (imposed)", "sigma_m (MPa)"),
+        ("rho", "sigma_d", "relative density (volume's centroids)", "sigma_d (MPa)"),
+    )
     for ax, (density, column, xlabel, ylabel) in zip(axes, panels):
         for name, label, colour, style in runs:
             run = done.get(name)
             if run is not None:
-                ax.plot(run["history"][density], run["history"][column], style, color=colour, label=label)
+                ax.plot(
+                    run["history"][density],
+                    run["history"][column],
+                    style,
+                    color=colour,
+                    label=label,
+                )
             else:
                 ax.plot([], [], style, color=colour, label=f"{label}: not run yet")
         _axis(ax, xlabel, ylabel)
@@ -1012,8 +1501,9 @@ def stress_figure(done: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     names = ("die_CLP", "isotropic_CLP_gamma1e-2")
-    fig, axes = plt.subplots(2, len(names), figsize=(10, 6.4), sharex="col",
-                             gridspec_kw={"height_ratios": (2, 1)})
+    fig, axes = plt.subplots(
+        2, len(names), figsize=(10, 6.4), sharex="col", gridspec_kw={"height_ratios": (2, 1)}
+    )
     for col, name in enumerate(names):
         top, bottom = axes[0, col], axes[1, col]
         run = done.get(name)
@@ -1028,7 +1518,9 @@ def stress_figure(done: dict, path: Path) -> None:
             top.plot(rho, h["sigma_vol_m"], ":", color="C2", label="volume average (eq. C.7)")
             loaded = lw > 1.0
             bottom.plot(rho[loaded], 100 * (schmidt[loaded] / lw[loaded] - 1), "--", color="C1")
-            bottom.plot(rho[loaded], 100 * (h["sigma_vol_m"][loaded] / lw[loaded] - 1), ":", color="C2")
+            bottom.plot(
+                rho[loaded], 100 * (h["sigma_vol_m"][loaded] / lw[loaded] - 1), ":", color="C2"
+            )
             bottom.axhspan(-2, 2, color="0.85", label="within 2 %")
         _axis(top, ylabel="sigma_m (MPa)", title=f"{name} (thesis fig. 2.21)")
         _axis(bottom, RHO_IMPOSED_LABEL, "gap to Love-Weber (%)")
@@ -1045,24 +1537,44 @@ def fan_figure(fans: list, title: str, path: Path) -> None:
     for i, (case, fan) in enumerate(fans):
         colour = f"C{i % 10}"
         rupture = rupture_kind(fan)
-        named = "rupture (Gamma_l)" if rupture and rupture.startswith("gamma") else f"rupture ({rupture})"
+        named = (
+            "rupture (Gamma_l)"
+            if rupture and rupture.startswith("gamma")
+            else f"rupture ({rupture})"
+        )
         for kind, style, what in (("yield", "-", "yield"), (rupture, "--", named)):
             pts = fan["surfaces"].get(kind) if kind else None
             if pts is None or len(pts) < 3:
                 continue
-            label = f"{case.loading} {case.rho_f:g}, gamma {case.gamma:g}{case.reload_label}: {what}"
+            label = (
+                f"{case.loading} {case.rho_f:g}, gamma {case.gamma:g}{case.reload_label}: {what}"
+            )
             if len(pts) == case.nphi:  # closed: every reload crossed
                 loop = pts[np.argsort(pts[:, 0])]
                 loop = np.vstack([loop, loop[:1]])
-                ax.plot(loop[:, 1], loop[:, 2], style, color=colour, marker="." if what == "yield" else None,
-                        label=label)
+                ax.plot(
+                    loop[:, 1],
+                    loop[:, 2],
+                    style,
+                    color=colour,
+                    marker="." if what == "yield" else None,
+                    label=label,
+                )
             else:  # points only: joining a partial set would draw false chords
-                ax.plot(pts[:, 1], pts[:, 2], "o" if what == "yield" else "x", color=colour, ms=4,
-                        label=f"{label} ({len(pts)}/{case.nphi} reloads)")
+                ax.plot(
+                    pts[:, 1],
+                    pts[:, 2],
+                    "o" if what == "yield" else "x",
+                    color=colour,
+                    ms=4,
+                    label=f"{label} ({len(pts)}/{case.nphi} reloads)",
+                )
             reach = max(reach, float(np.abs(pts[:, 1:]).max()))
     rendulic_frame(ax, reach)
     ax.set_title(title)
-    ax.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2)  # below: the surfaces stay visible
+    ax.legend(
+        fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2
+    )  # below: the surfaces stay visible
     ax.grid(alpha=0.3)
     ax.set_aspect("equal", adjustable="datalim")
     _write(fig, path)
@@ -1077,31 +1589,62 @@ def replace_block(text: str, name: str, lines: list[str]) -> str:
 
 #: the report's tables in the issue's order: README block, what it compares, the stages its runs
 #: come from (the overview counts their cases), the function that builds it
-TABLES = (("die", "Die compaction, sigma_m at rho 0.95 (§2.7)", ("die",), die_rows),
-          ("increments", "The explicit runs' rate: increments and reduced mass", ("increments",), increments_rows),
-          ("periodic", "Isotropic and die: periodic vs non-periodic conditions (§2.7)", ("isotropic",),
-           periodic_rows),
-          ("drift", "Deviatoric drift under isotropic loading (§2.4, fig. 2.8a)", (), drift_rows),
-          ("dbc", "Duplication distance d_bc (§2.5, table 2.3)", ("dbc",), dbc_rows),
-          ("size", "Size effect, 50 vs 150 particles (§2.8)", ("size",), size_rows),
-          ("stresses", "Stress measures: Love-Weber, Schmidt, volume average (fig. 2.21)", (), stress_rows),
-          ("gamma", "Specific contact surface against table 4.2", ("gamma",), gamma_rows),
-          ("fans", "Gamma_l from fans (table 4.2)", ("fans",), fan_rows),
-          ("reloads", "The fans' reload rate, amplitude and profile", (), reload_study_lines),
-          ("trends", "Trends of §4.3-4.5", (), trend_lines),
-          ("sensitivity", "The thesis' contradictions (n, delta_max)", ("sensitivity",), sensitivity_lines))
+TABLES = (
+    ("die", "Die compaction, sigma_m at rho 0.95 (§2.7)", ("die",), die_rows),
+    (
+        "increments",
+        "The explicit runs' rate: increments and reduced mass",
+        ("increments",),
+        increments_rows,
+    ),
+    (
+        "periodic",
+        "Isotropic and die: periodic vs non-periodic conditions (§2.7)",
+        ("isotropic",),
+        periodic_rows,
+    ),
+    ("drift", "Deviatoric drift under isotropic loading (§2.4, fig. 2.8a)", (), drift_rows),
+    ("dbc", "Duplication distance d_bc (§2.5, table 2.3)", ("dbc",), dbc_rows),
+    ("size", "Size effect, 50 vs 150 particles (§2.8)", ("size",), size_rows),
+    (
+        "stresses",
+        "Stress measures: Love-Weber, Schmidt, volume average (fig. 2.21)",
+        (),
+        stress_rows,
+    ),
+    ("gamma", "Specific contact surface against table 4.2", ("gamma",), gamma_rows),
+    ("fans", "Gamma_l from fans (table 4.2)", ("fans",), fan_rows),
+    ("reloads", "The fans' reload rate, amplitude and profile", (), reload_study_lines),
+    ("trends", "Trends of §4.3-4.5", (), trend_lines),
+    (
+        "sensitivity",
+        "The thesis' contradictions (n, delta_max)",
+        ("sensitivity",),
+        sensitivity_lines,
+    ),
+)
 
 
 def overview_lines(done: dict, tables: dict[str, tuple[list[dict], list[str]]]) -> list[str]:
     """One line per table (``tables``: name -> its summary rows and lines): its compared numbers met
     / total (the trends: shown / total) and its stages' runs finished / planned with their wall
     time (hours, as measured on shared cores)."""
-    lines = ["| item | compared numbers met | runs finished (wall, h) | not run yet |", "|---|---|---|---|"]
+    lines = [
+        "| item | compared numbers met | runs finished (wall, h) | not run yet |",
+        "|---|---|---|---|",
+    ]
     for name, title, stages, _ in TABLES:
         rows, table = tables[name]
-        shown = [line for line in table[2:] if line.endswith(("| shown |", "| not shown |"))]  # past the header
-        met = (f"{sum(r['status'] == 'met' for r in rows)} of {len(rows)}" if rows else
-               f"{sum(line.endswith('| shown |') for line in shown)} of {len(shown)} shown" if shown else "(none)")
+        shown = [
+            line for line in table[2:] if line.endswith(("| shown |", "| not shown |"))
+        ]  # past the header
+        met = (
+            f"{sum(r['status'] == 'met' for r in rows)} of {len(rows)}"
+            if rows
+            else f"{sum(line.endswith('| shown |') for line in shown)} of {len(shown)} shown"
+            if shown
+            else "(none)"
+        )
         cases = [case.name for stage in stages for case in STAGES[stage]]
         finished = [c for c in cases if c in done]
         wall = sum(done[c]["wall_s"] for c in finished) / 3600.0
@@ -1124,12 +1667,22 @@ def write_report(runs: Path, here: Path) -> list[dict]:
     text = replace_block(text, "overview", overview_lines(done, tables))
     readme.write_text(text)
     with open(here / "summary.csv", "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=["case", "quantity", "thesis", "ours", "deviation", "status"])
+        writer = csv.DictWriter(
+            fh, fieldnames=["case", "quantity", "thesis", "ours", "deviation", "status"]
+        )
         writer.writeheader()
         for r in rows:
-            writer.writerow({**r, "thesis": f"{r['thesis']:.6g}", "ours": f"{r['ours']:.6g}",
-                             "deviation": f"{r['deviation']:.4f}"})
+            writer.writerow(
+                {
+                    **r,
+                    "thesis": f"{r['thesis']:.6g}",
+                    "ours": f"{r['ours']:.6g}",
+                    "deviation": f"{r['deviation']:.4f}",
+                }
+            )
     figures(done, here / "figures")
-    print(f"validation: {len(done)} finished runs, {len(rows)} compared numbers "
-          f"({sum(r['status'] == 'met' for r in rows)} met) -> {here / 'summary.csv'}")
+    print(
+        f"validation: {len(done)} finished runs, {len(rows)} compared numbers "
+        f"({sum(r['status'] == 'met' for r in rows)} met) -> {here / 'summary.csv'}"
+    )
     return rows

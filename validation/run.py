@@ -51,7 +51,9 @@ def run_case(case, comm, say) -> None:
             share_loading(RUNS / case.shares_loading_with, run_dir, say)
         comm.barrier()
         clock = FanClock(run_dir, writes=comm.rank == 0)
-        run_yield_surface(case.yield_surface_case(str(run_dir)), comm, log=clock.wrap(say), resume=True)
+        run_yield_surface(
+            case.yield_surface_case(str(run_dir)), comm, log=clock.wrap(say), resume=True
+        )
         if comm.rank == 0:
             (run_dir / "done").write_text(f"{clock.total():.0f}\n")
         return
@@ -61,14 +63,19 @@ def run_case(case, comm, say) -> None:
         restart = resolve_checkpoint(run_dir)
     except CheckpointError:
         restart = None
-    say(f"{case.name}: running -> {run_dir}" + (f" (restart from {restart.name})" if restart else ""))
+    say(
+        f"{case.name}: running -> {run_dir}"
+        + (f" (restart from {restart.name})" if restart else "")
+    )
     result = run_compaction(case.compaction_case(str(run_dir)), comm, log=say, restart=restart)
-    if comm.rank == 0:  # a restarted run's wall time includes the killed runs' (up to their checkpoint)
+    if (
+        comm.rank == 0
+    ):  # a restarted run's wall time includes the killed runs' (up to their checkpoint)
         (run_dir / "done").write_text(f"{result.wall_time:.0f}\n")
 
 
 def run_state(case) -> str:
-    """"done", "to run", or where a killed compaction resumes ("resumes at step N of M")."""
+    """ "done", "to run", or where a killed compaction resumes ("resumes at step N of M")."""
     run_dir = RUNS / case.name
     if (run_dir / "done").exists():
         return "done"
@@ -102,6 +109,7 @@ class FanClock:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
                 self.path.write_text(f"{self.total():.1f}\n")
             say(message)
+
         return timed
 
 
@@ -134,7 +142,12 @@ def run_in_parallel(cases, jobs: int, say) -> None:
     """Run ``cases`` as ``jobs`` separate processes of this script, one numba / BLAS thread each
     (a 50-particle case keeps one core busy; two threads on one core only contend), each writing
     its progress to RUNS/<case>/log.txt. A failed case is reported and the others go on."""
-    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+    env = {
+        **os.environ,
+        "NUMBA_NUM_THREADS": "1",
+        "OMP_NUM_THREADS": "1",
+        "OPENBLAS_NUM_THREADS": "1",
+    }
 
     def one(case) -> int:
         if (RUNS / case.name / "done").exists():
@@ -143,8 +156,12 @@ def run_in_parallel(cases, jobs: int, say) -> None:
         (RUNS / case.name).mkdir(parents=True, exist_ok=True)
         say(f"{case.name}: started (log: {RUNS / case.name / 'log.txt'})")
         with open(RUNS / case.name / "log.txt", "a") as log:
-            code = subprocess.call([sys.executable, str(Path(__file__).resolve()), "--no-report", "--case", case.name],
-                                   stdout=log, stderr=subprocess.STDOUT, env=env)
+            code = subprocess.call(
+                [sys.executable, str(Path(__file__).resolve()), "--no-report", "--case", case.name],
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                env=env,
+            )
         say(f"{case.name}: {'finished' if code == 0 else f'failed (exit {code}), see its log'}")
         return code
 
@@ -155,13 +172,19 @@ def run_in_parallel(cases, jobs: int, say) -> None:
 
 
 def main(argv=None) -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("stages", nargs="*", help=f"stages to run: {', '.join(STAGES)} (default: all)")
     p.add_argument("--report-only", action="store_true", help="run nothing, regenerate the report")
     p.add_argument("--case", action="append", default=[], help="run only this case (repeatable)")
     p.add_argument("--list", action="store_true", help="list the stages and their cases")
-    p.add_argument("--jobs", type=int, default=1,
-                   help="cases run at a time, each in its own process on one core (default 1: in this process)")
+    p.add_argument(
+        "--jobs",
+        type=int,
+        default=1,
+        help="cases run at a time, each in its own process on one core (default 1: in this process)",
+    )
     p.add_argument("--no-report", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.jobs < 1:

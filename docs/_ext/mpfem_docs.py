@@ -59,12 +59,20 @@ def casefile_reference(schema) -> str:
         sections.setdefault(key.section, []).append(key)
     lines = []
     for section, keys in sections.items():
-        lines += [f"## `[{section}]`", "", f"({len(keys)} keys)", "",
-                  "| key | type | default | allowed | meaning (unit) |", "|---|---|---|---|---|"]
+        lines += [
+            f"## `[{section}]`",
+            "",
+            f"({len(keys)} keys)",
+            "",
+            "| key | type | default | allowed | meaning (unit) |",
+            "|---|---|---|---|---|",
+        ]
         for key in keys:
             kind = _KIND_WORDS.get(key.kind, key.kind.__name__)
-            lines.append(f"| `{key.name}` | {kind} | {table_cell(_toml_value(key.default))} "
-                         f"| {table_cell(key.allowed())} | {table_cell(key.doc)} |")
+            lines.append(
+                f"| `{key.name}` | {kind} | {table_cell(_toml_value(key.default))} "
+                f"| {table_cell(key.allowed())} | {table_cell(key.doc)} |"
+            )
         lines.append("")
     return "\n".join(lines)
 
@@ -103,8 +111,9 @@ def _cells(source: str) -> list[tuple[str, str]]:
     out = []
     for kind, lines in cells:
         if kind == "markdown":
-            text = "\n".join(line[2:] if line.startswith("# ") else line.lstrip("#")
-                             for line in lines)
+            text = "\n".join(
+                line[2:] if line.startswith("# ") else line.lstrip("#") for line in lines
+            )
         else:
             text = "\n".join(lines)
         if text.strip():
@@ -118,9 +127,13 @@ def demo_page(path: Path, source_link: str) -> str:
     holding only a docstring as text). Any other demo: its module docstring, then its source."""
     source = path.read_text()
     name = path.stem
-    lines = [f"# `{name}.py`", "",
-             f"Source: {{download}}`demos/{name}.py <{source_link}>`. Run it from the repository "
-             f"root with `.venv/bin/python demos/{name}.py --help` for its options.", ""]
+    lines = [
+        f"# `{name}.py`",
+        "",
+        f"Source: {{download}}`demos/{name}.py <{source_link}>`. Run it from the repository "
+        f"root with `.venv/bin/python demos/{name}.py --help` for its options.",
+        "",
+    ]
     if is_literate(source):
         cells = _cells(source)
         if cells and cells[0][0] == "markdown" and cells[0][1].startswith("# "):
@@ -137,8 +150,17 @@ def demo_page(path: Path, source_link: str) -> str:
                 lines += ["```python", text, "```", ""]
         return "\n".join(lines)
     docstring = ast.get_docstring(ast.parse(source)) or "(no module docstring)"
-    lines += [_rst_block(docstring), "", "## Source", "",
-              f"```{{literalinclude}} {source_link}", ":language: python", ":linenos:", "```", ""]
+    lines += [
+        _rst_block(docstring),
+        "",
+        "## Source",
+        "",
+        f"```{{literalinclude}} {source_link}",
+        ":language: python",
+        ":linenos:",
+        "```",
+        "",
+    ]
     return "\n".join(lines)
 
 
@@ -174,6 +196,7 @@ def _unlink(text: str, folder: Path | None = None) -> str:
     """Links to anything but a web address become their text (a relative link of a README points
     at a repository file the documentation does not hold). An image of the README's ``folder``
     is kept, its path made relative to a page of ``docs/``; any other image is dropped."""
+
     def plain(match: re.Match) -> str:
         image, label, target = match.groups()
         if target.startswith(("http://", "https://")):
@@ -181,6 +204,7 @@ def _unlink(text: str, folder: Path | None = None) -> str:
         if image and folder is not None and (folder / target).is_file():
             return f"![{label}](../{(folder / target).resolve().relative_to(ROOT).as_posix()})"
         return "" if image else label
+
     return _LINK.sub(plain, text)
 
 
@@ -203,7 +227,7 @@ def readme_summary(text: str, folder: Path | None = None) -> str:
     for line in kept:
         match = _HEADING.match(line)
         if match:
-            line = "#" * max(3, len(match.group(1)) + 1) + line[len(match.group(1)):]
+            line = "#" * max(3, len(match.group(1)) + 1) + line[len(match.group(1)) :]
         out.append(line)
     return _unlink("\n".join(out), folder).strip("\n") + "\n"
 
@@ -299,8 +323,11 @@ def loose_rst(lines: list[str]) -> list[str]:
                 literal_base, opener = _indent(prev), None
                 run_bullet = None
                 continue
-        elif prev is not None and not bullet and (
-                ind < _indent(prev) or (run_bullet is not None and ind <= run_bullet)):
+        elif (
+            prev is not None
+            and not bullet
+            and (ind < _indent(prev) or (run_bullet is not None and ind <= run_bullet))
+        ):
             out.append("")
             run_bullet = None
         if bullet and prev is not None and run_bullet is None and out[-1].strip():
@@ -339,8 +366,14 @@ def _figures(folder: Path, relative: str) -> str:
     """A figure directive per PNG of ``folder`` (``relative``: the folder from the page)."""
     blocks = []
     for png in sorted(folder.glob("*.png")):
-        blocks += [f"```{{figure}} {relative}/{png.name}", ":width: 100%", "",
-                   f"`{png.relative_to(ROOT)}`", "```", ""]
+        blocks += [
+            f"```{{figure}} {relative}/{png.name}",
+            ":width: 100%",
+            "",
+            f"`{png.relative_to(ROOT)}`",
+            "```",
+            "",
+        ]
     return "\n".join(blocks) if blocks else "(no figure yet)\n"
 
 
@@ -351,18 +384,25 @@ def generate(app=None) -> None:
     from mpfem_fenicsx.cli.casefile import SCHEMA
 
     _write(GENERATED / "casefile_keys.md", casefile_reference(SCHEMA))
-    for name, readme in (("validation", ROOT / "validation" / "README.md"),
-                         ("bench", ROOT / "bench" / "README.md")):
+    for name, readme in (
+        ("validation", ROOT / "validation" / "README.md"),
+        ("bench", ROOT / "bench" / "README.md"),
+    ):
         text = readme.read_text() if readme.exists() else f"(no {name}/README.md)\n"
         _write(GENERATED / f"{name}_summary.md", readme_summary(text, readme.parent))
         _write(GENERATED / f"{name}_full.md", whole_readme(text, readme.parent))
-    _write(GENERATED / "validation_figures.md", _figures(ROOT / "validation" / "figures",
-                                                         "../validation/figures"))
+    _write(
+        GENERATED / "validation_figures.md",
+        _figures(ROOT / "validation" / "figures", "../validation/figures"),
+    )
     flagship = DOCS / "figures" / "flagship.png"
-    _write(GENERATED / "flagship.md",
-           "```{figure} figures/flagship.png\n:width: 100%\n\nThe flagship demo "
-           "(`demos/isotropic.py`): compaction curve and deformed particles.\n```\n"
-           if flagship.exists() else "")
+    _write(
+        GENERATED / "flagship.md",
+        "```{figure} figures/flagship.png\n:width: 100%\n\nThe flagship demo "
+        "(`demos/isotropic.py`): compaction curve and deformed particles.\n```\n"
+        if flagship.exists()
+        else "",
+    )
     pages = set()
     for path in demo_paths():
         page = DEMO_PAGES / f"{path.stem}.md"

@@ -79,11 +79,16 @@ def main(argv: list[str] | None = None) -> int:
     """Command line: the results folder and the output PNG."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        "results", nargs="?", type=Path, default=Path("results/isotropic"),
+        "results",
+        nargs="?",
+        type=Path,
+        default=Path("results/isotropic"),
         help="results folder holding history.csv and particles.png (default: results/isotropic)",
     )
     parser.add_argument(
-        "--out", type=Path, default=HERE / "flagship.png",
+        "--out",
+        type=Path,
+        default=HERE / "flagship.png",
         help="PNG to write (default: docs/figures/flagship.png)",
     )
     args = parser.parse_args(argv)

@@ -37,7 +37,7 @@ from typing import Any
 
 from ..case import SECTIONS, CompactionCase
 from ..loading.stress_paths import PATH_FIELDS, StressPath
-from ..parameters import Range, parameter_default, parameter_range
+from ..parameters import Range, parameter_default
 
 
 class CaseError(ValueError):
@@ -77,12 +77,19 @@ class Key:
 
     def check(self, value: Any, where: str) -> Any:
         """``value`` if it has the key's type and range, else CaseError naming ``where`` and the key."""
-        ok_type = (isinstance(value, bool) if self.kind is bool else
-                   isinstance(value, int) and not isinstance(value, bool) if self.kind is int else
-                   isinstance(value, (int, float)) and not isinstance(value, bool) if self.kind is float else
-                   isinstance(value, str))
+        ok_type = (
+            isinstance(value, bool)
+            if self.kind is bool
+            else isinstance(value, int) and not isinstance(value, bool)
+            if self.kind is int
+            else isinstance(value, (int, float)) and not isinstance(value, bool)
+            if self.kind is float
+            else isinstance(value, str)
+        )
         if not ok_type:
-            raise CaseError(f"{where}: {self.field} = {value!r} has the wrong type: expected {_KIND_WORDS[self.kind]}")
+            raise CaseError(
+                f"{where}: {self.field} = {value!r} has the wrong type: expected {_KIND_WORDS[self.kind]}"
+            )
         if self.kind is float:
             value = float(value)
         why = self.range.problem(value)
@@ -96,16 +103,21 @@ _KIND_WORDS = {int: "an integer", float: "a number", bool: "true or false", str:
 
 def declared_keys(section: str, cls: type) -> list[Key]:
     """The keys of ``[section]``: the fields of ``cls`` declared with ``parameter()``, in order."""
-    return [Key(section, f.name, f.metadata["range"], parameter_default(cls, f.name))
-            for f in fields(cls) if "range" in f.metadata]
+    return [
+        Key(section, f.name, f.metadata["range"], parameter_default(cls, f.name))
+        for f in fields(cls)
+        if "range" in f.metadata
+    ]
 
 
 #: every key of a case file, in the documentation's order: the case's sections (material: thesis
 #: table 2.1, lead; packing §2.2; mesh; contact law §3.3; boundary conditions table 2.2; loading
 #: path §2.2.3; solver; outputs), then the stress-controlled paths (``[control]``; times in units
 #: of the [loading] duration, the servo's rate in strain per duration)
-SCHEMA: tuple[Key, ...] = (*(key for name, cls in SECTIONS.items() for key in declared_keys(name, cls)),
-                           *declared_keys("control", StressPath))
+SCHEMA: tuple[Key, ...] = (
+    *(key for name, cls in SECTIONS.items() for key in declared_keys(name, cls)),
+    *declared_keys("control", StressPath),
+)
 
 #: the case file's sections, in order
 FILE_SECTIONS = tuple(dict.fromkeys(k.section for k in SCHEMA))
@@ -128,30 +140,46 @@ def parse_case(data: dict, where: str = "case", base: Path | None = None) -> dic
     values: dict[tuple[str, str], Any] = {}
     for section, table in data.items():
         if section not in FILE_SECTIONS:
-            raise CaseError(f"{where}: unknown section [{section}] (allowed: {', '.join(FILE_SECTIONS)})")
+            raise CaseError(
+                f"{where}: unknown section [{section}] (allowed: {', '.join(FILE_SECTIONS)})"
+            )
         if not isinstance(table, dict):
             raise CaseError(f"{where}: {section} must be a [{section}] table, got {table!r}")
         keys = _keys(section)
         for name, value in table.items():
             if name not in keys:
-                raise CaseError(f"{where}: unknown key [{section}] {name} (allowed: {', '.join(keys)})")
+                raise CaseError(
+                    f"{where}: unknown key [{section}] {name} (allowed: {', '.join(keys)})"
+                )
             values[(section, name)] = keys[name].check(value, where)
     # checks between keys of the file (the rules between fields are the sections' own: to_case)
-    get = lambda s, k: values.get((s, k), next(x.default for x in SCHEMA if (x.section, x.name) == (s, k)))
+    get = lambda s, k: values.get(
+        (s, k), next(x.default for x in SCHEMA if (x.section, x.name) == (s, k))
+    )
     if ("packing", "file") in values:
-        given = [k for k in ("particles", "r_min", "r_max", "seed", "fraction") if ("packing", k) in values]
+        given = [
+            k
+            for k in ("particles", "r_min", "r_max", "seed", "fraction")
+            if ("packing", k) in values
+        ]
         if given:
-            raise CaseError(f"{where}: [packing] file and [packing] {given[0]} exclude each other (the file "
-                            "gives the spheres; the other keys drive the generator)")
+            raise CaseError(
+                f"{where}: [packing] file and [packing] {given[0]} exclude each other (the file "
+                "gives the spheres; the other keys drive the generator)"
+            )
         path = Path(values[("packing", "file")])
         if not path.is_absolute() and base is not None:
             path = base / path
         if not path.is_file():
-            raise CaseError(f"{where}: [packing] file = {values[('packing', 'file')]!r}: no such file ({path})")
+            raise CaseError(
+                f"{where}: [packing] file = {values[('packing', 'file')]!r}: no such file ({path})"
+            )
         values[("packing", "file")] = str(path)
     control = [k for (section, k) in values if section == "control" and k != "path"]
     if get("control", "path") == "none" and control:
-        raise CaseError(f"{where}: [control] {control[0]} needs a [control] path (pressure or triaxial)")
+        raise CaseError(
+            f"{where}: [control] {control[0]} needs a [control] path (pressure or triaxial)"
+        )
     for owner, keys in PATH_FIELDS.items():
         stray = [k for k in keys if k in control and get("control", "path") != owner]
         if stray:
@@ -171,10 +199,14 @@ def load_case(path: str | Path, out_dir: str | None = None) -> CompactionCase:
     except tomllib.TOMLDecodeError as err:
         raise CaseError(f"{where}: not valid TOML: {err}") from None
     values = parse_case(data, where, base=path.parent)
-    return to_case(values, out_dir or values.get(("output", "directory")) or f"results/{path.stem}", where)
+    return to_case(
+        values, out_dir or values.get(("output", "directory")) or f"results/{path.stem}", where
+    )
 
 
-def to_case(values: dict[tuple[str, str], Any], out_dir: str, where: str = "case") -> CompactionCase:
+def to_case(
+    values: dict[tuple[str, str], Any], out_dir: str, where: str = "case"
+) -> CompactionCase:
     """A CompactionCase from validated values (defaults for the keys not given); a rule between
     fields that a section or the case checks raises CaseError naming it."""
     sections: dict[str, dict[str, Any]] = {}
@@ -187,7 +219,9 @@ def to_case(values: dict[tuple[str, str], Any], out_dir: str, where: str = "case
             sections["material"] = SECTIONS["material"](**sections["material"])
         path = stress_path(values, where)
         if path.path != "none":
-            duration = sections.get("loading", {}).get("duration", parameter_default(SECTIONS["loading"], "duration"))
+            duration = sections.get("loading", {}).get(
+                "duration", parameter_default(SECTIONS["loading"], "duration")
+            )
             sections.setdefault("loading", {})["control"] = path.control(duration)
         return CompactionCase.build(**sections)
     except ValueError as err:  # a rule of the case classes not expressed in the schema
@@ -216,15 +250,20 @@ def documentation() -> str:
         for k in SCHEMA:
             if k.section == section:
                 default = "(none)" if k.default is None else repr(k.default)
-                lines.append(f"  {k.name:<17} {k.kind.__name__:<5} default {default:<10} {k.allowed()}: {k.doc}")
+                lines.append(
+                    f"  {k.name:<17} {k.kind.__name__:<5} default {default:<10} {k.allowed()}: {k.doc}"
+                )
     return "\n".join(lines)
 
 
 def example_case() -> str:
     """A complete, commented case file with every default (``mpfem init``)."""
-    out = ["# mpfem case file: compaction of a periodic volume of elastoplastic particles.",
-           "# Every key is optional; the values below are the defaults (the flagship demo).",
-           "# Units: mm, N, MPa, s, t/mm^3. Reference: `mpfem run --help`.", ""]
+    out = [
+        "# mpfem case file: compaction of a periodic volume of elastoplastic particles.",
+        "# Every key is optional; the values below are the defaults (the flagship demo).",
+        "# Units: mm, N, MPa, s, t/mm^3. Reference: `mpfem run --help`.",
+        "",
+    ]
     for section in FILE_SECTIONS:
         out.append(f"[{section}]")
         for k in SCHEMA:
@@ -233,11 +272,18 @@ def example_case() -> str:
             if k.default is None:
                 out.append(f"{'# ' + k.name + ' = ...':<30} # {k.doc}; {k.allowed()}")
             else:
-                value = ("true" if k.default else "false") if k.kind is bool else (
-                    f'"{k.default}"' if k.kind is str else repr(k.default))
+                value = (
+                    ("true" if k.default else "false")
+                    if k.kind is bool
+                    else (f'"{k.default}"' if k.kind is str else repr(k.default))
+                )
                 # a [control] key needs a path, and the results folder defaults to the case file's
                 # name: shown with their defaults, commented out
-                comment = "# " if (k.section == "control" and k.name != "path") or k.name == "directory" else ""
+                comment = (
+                    "# "
+                    if (k.section == "control" and k.name != "path") or k.name == "directory"
+                    else ""
+                )
                 out.append(f"{comment + k.name + ' = ' + value:<30} # {k.doc}; {k.allowed()}")
         out.append("")
     return "\n".join(out)

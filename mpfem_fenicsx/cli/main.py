@@ -36,56 +36,91 @@ def _say(comm):
 def _parser() -> argparse.ArgumentParser:
     from .casefile import documentation
 
-    p = argparse.ArgumentParser(prog="mpfem", description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter,
-                                epilog="Run 'mpfem <command> --help' for a command's options.")
+    p = argparse.ArgumentParser(
+        prog="mpfem",
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="Run 'mpfem <command> --help' for a command's options.",
+    )
     sub = p.add_subparsers(dest="command", required=True, metavar="command")
 
     run = sub.add_parser(
-        "run", help="compact a periodic volume described by a TOML case file",
+        "run",
+        help="compact a periodic volume described by a TOML case file",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Compaction of a periodic volume of elastoplastic particles (thesis chapter 2): packing -> "
-                    "meshed particles -> contact + periodic constraints -> explicit/implicit solver -> history.",
+        "meshed particles -> contact + periodic constraints -> explicit/implicit solver -> history.",
         epilog="Outputs in the results folder: history.csv (one row per output; columns in README), "
-               "packing.txt, particles.xdmf (ParaView: displacement, von_mises_MPa, eps_p, particle, "
-               "contact_pressure_MPa), particles.png, loading_path.png, checkpoints/.\n\n"
-               "Case file keys (section, key, type, default, allowed, meaning):\n" + documentation())
+        "packing.txt, particles.xdmf (ParaView: displacement, von_mises_MPa, eps_p, particle, "
+        "contact_pressure_MPa), particles.png, loading_path.png, checkpoints/.\n\n"
+        "Case file keys (section, key, type, default, allowed, meaning):\n" + documentation(),
+    )
     run.add_argument("case", help="TOML case file (see below; 'mpfem init' writes one)")
     run.add_argument("--out", default=None, help="results folder (overrides [output] directory)")
-    run.add_argument("--restart", default=None, metavar="CHECKPOINT",
-                     help="continue from a checkpoint directory (or a results folder: its newest checkpoint); "
-                          "same case file and number of MPI ranks")
+    run.add_argument(
+        "--restart",
+        default=None,
+        metavar="CHECKPOINT",
+        help="continue from a checkpoint directory (or a results folder: its newest checkpoint); "
+        "same case file and number of MPI ranks",
+    )
     run.add_argument("--check", action="store_true", help="validate the case file and stop")
 
-    pack = sub.add_parser("pack", help="generate a packing file, or check and convert one",
-                          description="Generate a seeded frictionless periodic packing (--particles), or read "
-                                      "a packing file as a DEM code left it (--input: ours, 'dx dy dz' then 'x y z r' "
-                                      "lines; a YADE export.text, '#format x_y_z_r', its cell in a '# dx dy dz = ...' "
-                                      "header or --cell; a LAMMPS / LIGGGHTS dump with box bounds and x y z radius "
-                                      "columns), check it as a run at the default mesh would "
-                                      "(spheres in the cell, contact overlaps: the radius "
-                                      "reduction that removes them is reported) and write it in "
-                                      "our format.")
+    pack = sub.add_parser(
+        "pack",
+        help="generate a packing file, or check and convert one",
+        description="Generate a seeded frictionless periodic packing (--particles), or read "
+        "a packing file as a DEM code left it (--input: ours, 'dx dy dz' then 'x y z r' "
+        "lines; a YADE export.text, '#format x_y_z_r', its cell in a '# dx dy dz = ...' "
+        "header or --cell; a LAMMPS / LIGGGHTS dump with box bounds and x y z radius "
+        "columns), check it as a run at the default mesh would "
+        "(spheres in the cell, contact overlaps: the radius "
+        "reduction that removes them is reported) and write it in "
+        "our format.",
+    )
     src = pack.add_mutually_exclusive_group(required=True)
-    src.add_argument("--particles", type=int, help="number of spheres to generate (>= ~20 for a periodic cell)")
+    src.add_argument(
+        "--particles", type=int, help="number of spheres to generate (>= ~20 for a periodic cell)"
+    )
     src.add_argument("--input", help="packing file to check / convert")
     pack.add_argument("--r-min", type=float, default=0.082, help="smallest radius, mm (generator)")
     pack.add_argument("--r-max", type=float, default=0.147, help="largest radius, mm (generator)")
     pack.add_argument("--seed", type=int, default=1, help="generator seed")
-    pack.add_argument("--fraction", type=float, default=None,
-                      help="stop the generator at this solid fraction (default: jammed)")
-    pack.add_argument("--scale", type=float, default=1.0,
-                      help="multiply the input's radii by this factor (a run reduces them "
-                           "itself to remove a DEM export's contact overlaps)")
-    pack.add_argument("--cell", type=float, nargs=3, default=None, metavar=("DX", "DY", "DZ"),
-                      help="periodic cell of the input (mm; e.g. a YADE export without a cell header)")
-    pack.add_argument("--length-scale", type=float, default=1.0,
-                      help="multiply the input's lengths by this (e.g. 1000 for a DEM file in metres)")
+    pack.add_argument(
+        "--fraction",
+        type=float,
+        default=None,
+        help="stop the generator at this solid fraction (default: jammed)",
+    )
+    pack.add_argument(
+        "--scale",
+        type=float,
+        default=1.0,
+        help="multiply the input's radii by this factor (a run reduces them "
+        "itself to remove a DEM export's contact overlaps)",
+    )
+    pack.add_argument(
+        "--cell",
+        type=float,
+        nargs=3,
+        default=None,
+        metavar=("DX", "DY", "DZ"),
+        help="periodic cell of the input (mm; e.g. a YADE export without a cell header)",
+    )
+    pack.add_argument(
+        "--length-scale",
+        type=float,
+        default=1.0,
+        help="multiply the input's lengths by this (e.g. 1000 for a DEM file in metres)",
+    )
     pack.add_argument("--out", required=True, help="packing file to write")
 
-    plot = sub.add_parser("plot", help="draw the figures of a results folder again",
-                          description="Re-render loading_path.png from history.csv and particles.png from "
-                                      "particles.vtu (saved by every run with visual output).")
+    plot = sub.add_parser(
+        "plot",
+        help="draw the figures of a results folder again",
+        description="Re-render loading_path.png from history.csv and particles.png from "
+        "particles.vtu (saved by every run with visual output).",
+    )
     plot.add_argument("directory", help="results folder of a run")
 
     init = sub.add_parser("init", help="write a commented case file with every default")
@@ -106,15 +141,22 @@ def _run(args, comm) -> None:
         raise _Exit(BAD_INPUT, str(err))
     if args.check:
         try:  # the packing as `run` admits it while building, before any mesh (same message)
-            admitted = initial_packing(case.packing, case.mesh, case.loading.target_density, log=say)
+            admitted = initial_packing(
+                case.packing, case.mesh, case.loading.target_density, log=say
+            )
         except (ValueError, OSError) as err:
             raise _Exit(BAD_INPUT, f"{args.case}: {err}")
-        source = (f"from {case.packing.file}" if case.packing.file
-                  else f"generated (seed {case.packing.seed})")
-        say(f"{args.case}: valid: {admitted.packing.num_particles} particles {source}, "
+        source = (
+            f"from {case.packing.file}"
+            if case.packing.file
+            else f"generated (seed {case.packing.seed})"
+        )
+        say(
+            f"{args.case}: valid: {admitted.packing.num_particles} particles {source}, "
             f"rho0 {admitted.rho0:.4f} (radius reduction x{admitted.radius_factor:g}), "
             f"{case.boundary.condition}, {case.loading.path} to {case.loading.target_density}, "
-            f"{case.solver.kind}")
+            f"{case.solver.kind}"
+        )
         return
     start = time.perf_counter()
     try:
@@ -126,18 +168,26 @@ def _run(args, comm) -> None:
     except ValueError as err:  # bad input found while building: packing file, unreachable density
         raise _Exit(BAD_INPUT, f"{args.case}: {err}")
     h = res.history
-    say(f"done: rho = {h.column('rho')[-1]:.4f} (imposed {h.column('rho_imposed')[-1]:.4f}), sigma_m = "
+    say(
+        f"done: rho = {h.column('rho')[-1]:.4f} (imposed {h.column('rho_imposed')[-1]:.4f}), sigma_m = "
         f"{h.column('sigma_m')[-1]:.3f} MPa, {round(h.column('n_contacts')[-1])} contacts (Z {h.column('Z')[-1]:.2f}); "
-        f"{res.num_particles_model} particles in the model, {res.num_dofs} dofs, wall {time.perf_counter() - start:.0f} s")
-    say(f"outputs in {res.out_dir}/: history.csv, packing.txt, checkpoints/"
-        + (", particles.xdmf (ParaView), particles.png, loading_path.png" if case.output.visual else ""))
+        f"{res.num_particles_model} particles in the model, {res.num_dofs} dofs, wall {time.perf_counter() - start:.0f} s"
+    )
+    say(
+        f"outputs in {res.out_dir}/: history.csv, packing.txt, checkpoints/"
+        + (
+            ", particles.xdmf (ParaView), particles.png, loading_path.png"
+            if case.output.visual
+            else ""
+        )
+    )
 
 
 def _pack(args, comm) -> None:
+    from ..case import MeshSection
     from ..meshes.admission import admit_packing
     from ..meshes.cubesphere import unit_ball_hex
     from ..meshes.packing import generate_packing, packing_format, read_packing, write_packing
-    from ..case import MeshSection
 
     say = _say(comm)
     try:
@@ -145,28 +195,44 @@ def _pack(args, comm) -> None:
             if not 0.5 <= args.scale <= 1.5:
                 raise ValueError(f"--scale = {args.scale} is out of range: must be in [0.5, 1.5]")
             if not 1e-6 <= args.length_scale <= 1e6:
-                raise ValueError(f"--length-scale = {args.length_scale} is out of range: must be in [1e-6, 1e6]")
-            packing = read_packing(args.input, validate=False, cell=args.cell, length_scale=args.length_scale)
+                raise ValueError(
+                    f"--length-scale = {args.length_scale} is out of range: must be in [1e-6, 1e6]"
+                )
+            packing = read_packing(
+                args.input, validate=False, cell=args.cell, length_scale=args.length_scale
+            )
             say(f"{args.input}: read as {packing_format(args.input)}")
             if args.scale != 1.0:
                 packing = packing.scaled(args.scale)
             run = MeshSection()  # the run's defaults: radius reduction, particle mesh
-            particle = unit_ball_hex(*run.subdivisions, run.refinement, exact_volume=run.exact_volume)
-            admitted = admit_packing(packing, run.radius_factor, particle.radius_scale,
-                                     automatic=True)
+            particle = unit_ball_hex(
+                *run.subdivisions, run.refinement, exact_volume=run.exact_volume
+            )
+            admitted = admit_packing(
+                packing, run.radius_factor, particle.radius_scale, automatic=True
+            )
             for note in admitted.notes:
                 say(f"{args.input}: {note}")
         else:
             if not 0 < args.r_min <= args.r_max:
-                raise ValueError(f"--r-min = {args.r_min}, --r-max = {args.r_max}: must be 0 < r_min <= r_max (mm)")
-            packing = generate_packing(args.particles, args.r_min, args.r_max, seed=args.seed,
-                                       target_fraction=args.fraction)
+                raise ValueError(
+                    f"--r-min = {args.r_min}, --r-max = {args.r_max}: must be 0 < r_min <= r_max (mm)"
+                )
+            packing = generate_packing(
+                args.particles,
+                args.r_min,
+                args.r_max,
+                seed=args.seed,
+                target_fraction=args.fraction,
+            )
     except (ValueError, OSError) as err:
         raise _Exit(BAD_INPUT, f"{args.input or 'pack'}: {err}")
     if comm.rank == 0:
         write_packing(packing, args.out)
-    say(f"{args.out}: {packing.num_particles} spheres, cell {' x '.join(f'{d:.6g}' for d in packing.cell)} mm, "
-        f"radii {packing.radii.min():.4g}-{packing.radii.max():.4g} mm, solid fraction {packing.solid_fraction:.4f}")
+    say(
+        f"{args.out}: {packing.num_particles} spheres, cell {' x '.join(f'{d:.6g}' for d in packing.cell)} mm, "
+        f"radii {packing.radii.min():.4g}-{packing.radii.max():.4g} mm, solid fraction {packing.solid_fraction:.4f}"
+    )
 
 
 def _plot(args, comm) -> None:

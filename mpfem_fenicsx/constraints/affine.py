@@ -53,8 +53,12 @@ class AffineConstraint:
         couplings: multipoint rows (owned slaves), see :class:`CouplingRows`.
     """
 
-    def __init__(self, V: dolfinx.fem.FunctionSpace, prescribed_dofs: np.ndarray,
-                 couplings: CouplingRows | None = None):
+    def __init__(
+        self,
+        V: dolfinx.fem.FunctionSpace,
+        prescribed_dofs: np.ndarray,
+        couplings: CouplingRows | None = None,
+    ):
         self.V = V
         comm = V.mesh.comm
         imap = V.dofmap.index_map
@@ -99,8 +103,11 @@ class AffineConstraint:
         values[indptr[self.free]] = vals_free
         if self.slaves.size:
             row_of_entry = np.repeat(np.arange(self.slaves.size), np.diff(couplings.indptr))
-            position = indptr[self.slaves[row_of_entry]] + np.arange(row_of_entry.size) \
+            position = (
+                indptr[self.slaves[row_of_entry]]
+                + np.arange(row_of_entry.size)
                 - np.asarray(couplings.indptr)[row_of_entry]
+            )
             columns[position] = master_cols
             values[position] = couplings.coefficients
         sizes = ((self.num_owned, imap.size_global * bs), (n_red, self.num_reduced_global))

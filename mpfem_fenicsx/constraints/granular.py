@@ -69,7 +69,7 @@ def periodic_lattice() -> np.ndarray:
 def cubic_weights(distance: np.ndarray, reach: float) -> np.ndarray:
     """Abaqus distributing-coupling cubic weights 1 - 3 (d/R)^2 + 2 (d/R)^3, normalized to sum 1."""
     s = np.clip(distance / reach, 0.0, 1.0)
-    w = 1.0 - 3.0 * s ** 2 + 2.0 * s ** 3
+    w = 1.0 - 3.0 * s**2 + 2.0 * s**3
     return w / w.sum()
 
 
@@ -90,8 +90,11 @@ def _gather_nodes(V: dolfinx.fem.FunctionSpace, cell_particle: np.ndarray) -> _N
     X = V.tabulate_dof_coordinates()[:n_owned]
     block = imap.local_range[0] + np.arange(n_owned)
     comm = V.mesh.comm
-    return _Nodes(np.concatenate(comm.allgather(X)), np.concatenate(comm.allgather(particle)),
-                  np.concatenate(comm.allgather(block)))
+    return _Nodes(
+        np.concatenate(comm.allgather(X)),
+        np.concatenate(comm.allgather(particle)),
+        np.concatenate(comm.allgather(block)),
+    )
 
 
 class GranularBoundaryConditions:
@@ -168,7 +171,7 @@ class GranularBoundaryConditions:
 
         by_particle = np.argsort(nodes.particle, kind="stable")
         starts = np.searchsorted(nodes.particle[by_particle], np.arange(radii.size + 1))
-        self._members = [by_particle[starts[p]:starts[p + 1]] for p in range(radii.size)]
+        self._members = [by_particle[starts[p] : starts[p + 1]] for p in range(radii.size)]
 
         if rules.driven != "none":
             driven = np.arange(radii.size) if rules.driven == "all" else np.flatnonzero(is_copy)
@@ -200,8 +203,10 @@ class GranularBoundaryConditions:
         d = np.linalg.norm(nodes.X[members] - centre, axis=1)
         inside = d <= fraction * radius
         if inside.sum() < 4:
-            raise ValueError(f"particle {p}: fewer than 4 nodes within {fraction} r of the centre; "
-                             "refine the particle mesh or raise coupling_radius")
+            raise ValueError(
+                f"particle {p}: fewer than 4 nodes within {fraction} r of the centre; "
+                "refine the particle mesh or raise coupling_radius"
+            )
         sel = members[inside]
         return sel, cubic_weights(d[inside], fraction * radius)
 
@@ -213,9 +218,15 @@ class GranularBoundaryConditions:
         others = np.delete(np.arange(sel.size), s)
         G = np.zeros((3, 9))
         for i in range(3):
-            G[i, 3 * i: 3 * i + 3] = offset / w[s]
-        self._rows.append((np.array([nodes.block[sel[s]]]), nodes.block[sel[others]][None, :],
-                           (-w[others] / w[s])[None, :], G[None]))
+            G[i, 3 * i : 3 * i + 3] = offset / w[s]
+        self._rows.append(
+            (
+                np.array([nodes.block[sel[s]]]),
+                nodes.block[sel[others]][None, :],
+                (-w[others] / w[s])[None, :],
+                G[None],
+            )
+        )
 
     def _coupling_operator(self, nodes, p, centre, radius, fraction, rotations):
         """Rows C (3 or 6, 3 n) of particle p's coupling, on its n coupling nodes' unrolled dofs
@@ -256,7 +267,7 @@ class GranularBoundaryConditions:
         masters = np.concatenate([dofs_p[rest], dofs_q])
         E = np.zeros((m, 9))
         for i in range(3):
-            E[i, 3 * i: 3 * i + 3] = offset
+            E[i, 3 * i : 3 * i + 3] = offset
         self._dof_rows.append(
             (dofs_p[pivots], np.broadcast_to(masters, (m, masters.size)), coeffs, D @ E)
         )
@@ -285,9 +296,10 @@ class GranularBoundaryConditions:
             )
         G = np.zeros((copy_nodes.size, 3, 9))
         for i in range(3):
-            G[:, i, 3 * i: 3 * i + 3] = lattice
-        self._rows.append((nodes.block[copy_nodes], nodes.block[hit][:, None],
-                           np.ones((copy_nodes.size, 1)), G))
+            G[:, i, 3 * i : 3 * i + 3] = lattice
+        self._rows.append(
+            (nodes.block[copy_nodes], nodes.block[hit][:, None], np.ones((copy_nodes.size, 1)), G)
+        )
 
     def _add_anchor(self, nodes, centres, radii, is_copy, original):
         """Fix the rigid translation: the outermost node of a particle of the volume, which is
@@ -310,7 +322,7 @@ class GranularBoundaryConditions:
         self.anchor_carrier = (centres[p] - 0.5 * self.cell) if self.comoving else np.zeros(3)
         G = np.zeros((1, 3, 9))
         for i in range(3):
-            G[0, i, 3 * i: 3 * i + 3] = self.anchor_carrier
+            G[0, i, 3 * i : 3 * i + 3] = self.anchor_carrier
         self._prescribed.append((np.array([nodes.block[k]]), G))
         self.anchor_block = int(nodes.block[k])
 

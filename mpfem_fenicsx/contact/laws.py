@@ -258,8 +258,27 @@ def law_point(
 
 
 @numba.njit(parallel=True, cache=True)
-def evaluate_law(gap, slip, normal, alpha_n, smax_n, tt_n, k, kt, mu, sigma_c, delta_max, p0,
-                 alpha_forced, T1, Tt, alpha, smax, dissipation, branch):
+def evaluate_law(
+    gap,
+    slip,
+    normal,
+    alpha_n,
+    smax_n,
+    tt_n,
+    k,
+    kt,
+    mu,
+    sigma_c,
+    delta_max,
+    p0,
+    alpha_forced,
+    T1,
+    Tt,
+    alpha,
+    smax,
+    dissipation,
+    branch,
+):
     """Tractions, updated history and branch codes at every contact point (:func:`law_point`)."""
     n = gap.shape[0]
     for i in numba.prange(n):

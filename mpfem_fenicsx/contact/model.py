@@ -115,8 +115,10 @@ class ContactModel:
         self.law = law
         self.surface = ContactSurface(V, facet_tags, num_bodies)
         if search_distance < law.delta_max and law.gamma > 0:
-            raise ValueError(f"contact search distance ({search_distance} mm) must be >= delta_max "
-                             f"({law.delta_max} mm) so that adhesive points are tracked")
+            raise ValueError(
+                f"contact search distance ({search_distance} mm) must be >= delta_max "
+                f"({law.delta_max} mm) so that adhesive points are tracked"
+            )
         self.search = ContactSearch(self.surface, search_distance, shifts, allowed)
         self.comm = V.mesh.comm
         self.state = ContactState.empty()
@@ -195,9 +197,16 @@ class ContactModel:
         facet_normal, _ = surface_normals(x, s.facets, s.vertices_per_facet)
         area = np.empty(n)
         if n:
-            contact_areas(pts.slave, pts.normal, s.node_facet_ptr, s.node_facets,
-                           facet_areas(x, s.facets, s.vertices_per_facet), facet_normal,
-                           s.vertices_per_facet, area)
+            contact_areas(
+                pts.slave,
+                pts.normal,
+                s.node_facet_ptr,
+                s.node_facets,
+                facet_areas(x, s.facets, s.vertices_per_facet),
+                facet_normal,
+                s.vertices_per_facet,
+                area,
+            )
 
         T1 = np.empty(n)
         Tt = np.empty((n, 3))
@@ -207,20 +216,42 @@ class ContactModel:
         branch = np.empty(n, np.int64)
         params = self.law.kernel_parameters()
         if n:
-            evaluate_law(pts.gap, jump, pts.normal, alpha_n, smax_n, tt_n, *params,
-                         T1, Tt, alpha, smax, dissipation, branch)
+            evaluate_law(
+                pts.gap,
+                jump,
+                pts.normal,
+                alpha_n,
+                smax_n,
+                tt_n,
+                *params,
+                T1,
+                Tt,
+                alpha,
+                smax,
+                dissipation,
+                branch,
+            )
         adhesive = n and self.law.gamma > 0
         held = np.zeros(n, np.bool_)
         if adhesive:
             held = self.guards.track(keys, branch, smax_n, T1)
         scale = PASS_WEIGHT * area
-        self.evaluation = ContactEvaluation(pts, nodes, weights, T1, Tt, area, branch,
-                                            scale[:, None] * (T1[:, None] * pts.normal + Tt),
-                                            float(np.sum(scale * dissipation)))
+        self.evaluation = ContactEvaluation(
+            pts,
+            nodes,
+            weights,
+            T1,
+            Tt,
+            area,
+            branch,
+            scale[:, None] * (T1[:, None] * pts.normal + Tt),
+            float(np.sum(scale * dissipation)),
+        )
         order = np.argsort(keys)
         self.guards.remember(keys[order], branch[order])
-        self.trial = ContactState(keys[order], alpha[order], smax[order], Tt[order],
-                                  (work_n + scale * dissipation)[order])
+        self.trial = ContactState(
+            keys[order], alpha[order], smax[order], Tt[order], (work_n + scale * dissipation)[order]
+        )
         if tangent:
             nn = 1 + s.vertices_per_facet
             K = np.empty((n, 3 * nn, 3 * nn))
@@ -298,8 +329,11 @@ class ContactModel:
             k = max(self.law.kernel_parameters()[:2])
             used = ev.nodes >= 0
             point = 2.0 * k * PASS_WEIGHT * ev.area  # sum_b |c_b| = 2
-            rows = np.bincount(ev.nodes[used], weights=(np.abs(ev.weights) * point[:, None])[used],
-                               minlength=self.surface.num_nodes)
+            rows = np.bincount(
+                ev.nodes[used],
+                weights=(np.abs(ev.weights) * point[:, None])[used],
+                minlength=self.surface.num_nodes,
+            )
         return self.comm.allreduce(rows, op=MPI.SUM)
 
     def add_residual(self, r: PETSc.Vec) -> None:
@@ -450,8 +484,14 @@ class ContactModel:
         pairs = np.concatenate([p[0] for p in parts])
         shifts = np.concatenate([p[1] for p in parts])
         if pairs.shape[0] == 0:
-            return {"pairs": pairs, "shift": shifts, "force": np.zeros((0, 3)), "area": np.zeros(0),
-                    "area_closed": np.zeros(0), "points": np.zeros(0)}
+            return {
+                "pairs": pairs,
+                "shift": shifts,
+                "force": np.zeros((0, 3)),
+                "area": np.zeros(0),
+                "area_closed": np.zeros(0),
+                "points": np.zeros(0),
+            }
         table, inverse = np.unique(np.column_stack([pairs, shifts]), axis=0, return_inverse=True)
         inverse = inverse.ravel()
         m = table.shape[0]
@@ -460,8 +500,14 @@ class ContactModel:
         area = np.bincount(inverse, weights=np.concatenate([p[3] for p in parts]), minlength=m)
         count = np.bincount(inverse, weights=np.concatenate([p[4] for p in parts]), minlength=m)
         closed = np.bincount(inverse, weights=np.concatenate([p[5] for p in parts]), minlength=m)
-        return {"pairs": table[:, :2].astype(np.int64), "shift": table[:, 2:], "force": force,
-                "area": area, "area_closed": closed, "points": count}
+        return {
+            "pairs": table[:, :2].astype(np.int64),
+            "shift": table[:, 2:],
+            "force": force,
+            "area": area,
+            "area_closed": closed,
+            "points": count,
+        }
 
     def body_forces(self) -> np.ndarray:
         """(num_bodies, num_bodies, 3): force (N) exerted by body j on body i, summed over ranks."""

@@ -91,8 +91,12 @@ def body_spheres(
     return spheres
 
 
-def candidate_pairs(boxes: np.ndarray, distance: float, shifts: np.ndarray | None = None,
-                    allowed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def candidate_pairs(
+    boxes: np.ndarray,
+    distance: float,
+    shifts: np.ndarray | None = None,
+    allowed: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Ordered (slave, master) body pairs with overlapping inflated boxes, and the shift index.
 
     Returns pairs (m, 2) and shift indices (m,). ``allowed`` (num_bodies, num_bodies) bool can
@@ -197,10 +201,20 @@ def project_point(p, x, f, nv, cn, res):
     t = ((p[0] - qx) * mx + (p[1] - qy) * my + (p[2] - qz) * mz) / mm
     converged = False
     for _it in range(20):
-        s0, s1, s2 = _solve3(ax + t * max_, bx + t * mbx, mx,
-                             ay + t * may, by + t * mby, my,
-                             az + t * maz, bz + t * mbz, mz,
-                             p[0] - qx - t * mx, p[1] - qy - t * my, p[2] - qz - t * mz)
+        s0, s1, s2 = _solve3(
+            ax + t * max_,
+            bx + t * mbx,
+            mx,
+            ay + t * may,
+            by + t * mby,
+            my,
+            az + t * maz,
+            bz + t * mbz,
+            mz,
+            p[0] - qx - t * mx,
+            p[1] - qy - t * my,
+            p[2] - qz - t * mz,
+        )
         xi += s0
         eta += s1
         t += s2
@@ -486,8 +500,13 @@ def _facet_boxes(x, facets, nv):
 class ContactSearch:
     """Search on a :class:`~mpfem_fenicsx.contact.surface.ContactSurface` (fixed topology)."""
 
-    def __init__(self, surface, distance: float, shifts: np.ndarray | None = None,
-                 allowed: np.ndarray | None = None):
+    def __init__(
+        self,
+        surface,
+        distance: float,
+        shifts: np.ndarray | None = None,
+        allowed: np.ndarray | None = None,
+    ):
         if not distance > 0:
             raise ValueError(f"contact search distance must be > 0 mm, got {distance}")
         self.surface = surface
@@ -568,5 +587,12 @@ class ContactSearch:
                 out_shift,
                 valid,
             )
-        return ContactPoints(out_slave[valid], out_master[valid], out_facet[valid], out_xi[valid],
-                             out_gap[valid], out_normal[valid], out_shift[valid])
+        return ContactPoints(
+            out_slave[valid],
+            out_master[valid],
+            out_facet[valid],
+            out_xi[valid],
+            out_gap[valid],
+            out_normal[valid],
+            out_shift[valid],
+        )

@@ -83,15 +83,19 @@ def least_squares_gradient(X, x, weights=None, rtol: float = 1e-10):
     if np.any(w < 0) or not np.all(np.isfinite(w)):
         raise ValueError("weights must be finite and non-negative")
     if np.count_nonzero(w) < 4:
-        raise ValueError(f"least-squares gradient needs at least 4 points with positive weight, "
-                         f"got {np.count_nonzero(w)}")
+        raise ValueError(
+            f"least-squares gradient needs at least 4 points with positive weight, "
+            f"got {np.count_nonzero(w)}"
+        )
     w = w / w.sum()
     Xm = w @ X
     dX = X - Xm
     s = np.linalg.svd(np.sqrt(w)[:, None] * dX, compute_uv=False)
     if not s[-1] > rtol * s[0]:
-        raise ValueError("least-squares gradient: reference points are coplanar or collinear "
-                         f"(singular values {s}), the fit is rank-deficient")
+        raise ValueError(
+            "least-squares gradient: reference points are coplanar or collinear "
+            f"(singular values {s}), the fit is rank-deficient"
+        )
     M = dX.T @ (w[:, None] * dX)  # sum w dX (x) dX
     xm = np.einsum("n,...ni->...i", w, x)
     B = np.einsum("n,...ni,nj->...ij", w, x - xm[..., None, :], dX)  # sum w dx (x) dX
@@ -132,7 +136,7 @@ def gradient_fit_noise_hd(X, residual_rms, h_v=0.0):
     n = X.shape[0]
     dX = X - X.mean(axis=0)
     trace_inverse = np.trace(np.linalg.inv(dX.T @ dX))
-    variance = n * residual_rms ** 2 / (3.0 * (n - 4))
+    variance = n * residual_rms**2 / (3.0 * (n - 4))
     stretch = np.exp(np.asarray(h_v, dtype=float) / 3.0)
     return np.sqrt(10.0 / 9.0 * variance * trace_inverse) / stretch
 
@@ -189,7 +193,7 @@ def rendulic_strain(h, axis=AXIAL):
 def solid_volume(radii) -> float:
     """V_p = 4/3 pi sum r^3 (mm^3) of the VEP particles' *initial* radii (thesis eq. 2.5)."""
     r = np.asarray(radii, dtype=float)
-    return float(4.0 / 3.0 * np.pi * np.sum(r ** 3))
+    return float(4.0 / 3.0 * np.pi * np.sum(r**3))
 
 
 def current_volume(volume_reference, F):

@@ -18,8 +18,9 @@ def default_gamma_levels(gamma_unloaded: float, gamma_fan: np.ndarray) -> tuple[
     growing), at 1/3 and 2/3 of the way. The thesis picked absolute levels per density; the
     reloads' Gamma range depends on the amplitude A, so levels are taken inside it."""
     lo, hi = float(np.nanmin(gamma_fan)), float(np.nanmax(gamma_fan))
-    levels = [gamma_unloaded + f * (lo - gamma_unloaded) for f in (2 / 3, 1 / 3)] + \
-             [gamma_unloaded + f * (hi - gamma_unloaded) for f in (1 / 3, 2 / 3)]
+    levels = [gamma_unloaded + f * (lo - gamma_unloaded) for f in (2 / 3, 1 / 3)] + [
+        gamma_unloaded + f * (hi - gamma_unloaded) for f in (1 / 3, 2 / 3)
+    ]
     return tuple(
         sorted(
             {
@@ -31,8 +32,9 @@ def default_gamma_levels(gamma_unloaded: float, gamma_fan: np.ndarray) -> tuple[
     )
 
 
-def surface_points(fan: dict[str, np.ndarray], E_0: float, dissipation_threshold: float,
-                   gamma_thresholds) -> dict[str, tuple[float, float]]:
+def surface_points(
+    fan: dict[str, np.ndarray], E_0: float, dissipation_threshold: float, gamma_thresholds
+) -> dict[str, tuple[float, float]]:
     """Threshold points of one reload: {kind: (sigma_m, sigma_tilde_d)} for kind in yield,
     gamma_<value>, w2 (absent when not crossed). W2 is only read where the strain increment is
     at least 20 % of the reload's largest (the smooth-step amplitude stops the loading at both

@@ -38,8 +38,13 @@ class History:
     early still leaves its history on disk.
     """
 
-    def __init__(self, path: str | Path, columns: list[str], comm: MPI.Comm = MPI.COMM_WORLD,
-                 flush_every_row: bool = False):
+    def __init__(
+        self,
+        path: str | Path,
+        columns: list[str],
+        comm: MPI.Comm = MPI.COMM_WORLD,
+        flush_every_row: bool = False,
+    ):
         self.path = Path(path)
         self.columns = list(columns)
         self.comm = comm

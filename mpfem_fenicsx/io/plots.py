@@ -91,7 +91,8 @@ def plot_yield_surface(
     with open(surfaces_csv) as fh:
         for row in csv.DictReader(fh):
             surfaces.setdefault(row["kind"], []).append(
-                (float(row["phi"]), float(row["sigma_m"]), float(row["sigma_tilde_d"])))
+                (float(row["phi"]), float(row["sigma_m"]), float(row["sigma_tilde_d"]))
+            )
     fig, axes = plt.subplots(1, 2, figsize=(15, 5.6), constrained_layout=True)
     for ax, (x, y) in zip(axes, (("h_v", "h_tilde_d"), ("sigma_m", "sigma_tilde_d")), strict=True):
         ax.plot(path[x], path[y], "k.-", ms=3, lw=1.2, label="loading + isotropic unload")

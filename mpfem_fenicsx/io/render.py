@@ -63,9 +63,21 @@ def render_grid(grid, path: str | Path, *, title: str = "", label: str = "von Mi
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
     pyvista.OFF_SCREEN = True
     plotter = pyvista.Plotter(off_screen=True, window_size=(1000, 800))
-    plotter.add_mesh(grid, scalars=label, cmap="viridis", show_edges=True, edge_color="#333333",
-                     scalar_bar_args={"title": label, "vertical": True, "position_x": 0.82,
-                                      "position_y": 0.15, "width": 0.08, "height": 0.7})
+    plotter.add_mesh(
+        grid,
+        scalars=label,
+        cmap="viridis",
+        show_edges=True,
+        edge_color="#333333",
+        scalar_bar_args={
+            "title": label,
+            "vertical": True,
+            "position_x": 0.82,
+            "position_y": 0.15,
+            "width": 0.08,
+            "height": 0.7,
+        },
+    )
     if title:
         plotter.add_text(title, font_size=11)
     plotter.view_isometric()

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 def _quintic_ramp(u: float) -> float:
     """Smooth step 10 u^3 - 15 u^4 + 6 u^5 on [0, 1]: zero slope and curvature at both ends."""
-    return u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u)
+    return u**3 * (10.0 - 15.0 * u + 6.0 * u * u)
 
 
 @dataclass(frozen=True)
@@ -38,7 +38,7 @@ class SmoothStep:
 
 def _quintic_ramp_integral(u: float) -> float:
     """Integral from 0 to u of :func:`_quintic_ramp` (1/2 at u = 1)."""
-    return u ** 4 * (2.5 - 3.0 * u + u * u)
+    return u**4 * (2.5 - 3.0 * u + u * u)
 
 
 @dataclass(frozen=True)

@@ -29,8 +29,10 @@ def compaction_gradient(path: str, rho_initial: float, rho_target: float) -> np.
     if not 0.0 < rho_initial < 1.0:
         raise ValueError(f"initial relative density must be in (0, 1), got {rho_initial:.4f}")
     if not rho_initial < rho_target < 1.0:
-        raise ValueError(f"target_density must be in ({rho_initial:.4f}, 1) (above the packing's "
-                         f"density, below full density), got {rho_target}")
+        raise ValueError(
+            f"target_density must be in ({rho_initial:.4f}, 1) (above the packing's "
+            f"density, below full density), got {rho_target}"
+        )
     ratio = rho_initial / rho_target
     if path == "isotropic":
         return ratio ** (1.0 / 3.0) * np.eye(3)

@@ -274,9 +274,17 @@ def rounded_waypoints(times, values, corner: float = 0.1) -> Callable[[float], n
     return path
 
 
-def normal_stress_path(times, stresses, rate: float, band: float, start: np.ndarray | None = None,
-                       measure: str = "schmidt", integral_time: float | None = None,
-                       filter_time: float = 0.0, corner: float = 0.1) -> StressControl:
+def normal_stress_path(
+    times,
+    stresses,
+    rate: float,
+    band: float,
+    start: np.ndarray | None = None,
+    measure: str = "schmidt",
+    integral_time: float | None = None,
+    filter_time: float = 0.0,
+    corner: float = 0.1,
+) -> StressControl:
     """The three normal stresses driven through the waypoints (``times`` (n,) s, increasing;
     ``stresses`` (n, 3) MPa, compression > 0, or (n,) for an isotropic pressure), linearly in
     between and held after the last: load / unload / reload paths, a tensile probe to rupture.
@@ -427,7 +435,12 @@ def triaxial_control(
         stress_driven=lambda t: np.eye(3, dtype=bool) if t < start_axial else lateral,
         target=lambda t: float(consolidated(t)[0]) * np.eye(3),
         velocity_gradient=axial,
-        rate=rate, band=band, measure=measure, integral_time=integral_time, filter_time=filter_time)
+        rate=rate,
+        band=band,
+        measure=measure,
+        integral_time=integral_time,
+        filter_time=filter_time,
+    )
 
 
 def lode_direction(theta: float) -> np.ndarray:

@@ -20,8 +20,12 @@ def component_dofs(V: dolfinx.fem.FunctionSpace, marker: Callable, component: in
     return (blocks.astype(np.int64) * V.dofmap.index_map_bs + component).astype(np.int32)
 
 
-def body_dofs(V: dolfinx.fem.FunctionSpace, cell_tags: dolfinx.mesh.MeshTags, body: int,
-              component: int | None = None) -> np.ndarray:
+def body_dofs(
+    V: dolfinx.fem.FunctionSpace,
+    cell_tags: dolfinx.mesh.MeshTags,
+    body: int,
+    component: int | None = None,
+) -> np.ndarray:
     """Local unrolled dofs of all nodes of the cells tagged ``body`` (all 3 components, or one)."""
     cells = cell_tags.indices[cell_tags.values == body]
     blocks = np.unique(V.dofmap.list[cells].ravel()).astype(np.int64)

@@ -81,9 +81,13 @@ class ServoSettings:
         """The servo's keyword arguments of :class:`~.mixed.StressControl` (rate 1/s, times s) for
         a loading ``duration`` (s); ``band`` defaults to ``band_fraction`` x ``pressure`` (MPa)."""
         band = self.band if self.band is not None else self.band_fraction * pressure
-        return dict(rate=self.rate / duration, band=band,
-                    measure=self.measure, filter_time=self.filter_time * duration,
-                    integral_time=self.integral_time * duration if self.integral_time > 0 else None)
+        return dict(
+            rate=self.rate / duration,
+            band=band,
+            measure=self.measure,
+            filter_time=self.filter_time * duration,
+            integral_time=self.integral_time * duration if self.integral_time > 0 else None,
+        )
 
 
 @dataclass

@@ -112,8 +112,11 @@ def eig_sym3(a, w, Q):
     b01 = d01 / p
     b02 = d02 / p
     b12 = d12 / p
-    half_det = 0.5 * (b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02)
-                      + b02 * (b01 * b12 - b11 * b02))
+    half_det = 0.5 * (
+        b00 * (b11 * b22 - b12 * b12)
+        - b01 * (b01 * b22 - b12 * b02)
+        + b02 * (b01 * b12 - b11 * b02)
+    )
     half_det = min(1.0, max(-1.0, half_det))
     angle = np.arccos(half_det) / 3.0
     beta = 2.0 * np.cos(angle) if half_det >= 0.0 else 2.0 * np.cos(angle + 2.0 * np.pi / 3.0)
@@ -149,8 +152,11 @@ def eig_sym3(a, w, Q):
         c = 1.0 / np.sqrt(t * t + 1.0)
         s = t * c
     # the isolated eigenvalue from its Rayleigh quotient (error quadratic in e0's)
-    beta0 = (e0x * (b00 * e0x + b01 * e0y + b02 * e0z) + e0y * (b01 * e0x + b11 * e0y + b12 * e0z)
-             + e0z * (b02 * e0x + b12 * e0y + b22 * e0z))
+    beta0 = (
+        e0x * (b00 * e0x + b01 * e0y + b02 * e0z)
+        + e0y * (b01 * e0x + b11 * e0y + b12 * e0z)
+        + e0z * (b02 * e0x + b12 * e0y + b22 * e0z)
+    )
     w[0] = q + p * beta0
     w[1] = q + p * (m00 - t * m01)
     w[2] = q + p * (m11 + t * m01)
@@ -208,9 +214,11 @@ def _store_cp_inv(be, Finv, M, C, out):
 def inverse3(F, Finv):
     """Finv = F^-1 of a 3 x 3 matrix (cofactors over the determinant; numba kernel, shared with
     the forms' gradient kernel)."""
-    det = (F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
-           - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
-           + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]))
+    det = (
+        F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
+        - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
+        + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0])
+    )
     inv = 1.0 / det
     Finv[0, 0] = (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1]) * inv
     Finv[0, 1] = (F[0, 2] * F[2, 1] - F[0, 1] * F[2, 2]) * inv
@@ -229,7 +237,7 @@ def _hardening_power(p, exponent, law):
     """p^n of the power law (0 at p = 0), the one power its yield stress, slope and plastic work
     share; unused (1) for linear hardening."""
     if law == 0:
-        return p ** exponent if p > 0.0 else 0.0
+        return p**exponent if p > 0.0 else 0.0
     return 1.0
 
 
@@ -292,12 +300,14 @@ def _plastic_multiplier(q_tr, p_n, three_mu, s0, modulus, exponent, law):
 # two matrices that commute (functions of the same tensor), whose product is symmetric.
 @numba.njit(cache=True, inline="always")
 def _sym_mul(a, b):
-    return (a[0] * b[0] + a[3] * b[3] + a[4] * b[4],
-            a[3] * b[3] + a[1] * b[1] + a[5] * b[5],
-            a[4] * b[4] + a[5] * b[5] + a[2] * b[2],
-            a[0] * b[3] + a[3] * b[1] + a[4] * b[5],
-            a[0] * b[4] + a[3] * b[5] + a[4] * b[2],
-            a[3] * b[4] + a[1] * b[5] + a[5] * b[2])
+    return (
+        a[0] * b[0] + a[3] * b[3] + a[4] * b[4],
+        a[3] * b[3] + a[1] * b[1] + a[5] * b[5],
+        a[4] * b[4] + a[5] * b[5] + a[2] * b[2],
+        a[0] * b[3] + a[3] * b[1] + a[4] * b[5],
+        a[0] * b[4] + a[3] * b[5] + a[4] * b[2],
+        a[3] * b[4] + a[1] * b[5] + a[5] * b[2],
+    )
 
 
 @numba.njit(cache=True, inline="always")
@@ -386,8 +396,29 @@ def _exp_near_zero(a):
 
 
 @numba.njit(cache=True, inline="always")
-def _update_point_by_series(qp, b, Finv, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law,
-                            P_dev, cp_inv_new, eps_p_new, tau, dissipation, psi, M1, M2, M3, C):
+def _update_point_by_series(
+    qp,
+    b,
+    Finv,
+    cp_inv_n,
+    eps_p_n,
+    mu,
+    bulk,
+    s0,
+    modulus,
+    exponent,
+    law,
+    P_dev,
+    cp_inv_new,
+    eps_p_new,
+    tau,
+    dissipation,
+    psi,
+    M1,
+    M2,
+    M3,
+    C,
+):
     """The stress update of one point without eigen-decomposition, for b_e^trial = ``b`` within
     SERIES_RADIUS of 1 (every elastic strain of a metal): the same radial return in tensor form,
     eps^trial = 1/2 ln b by the artanh series, b_e = exp(2 eps_e) by the Taylor series (exact to
@@ -430,9 +461,42 @@ _CHUNK = 512  # points per parallel chunk: scratch arrays are allocated once per
 
 
 @numba.njit(cache=True)
-def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law, want_tangent,
-                  P_dev, A_dev, cp_inv_new, eps_p_new, tau, dissipation, psi,
-                  Finv, C, be, x, Q, eps_tr, s_tr, s, eps_e, M1, M2, M3, a, Cs, D):
+def _update_range(
+    q0,
+    q1,
+    F,
+    cp_inv_n,
+    eps_p_n,
+    mu,
+    bulk,
+    s0,
+    modulus,
+    exponent,
+    law,
+    want_tangent,
+    P_dev,
+    A_dev,
+    cp_inv_new,
+    eps_p_new,
+    tau,
+    dissipation,
+    psi,
+    Finv,
+    C,
+    be,
+    x,
+    Q,
+    eps_tr,
+    s_tr,
+    s,
+    eps_e,
+    M1,
+    M2,
+    M3,
+    a,
+    Cs,
+    D,
+):
     for qp in range(q0, q1):
         three_mu = 3.0 * mu
         f = F[qp]
@@ -440,8 +504,14 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
         _sym_to_full(cp_inv_n[qp], C)
         _mul_abt(C, f, M1)  # b_e^trial = f C f^T
         _mul_ab(f, M1, be)
-        b = (be[0, 0], be[1, 1], be[2, 2], 0.5 * (be[0, 1] + be[1, 0]), 0.5 * (be[0, 2] + be[2, 0]),
-             0.5 * (be[1, 2] + be[2, 1]))
+        b = (
+            be[0, 0],
+            be[1, 1],
+            be[2, 2],
+            0.5 * (be[0, 1] + be[1, 0]),
+            0.5 * (be[0, 2] + be[2, 0]),
+            0.5 * (be[1, 2] + be[2, 1]),
+        )
         if (
             not want_tangent
             and _sym_norm2(_sym_axpi(1.0, b, -1.0)) <= SERIES_RADIUS * SERIES_RADIUS
@@ -584,8 +654,25 @@ def _update_range(q0, q1, F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent,
 
 
 @numba.njit(parallel=True, cache=True)
-def return_mapping(F, cp_inv_n, eps_p_n, mu, bulk, s0, modulus, exponent, law, want_tangent,
-                   P_dev, A_dev, cp_inv_new, eps_p_new, tau, dissipation, psi):
+def return_mapping(
+    F,
+    cp_inv_n,
+    eps_p_n,
+    mu,
+    bulk,
+    s0,
+    modulus,
+    exponent,
+    law,
+    want_tangent,
+    P_dev,
+    A_dev,
+    cp_inv_new,
+    eps_p_new,
+    tau,
+    dissipation,
+    psi,
+):
     """Exponential-map return mapping at every quadrature point.
 
     Inputs:  F (nq, 3, 3); cp_inv_n (nq, 6); eps_p_n (nq,); material scalars (MPa).
@@ -659,8 +746,14 @@ class HenckyJ2:
     current iterate; :meth:`commit` accepts the trial state at the end of a converged increment.
     """
 
-    def __init__(self, params, num_points: int, want_tangent: bool = True,
-                 P_dev: np.ndarray | None = None, A_dev: np.ndarray | None = None):
+    def __init__(
+        self,
+        params,
+        num_points: int,
+        want_tangent: bool = True,
+        P_dev: np.ndarray | None = None,
+        A_dev: np.ndarray | None = None,
+    ):
         """``P_dev`` (nq, 3, 3) and ``A_dev`` (nq, 3, 3, 3, 3) may be views of the quadrature
         Functions read by the forms, so the kernel writes straight into them (no copy)."""
         self.params = params
@@ -686,9 +779,20 @@ class HenckyJ2:
         tangent = self.want_tangent if tangent is None else tangent
         if tangent and self.A_dev.shape[0] != self.num_points:
             self.A_dev = np.zeros((self.num_points, 3, 3, 3, 3))
-        return_mapping(F, self.cp_inv, self.eps_p, *self.params.kernel_parameters(), tangent,
-                       self.P_dev, self.A_dev, self.cp_inv_trial, self.eps_p_trial, self.tau,
-                       self.dissipation, self.psi)
+        return_mapping(
+            F,
+            self.cp_inv,
+            self.eps_p,
+            *self.params.kernel_parameters(),
+            tangent,
+            self.P_dev,
+            self.A_dev,
+            self.cp_inv_trial,
+            self.eps_p_trial,
+            self.tau,
+            self.dissipation,
+            self.psi,
+        )
 
     def commit(self) -> None:
         """Accept the trial state (and its plastic work increment)."""
@@ -722,6 +826,10 @@ class HenckyJ2:
         """sqrt(3/2) |dev tau| at each point, MPa."""
         t = self.tau
         m = (t[:, 0] + t[:, 1] + t[:, 2]) / 3.0
-        dev2 = (t[:, 0] - m) ** 2 + (t[:, 1] - m) ** 2 + (t[:, 2] - m) ** 2 + 2 * (
-            t[:, 3] ** 2 + t[:, 4] ** 2 + t[:, 5] ** 2)
+        dev2 = (
+            (t[:, 0] - m) ** 2
+            + (t[:, 1] - m) ** 2
+            + (t[:, 2] - m) ** 2
+            + 2 * (t[:, 3] ** 2 + t[:, 4] ** 2 + t[:, 5] ** 2)
+        )
         return np.sqrt(1.5 * dev2)

@@ -57,7 +57,7 @@ class ElastoPlastic:
     def yield_stress(self, eps_p):
         """sigma_y(eps_p), MPa (numpy-friendly)."""
         if self.hardening == "power":
-            return self.sigma_0 + self.K * eps_p ** self.n
+            return self.sigma_0 + self.K * eps_p**self.n
         return self.sigma_0 + self.H * eps_p
 
     def kernel_parameters(self) -> tuple[float, float, float, float, float, int]:
@@ -71,5 +71,6 @@ class ElastoPlastic:
 LEAD = ElastoPlastic()
 
 #: Linear-hardening steel of the contact validation (thesis table 3.2)
-STEEL_LINEAR = ElastoPlastic(E=200000.0, nu=0.3, sigma_0=200.0, hardening="linear", K=0.0, H=100.0,
-                             density=7.8e-9)
+STEEL_LINEAR = ElastoPlastic(
+    E=200000.0, nu=0.3, sigma_0=200.0, hardening="linear", K=0.0, H=100.0, density=7.8e-9
+)

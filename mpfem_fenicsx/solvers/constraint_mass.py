@@ -70,8 +70,10 @@ class ConsistentReducedMass:
         self._C.mult(a, self._y)
         self._ksp.solve(self._y, self._z)
         if self._ksp.getConvergedReason() <= 0:
-            raise RuntimeError(f"consistent reduced mass: the Cholesky solve failed "
-                               f"(KSP reason {self._ksp.getConvergedReason()})")
+            raise RuntimeError(
+                f"consistent reduced mass: the Cholesky solve failed "
+                f"(KSP reason {self._ksp.getConvergedReason()})"
+            )
         self._C.multTranspose(self._z, self._w)
         self._w.pointwiseMult(self._w, self._inverse_free)
         a.axpy(-1.0, self._w)

@@ -31,8 +31,16 @@ class RelaxationDamping:
     problem's layout); ``timings``: a phase timer (the solver's), whose "constraints" phase
     gets the constraint products."""
 
-    def __init__(self, viscous: float, local: float, constraint, comm: MPI.Comm,
-                 lifted: PETSc.Vec, bodies: np.ndarray | None = None, timings=None):
+    def __init__(
+        self,
+        viscous: float,
+        local: float,
+        constraint,
+        comm: MPI.Comm,
+        lifted: PETSc.Vec,
+        bodies: np.ndarray | None = None,
+        timings=None,
+    ):
         self.viscous = viscous
         self.local = local
         self.constraint = constraint
@@ -69,9 +77,16 @@ class RelaxationDamping:
             v = self._on_nodes(v_body)
         return (self.viscous * mass[:, None] * v).ravel()
 
-    def local_force(self, force: np.ndarray, r_red: PETSc.Vec, v_red: PETSc.Vec,
-                    dof_mass: np.ndarray, mass_red: PETSc.Vec, velocity: np.ndarray,
-                    scratch: PETSc.Vec) -> np.ndarray:
+    def local_force(
+        self,
+        force: np.ndarray,
+        r_red: PETSc.Vec,
+        v_red: PETSc.Vec,
+        dof_mass: np.ndarray,
+        mass_red: PETSc.Vec,
+        velocity: np.ndarray,
+        scratch: PETSc.Vec,
+    ) -> np.ndarray:
         """The local non-viscous damping force (N, owned dofs, driving-force convention) for the
         sum of the other forces ``force`` (owned dofs) and its reduction ``r_red`` = P^T force;
         adds its reduction to ``r_red``. ``dof_mass``: lumped mass per owned dof (t), ``mass_red``
@@ -87,8 +102,9 @@ class RelaxationDamping:
         n = self.constraint.num_owned
         if self.bodies is not None:
             m = dof_mass.reshape(-1, 3)[:, 0]
-            sums = self._body_sums(np.column_stack([m, -force.reshape(-1, 3),
-                                                    m[:, None] * velocity.reshape(-1, 3)]))
+            sums = self._body_sums(
+                np.column_stack([m, -force.reshape(-1, 3), m[:, None] * velocity.reshape(-1, 3)])
+            )
             mass, push, momentum = sums[:, 0], sums[:, 1:4], sums[:, 4:7]
             d_body = -alpha * np.abs(push) * np.sign(momentum)  # driving-force convention
             if mass.sum() > 0:  # none when every body's motion is imposed (GDH)
@@ -113,8 +129,13 @@ class RelaxationDamping:
         """(num_bodies, k) sums over the ranks of per-node ``values`` (owned nodes, (n_nodes, k))
         by damped body."""
         nb = self._num_bodies
-        sums = np.stack([np.bincount(self._body_index, weights=values[:, j], minlength=nb + 1)[:nb]
-                         for j in range(values.shape[1])], axis=1)
+        sums = np.stack(
+            [
+                np.bincount(self._body_index, weights=values[:, j], minlength=nb + 1)[:nb]
+                for j in range(values.shape[1])
+            ],
+            axis=1,
+        )
         return self.comm.allreduce(sums, op=MPI.SUM)
 
     def _on_nodes(self, per_body: np.ndarray) -> np.ndarray:

@@ -48,16 +48,25 @@ class Energies:
     def balance_error(self) -> float:
         """|W_ext + E_mass - (E_int + E_visc + E_contact + E_kin + E_damp + E_carrier)| (mJ): zero
         to round-off from an equilibrium start, else the start-up term of the module docstring."""
-        absorbed = (self.internal + self.viscous + self.contact + self.kinetic + self.damping
-                    + self.carrier)
+        absorbed = (
+            self.internal + self.viscous + self.contact + self.kinetic + self.damping + self.carrier
+        )
         return abs(self.external + self.mass_scaling - absorbed)
 
     def record(self) -> dict[str, float]:
         """The energies of a history row (mJ): E_int, E_el, E_p (the whole model), E_contact,
         E_c (kinetic), E_visc, E_damp, E_mass (added by mass scaling), W_ext."""
-        return dict(E_int=self.internal, E_el=self.elastic, E_p=self.plastic,
-                    E_contact=self.contact, E_c=self.kinetic, E_visc=self.viscous,
-                    E_damp=self.damping, E_mass=self.mass_scaling, W_ext=self.external)
+        return dict(
+            E_int=self.internal,
+            E_el=self.elastic,
+            E_p=self.plastic,
+            E_contact=self.contact,
+            E_c=self.kinetic,
+            E_visc=self.viscous,
+            E_damp=self.damping,
+            E_mass=self.mass_scaling,
+            W_ext=self.external,
+        )
 
     def to_array(self) -> np.ndarray:
         """The fields in :data:`ENERGY_FIELDS` order (a checkpoint's array)."""
@@ -88,9 +97,14 @@ class EnergyTally:
         """a . b summed over the ranks."""
         return self.comm.allreduce(float(a @ b), op=MPI.SUM)
 
-    def add_step_work(self, inertia: np.ndarray, du: np.ndarray, dg: np.ndarray,
-                      forces: tuple[np.ndarray, np.ndarray, np.ndarray],
-                      damping: np.ndarray | None) -> None:
+    def add_step_work(
+        self,
+        inertia: np.ndarray,
+        du: np.ndarray,
+        dg: np.ndarray,
+        forces: tuple[np.ndarray, np.ndarray, np.ndarray],
+        damping: np.ndarray | None,
+    ) -> None:
         """The work around step n of the internal, viscous and contact ``forces`` (f_int, f_bv
         and minus the contact forces f_c) over the centred displacement increment ``du``, the
         relaxation ``damping`` force (None: none) over its peculiar part du - dg, and the
@@ -110,8 +124,9 @@ class EnergyTally:
         """W_ext += R_n . du_n."""
         self.energies.external += self.dot(reaction, du)
 
-    def add_image_work(self, image_force: np.ndarray, H_n: np.ndarray, H_new: np.ndarray,
-                       first: bool) -> None:
+    def add_image_work(
+        self, image_force: np.ndarray, H_n: np.ndarray, H_new: np.ndarray, first: bool
+    ) -> None:
         """The periodic images' work through their moving shifts, sum f_slave . dS with the
         centred increment of H = F0 - I around step n (one-sided at the ``first`` step):
         ``image_force`` (N mm, 3 x 3) the images' force moment, done by the loading (W_ext) and

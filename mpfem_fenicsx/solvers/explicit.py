@@ -100,7 +100,9 @@ class ExplicitSettings:
         if not 0.0 <= self.local_damping < 1.0:
             raise ValueError(f"local_damping must be in [0, 1), got {self.local_damping}")
         if self.constraint_mass not in CONSTRAINT_MASSES:
-            raise ValueError(f"constraint_mass must be one of {CONSTRAINT_MASSES}, got {self.constraint_mass!r}")
+            raise ValueError(
+                f"constraint_mass must be one of {CONSTRAINT_MASSES}, got {self.constraint_mass!r}"
+            )
 
 
 class PhaseTimes(dict):
@@ -126,8 +128,14 @@ class ExplicitSolver:
 
     name = "explicit"
 
-    def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, settings: ExplicitSettings,
-                 contact=None, damped_bodies: np.ndarray | None = None):
+    def __init__(
+        self,
+        problem: SolidProblem,
+        bcs: PrescribedDisplacements,
+        settings: ExplicitSettings,
+        contact=None,
+        damped_bodies: np.ndarray | None = None,
+    ):
         """``damped_bodies``: body id of every owned node: the damping then acts on each body's
         mean (rigid) peculiar velocity only, c m_node (w_b - <w>), <.> the mass average, so that
         rearrangements are relaxed while the bodies' deformation is not resisted and momentum is
@@ -153,15 +161,26 @@ class ExplicitSolver:
 
         v = ufl.TestFunction(problem.V)
         self.velocity = dolfinx.fem.Function(problem.V, name="velocity")
-        self.viscous_form = dolfinx.fem.form(forms.bulk_viscosity_work(
-            problem.u, self.velocity, v, self.density, self.scaling.wave_speed, self.scaling.cell_length,
-            dolfinx.fem.Constant(mesh, settings.bulk_viscosity_linear),
-            dolfinx.fem.Constant(mesh, settings.bulk_viscosity_quadratic), problem.dx_vol))
+        self.viscous_form = dolfinx.fem.form(
+            forms.bulk_viscosity_work(
+                problem.u,
+                self.velocity,
+                v,
+                self.density,
+                self.scaling.wave_speed,
+                self.scaling.cell_length,
+                dolfinx.fem.Constant(mesh, settings.bulk_viscosity_linear),
+                dolfinx.fem.Constant(mesh, settings.bulk_viscosity_quadratic),
+                problem.dx_vol,
+            )
+        )
         # the same force by the problem's numba loop at the volumetric points, when it reproduces
         # the form (checked with rates large enough for the quadratic term to count)
         self._viscous_loop = problem.volumetric_forces.reproduces(
-            self.viscous_form, self._add_viscous_forces,
-            [(problem.u, 1.0), (self.velocity, 50.0 * self._rate_scale())])
+            self.viscous_form,
+            self._add_viscous_forces,
+            [(problem.u, 1.0), (self.velocity, 50.0 * self._rate_scale())],
+        )
 
         self.f_int = problem.create_vector()
         self.f_visc = problem.create_vector()
@@ -169,9 +188,15 @@ class ExplicitSolver:
         self.f_damp = problem.create_vector()
         self.timings = PhaseTimes()
         #: the viscous and local relaxation damping (:mod:`.damping`)
-        self.relaxation = RelaxationDamping(settings.damping, settings.local_damping,
-                                            self.constraint, self.comm, problem.create_vector(),
-                                            damped_bodies, self.timings)
+        self.relaxation = RelaxationDamping(
+            settings.damping,
+            settings.local_damping,
+            self.constraint,
+            self.comm,
+            problem.create_vector(),
+            damped_bodies,
+            self.timings,
+        )
         self._force = problem.create_vector()  # their sum, reused every step
         self.x = self.constraint.create_reduced_vector()
         self.v_red = self.x.duplicate()
@@ -206,7 +231,9 @@ class ExplicitSolver:
         if self.contact is not None:
             self._contact_mass_scaling(mass, self.contact, self.settings)
         self.mass = mass
-        self.total_mass = self.comm.allreduce(float(mass.x.array[: self.constraint.num_owned].sum()) / 3.0)
+        self.total_mass = self.comm.allreduce(
+            float(mass.x.array[: self.constraint.num_owned].sum()) / 3.0
+        )
         self.mass_red = self.constraint.reduced_lumped_mass(mass)
         if self.settings.constraint_mass == "consistent":
             self._build_consistent_mass()
@@ -233,7 +260,9 @@ class ExplicitSolver:
         scaling.set_lengths(length)
         contact_grows = False
         if self._contact_mass is not None:
-            contact_grows = bool((self._contact_mass_needed(self.contact) > 1.05 * self._contact_mass).any())
+            contact_grows = bool(
+                (self._contact_mass_needed(self.contact) > 1.05 * self._contact_mass).any()
+            )
         if not self.comm.allreduce(bool(grow.any()) or contact_grows, op=MPI.LOR):
             return False
         scaling.scale[grow] = need[grow]
@@ -261,10 +290,14 @@ class ExplicitSolver:
         from ..contact.search import facet_areas
 
         surf = contact.surface
-        area = np.bincount(surf.facets[:, : surf.vertices_per_facet].ravel(),
-                           weights=np.repeat(facet_areas(surf.X, surf.facets, surf.vertices_per_facet)
-                                             / surf.vertices_per_facet, surf.vertices_per_facet),
-                           minlength=surf.num_nodes)
+        area = np.bincount(
+            surf.facets[:, : surf.vertices_per_facet].ravel(),
+            weights=np.repeat(
+                facet_areas(surf.X, surf.facets, surf.vertices_per_facet) / surf.vertices_per_facet,
+                surf.vertices_per_facet,
+            ),
+            minlength=surf.num_nodes,
+        )
         k_node = contact.law.penalty * area[surf.owned_nodes]
         blocks = surf.owned_local_blocks
         m_node = mass.x.array.reshape(-1, 3)[blocks, 0]
@@ -282,7 +315,11 @@ class ExplicitSolver:
             self.contact_added_mass = self.comm.allreduce(float(added.sum()), op=MPI.SUM)
         else:
             real = m_node > 0.0
-            local = float((2.0 * s * np.sqrt(m_node[real] / k_node[real])).min()) if real.any() else np.inf
+            local = (
+                float((2.0 * s * np.sqrt(m_node[real] / k_node[real])).min())
+                if real.any()
+                else np.inf
+            )
             self.dt = min(self.dt, self.comm.allreduce(local, op=MPI.MIN))
             self.contact_added_mass = 0.0
 
@@ -320,15 +357,30 @@ class ExplicitSolver:
     def _add_viscous_forces(self, array: np.ndarray) -> None:
         s, scaling = self.settings, self.scaling
         self.problem.volumetric_forces.add_bulk_viscosity(
-            self.problem.u, self.velocity, self.density, scaling.wave_speed, scaling.cell_length,
-            s.bulk_viscosity_linear, s.bulk_viscosity_quadratic, array)
+            self.problem.u,
+            self.velocity,
+            self.density,
+            scaling.wave_speed,
+            scaling.cell_length,
+            s.bulk_viscosity_linear,
+            s.bulk_viscosity_quadratic,
+            array,
+        )
 
     def _rate_scale(self) -> float:
         """A volumetric rate (1/s) at which the quadratic bulk-viscosity term is as large as the
         linear one, b1 c_d / (b2 L_e) (median cell), for checking both (the check's velocity
         field has gradients of about 0.02 per unit scale)."""
-        c = np.median(self.scaling.wave_speed.x.array) if self.scaling.wave_speed.x.array.size else 1.0
-        length = np.median(self.scaling.cell_length.x.array) if self.scaling.cell_length.x.array.size else 1.0
+        c = (
+            np.median(self.scaling.wave_speed.x.array)
+            if self.scaling.wave_speed.x.array.size
+            else 1.0
+        )
+        length = (
+            np.median(self.scaling.cell_length.x.array)
+            if self.scaling.cell_length.x.array.size
+            else 1.0
+        )
         s = self.settings
         if s.bulk_viscosity_linear == 0.0 or s.bulk_viscosity_quadratic == 0.0:
             return float(c / length)  # one term only: any rate of that order checks it
@@ -365,8 +417,9 @@ class ExplicitSolver:
             self.contact.commit(self.problem.u)
             search = self.contact.search_time - searched
             self.timings["contact_search"] = self.timings.get("contact_search", 0.0) + search
-            self.timings["contact_forces"] = (self.timings.get("contact_forces", 0.0)
-                                              + time.perf_counter() - start - search)
+            self.timings["contact_forces"] = (
+                self.timings.get("contact_forces", 0.0) + time.perf_counter() - start - search
+            )
         self.energies.plastic += self.problem.plastic_dissipation_increment()
 
     def reactions(self, dofs: np.ndarray) -> float:
@@ -405,8 +458,11 @@ class ExplicitSolver:
     @property
     def total_steps(self) -> int:
         """Increments from t = 0 to settings.t_end."""
-        return int(np.ceil(self.settings.t_end / self.settings.target_dt - 1e-9)) \
-            if self.settings.target_dt is not None else int(np.ceil(self.settings.t_end / self.dt - 1e-9))
+        return (
+            int(np.ceil(self.settings.t_end / self.settings.target_dt - 1e-9))
+            if self.settings.target_dt is not None
+            else int(np.ceil(self.settings.t_end / self.dt - 1e-9))
+        )
 
     def unbalanced_ratio(self) -> float:
         """Out-of-balance ratio at the current step (-): ||P^T (f_int + f_bv - f_c)|| / ||P^T f_int||,
@@ -445,9 +501,15 @@ class ExplicitSolver:
         """The local non-viscous damping (:mod:`.damping`) added to ``force``, to ``f_damp`` (its
         work is E_damp) and to the reduced force r_red = P^T force."""
         n = self.constraint.num_owned
-        lifted = self.relaxation.local_force(force.array_r[:n], self.r_red, self.v_red,
-                                             self.mass.x.array[:n], self.mass_red,
-                                             self._v_half_prev, self.a_red)
+        lifted = self.relaxation.local_force(
+            force.array_r[:n],
+            self.r_red,
+            self.v_red,
+            self.mass.x.array[:n],
+            self.mass_red,
+            self._v_half_prev,
+            self.a_red,
+        )
         if self.settings.damping > 0:
             self.f_damp.array_w[:n] += lifted
         else:
@@ -520,12 +582,18 @@ class ExplicitSolver:
         # centred displacement increment around step n (one-sided at the start) and its offset part
         du = 0.5 * (u.x.array[:n] - (self._u_prev if self.step > 0 else u_n))
         dg = 0.5 * (g_new - (self._g_prev if self.step > 0 else g_n))
-        self._tally_work(reaction, inertia, du, dg, image_force, H_n if image_force is not None else None, t_new)
+        self._tally_work(
+            reaction, inertia, du, dg, image_force, H_n if image_force is not None else None, t_new
+        )
         self._u_prev[:] = u_n
         self._g_prev[:] = g_n
         self._v_half_prev[:] = v_half
-        self.timings["update"] = (self.timings.get("update", 0.0) + time.perf_counter() - t2
-                                  - (self.timings["constraints"] - constraints0))
+        self.timings["update"] = (
+            self.timings.get("update", 0.0)
+            + time.perf_counter()
+            - t2
+            - (self.timings["constraints"] - constraints0)
+        )
 
         self.t = t_new
         self.step += 1
@@ -541,7 +609,8 @@ class ExplicitSolver:
         if not np.isfinite(self.energies.kinetic):
             raise FloatingPointError(
                 f"explicit integration diverged at step {self.step} (t={self.t:.4g} s, dt={dt:.3g} s): "
-                "non-finite velocities; use more increments (smaller target_dt) or a smaller deformation_margin")
+                "non-finite velocities; use more increments (smaller target_dt) or a smaller deformation_margin"
+            )
         self._forces()  # f_int(u_{n+1}), f_bv(u_{n+1}, v_{n+1/2})
         self.energies.elastic = self.problem.stored_energy()
 
@@ -556,19 +625,36 @@ class ExplicitSolver:
         histories (prefixes ``material/`` and ``contact/``). Restoring it with :meth:`load_state`
         on the same model and partition continues the run bit for bit."""
         data = {name: np.array(getattr(self, name, 0.0)) for name in self._SCALARS}
-        data.update({
-            "x": self.x.array_r.copy(), "v_red": self.v_red.array_r.copy(), "u": self.problem.u.x.array.copy(),
-            "velocity": self.velocity.x.array.copy(), "u_prev": self._u_prev.copy(),
-            "v_half_prev": self._v_half_prev.copy(), "g_prev": self._g_prev.copy(),
-            "reaction": np.asarray(getattr(self, "_reaction_last", np.zeros(0))).copy(),
-            "mass_scale": self.scaling.scale.copy(), "cell_length": self.scaling.cell_length.x.array.copy(), "mass": self.mass.x.array.copy(),
-            "mass_red": self.mass_red.array_r.copy(), "H_prev": self.tally.H_prev.copy(),
-            "image_force": np.zeros(0) if self._image_force is None else self._image_force.copy(),
-            "contact_mass": np.zeros(0) if self._contact_mass is None else self._contact_mass.copy(),
-            "energies": self.energies.to_array(),
-        })
-        for name, vec in (("f_int", self.f_int), ("f_visc", self.f_visc), ("f_cont", self.f_cont),
-                          ("f_damp", self.f_damp)):
+        data.update(
+            {
+                "x": self.x.array_r.copy(),
+                "v_red": self.v_red.array_r.copy(),
+                "u": self.problem.u.x.array.copy(),
+                "velocity": self.velocity.x.array.copy(),
+                "u_prev": self._u_prev.copy(),
+                "v_half_prev": self._v_half_prev.copy(),
+                "g_prev": self._g_prev.copy(),
+                "reaction": np.asarray(getattr(self, "_reaction_last", np.zeros(0))).copy(),
+                "mass_scale": self.scaling.scale.copy(),
+                "cell_length": self.scaling.cell_length.x.array.copy(),
+                "mass": self.mass.x.array.copy(),
+                "mass_red": self.mass_red.array_r.copy(),
+                "H_prev": self.tally.H_prev.copy(),
+                "image_force": np.zeros(0)
+                if self._image_force is None
+                else self._image_force.copy(),
+                "contact_mass": np.zeros(0)
+                if self._contact_mass is None
+                else self._contact_mass.copy(),
+                "energies": self.energies.to_array(),
+            }
+        )
+        for name, vec in (
+            ("f_int", self.f_int),
+            ("f_visc", self.f_visc),
+            ("f_cont", self.f_cont),
+            ("f_damp", self.f_damp),
+        ):
             with vec.localForm() as loc:
                 data[name] = loc.array_r.copy()
         data.update(histories_state(self.problem, self.contact))
@@ -586,7 +672,11 @@ class ExplicitSolver:
         self.bcs.apply(self.t)  # offsets g(t) (and periodic images) of the restored time
         self.problem.u.x.array[:] = data["u"]
         self.velocity.x.array[:] = data["velocity"]
-        self._u_prev[:], self._v_half_prev[:], self._g_prev[:] = data["u_prev"], data["v_half_prev"], data["g_prev"]
+        self._u_prev[:], self._v_half_prev[:], self._g_prev[:] = (
+            data["u_prev"],
+            data["v_half_prev"],
+            data["g_prev"],
+        )
         self._reaction_last = data["reaction"].copy()
         # mass scaling as it was (not rebuilt: the contact mass depends on the contact history)
         self.scaling.scale[:] = data["mass_scale"]
@@ -601,8 +691,12 @@ class ExplicitSolver:
         force = data.get("image_force", np.zeros(0))
         self._image_force = np.array(force).reshape(3, 3) if force.size else None
         self.energies.load_array(data["energies"])
-        for name, vec in (("f_int", self.f_int), ("f_visc", self.f_visc), ("f_cont", self.f_cont),
-                          ("f_damp", self.f_damp)):
+        for name, vec in (
+            ("f_int", self.f_int),
+            ("f_visc", self.f_visc),
+            ("f_cont", self.f_cont),
+            ("f_damp", self.f_damp),
+        ):
             with vec.localForm() as loc:
                 loc.array_w[:] = data[name]
         load_histories(self.problem, self.contact, data)
@@ -611,9 +705,14 @@ class ExplicitSolver:
             # committed history at this very state the evaluation is the committed one
             self.contact.evaluate(self.problem.u, tangent=False)
 
-    def run(self, on_output: Callable[["ExplicitSolver"], None] | None = None, outputs: int = 100,
-            max_steps: int | None = None, every: int | None = None,
-            on_step: Callable[["ExplicitSolver"], None] | None = None) -> int:
+    def run(
+        self,
+        on_output: Callable[[ExplicitSolver], None] | None = None,
+        outputs: int = 100,
+        max_steps: int | None = None,
+        every: int | None = None,
+        on_step: Callable[[ExplicitSolver], None] | None = None,
+    ) -> int:
         """Integrate to settings.t_end; ``on_output`` about ``outputs`` times (or every ``every``
         increments, counted from t = 0), and at the end; ``on_step`` after every increment (e.g. a
         stress servo). ``max_steps``: stop after so many increments of this call (benchmarks: the
@@ -623,7 +722,10 @@ class ExplicitSolver:
         target = self.settings.target_dt
         # a path made of whole increments keeps the target increment itself (a run split into
         # stages, e.g. load -> checkpoint -> unload -> reload, then steps exactly as the whole)
-        exact = target is not None and abs(total * target - self.settings.t_end) <= 1e-9 * self.settings.t_end
+        exact = (
+            target is not None
+            and abs(total * target - self.settings.t_end) <= 1e-9 * self.settings.t_end
+        )
         self.dt = target if exact else self.settings.t_end / total
         stop = total if max_steps is None else min(total, self.step + max_steps)
         while self.step < stop:
@@ -635,8 +737,17 @@ class ExplicitSolver:
                     on_output(self)
         return total
 
-    def run_path(self, on_output: Callable[["ExplicitSolver"], None] | None = None, *, outputs: int = 100,
-                 every: int | None = None, max_steps: int | None = None,
-                 on_step: Callable[["ExplicitSolver"], None] | None = None, log=None) -> int:
+    def run_path(
+        self,
+        on_output: Callable[[ExplicitSolver], None] | None = None,
+        *,
+        outputs: int = 100,
+        every: int | None = None,
+        max_steps: int | None = None,
+        on_step: Callable[[ExplicitSolver], None] | None = None,
+        log=None,
+    ) -> int:
         """The solver interface's run: :meth:`run` to settings.t_end (``log`` unused)."""
-        return self.run(on_output, outputs=outputs, max_steps=max_steps, every=every, on_step=on_step)
+        return self.run(
+            on_output, outputs=outputs, max_steps=max_steps, every=every, on_step=on_step
+        )

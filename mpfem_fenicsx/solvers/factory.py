@@ -11,16 +11,31 @@ from .interface import Solver
 from .kinds import solver_kind
 
 
-def create_solver(name: str, problem, bcs, *, contact=None, controls: list[StepControl] | None = None,
-                  settings: ExplicitSettings | None = None, petsc_options: dict | None = None,
-                  regularization=None, damped_bodies=None) -> Solver:
+def create_solver(
+    name: str,
+    problem,
+    bcs,
+    *,
+    contact=None,
+    controls: list[StepControl] | None = None,
+    settings: ExplicitSettings | None = None,
+    petsc_options: dict | None = None,
+    regularization=None,
+    damped_bodies=None,
+) -> Solver:
     """The solver ``name`` on ``problem`` with ``bcs``: implicit with its step ``controls``
     (``petsc_options``, ``regularization``), explicit with its ``settings`` (``damped_bodies``)."""
     if solver_kind(name).static:
         if not controls:
             raise ValueError("create_solver: the implicit solver needs its step controls")
-        return ImplicitSolver(problem, bcs, contact=contact, petsc_options=petsc_options,
-                              regularization=regularization, controls=controls)
+        return ImplicitSolver(
+            problem,
+            bcs,
+            contact=contact,
+            petsc_options=petsc_options,
+            regularization=regularization,
+            controls=controls,
+        )
     if settings is None:
         raise ValueError("create_solver: the explicit solver needs its settings")
     return ExplicitSolver(problem, bcs, settings, contact=contact, damped_bodies=damped_bodies)

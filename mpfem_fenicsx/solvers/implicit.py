@@ -46,7 +46,9 @@ class StepControl:
         if not 0 < self.dt_min <= self.dt <= self.t_end:
             raise ValueError(f"step control needs 0 < dt_min <= dt <= t_end, got {self}")
         if any(not 0 < b < self.t_end for b in self.breakpoints):
-            raise ValueError(f"step control breakpoints must lie in (0, t_end = {self.t_end}), got {self.breakpoints}")
+            raise ValueError(
+                f"step control breakpoints must lie in (0, t_end = {self.t_end}), got {self.breakpoints}"
+            )
 
     def next_stop(self, t: float) -> float:
         """First breakpoint (or t_end) after time t."""
@@ -75,9 +77,17 @@ class ImplicitSolver:
 
     name = "implicit"
 
-    def __init__(self, problem: SolidProblem, bcs: PrescribedDisplacements, *, contact=None,
-                 petsc_options: dict | None = None, prefix: str = "mpfem_implicit_",
-                 regularization: np.ndarray | None = None, controls: list[StepControl] | None = None):
+    def __init__(
+        self,
+        problem: SolidProblem,
+        bcs: PrescribedDisplacements,
+        *,
+        contact=None,
+        petsc_options: dict | None = None,
+        prefix: str = "mpfem_implicit_",
+        regularization: np.ndarray | None = None,
+        controls: list[StepControl] | None = None,
+    ):
         """``controls``: the step controls :meth:`run_path` runs one after the other (one per
         segment of the loading path). ``regularization``: stiffness k_i (N/mm) per owned dof of a pseudo-time viscous drag
         r_i += k_i (w_i - w_i,n) towards the last converged state (w = u - g, the motion relative
@@ -129,10 +139,18 @@ class ImplicitSolver:
             indptr[rows + 1] = 1
             indptr = np.cumsum(indptr).astype(PETSc.IntType)
             self._regularization_matrix = PETSc.Mat().createAIJ(
-                self.K.getSizes(), csr=(indptr, (lo + rows).astype(PETSc.IntType),
-                                        np.asarray(regularization)[rows]), comm=self.comm)
+                self.K.getSizes(),
+                csr=(indptr, (lo + rows).astype(PETSc.IntType), np.asarray(regularization)[rows]),
+                comm=self.comm,
+            )
             self._regularization_matrix.assemble()
-        self.timings = {"material": 0.0, "residual": 0.0, "contact": 0.0, "jacobian": 0.0, "reduce": 0.0}
+        self.timings = {
+            "material": 0.0,
+            "residual": 0.0,
+            "contact": 0.0,
+            "jacobian": 0.0,
+            "reduce": 0.0,
+        }
 
         # start from the current state of the problem (a new solver continues a load path)
         self.constraint.reduce_values(problem.u, self.x)
@@ -196,7 +214,11 @@ class ImplicitSolver:
         """Assemble K (and K_total = K + K_contact); True when the sparsity pattern changed."""
         self.problem.assemble_jacobian(self.K)
         if self.regularization is not None:
-            self.K.axpy(self.drag_scale, self._regularization_matrix, PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+            self.K.axpy(
+                self.drag_scale,
+                self._regularization_matrix,
+                PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN,
+            )
         if self.contact is None:
             return False
         K_c = self.contact.tangent_matrix(self.K)
@@ -256,8 +278,17 @@ class ImplicitSolver:
         """The energies of a history row (mJ): quasi-static, no kinetic or viscous energy; E_el the
         stored energy, E_p the plastic work of the converged increments (the whole model), E_damp
         the regularization's work; E_int, E_contact, W_ext not tallied (NaN)."""
-        return dict(E_int=np.nan, E_el=self.problem.stored_energy(), E_p=self.plastic_work, E_contact=np.nan,
-                    E_c=0.0, E_visc=0.0, E_damp=self.regularization_work, E_mass=0.0, W_ext=np.nan)
+        return dict(
+            E_int=np.nan,
+            E_el=self.problem.stored_energy(),
+            E_p=self.plastic_work,
+            E_contact=np.nan,
+            E_c=0.0,
+            E_visc=0.0,
+            E_damp=self.regularization_work,
+            E_mass=0.0,
+            W_ext=np.nan,
+        )
 
     def unbalanced_ratio(self) -> float:
         """NaN: Newton's converged residual (its tolerance) bounds the out-of-balance forces."""
@@ -269,9 +300,16 @@ class ImplicitSolver:
         starts = [0.0] + [c.t_end for c in self.controls[:-1]]
         return sum(round((c.t_end - t0) / c.dt) for c, t0 in zip(self.controls, starts))
 
-    def run_path(self, on_output: Callable[["ImplicitSolver"], None] | None = None, *, outputs: int = 0,
-                 every: int | None = None, max_steps: int | None = None, on_step=None,
-                 log: Callable[[str], None] | None = None) -> int:
+    def run_path(
+        self,
+        on_output: Callable[[ImplicitSolver], None] | None = None,
+        *,
+        outputs: int = 0,
+        every: int | None = None,
+        max_steps: int | None = None,
+        on_step=None,
+        log: Callable[[str], None] | None = None,
+    ) -> int:
         """The solver interface's run: each of :attr:`controls` from the current time (a restart
         enters one), ``on_output`` after every converged increment (``outputs``, ``every``,
         ``on_step`` unused: every increment is an output). Returns the increments made."""
@@ -352,10 +390,16 @@ class ImplicitSolver:
         """This rank's converged state (for checkpoints): time, next increment, reduced and full
         displacement, regularization anchor and work, plastic work, Newton count; with the material and contact
         histories (prefixes ``material/`` and ``contact/``)."""
-        data = {"t": np.array(self.t), "step": np.array(self.step), "dt_next": np.array(np.nan if self.dt_next is None else self.dt_next),
-                "iterations_total": np.array(self.iterations_total), "x": self.x.array_r.copy(),
-                "u": self.problem.u.x.array.copy(), "regularization_work": np.array(self.regularization_work),
-                "plastic_work": np.array(self.plastic_work)}
+        data = {
+            "t": np.array(self.t),
+            "step": np.array(self.step),
+            "dt_next": np.array(np.nan if self.dt_next is None else self.dt_next),
+            "iterations_total": np.array(self.iterations_total),
+            "x": self.x.array_r.copy(),
+            "u": self.problem.u.x.array.copy(),
+            "regularization_work": np.array(self.regularization_work),
+            "plastic_work": np.array(self.plastic_work),
+        }
         if self.regularization is not None:
             data["w_converged"] = self._w_converged.copy()
         data.update(histories_state(self.problem, self.contact))
@@ -379,7 +423,9 @@ class ImplicitSolver:
         self.x.copy(self.x_old)
         self._refresh_tangent()
 
-    def adopt_state(self, data: dict[str, np.ndarray], translation: np.ndarray | None = None) -> None:
+    def adopt_state(
+        self, data: dict[str, np.ndarray], translation: np.ndarray | None = None
+    ) -> None:
         """Continue from another solver's state on the same model and partition, e.g. an explicit
         checkpoint relaxed to rest: time, displacement, material and contact histories. The
         reduced coordinates are recomputed from u, the stepping starts afresh (``dt_next``, the
@@ -398,7 +444,12 @@ class ImplicitSolver:
                 data[key] = data[key] - c
         self.t = float(data["t"])
         self.step = int(data.get("step", 0))
-        self.dt_next, self.iterations_total, self.regularization_work, self.plastic_work = None, 0, 0.0, 0.0
+        self.dt_next, self.iterations_total, self.regularization_work, self.plastic_work = (
+            None,
+            0,
+            0.0,
+            0.0,
+        )
         load_histories(self.problem, self.contact, data)
         self.bcs.apply(self.t)
         self.problem.u.x.array[:] = data["u"]
@@ -409,8 +460,12 @@ class ImplicitSolver:
         self.x.copy(self.x_old)
         self._refresh_tangent()
 
-    def run(self, control: StepControl, on_step: Callable[["ImplicitSolver"], None] | None = None,
-            log: Callable[[str], None] | None = None) -> int:
+    def run(
+        self,
+        control: StepControl,
+        on_step: Callable[[ImplicitSolver], None] | None = None,
+        log: Callable[[str], None] | None = None,
+    ) -> int:
         """Advance from the current time to control.t_end; ``on_step`` after each converged step
         (a restarted solver continues with the increment it would have tried next)."""
         dt = control.dt if self.dt_next is None else min(self.dt_next, control.dt_max)
@@ -431,11 +486,14 @@ class ImplicitSolver:
                 self.bcs.apply(self.t)
                 dt *= 0.5
                 if log:
-                    log(f"  cut-back at t={self.t:.4g}: Newton reason {self.snes.getConvergedReason()}, "
-                        f"dt -> {dt:.3g}")
+                    log(
+                        f"  cut-back at t={self.t:.4g}: Newton reason {self.snes.getConvergedReason()}, "
+                        f"dt -> {dt:.3g}"
+                    )
                 if dt < control.dt_min:
                     raise NonConvergence(
-                        f"Newton did not converge at t={self.t:.6g} even with dt={dt:.3g} < dt_min")
+                        f"Newton did not converge at t={self.t:.6g} even with dt={dt:.3g} < dt_min"
+                    )
                 continue
             self.plastic_work += self.problem.plastic_dissipation_increment()
             self.problem.commit()
@@ -444,7 +502,8 @@ class ImplicitSolver:
             if self.regularization is not None:
                 dw = self._peculiar() - self._w_converged
                 self.regularization_work += self.comm.allreduce(
-                    float(self.drag_scale * np.sum(self.regularization.array_r * dw * dw)))
+                    float(self.drag_scale * np.sum(self.regularization.array_r * dw * dw))
+                )
                 self._w_converged[:] = self._peculiar()
             self.t = t_new
             self.step += 1

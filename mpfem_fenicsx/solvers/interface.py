@@ -40,10 +40,16 @@ class Solver(Protocol):
         """Increments of the whole path at the planned increment (no cut-back)."""
         ...
 
-    def run_path(self, on_output: Callable[[Solver], None] | None = None, *, outputs: int = 100,
-                 every: int | None = None, max_steps: int | None = None,
-                 on_step: Callable[[Solver], None] | None = None,
-                 log: Callable[[str], None] | None = None) -> int:
+    def run_path(
+        self,
+        on_output: Callable[[Solver], None] | None = None,
+        *,
+        outputs: int = 100,
+        every: int | None = None,
+        max_steps: int | None = None,
+        on_step: Callable[[Solver], None] | None = None,
+        log: Callable[[str], None] | None = None,
+    ) -> int:
         """Advance from the current state to the end of the path; ``on_output(solver)`` at the
         output increments (about ``outputs`` of them, or every ``every``; a static solver: every
         increment), ``on_step(solver)`` after every increment (dynamic solvers only, e.g. a
@@ -106,8 +112,9 @@ class StaticSolver(Solver, Protocol):
     #: plastic dissipation of the converged increments (mJ); set it to continue a tally
     plastic_work: float
 
-    def adopt_state(self, data: dict[str, np.ndarray],
-                    translation: np.ndarray | None = None) -> None:
+    def adopt_state(
+        self, data: dict[str, np.ndarray], translation: np.ndarray | None = None
+    ) -> None:
         """Continue from another solver's :meth:`state_dict` on the same model and partition (e.g.
         an explicit state relaxed to rest): time, displacement and histories; ``translation`` (mm)
         a rigid translation taken off the displacement."""

@@ -29,10 +29,24 @@ class SolverKind:
     increment_word: str
 
 
-EXPLICIT = SolverKind("explicit", tangent=False, anchored=False, stress_control=True, continues=("explicit",),
-                      static=False, increment_word="increments")
-IMPLICIT = SolverKind("implicit", tangent=True, anchored=True, stress_control=False,
-                      continues=("implicit", "explicit"), static=True, increment_word="steps")
+EXPLICIT = SolverKind(
+    "explicit",
+    tangent=False,
+    anchored=False,
+    stress_control=True,
+    continues=("explicit",),
+    static=False,
+    increment_word="increments",
+)
+IMPLICIT = SolverKind(
+    "implicit",
+    tangent=True,
+    anchored=True,
+    stress_control=False,
+    continues=("implicit", "explicit"),
+    static=True,
+    increment_word="steps",
+)
 SOLVER_KINDS = {kind.name: kind for kind in (EXPLICIT, IMPLICIT)}
 SOLVERS = tuple(SOLVER_KINDS)
 

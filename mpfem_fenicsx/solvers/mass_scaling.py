@@ -23,7 +23,9 @@ class ElementMassScaling:
     scale: np.ndarray  # density factor (>= 1) of every owned cell
     cell_dofs: np.ndarray  # DG0 dof of every owned cell
     density: dolfinx.fem.Function  # scaled density (t / mm^3) per cell
-    wave_speed: dolfinx.fem.Function  # scaled dilatational wave speed c_d / sqrt(scale) (mm / s) per cell
+    wave_speed: (
+        dolfinx.fem.Function
+    )  # scaled dilatational wave speed c_d / sqrt(scale) (mm / s) per cell
     cell_length: dolfinx.fem.Function  # stable length L_e (mm) per cell (min_cell_length)
     material_density: float  # unscaled (t / mm^3)
     dilatational_speed: float  # unscaled c_d (mm / s)
@@ -31,7 +33,7 @@ class ElementMassScaling:
     safety: float  # stable-increment safety factor (-)
 
     @classmethod
-    def build(cls, problem, settings) -> tuple["ElementMassScaling", np.ndarray]:
+    def build(cls, problem, settings) -> tuple[ElementMassScaling, np.ndarray]:
         """The scaling of ``problem``'s cells for ``settings.target_dt`` (none: unscaled), and
         the unscaled element stable increments dt_e (s)."""
         mat = problem.params
@@ -40,7 +42,9 @@ class ElementMassScaling:
         dt_e = settings.safety * length / c_d * (np.sqrt(1.0 + xi * xi) - xi)
         scale = np.ones_like(dt_e)
         if settings.target_dt is not None:
-            scale = np.maximum(1.0, (settings.target_dt / (settings.deformation_margin * dt_e)) ** 2)
+            scale = np.maximum(
+                1.0, (settings.target_dt / (settings.deformation_margin * dt_e)) ** 2
+            )
         DG0 = dolfinx.fem.functionspace(problem.mesh, ("DG", 0))
         cell_dofs = DG0.dofmap.list[: problem.num_cells, 0]
 
@@ -50,9 +54,17 @@ class ElementMassScaling:
             fn.x.scatter_forward()
             return fn
 
-        scaling = cls(scale, cell_dofs, cell_function(mat.density * scale, "density"),
-                      cell_function(c_d / np.sqrt(scale), "wave_speed"), cell_function(length, "cell_length"),
-                      mat.density, c_d, xi, settings.safety)
+        scaling = cls(
+            scale,
+            cell_dofs,
+            cell_function(mat.density * scale, "density"),
+            cell_function(c_d / np.sqrt(scale), "wave_speed"),
+            cell_function(length, "cell_length"),
+            mat.density,
+            c_d,
+            xi,
+            settings.safety,
+        )
         return scaling, dt_e
 
     def stable_increments(self, length: np.ndarray) -> np.ndarray:

@@ -24,5 +24,7 @@ def load_histories(problem, contact, data: dict[str, np.ndarray]) -> None:
 def check_layout(data: dict[str, np.ndarray], x, u) -> None:
     """Raise ValueError unless the saved reduced vector and displacement fit ``x`` and ``u``."""
     if data["x"].shape != x.array_r.shape or data["u"].shape != u.x.array.shape:
-        raise ValueError(f"checkpoint: the solver state does not match this model and partition ({data['u'].size} "
-                         f"local displacement values, this model has {u.x.array.size})")
+        raise ValueError(
+            f"checkpoint: the solver state does not match this model and partition ({data['u'].size} "
+            f"local displacement values, this model has {u.x.array.size})"
+        )

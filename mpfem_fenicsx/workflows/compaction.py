@@ -15,39 +15,65 @@ section) -> :func:`make_solver` (the solver section) -> :class:`CompactionRun` (
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
 from ..boundary import boundary_kind
-from ..case import (BoundarySection, CompactionCase, ContactSection, LoadingSection, MeshSection, PackingSection,
-                    SolverSection)
+from ..case import (
+    BoundarySection,
+    CompactionCase,
+    ContactSection,
+    LoadingSection,
+    MeshSection,
+    PackingSection,
+    SolverSection,
+)
 from ..constraints.granular import GranularBoundaryConditions, periodic_lattice
 from ..contact import ContactLaw, ContactModel
 from ..contact.laws import default_penalty
 from ..homogenization import solid_volume
 from ..io import History
-from ..io.checkpoint import (CheckpointError, checkpoint_path, load_checkpoint, prune_checkpoints,
-                             resolve_checkpoint, save_checkpoint)
+from ..io.checkpoint import (
+    CheckpointError,
+    checkpoint_path,
+    load_checkpoint,
+    prune_checkpoints,
+    resolve_checkpoint,
+    save_checkpoint,
+)
 from ..io.fields import CellFields, ParaViewWriter
 from ..io.plots import plot_loading_path
 from ..io.progress import Progress
 from ..io.render import render_deformed
 from ..loading import GradientPath, compaction_gradient
 from ..material import ElastoPlastic
-from ..meshes.cubesphere import unit_ball_hex
 from ..meshes import node_particles, particle_mesh, particle_volumes
 from ..meshes.admission import Admission, admit_packing
-from ..meshes.packing import (Duplicates, Packing, assembly_particles, duplicate_particles, generate_packing,
-                              packing_format, periodic_pair_realizations, read_packing,
-                              write_packing)
+from ..meshes.cubesphere import unit_ball_hex
+from ..meshes.packing import (
+    Duplicates,
+    Packing,
+    assembly_particles,
+    duplicate_particles,
+    generate_packing,
+    packing_format,
+    periodic_pair_realizations,
+    read_packing,
+    write_packing,
+)
 from ..problem import SolidProblem
 from ..solvers import NonConvergence, StepControl, create_solver, solver_kind
 from ..solvers.explicit import ExplicitSettings
-from .history_recorder import (COLUMNS, QUASI_STATIC_CHECK_COLUMNS, HistoryRecorder, QuasiStaticCheck,
-                               quasi_static_check)
+from .history_recorder import (
+    COLUMNS,
+    QUASI_STATIC_CHECK_COLUMNS,
+    HistoryRecorder,
+    QuasiStaticCheck,
+    quasi_static_check,
+)
 
 
 class RunFailure(RuntimeError):
@@ -72,11 +98,14 @@ class CompactionResult:
     solver: object | None = None  # the solver at the end of the run (its state, energies, timings)
     #: explicit runs: the energy balance's and the balance's verdict on the loading rate (also logged)
     quasi_static: QuasiStaticCheck | None = None
-    case: CompactionCase | None = None  # the case the run ran (with the checkpoint's packing on restart)
+    case: CompactionCase | None = (
+        None  # the case the run ran (with the checkpoint's packing on restart)
+    )
 
 
-def initial_packing(spheres: PackingSection, mesh: MeshSection, target_density: float,
-                    log=None) -> Admission:
+def initial_packing(
+    spheres: PackingSection, mesh: MeshSection, target_density: float, log=None
+) -> Admission:
     """The packing section's spheres (its object, its file, or the generator) admitted for the
     run by :func:`~mpfem_fenicsx.meshes.admission.admit_packing`, before any mesh: spheres in the
     cell, no overlap of the spheres through the particle meshes' nodes at the start (the default
@@ -91,12 +120,22 @@ def initial_packing(spheres: PackingSection, mesh: MeshSection, target_density: 
         if log is not None:
             log(f"packing: {spheres.file} read as {packing_format(spheres.file)}")
     else:
-        packing = generate_packing(spheres.particles, spheres.r_min, spheres.r_max, seed=spheres.seed,
-                                   target_fraction=spheres.fraction)
+        packing = generate_packing(
+            spheres.particles,
+            spheres.r_min,
+            spheres.r_max,
+            seed=spheres.seed,
+            target_fraction=spheres.fraction,
+        )
     divisions, layers = mesh.subdivisions
     particle = unit_ball_hex(divisions, layers, mesh.refinement, exact_volume=mesh.exact_volume)
-    admitted = admit_packing(packing, mesh.radius_factor, particle.radius_scale, target_density=target_density,
-                             automatic=mesh.radius_factor == MeshSection.radius_factor)
+    admitted = admit_packing(
+        packing,
+        mesh.radius_factor,
+        particle.radius_scale,
+        target_density=target_density,
+        automatic=mesh.radius_factor == MeshSection.radius_factor,
+    )
     for note in admitted.notes if log is not None else ():
         log(f"packing: {note}")
     return admitted
@@ -146,23 +185,34 @@ def loading_path(loading: LoadingSection, rho0: float) -> GradientPath:
     if loading.control is not None:
         return loading.control
     hold = [(loading.hold * loading.duration, np.eye(3))] if loading.hold > 0 else []
-    return GradientPath([(loading.duration, compaction_gradient(loading.path, rho0, loading.target_density)),
-                         *hold, *loading.segments_after],
-                        profiles=(loading.profile, *("smooth-step" for _ in hold), *loading.segment_profiles))
+    return GradientPath(
+        [
+            (loading.duration, compaction_gradient(loading.path, rho0, loading.target_density)),
+            *hold,
+            *loading.segments_after,
+        ],
+        profiles=(loading.profile, *("smooth-step" for _ in hold), *loading.segment_profiles),
+    )
 
 
 def contact_law(contact: ContactSection, material: ElastoPlastic, h_contact: float) -> ContactLaw:
     """The contact law of the ``[contact]`` section (thesis §3.3) with the penalty
     ``penalty_factor x E / h_contact`` (h_contact: the surface element edge, mm); raises
     ValueError if the adhesive law has no softening branch at that penalty."""
-    law = ContactLaw(penalty=default_penalty(material.E, h_contact, contact.penalty_factor),
-                     friction=contact.friction, gamma=contact.gamma, delta_max=contact.delta_max,
-                     asperity_yield=contact.asperity_yield)
+    law = ContactLaw(
+        penalty=default_penalty(material.E, h_contact, contact.penalty_factor),
+        friction=contact.friction,
+        gamma=contact.gamma,
+        delta_max=contact.delta_max,
+        asperity_yield=contact.asperity_yield,
+    )
     law.require_softening_branch()  # before meshing: the penalty follows the mesh resolution
     return law
 
 
-def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> CompactionModel:
+def build_compaction(
+    case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print
+) -> CompactionModel:
     """Packing, duplicated particles, mesh, bulk problem, constraints and contact of a case: the
     pipeline's stages, each given the sections it needs."""
     mesh_section, boundary = case.mesh, case.boundary
@@ -173,16 +223,21 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     kind = boundary_kind(boundary.condition)
     duplication_distance = boundary.d_bc_ratio() * float(packing.radii.max())  # mm
     if boundary.uses_images:  # CLP by periodic images: no copies
-        copies = Duplicates(np.zeros(0, np.int64), np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(0))
+        copies = Duplicates(
+            np.zeros(0, np.int64), np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(0)
+        )
     else:
-        copies = duplicate_particles(packing, duplication_distance, faces=kind.copy_faces,
-                                     corners=boundary.corners)
+        copies = duplicate_particles(
+            packing, duplication_distance, faces=kind.copy_faces, corners=boundary.corners
+        )
     centres, radii, original, shift = assembly_particles(packing, copies)
     radii = radii * admitted.radius_factor
     is_copy = np.any(shift != 0, axis=1)
-    log(f"packing: {n} particles, solid fraction {packing.solid_fraction:.4f}, cell {packing.cell}; "
+    log(
+        f"packing: {n} particles, solid fraction {packing.solid_fraction:.4f}, cell {packing.cell}; "
         f"{int(is_copy.sum())} duplicated particles (d_bc = {duplication_distance:.4g} mm, bc "
-        f"{boundary.condition})")
+        f"{boundary.condition})"
+    )
 
     solid0 = solid_volume(radii[:n])  # thesis eq. 2.5, initial (meshed) radii
 
@@ -190,11 +245,21 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
     # surface element edge at a cube-face centre of the smallest particle (equi-angular grid)
     h_contact = float(radii.min()) * np.pi / (2 * divisions * mesh_section.refinement)
     law = contact_law(case.contact, case.material, h_contact)
-    rotations = None if mesh_section.rotation is None else np.broadcast_to(mesh_section.rotation,
-                                                                           (radii.size, 3, 3))
-    assembly = particle_mesh(centres, radii, comm, divisions=divisions, layers=layers,
-                             refinement=mesh_section.refinement, exact_volume=mesh_section.exact_volume,
-                             rotations=rotations)
+    rotations = (
+        None
+        if mesh_section.rotation is None
+        else np.broadcast_to(mesh_section.rotation, (radii.size, 3, 3))
+    )
+    assembly = particle_mesh(
+        centres,
+        radii,
+        comm,
+        divisions=divisions,
+        layers=layers,
+        refinement=mesh_section.refinement,
+        exact_volume=mesh_section.exact_volume,
+        rotations=rotations,
+    )
     mesh = assembly.mesh
     owned_cells = mesh.topology.index_map(3).size_local
     cell_particle = assembly.cell_tags.values[:owned_cells]
@@ -208,50 +273,108 @@ def build_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=
 
     # CLP's tied copies: one body pair per periodic pair (copy-copy only for mixed lattice shifts);
     # solid copies (GDH, GDF, CLPS) touch each other as separate bodies
-    allowed = (periodic_pair_realizations(original, shift) if kind.tied_nodes
-               else np.ones((radii.size, radii.size), dtype=bool))
-    contact = ContactModel(V, assembly.facet_tags, radii.size, law,
-                           search_distance=max(0.05 * float(radii.min()), 2 * case.contact.delta_max),
-                           allowed=allowed,
-                           shifts=periodic_lattice() * packing.cell if boundary.uses_images else None)
-    bcs = GranularBoundaryConditions(V, cell_particle, centres, radii, original, shift, packing.cell,
-                                     boundary.condition, path, images=contact if boundary.uses_images else None,
-                                     anchor=solver.anchored, comoving=boundary.comoving,
-                                     equal_rotations=boundary.equal_rotations)
-    return CompactionModel(boundary, case.loading, packing, centres, radii, original, shift, assembly, problem,
-                           bcs, contact, path, solid0, rho0, rho0_fe, h_contact)
+    allowed = (
+        periodic_pair_realizations(original, shift)
+        if kind.tied_nodes
+        else np.ones((radii.size, radii.size), dtype=bool)
+    )
+    contact = ContactModel(
+        V,
+        assembly.facet_tags,
+        radii.size,
+        law,
+        search_distance=max(0.05 * float(radii.min()), 2 * case.contact.delta_max),
+        allowed=allowed,
+        shifts=periodic_lattice() * packing.cell if boundary.uses_images else None,
+    )
+    bcs = GranularBoundaryConditions(
+        V,
+        cell_particle,
+        centres,
+        radii,
+        original,
+        shift,
+        packing.cell,
+        boundary.condition,
+        path,
+        images=contact if boundary.uses_images else None,
+        anchor=solver.anchored,
+        comoving=boundary.comoving,
+        equal_rotations=boundary.equal_rotations,
+    )
+    return CompactionModel(
+        boundary,
+        case.loading,
+        packing,
+        centres,
+        radii,
+        original,
+        shift,
+        assembly,
+        problem,
+        bcs,
+        contact,
+        path,
+        solid0,
+        rho0,
+        rho0_fe,
+        h_contact,
+    )
 
 
 def make_solver(solver: SolverSection, model: CompactionModel, log=print):
     """The solver factory: the ``[solver]`` section's solver on the model (the one place that
     reads its name), with the increments of the model's whole loading path."""
     problem, bcs, path, loading = model.problem, model.bcs, model.path, model.loading
-    model_line = (f"model: {model.radii.size} particles, {model.num_dofs} dofs ({bcs.constraint.num_reduced_global} "
-                  f"free), rho0 = {model.rho0:.4f}")
+    model_line = (
+        f"model: {model.radii.size} particles, {model.num_dofs} dofs ({bcs.constraint.num_reduced_global} "
+        f"free), rho0 = {model.rho0:.4f}"
+    )
     if solver_kind(solver.kind).static:
-        log("WARNING: implicit granular runs are experimental: with the pseudo-time drag the free "
+        log(
+            "WARNING: implicit granular runs are experimental: with the pseudo-time drag the free "
             "particles are solvable, but Newton needs many cut-backs once contacts yield, and may stall on "
             "frictional stick / slip switches (verified on the 8-sphere simple cubic cell: compaction, "
-            "restart, chapter-4 reloads); use the explicit solver for production runs")
+            "restart, chapter-4 reloads); use the explicit solver for production runs"
+        )
         nodal_volume = problem.lumped_mass(1.0).x.array[: bcs.constraint.num_owned]
         # backtracking line search: frictional stick / slip switches make full Newton steps cycle
         # (an explicit state relaxed to rest stalled at 1e-1 of its residual without it)
-        implicit = create_solver(solver.kind, problem, bcs, contact=model.contact,
-                                 petsc_options={"snes_linesearch_type": "bt"},
-                                 regularization=solver.regularization * problem.params.E * nodal_volume
-                                 / model.contact_length ** 2,
-                                 controls=implicit_step_controls(solver, loading.duration, path))
+        implicit = create_solver(
+            solver.kind,
+            problem,
+            bcs,
+            contact=model.contact,
+            petsc_options={"snes_linesearch_type": "bt"},
+            regularization=solver.regularization
+            * problem.params.E
+            * nodal_volume
+            / model.contact_length**2,
+            controls=implicit_step_controls(solver, loading.duration, path),
+        )
         log(f"{model_line} -> {loading.target_density}, implicit, {implicit.total_steps} steps")
         return implicit
-    settings = ExplicitSettings(t_end=path.duration, target_dt=loading.duration / solver.increments,
-                                damping=solver.damping / loading.duration, local_damping=solver.local_damping,
-                                constraint_mass=solver.constraint_mass)
+    settings = ExplicitSettings(
+        t_end=path.duration,
+        target_dt=loading.duration / solver.increments,
+        damping=solver.damping / loading.duration,
+        local_damping=solver.local_damping,
+        constraint_mass=solver.constraint_mass,
+    )
     node_particle = node_particles(problem.V, model.assembly.cell_tags.values[: problem.num_cells])
-    explicit = create_solver(solver.kind, problem, bcs, contact=model.contact, settings=settings,
-                             damped_bodies=damped_bodies(model.boundary.condition, model.original)[node_particle])
-    log(f"{model_line} (finite elements {model.rho0_fe:.4f}) -> "
+    explicit = create_solver(
+        solver.kind,
+        problem,
+        bcs,
+        contact=model.contact,
+        settings=settings,
+        damped_bodies=damped_bodies(model.boundary.condition, model.original)[node_particle],
+    )
+    log(
+        f"{model_line} (finite elements {model.rho0_fe:.4f}) -> "
         f"{'stress-controlled' if loading.control is not None else loading.target_density}, "
-        f"dt = {explicit.dt:.3g} s (unscaled {explicit.dt_stable_unscaled:.3g} s), {solver.increments} increments")
+        f"dt = {explicit.dt:.3g} s (unscaled {explicit.dt_stable_unscaled:.3g} s), {solver.increments} increments"
+    )
     return explicit
 
 
@@ -261,8 +384,11 @@ def damped_bodies(bc: str, original: np.ndarray) -> np.ndarray:
     its original: one body), or -1 where F0 drives the particle's reference point (the copies of
     GDF, every particle of GDH): that motion is imposed, and damping it with the volume would tie
     the free particles to the imposed flow through their driven copies' forces."""
-    driven = {"all": np.ones(original.size, bool), "copies": original != np.arange(original.size),
-              "none": np.zeros(original.size, bool)}[boundary_kind(bc).driven]
+    driven = {
+        "all": np.ones(original.size, bool),
+        "copies": original != np.arange(original.size),
+        "none": np.zeros(original.size, bool),
+    }[boundary_kind(bc).driven]
     return np.where(driven, -1, original)
 
 
@@ -272,8 +398,15 @@ class CompactionCheckpoints:
     reference centroids, the packing, the control's state and F0 (a run continues from one bit
     for bit, explicit)."""
 
-    def __init__(self, root: Path, comm: MPI.Comm, every: int, keep: int, solver_name: str,
-                 restart: Path | None = None):
+    def __init__(
+        self,
+        root: Path,
+        comm: MPI.Comm,
+        every: int,
+        keep: int,
+        solver_name: str,
+        restart: Path | None = None,
+    ):
         self.root, self.comm, self.every, self.keep = Path(root), comm, every, keep
         self.solver_name = solver_name  # the [solver] kind that writes (and restores) the states
         self.last: Path | None = None
@@ -282,20 +415,41 @@ class CompactionCheckpoints:
     def due(self, rows: int) -> bool:
         return bool(self.every) and rows % self.every == 0
 
-    def write(self, solver, model: CompactionModel, history: History, reference_centroids: np.ndarray,
-              wall_time: float) -> None:
+    def write(
+        self,
+        solver,
+        model: CompactionModel,
+        history: History,
+        reference_centroids: np.ndarray,
+        wall_time: float,
+    ) -> None:
         packing, V, control = model.packing, model.problem.V, model.loading.control
         arrays = {f"solver/{k}": v for k, v in solver.state_dict().items()}
         arrays["dof_coordinates"] = _dof_coordinates(V)
         directory = checkpoint_path(self.root, solver.step)
-        save_checkpoint(directory, self.comm, arrays, {
-            "step": solver.step, "t": solver.t, "solver": self.solver_name, "bc": model.boundary.condition,
-            "num_dofs": model.num_dofs,
-            "centroids0": reference_centroids.tolist(), "history": history.rows, "columns": history.columns,
-            "control": None if control is None else control.state_dict(),
-            "F0": model.path(solver.t).tolist(), "wall_time": wall_time,
-            "packing": {"cell": packing.cell.tolist(), "centres": packing.centres.tolist(),
-                        "radii": packing.radii.tolist()}})
+        save_checkpoint(
+            directory,
+            self.comm,
+            arrays,
+            {
+                "step": solver.step,
+                "t": solver.t,
+                "solver": self.solver_name,
+                "bc": model.boundary.condition,
+                "num_dofs": model.num_dofs,
+                "centroids0": reference_centroids.tolist(),
+                "history": history.rows,
+                "columns": history.columns,
+                "control": None if control is None else control.state_dict(),
+                "F0": model.path(solver.t).tolist(),
+                "wall_time": wall_time,
+                "packing": {
+                    "cell": packing.cell.tolist(),
+                    "centres": packing.centres.tolist(),
+                    "radii": packing.radii.tolist(),
+                },
+            },
+        )
         if self.comm.rank == 0:
             prune_checkpoints(self.root, self.keep)
         self.last = directory
@@ -305,32 +459,54 @@ class CompactionCheckpoints:
         """The newest good checkpoint: the last written, or the one the run restarted from."""
         return self.last or self.restart
 
-    def restore(self, arrays: dict, meta: dict, solver, model: CompactionModel, history: History) -> None:
+    def restore(
+        self, arrays: dict, meta: dict, solver, model: CompactionModel, history: History
+    ) -> None:
         """Continue from a checkpoint read with ``load_checkpoint``: the control's state, the
         history rows, the solver's state (an implicit solver adopts an explicit state relaxed to
         rest). Raises CheckpointError if it was written for another model or partition."""
-        V, num_dofs, name, bc = model.problem.V, model.num_dofs, self.solver_name, model.boundary.condition
+        V, num_dofs, name, bc = (
+            model.problem.V,
+            model.num_dofs,
+            self.solver_name,
+            model.boundary.condition,
+        )
         control = model.loading.control
         adopt = meta["solver"] != name and meta["solver"] in solver_kind(name).continues
-        if meta["num_dofs"] != num_dofs or (meta["solver"] != name and not adopt) or meta["bc"] != bc:
-            raise CheckpointError(f"restart: {self.restart} was written for another model ({meta['num_dofs']} dofs, "
-                                  f"{meta['solver']}, {meta['bc']}; this case: {num_dofs} dofs, {name}, {bc})")
-        if arrays["dof_coordinates"].shape != _dof_coordinates(V).shape or \
-                not np.array_equal(arrays["dof_coordinates"], _dof_coordinates(V)):
-            raise CheckpointError(f"restart: {self.restart} was written with another mesh partition")
+        if (
+            meta["num_dofs"] != num_dofs
+            or (meta["solver"] != name and not adopt)
+            or meta["bc"] != bc
+        ):
+            raise CheckpointError(
+                f"restart: {self.restart} was written for another model ({meta['num_dofs']} dofs, "
+                f"{meta['solver']}, {meta['bc']}; this case: {num_dofs} dofs, {name}, {bc})"
+            )
+        if arrays["dof_coordinates"].shape != _dof_coordinates(V).shape or not np.array_equal(
+            arrays["dof_coordinates"], _dof_coordinates(V)
+        ):
+            raise CheckpointError(
+                f"restart: {self.restart} was written with another mesh partition"
+            )
         if control is not None:  # the servo before the solver asks it for F0
             if meta.get("control") is not None:  # as it was (a new stress path continues it)
                 control.load_state(meta["control"])
             elif meta.get("F0") is not None:  # a stress path from a strain-driven state
                 control.begin(float(meta["t"]), np.array(meta["F0"], dtype=float))
             else:
-                raise CheckpointError(f"restart: {self.restart} does not record its gradient F0 (written before "
-                                      "2026-11-25): a stress-controlled run cannot continue it")
+                raise CheckpointError(
+                    f"restart: {self.restart} does not record its gradient F0 (written before "
+                    "2026-11-25): a stress-controlled run cannot continue it"
+                )
         history.rows = _history_rows(meta, history.columns)
         state = {k[7:]: v for k, v in arrays.items() if k.startswith("solver/")}
         if adopt:
-            solver.adopt_state(state, translation=_anchor_displacement(model.bcs, V, state["u"], float(state["t"])))
-            solver.plastic_work = history.rows[-1][history.columns.index("E_p_model")]  # the tally goes on
+            solver.adopt_state(
+                state, translation=_anchor_displacement(model.bcs, V, state["u"], float(state["t"]))
+            )
+            solver.plastic_work = history.rows[-1][
+                history.columns.index("E_p_model")
+            ]  # the tally goes on
         else:
             solver.load_state(state)
 
@@ -348,16 +524,27 @@ class CompactionRun:
     (a fan of reloads restarts one checkpoint many times; only the path of ``case`` and its
     outputs may differ), whose state the restart overwrites. The case is not modified."""
 
-    def __init__(self, case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print, *,
-                 restart: str | Path | None = None, progress: Progress | None = None,
-                 model: CompactionModel | None = None):
+    def __init__(
+        self,
+        case: CompactionCase,
+        comm: MPI.Comm = MPI.COMM_WORLD,
+        log=print,
+        *,
+        restart: str | Path | None = None,
+        progress: Progress | None = None,
+        model: CompactionModel | None = None,
+    ):
         self.start = time.perf_counter()
         self.comm, self.log = comm, log
         arrays = meta = None
         if restart is not None:
             restart = resolve_checkpoint(restart)
-            arrays, meta = load_checkpoint(restart, comm)  # checks the number of ranks before any build
-            if case.packing.spheres is None and case.packing.file is None:  # the checkpoint's own packing
+            arrays, meta = load_checkpoint(
+                restart, comm
+            )  # checks the number of ranks before any build
+            if (
+                case.packing.spheres is None and case.packing.file is None
+            ):  # the checkpoint's own packing
                 pk = meta["packing"]
                 case = case.updated(spheres=Packing(pk["cell"], pk["centres"], pk["radii"]))
         self.case = case
@@ -372,20 +559,30 @@ class CompactionRun:
         self.solver = make_solver(case.solver, model, log)
         self.recorder = HistoryRecorder(model, comm, None if meta is None else meta["centroids0"])
         self.history = History(self.out / "history.csv", COLUMNS, comm, flush_every_row=True)
-        self.checkpoints = CompactionCheckpoints(self.out / "checkpoints", comm, case.output.checkpoint_every,
-                                                 case.output.checkpoint_keep, case.solver.kind, restart)
+        self.checkpoints = CompactionCheckpoints(
+            self.out / "checkpoints",
+            comm,
+            case.output.checkpoint_every,
+            case.output.checkpoint_keep,
+            case.solver.kind,
+            restart,
+        )
         self.progress = progress or Progress(comm, stream=_LogStream(log))
         self.wall_offset = 0.0
         if meta is not None:  # restart: model, solver, history and clocks as they were
             self.checkpoints.restore(arrays, meta, self.solver, model, self.history)
             self.wall_offset = float(meta["wall_time"])
-            log(f"restart from {restart}: step {meta['step']}, t = {meta['t']:.6g} s, "
-                f"{len(self.history.rows)} history rows")
+            log(
+                f"restart from {restart}: step {meta['step']}, t = {meta['t']:.6g} s, "
+                f"{len(self.history.rows)} history rows"
+            )
         self.writer = self.fields = None
         if case.output.visual:
             self.fields = CellFields(model.problem, model.assembly.cell_tags)
             name = "particles.xdmf" if meta is None else f"particles_from_step{meta['step']}.xdmf"
-            self.writer = ParaViewWriter(self.out / name, model.problem, self.fields, contact=model.contact)
+            self.writer = ParaViewWriter(
+                self.out / name, model.problem, self.fields, contact=model.contact
+            )
         if comm.rank == 0:
             self.out.mkdir(parents=True, exist_ok=True)
             write_packing(model.packing, self.out / "packing.txt")
@@ -396,7 +593,9 @@ class CompactionRun:
         return self.wall_offset + time.perf_counter() - self.start
 
     def write_checkpoint(self) -> None:
-        self.checkpoints.write(self.solver, self.model, self.history, self.recorder.X0, self.wall_time)
+        self.checkpoints.write(
+            self.solver, self.model, self.history, self.recorder.X0, self.wall_time
+        )
 
     def record(self, solver) -> None:
         """An output: a history row, the ParaView fields, the progress line, a checkpoint when due."""
@@ -404,10 +603,15 @@ class CompactionRun:
         self.history.append(**row)
         if self.writer is not None:
             self.writer.write(solver.t)
-        self.progress.update(solver.t / self.model.path.duration, solver.step, self.solver.total_steps,
-                             rho=row["rho"], sigma_m=row["sigma_m"],
-                             extra=f"unbalanced {row['unbalanced']:.2g}  contacts {row['n_contacts']:.0f} "
-                                   f"(Z {row['Z']:.2f})  E_p {row['E_p']:.3g} mJ  E_c {row['E_c']:.2g} mJ")
+        self.progress.update(
+            solver.t / self.model.path.duration,
+            solver.step,
+            self.solver.total_steps,
+            rho=row["rho"],
+            sigma_m=row["sigma_m"],
+            extra=f"unbalanced {row['unbalanced']:.2g}  contacts {row['n_contacts']:.0f} "
+            f"(Z {row['Z']:.2f})  E_p {row['E_p']:.3g} mJ  E_c {row['E_c']:.2g} mJ",
+        )
         if self.checkpoints.due(len(self.history.rows)):
             self.write_checkpoint()
 
@@ -425,9 +629,14 @@ class CompactionRun:
         checkpoint stays."""
         output, control, solver = self.case.output, self.case.loading.control, self.solver
         try:
-            total = solver.run_path(self.record, outputs=output.outputs, every=output.every or None,
-                                    max_steps=max_steps, on_step=self.servo if control is not None else None,
-                                    log=self.log)
+            total = solver.run_path(
+                self.record,
+                outputs=output.outputs,
+                every=output.every or None,
+                max_steps=max_steps,
+                on_step=self.servo if control is not None else None,
+                log=self.log,
+            )
         except (FloatingPointError, NonConvergence) as err:
             self._fail(err)
         self.progress.close()
@@ -435,9 +644,19 @@ class CompactionRun:
         if max_steps is None:
             self._finish()
             check = self.quasi_static_check()
-        return CompactionResult(self.history, self.model.packing, self.model.num_dofs,
-                                self.model.radii.size, self.wall_time, total, self.out,
-                                model=self.model, solver=solver, quasi_static=check, case=self.case)
+        return CompactionResult(
+            self.history,
+            self.model.packing,
+            self.model.num_dofs,
+            self.model.radii.size,
+            self.wall_time,
+            total,
+            self.out,
+            model=self.model,
+            solver=solver,
+            quasi_static=check,
+            case=self.case,
+        )
 
     def quasi_static_check(self) -> QuasiStaticCheck | None:
         """Explicit runs: the quasi-static check of the history so far (:func:`quasi_static_check`;
@@ -457,10 +676,19 @@ class CompactionRun:
         solver, resume = self.solver, self.checkpoints.resume_from
         # a non-finite state is found after its increment is counted; Newton fails before
         step = solver.step + 1 if isinstance(err, NonConvergence) else solver.step
-        kept = f"last good checkpoint {resume} (continue with --restart)" if resume else "no checkpoint was written yet"
-        raise RunFailure(f"the run stopped at step {step} (t = {solver.t:.6g} s): {err}; history so far "
-                         f"in {self.history.path}, {kept}", step, solver.t, self.history.path,
-                         resume) from err
+        kept = (
+            f"last good checkpoint {resume} (continue with --restart)"
+            if resume
+            else "no checkpoint was written yet"
+        )
+        raise RunFailure(
+            f"the run stopped at step {step} (t = {solver.t:.6g} s): {err}; history so far "
+            f"in {self.history.path}, {kept}",
+            step,
+            solver.t,
+            self.history.path,
+            resume,
+        ) from err
 
     def _finish(self) -> None:
         """The final checkpoint (the chapter-4 reloads start from it), the history, the figures."""
@@ -474,18 +702,32 @@ class CompactionRun:
         self.writer.close()
         n = model.packing.num_particles
         # CLP shell copies carry no stress: show the volume's particles only
-        render_deformed(model.problem.u, self.fields.von_mises, self.out / "particles.png",
-                        cells=model.problem.material_cells,
-                        title=f"{n} lead particles, {case.loading.path} compaction, {case.boundary.condition}, "
-                              f"rho = {self.history.column('rho')[-1]:.3f}", save_grid=True)
+        render_deformed(
+            model.problem.u,
+            self.fields.von_mises,
+            self.out / "particles.png",
+            cells=model.problem.material_cells,
+            title=f"{n} lead particles, {case.loading.path} compaction, {case.boundary.condition}, "
+            f"rho = {self.history.column('rho')[-1]:.3f}",
+            save_grid=True,
+        )
         if self.comm.rank == 0:
-            plot_loading_path(self.history.path, self.out / "loading_path.png",
-                              title=f"{n} particles, {case.loading.path} compaction, {case.boundary.condition}")
+            plot_loading_path(
+                self.history.path,
+                self.out / "loading_path.png",
+                title=f"{n} particles, {case.loading.path} compaction, {case.boundary.condition}",
+            )
 
 
-def run_compaction(case: CompactionCase, comm: MPI.Comm = MPI.COMM_WORLD, log=print, *,
-                   restart: str | Path | None = None, progress: Progress | None = None,
-                   model: CompactionModel | None = None) -> CompactionResult:
+def run_compaction(
+    case: CompactionCase,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    log=print,
+    *,
+    restart: str | Path | None = None,
+    progress: Progress | None = None,
+    model: CompactionModel | None = None,
+) -> CompactionResult:
     """Compact the volume to ``case.loading.target_density`` (or along its path): ``CompactionRun(...).run()``;
     the columns of the history: :mod:`.history_recorder`."""
     return CompactionRun(case, comm, log, restart=restart, progress=progress, model=model).run()
@@ -500,12 +742,18 @@ def _history_rows(meta: dict, columns: list[str]) -> list[list[float]]:
     checkpoint did not have are NaN."""
     saved = meta.get("columns") or [c for c in columns if c not in _COLUMNS_ADDED]
     if any(len(row) != len(saved) for row in meta["history"]):
-        raise CheckpointError(f"restart: the checkpoint's history rows do not match its {len(saved)} columns")
+        raise CheckpointError(
+            f"restart: the checkpoint's history rows do not match its {len(saved)} columns"
+        )
     where = {c: k for k, c in enumerate(saved)}
-    return [[float(row[where[c]]) if c in where else np.nan for c in columns] for row in meta["history"]]
+    return [
+        [float(row[where[c]]) if c in where else np.nan for c in columns] for row in meta["history"]
+    ]
 
 
-def implicit_step_controls(solver: SolverSection, duration: float, path: GradientPath) -> list[StepControl]:
+def implicit_step_controls(
+    solver: SolverSection, duration: float, path: GradientPath
+) -> list[StepControl]:
     """One step control per path segment: the compaction (``duration`` s) in ``solver.steps``
     steps, then each further segment in its ``solver.segment_steps`` (default: the compaction's
     increment). Segments end exactly at their knots; an increment carried over from a segment is
@@ -534,7 +782,10 @@ def _anchor_displacement(bcs: GranularBoundaryConditions, V, u: np.ndarray, t: f
         lo, hi = V.dofmap.index_map.local_range
         if lo <= bcs.anchor_block < hi:
             i = 3 * (bcs.anchor_block - lo)
-            c = np.asarray(u[i:i + 3], dtype=float) - bcs.displacement_gradient(t) @ bcs.anchor_carrier
+            c = (
+                np.asarray(u[i : i + 3], dtype=float)
+                - bcs.displacement_gradient(t) @ bcs.anchor_carrier
+            )
     return V.mesh.comm.allreduce(c)
 
 

@@ -53,8 +53,13 @@ class FlatContactCase:
 
     def law(self) -> ContactLaw:
         """The contact law of the case."""
-        return ContactLaw(penalty=self.penalty, friction=self.mu, gamma=self.gamma,
-                          delta_max=self.delta_max, asperity_yield=self.sigma_y)
+        return ContactLaw(
+            penalty=self.penalty,
+            friction=self.mu,
+            gamma=self.gamma,
+            delta_max=self.delta_max,
+            asperity_yield=self.sigma_y,
+        )
 
 
 def _setup(case: FlatContactCase, nu: float, comm, tangent: bool = True):
@@ -98,7 +103,8 @@ def _traction(contact: ContactModel) -> tuple[float, float, float]:
     gap = comm.allreduce(float(ev.points.gap.sum()), op=MPI.SUM) / n
     t1 = comm.allreduce(float(ev.T1.sum()), op=MPI.SUM) / n
     alpha = comm.allreduce(float(contact.trial.alpha.sum()), op=MPI.SUM) / max(
-        comm.allreduce(contact.trial.alpha.size, op=MPI.SUM), 1)
+        comm.allreduce(contact.trial.alpha.size, op=MPI.SUM), 1
+    )
     return gap, t1, alpha
 
 
@@ -113,6 +119,7 @@ def run_normal(
     u_open = 1.5 * case.delta_max
     h = case.height
     u_peak = 2.0 * (0.5 * case.law().sigma_c * h / M)  # past the tension peak (elastic block)
+
     # pseudo-time path: compress on [0, 1], unload on [1, 2], cross the peak on [2, 3],
     # open on [3, 4]
     def uz(t):
@@ -143,6 +150,7 @@ def run_tangential(case: FlatContactCase, out_dir: Path, comm: MPI.Comm, steps_p
     u_c = _compression(case, case.E, 3.0 * case.sigma_y)
     tau_c = case.mu * 3.0 * case.sigma_y
     u3c = 2.0 * h * tau_c / case.E + tau_c / case.penalty
+
     # compress on [0, 1]; shear to +3 u3c on [1, 2], back to -3 u3c on [2, 4]
     def uz(t):
         return float(np.interp(t, [0.0, 1.0], [0.0, u_c]))
@@ -158,8 +166,11 @@ def run_tangential(case: FlatContactCase, out_dir: Path, comm: MPI.Comm, steps_p
 
     def record(s):
         if s.t > 1.0 + 1e-12:
-            history.append(u3_mm=ux(s.t), tau_MPa=s.reactions(top_x) / 1.0,
-                           W_f_mJ_per_mm2=contact.frictional_work / 1.0)
+            history.append(
+                u3_mm=ux(s.t),
+                tau_MPa=s.reactions(top_x) / 1.0,
+                W_f_mJ_per_mm2=contact.frictional_work / 1.0,
+            )
 
     solver = ImplicitSolver(problem, bcs, contact=contact)
     dt = 1.0 / steps_per_unit

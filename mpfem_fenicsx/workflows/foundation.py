@@ -32,8 +32,10 @@ from ..solvers.explicit import ExplicitSettings
 def _log_mass_scaling(solver, log) -> None:
     """A dynamic solver's increment and mass scaling (a static one has none)."""
     if not solver_kind(solver.name).static:
-        log(f"explicit: dt = {solver.dt:.3g} s (stable unscaled {solver.dt_stable_unscaled:.3g} s, "
-            f"max mass scaling {solver.mass_scaling_max:.3g})")
+        log(
+            f"explicit: dt = {solver.dt:.3g} s (stable unscaled {solver.dt_stable_unscaled:.3g} s, "
+            f"max mass scaling {solver.mass_scaling_max:.3g})"
+        )
 
 
 @dataclass(frozen=True)
@@ -124,8 +126,12 @@ class UniaxialResult:
     plastic_work: float = 0.0  # mJ, the solver's tally of the plastic dissipation
 
 
-def run_uniaxial(case: UniaxialCase = UniaxialCase(), out_dir: str | Path = "results/uniaxial",
-                 comm: MPI.Comm = MPI.COMM_WORLD, log=print) -> UniaxialResult:
+def run_uniaxial(
+    case: UniaxialCase = UniaxialCase(),
+    out_dir: str | Path = "results/uniaxial",
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    log=print,
+) -> UniaxialResult:
     """Stretch a unit cube (1 mm, ``cells``^3 hexahedra) homogeneously to ``log_strain`` (``case``).
 
     Symmetry rollers on x=0, y=0, z=0; u_x prescribed on x=1. Implicit: ramp in pseudo-time with
@@ -137,8 +143,9 @@ def run_uniaxial(case: UniaxialCase = UniaxialCase(), out_dir: str | Path = "res
     explicit_time, explicit_steps, rows = case.explicit_time, case.explicit_steps, case.rows
     out_dir = Path(out_dir)
     length = 1.0
-    mesh = dolfinx.mesh.create_box(comm, [[0, 0, 0], [length] * 3], [cells] * 3,
-                                   dolfinx.mesh.CellType.hexahedron)
+    mesh = dolfinx.mesh.create_box(
+        comm, [[0, 0, 0], [length] * 3], [cells] * 3, dolfinx.mesh.CellType.hexahedron
+    )
     kind = solver_kind(solver)
     problem = SolidProblem(mesh, material, tangent=kind.tangent)
     V = problem.V
@@ -255,8 +262,12 @@ def run_sphere_squeeze(
         tet_order=case.tet_order,
         tet_size=case.tet_size,
     )
-    problem = SolidProblem(assembly.mesh, material, tangent=solver_kind(solver).tangent,
-                           full_integration=case.full_integration)
+    problem = SolidProblem(
+        assembly.mesh,
+        material,
+        tangent=solver_kind(solver).tangent,
+        full_integration=case.full_integration,
+    )
     V = problem.V
     amplitude = loading_amplitude(solver, explicit_time)
     travel = reduction * radius  # each cap moves by half of the total height change 2 r reduction
@@ -274,8 +285,11 @@ def run_sphere_squeeze(
 
     v0 = float(ParticleVolumes(assembly)()[0])
     current_volume = ParticleVolumes(assembly, problem.u)
-    history = History(out_dir / f"{solver}.csv",
-                      ["time", "height_reduction", "force_N", "volume_mm3", "volume_change"], comm)
+    history = History(
+        out_dir / f"{solver}.csv",
+        ["time", "height_reduction", "force_N", "volume_mm3", "volume_change"],
+        comm,
+    )
 
     writer = None
     if visual:
@@ -286,8 +300,13 @@ def run_sphere_squeeze(
         if writer is not None:
             writer.write(s.t)
         vol = float(current_volume()[0])
-        history.append(time=s.t, height_reduction=2 * travel * amplitude(s.t) / (2 * radius),
-                       force_N=-s.reactions(top), volume_mm3=vol, volume_change=vol / v0 - 1.0)
+        history.append(
+            time=s.t,
+            height_reduction=2 * travel * amplitude(s.t) / (2 * radius),
+            force_N=-s.reactions(top),
+            volume_mm3=vol,
+            volume_change=vol / v0 - 1.0,
+        )
 
     start = time.perf_counter()
     s = create_solver(
@@ -303,6 +322,10 @@ def run_sphere_squeeze(
     history.write()
     if writer is not None:
         writer.close()
-        render_deformed(problem.u, fields.von_mises, out_dir / f"{solver}.png",
-                        title=f"lead particle, {100 * reduction:.0f} % height reduction ({solver})")
+        render_deformed(
+            problem.u,
+            fields.von_mises,
+            out_dir / f"{solver}.png",
+            title=f"lead particle, {100 * reduction:.0f} % height reduction ({solver})",
+        )
     return SqueezeResult(history, v0, wall, V.dofmap.index_map.size_global * 3)

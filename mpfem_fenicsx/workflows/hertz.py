@@ -85,7 +85,7 @@ class HertzCase:
 
     def hertz_force(self, delta):
         """Hertz force (N) at the centre approach ``delta`` (mm)."""
-        e_star = self.E / (2.0 * (1.0 - self.nu ** 2))
+        e_star = self.E / (2.0 * (1.0 - self.nu**2))
         return 4.0 / 3.0 * e_star * np.sqrt(self.radius / 2.0) * np.asarray(delta) ** 1.5
 
 

@@ -16,7 +16,7 @@ compression > 0.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from mpi4py import MPI

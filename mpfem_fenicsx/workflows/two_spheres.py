@@ -128,24 +128,30 @@ class TwoSphereCase:
     @property
     def e_star(self) -> float:
         """E* = E / (2 (1 - nu^2)) of two identical spheres (MPa)."""
-        return self.material.E / (2.0 * (1.0 - self.material.nu ** 2))
+        return self.material.E / (2.0 * (1.0 - self.material.nu**2))
 
     def law(self) -> ContactLaw:
         """The contact law: no friction, alpha forced to 1."""
         penalty = self.penalty or default_penalty(
             self.material.E, 0.5 * self.size_min * self.radius
         )
-        return ContactLaw(penalty=penalty, friction=0.0, gamma=self.gamma, delta_max=self.delta_max,
-                          alpha_forced=1.0)
+        return ContactLaw(
+            penalty=penalty,
+            friction=0.0,
+            gamma=self.gamma,
+            delta_max=self.delta_max,
+            alpha_forced=1.0,
+        )
 
     def mesarovic_johnson(self, a, a0, F0):
         """Mesarovic-Johnson unloading force (N) at contact radius ``a`` (mm) from the
         loaded state (a0 mm, F0 N)."""
         a = np.asarray(a, dtype=float)
-        p0 = F0 / (np.pi * a0 ** 2)
+        p0 = F0 / (np.pi * a0**2)
         s = np.clip(a / a0, 0.0, 1.0)
-        return 2 * p0 * a0 ** 2 * (np.arcsin(s) - s * np.sqrt(1 - s ** 2)) \
-            - 2 * a * np.sqrt(2 * np.pi * a * self.gamma * self.e_star)
+        return 2 * p0 * a0**2 * (np.arcsin(s) - s * np.sqrt(1 - s**2)) - 2 * a * np.sqrt(
+            2 * np.pi * a * self.gamma * self.e_star
+        )
 
 
 @dataclass
@@ -171,6 +177,7 @@ class TwoSphereResult:
     F_unload = property(lambda self: self.branch.F)
     F_mj = property(lambda self: self.branch.F_mj)
 
+
 def run_two_spheres(
     case: TwoSphereCase = TwoSphereCase(),
     out_dir: str | Path = "results/two_spheres",
@@ -181,8 +188,14 @@ def run_two_spheres(
     """Run the two-sphere case (load, then unload); the history is written to ``out_dir``."""
     r = case.radius
     if case.model == "wedge":
-        assembly = wedge_sphere_pair(r, comm, angle=case.wedge_angle, size_min=case.size_min,
-                                     cap_radius=case.refine_radius, grading=case.grading or 0.3)
+        assembly = wedge_sphere_pair(
+            r,
+            comm,
+            angle=case.wedge_angle,
+            size_min=case.size_min,
+            cap_radius=case.refine_radius,
+            grading=case.grading or 0.3,
+        )
     else:
         assembly = quarter_sphere_pair(
             r, comm, size_min=case.size_min, refine_radius=case.refine_radius, grading=case.grading
@@ -208,7 +221,7 @@ def run_two_spheres(
     if case.model == "quarter":
         bcs.add(component_dofs(V, lambda x: np.abs(x[0]) < tol, 0))  # symmetry planes
     else:
-        on_axis = lambda x: x[0] ** 2 + x[1] ** 2 < tol ** 2  # noqa: E731
+        on_axis = lambda x: x[0] ** 2 + x[1] ** 2 < tol**2  # noqa: E731
         bcs.add(component_dofs(V, on_axis, 0))
         bcs.add(component_dofs(V, on_axis, 1))
     bcs.add(component_dofs(V, lambda x: np.abs(x[1]) < tol, 1))
@@ -219,8 +232,9 @@ def run_two_spheres(
     bcs.add(component_dofs(V, in_core(-1.0), 2), lambda t: 0.5 * approach(t))
     bcs.add(upper, lambda t: -0.5 * approach(t))
     if case.model == "wedge":
-        bcs.couplings = _wedge_couplings(V, assembly.cell_tags, bcs.prescribed_dofs,
-                                         np.radians(case.wedge_angle), tol)
+        bcs.couplings = _wedge_couplings(
+            V, assembly.cell_tags, bcs.prescribed_dofs, np.radians(case.wedge_angle), tol
+        )
     factor = case.symmetry_factor
     history = History(
         Path(out_dir) / f"history_{case.ratio:g}.csv",
@@ -313,7 +327,7 @@ def unloading_branch(case: TwoSphereCase, data: np.ndarray, t_load: float = 1.0)
     F_mj = case.mesarovic_johnson(a[unloading], a0, F0)
     error, grid = eq_3_21(case, a[unloading], F[unloading], a0, F0)
     deviation = (F[unloading] - F_mj) / F0
-    error_rms = float(np.sqrt(np.mean(deviation ** 2))) if deviation.size else float("nan")
+    error_rms = float(np.sqrt(np.mean(deviation**2))) if deviation.size else float("nan")
     return UnloadingBranch(
         a0,
         F0,
@@ -325,6 +339,7 @@ def unloading_branch(case: TwoSphereCase, data: np.ndarray, t_load: float = 1.0)
         error_rms,
         float(np.sqrt(np.sum(deviation**2))),
     )
+
 
 #: a / a0 where eq. 3.21 compares the unloading branch with Mesarovic-Johnson
 ERROR_GRID = np.round(np.linspace(0.1, 0.9, 9), 12)
@@ -348,7 +363,8 @@ def eq_3_21(
     used = (ERROR_GRID >= radii[0]) & (ERROR_GRID <= radii[-1])
     s = ERROR_GRID[used]
     deviation = (np.interp(s, radii, force) - case.mesarovic_johnson(s * a0, a0, F0)) / F0
-    return float(np.sqrt(np.sum(deviation ** 2))), used
+    return float(np.sqrt(np.sum(deviation**2))), used
+
 
 def _wedge_couplings(
     V, cell_tags, prescribed: np.ndarray, theta: float, tol: float
