@@ -33,6 +33,7 @@ def python() -> str:
 # collection order: a heavy file handed out last leaves the other core idle for minutes. Hand out
 # the heaviest first (longest-processing-time order; measured runs: bench/README.md, CI table).
 HEAVIEST_FILES_FIRST = (
+    "test_demos",
     "test_two_spheres",
     "test_yield_surface",
     "test_simple_cubic",
