@@ -1,8 +1,9 @@
-"""Yield surface of a periodic volume of lead particles in the deviatoric plane, by stress-controlled
-probes at constant mean stress over Lode angles (beyond the thesis, whose chapter-4
-fans are strain-driven reloads in the (sigma_m, sigma~_d) plane).
+"""Yield surface of a periodic volume of lead particles in the deviatoric plane, by
+stress-controlled probes at constant mean stress over Lode angles (beyond the thesis, whose
+chapter-4 fans are strain-driven reloads in the (sigma_m, sigma~_d) plane).
 
-    python demos/deviatoric_surface.py                         # flagship volume, 7 probes over 0-60 deg
+    python demos/deviatoric_surface.py
+        # flagship volume, 7 probes over 0-60 deg
     python demos/deviatoric_surface.py --angles 0 15 30 45 60 --p-load 4 --p-probe 2
 
 Pipeline (workflows.deviatoric_surface): the flagship volume (24 particles, seed 1, CLP by
@@ -46,7 +47,8 @@ def main(argv=None) -> int:
         type=float,
         nargs="+",
         default=[0, 10, 20, 30, 40, 50, 60],
-        help="Lode angles of the probes (deg; 0 triaxial compression along x, 60 extension along z)",
+        help="Lode angles of the probes "
+        "(deg; 0 triaxial compression along x, 60 extension along z)",
     )
     add_case_option(p, "solver", "increments", help="per 1e-3 s of loading")
     p.add_argument("--out", default="results/deviatoric_surface")
@@ -73,7 +75,8 @@ def main(argv=None) -> int:
         fail(RUN_FAILED, str(err))
     if MPI.COMM_WORLD.rank == 0:
         print(
-            f"E_0 = {result['E_0']:.4g} mJ; yield points (theta deg: sigma_m, q MPa, measured Lode angle deg):"
+            f"E_0 = {result['E_0']:.4g} mJ; "
+            "yield points (theta deg: sigma_m, q MPa, measured Lode angle deg):"
         )
         for theta, sigma_m, q, lode in result["points"]:
             print(f"  {theta:5.1f}: {sigma_m:.3f}, {q:.3f}, {lode:.1f}")

@@ -1,6 +1,7 @@
 """Die compaction ("matrice", uniaxial strain along z) of a periodic volume of lead particles.
 
-    python demos/die.py                             # embedded default: 24 particles, CLP, rho -> 0.92
+    python demos/die.py
+        # embedded default: 24 particles, CLP, rho -> 0.92
     python demos/die.py --particles 50 --target-density 0.95 --bc GDF
 
 Same pipeline, options and outputs as demos/isotropic.py (see there), in results/die/ by default.

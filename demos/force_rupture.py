@@ -1,7 +1,8 @@
 """Force-controlled rupture of an adhesive periodic volume of lead particles (the
 thesis' perspective 4: rupture under force control, detected by the growth of the kinetic energy).
 
-    python demos/force_rupture.py                          # flagship volume, gamma 1e-2, pulled along z
+    python demos/force_rupture.py
+        # flagship volume, gamma 1e-2, pulled along z
     python demos/force_rupture.py --final 0 0 -2 --gamma 1e-3
 
 Pipeline (workflows.force_rupture): the flagship volume (24 particles, seed 1, CLP by periodic
@@ -81,7 +82,8 @@ def main(argv=None) -> int:
         )
         for criterion, point in result["points"].items():
             print(
-                f"  {criterion:5s}: t = {point['time'] * 1e3:.4f} ms, sigma = ({point['sigma_11']:.3f}, "
+                f"  {criterion:5s}: t = {point['time'] * 1e3:.4f} ms, "
+                f"sigma = ({point['sigma_11']:.3f}, "
                 f"{point['sigma_22']:.3f}, {point['sigma_33']:.3f}) MPa, stress along the path "
                 f"{point['path_stress']:.3f} MPa"
             )

@@ -62,7 +62,8 @@ def main(argv=None):
     delta, force, ref = h.column("delta_mm"), h.column("force_N"), h.column("force_hertz_N")
     worst = np.abs(force / ref - 1.0).max()
     say(
-        f"{res.num_dofs} dofs, {res.wall_time:.1f} s, Newton iterations per step {res.newton_iterations}; "
+        f"{res.num_dofs} dofs, {res.wall_time:.1f} s, "
+        f"Newton iterations per step {res.newton_iterations}; "
         f"largest deviation from Hertz {100 * worst:.2f} %"
     )
     if comm.rank == 0:

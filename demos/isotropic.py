@@ -1,6 +1,7 @@
 """Flagship demo: isotropic compaction of a periodic volume of lead particles (thesis chapter 2).
 
-    python demos/isotropic.py                       # embedded default: 24 particles, CLP, rho -> 0.92
+    python demos/isotropic.py
+        # embedded default: 24 particles, CLP, rho -> 0.92
     python demos/isotropic.py --particles 50 --target-density 0.95 --bc CLP
     mpirun -n 2 python demos/isotropic.py --bc GDF
 
@@ -16,7 +17,8 @@ volumes); h_v, h_d, h_tilde_d (Hencky strain of the least-squares gradient F of 
 sigma_m, sigma_d, sigma_tilde_d (Love-Weber, compression > 0); F11..F33; sigma11..33 (Love-Weber);
 sigma_schmidt_11..33 (auxiliary-node reactions, CLP/CLPS, empty otherwise); n_contacts; Gamma
 (specific contact surface, 1/mm); energies E_p, E_f, E_d = E_p + E_f, E_c (kinetic), E_int, E_el,
-E_contact, E_visc, E_damp, W_ext (mJ); unbalanced, E_c_over_E_int (quasi-static measures); wall_time), packing.txt (the packing used),
+E_contact, E_visc, E_damp, W_ext (mJ); unbalanced, E_c_over_E_int (quasi-static measures);
+wall_time), packing.txt (the packing used),
 particles.xdmf (ParaView: displacement, von Mises, eps_p, particle id) and particles.png
 (deformed particles coloured by von Mises stress). Columns are defined in
 mpfem_fenicsx/workflows/history_recorder.py.
@@ -39,8 +41,9 @@ def main(argv=None, loading: str = "isotropic", doc: str = __doc__) -> None:
     args = compaction_parser(loading, doc).parse_args(argv)
     case = compaction_case(args, loading)
     say(
-        f"case: {case.packing.particles} particles, {case.boundary.condition}, {case.loading.path} to "
-        f"rho = {case.loading.target_density}, {case.solver.kind} solver ({case.solver.increments} increments)"
+        f"case: {case.packing.particles} particles, {case.boundary.condition}, "
+        f"{case.loading.path} to rho = {case.loading.target_density}, "
+        f"{case.solver.kind} solver ({case.solver.increments} increments)"
     )
 
     with run_exits():  # exit 2 on bad input found while building, 3 if the run diverges

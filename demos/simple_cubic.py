@@ -19,8 +19,8 @@ default all 19 copies (faces, edges, corner) are meshed; --face-copies-only give
 12 (then the die path loses the exact symmetry, h_lsq - h_aux ~ 1e-6, at the end).
 
 Outputs in --out (default results/simple_cubic/): <loading>/history.csv (the compaction history,
-the columns of the history), <loading>/checks.csv (time, rho, rho_pi6 = pi / (6 det F), the six Hencky
-components of the least-squares and auxiliary-node gradients, sigma_m of Love-Weber and
+the columns of the history), <loading>/checks.csv (time, rho, rho_pi6 = pi / (6 det F), the six
+Hencky components of the least-squares and auxiliary-node gradients, sigma_m of Love-Weber and
 Schmidt), simple_cubic.png (rho vs h_v, least-squares vs auxiliary Hencky strain, Love-Weber vs
 Schmidt) and the printed figures of the three checks.
 """
@@ -44,7 +44,9 @@ def write_checks(data: dict[str, np.ndarray], path: Path) -> None:
     with open(path, "w", newline="") as fh:
         writer = csv.writer(fh)
         writer.writerow(list(data))
-        writer.writerows(zip(*[[repr(float(v)) for v in col] for col in data.values()]))
+        writer.writerows(
+            zip(*[[repr(float(v)) for v in col] for col in data.values()], strict=True)
+        )
 
 
 def plot(results: dict, path: Path) -> None:
@@ -139,9 +141,12 @@ def main(argv=None) -> None:
         )
         lw, sm = chk["sigma_m_love_weber"][-1], chk["sigma_m_schmidt"][-1]
         say(
-            f"{loading}: rho = {chk['rho'][-1]:.4f}, max |rho - pi/(6 det F)| / rho = {rho_err:.2e}, "
-            f"max |h_lsq - h_aux| = {h_err:.2e}, sigma_m Love-Weber {lw:.3f} / Schmidt {sm:.3f} MPa "
-            f"({100 * abs(lw - sm) / abs(lw):.2f} %), {res.num_dofs} dofs, {res.increments} increments, "
+            f"{loading}: rho = {chk['rho'][-1]:.4f}, "
+            f"max |rho - pi/(6 det F)| / rho = {rho_err:.2e}, "
+            f"max |h_lsq - h_aux| = {h_err:.2e}, "
+            f"sigma_m Love-Weber {lw:.3f} / Schmidt {sm:.3f} MPa "
+            f"({100 * abs(lw - sm) / abs(lw):.2f} %), {res.num_dofs} dofs, "
+            f"{res.increments} increments, "
             f"wall {res.wall_time:.0f} s"
         )
     if comm.rank == 0:

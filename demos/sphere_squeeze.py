@@ -35,7 +35,8 @@ def main(argv=None):
     res = run_sphere_squeeze(case, out_dir=args.out, comm=comm, log=say)
     h = res.history
     say(
-        f"{args.solver}: {res.num_dofs} dofs, {len(h.rows)} rows, force {h.column('force_N')[-1]:.4f} N at "
+        f"{args.solver}: {res.num_dofs} dofs, {len(h.rows)} rows, "
+        f"force {h.column('force_N')[-1]:.4f} N at "
         f"{100 * h.column('height_reduction')[-1]:.1f} % height reduction, volume change "
         f"{100 * h.column('volume_change')[-1]:+.4f} %, wall {res.wall_time:.1f} s"
     )

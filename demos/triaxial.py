@@ -1,7 +1,8 @@
 """Triaxial compression of a periodic volume of lead particles under mixed control (
 beyond the thesis, whose loading is strain-driven only).
 
-    python demos/triaxial.py                          # flagship volume: consolidation to 2 MPa, then 10 % axial
+    python demos/triaxial.py
+        # flagship volume: consolidation to 2 MPa, then 10 % axial
     python demos/triaxial.py --confining 5 --axial-strain 0.15 --particles 50
     python demos/triaxial.py --restart results/triaxial  # continue a killed run (same options)
 
@@ -47,14 +48,16 @@ def main(argv=None) -> int:
         p, "packing", "particles"
     )  # type, default, range and help from the case declarations
     add_case_option(p, "packing", "seed")
-    # the path's options (meaning, unit, default, range) from its declaration: loading.stress_paths.StressPath
+    # the path's options (meaning, unit, default, range) from its declaration:
+    # loading.stress_paths.StressPath
     add_parameter_option(p, StressPath, "pressure", flag="--confining", default=2.0)
     add_parameter_option(p, StressPath, "axial_strain")
     add_case_option(p, "solver", "increments", help="per 1e-3 s of loading")
     for name in ("rate", "band", "measure", "integral_time", "filter_time", "axial_ramp"):
         add_parameter_option(p, StressPath, name)
     # a narrower band than the paths' default: the lateral stresses' lag in the axial phase
-    # (README, the triaxial servo study: 0.25 -> 0.15 took the largest Schmidt deviation from 2.14 to 1.85 %)
+    # (README, the triaxial servo study: 0.25 -> 0.15 took the largest Schmidt deviation from 2.14
+    # to 1.85 %)
     add_parameter_option(
         p,
         StressPath,
@@ -68,7 +71,8 @@ def main(argv=None) -> int:
         "--restart",
         default=None,
         metavar="CHECKPOINT",
-        help="continue a killed run from a checkpoint (directory, or its results folder: the newest "
+        help="continue a killed run from a checkpoint "
+        "(directory, or its results folder: the newest "
         "one); give the same options as the run that wrote it",
     )
     args = p.parse_args(argv)
@@ -113,9 +117,12 @@ def main(argv=None) -> int:
         for name, key in (("Schmidt", "sigma_schmidt_"), ("volume average", "sigma_vol_")):
             lateral = np.concatenate([h.column(key + "11")[axial], h.column(key + "22")[axial]])
             print(
-                f"end: sigma_11 / 22 / 33 = {h.column(key + '11')[-1]:.3f} / {h.column(key + '22')[-1]:.3f}"
-                f" / {h.column(key + '33')[-1]:.3f} MPa ({name}), rho {h.column('rho')[-1]:.4f}; axial phase: "
-                f"lateral stresses within {100 * np.abs(lateral / args.confining - 1).max():.2f} % of the "
+                f"end: sigma_11 / 22 / 33 = {h.column(key + '11')[-1]:.3f} / "
+                f"{h.column(key + '22')[-1]:.3f}"
+                f" / {h.column(key + '33')[-1]:.3f} MPa ({name}), "
+                f"rho {h.column('rho')[-1]:.4f}; axial phase: "
+                f"lateral stresses within "
+                f"{100 * np.abs(lateral / args.confining - 1).max():.2f} % of the "
                 f"confining pressure"
             )
     return 0

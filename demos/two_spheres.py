@@ -1,8 +1,10 @@
-"""Two elastoplastic spheres with adhesion against Mesarovic-Johnson (thesis §3.4.2, fig. 3.10-3.12).
+"""Two elastoplastic spheres with adhesion against Mesarovic-Johnson (thesis §3.4.2,
+fig. 3.10-3.12).
 
     python demos/two_spheres.py                          # all ratios sigma_c / sigma_y (hours)
     python demos/two_spheres.py --ratios 0.8 1.0         # some of them
-    python demos/two_spheres.py --replot                 # summary + figure from the histories in --out
+    python demos/two_spheres.py --replot
+        # summary + figure from the histories in --out
 
 Steel spheres (E = 200000 MPa, nu = 0.3, sigma_y = 200 MPa, H = 100 MPa), r = 1 mm, gamma =
 1e-3 mJ/mm^2, alpha forced to 1, frictionless; compressed to a centre approach of 0.02 r, then
@@ -118,7 +120,8 @@ def main(argv=None):
             pull_off, wall = float("nan"), float("nan")
         else:
             say(
-                f"sigma_c / sigma_y = {ratio:g}: sigma_c = {case.sigma_c:g} MPa, delta_max = {case.delta_max:.3g} mm"
+                f"sigma_c / sigma_y = {ratio:g}: sigma_c = {case.sigma_c:g} MPa, "
+                f"delta_max = {case.delta_max:.3g} mm"
             )
             res = run_two_spheres(case, out, comm, log=say)
             branch = res.branch
@@ -128,7 +131,7 @@ def main(argv=None):
         curve = History(
             out / f"sigma_c_{ratio:g}.csv", ["a_over_a0", "force_N", "force_mj_N"], comm
         )
-        for a, f, f_mj in zip(branch.a, branch.F, branch.F_mj):
+        for a, f, f_mj in zip(branch.a, branch.F, branch.F_mj, strict=True):
             curve.append(a_over_a0=a / branch.a0, force_N=f, force_mj_N=f_mj)
         curve.write()
         curves[ratio] = (branch.a / branch.a0, branch.F / branch.F0, branch.a0, branch.F0, case)
@@ -146,8 +149,10 @@ def main(argv=None):
         )
         summary.write()
         say(
-            f"  sigma_c / sigma_y = {ratio:g}: a0 = {branch.a0:.4f} mm, F0 = {branch.F0:.3f} N, e = "
-            f"{100 * branch.error:.2f} % (eq. 3.21 on {branch.grid_points} radii a / a0 = 0.1..0.9); "
+            f"  sigma_c / sigma_y = {ratio:g}: a0 = {branch.a0:.4f} mm, "
+            f"F0 = {branch.F0:.3f} N, e = "
+            f"{100 * branch.error:.2f} % "
+            f"(eq. 3.21 on {branch.grid_points} radii a / a0 = 0.1..0.9); "
             f"{branch.a.size} unloading samples: {100 * branch.error_rms:.2f} % rms"
         )
     if not curves:

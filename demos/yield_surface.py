@@ -1,6 +1,7 @@
 """Yield, damage and rupture surfaces of a compacted periodic volume (thesis chapter 4).
 
-    python demos/yield_surface.py                                  # small default (~10 min on 2 cores)
+    python demos/yield_surface.py
+        # small default (~10 min on 2 cores)
     mpirun -n 2 python demos/yield_surface.py                      # two reloads at a time
     python demos/yield_surface.py --loading die --target-density 0.85 --gamma 1e-3 --nphi 24
 
@@ -56,13 +57,15 @@ def main(argv=None) -> None:
     p.add_argument(
         "--resume",
         action="store_true",
-        help="continue a killed fan in --out (same options): the loading from its newest checkpoint, "
+        help="continue a killed fan in --out (same options): "
+        "the loading from its newest checkpoint, "
         "finished stages and reloads not repeated",
     )
     p.add_argument(
         "--surfaces-only",
         action="store_true",
-        help="recompute fan.csv, surfaces.csv, uniaxial.csv and the PNG from a finished fan in --out "
+        help="recompute fan.csv, surfaces.csv, uniaxial.csv and the PNG "
+        "from a finished fan in --out "
         "(e.g. with another --threshold or --gamma-thresholds)",
     )
     args = p.parse_args(argv)
@@ -96,7 +99,8 @@ def main(argv=None) -> None:
     except RunFailure as err:
         fail(RUN_FAILED, str(err))
     say(
-        f"done in {result['wall_time']:.0f} s: {args.out}/fan.csv, surfaces.csv, uniaxial.csv, yield_surface.png"
+        f"done in {result['wall_time']:.0f} s: {args.out}/fan.csv, "
+        "surfaces.csv, uniaxial.csv, yield_surface.png"
     )
 
 

@@ -32,6 +32,7 @@ class QuadratureRules:
 
     @staticmethod
     def for_cell(cell_name: str, degree: int) -> QuadratureRules:
+        """The rules for Lagrange elements of ``degree`` on ``cell_name`` cells."""
         if cell_name == "hexahedron" and degree == 1:
             return QuadratureRules(deviatoric=2, volumetric=1)  # 8 points + 1 point (SRI)
         if cell_name == "tetrahedron":
@@ -40,6 +41,7 @@ class QuadratureRules:
 
 
 def deformation_gradient(u):
+    """F = I + Grad u (dimensionless) of the displacement ``u`` (mm)."""
     return ufl.Identity(len(u)) + ufl.grad(u)
 
 
@@ -66,8 +68,8 @@ def internal_work_tangent(u, du, v, A_dev, bulk, dx_dev, dx_vol):
 
     Deviatoric part: A_dev = dP_dev/dF from the kernel; volumetric part: exact UFL derivative.
     """
-    i, j, k, l = ufl.indices(4)
-    dP_dev = ufl.as_tensor(A_dev[i, j, k, l] * ufl.grad(du)[k, l], (i, j))
+    i, j, k, m = ufl.indices(4)
+    dP_dev = ufl.as_tensor(A_dev[i, j, k, m] * ufl.grad(du)[k, m], (i, j))
     volumetric = ufl.inner(volumetric_piola(u, bulk), ufl.grad(v)) * dx_vol
     return ufl.inner(dP_dev, ufl.grad(v)) * dx_dev, ufl.derivative(volumetric, u, du)
 

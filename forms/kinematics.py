@@ -29,7 +29,8 @@ _CHUNK = 64  # cells per parallel chunk: scratch matrices are allocated once per
 
 @numba.njit(cache=True, inline="always")
 def _reference_jacobian(cell, q, x, gdofs, dpsi, J):
-    """J = sum_a X_a (x) dpsi_a/dxi at point q of ``cell`` (the reference-to-mesh map's gradient)."""
+    """J = sum_a X_a (x) dpsi_a/dxi at point q of ``cell`` (the reference-to-mesh map's
+    gradient)."""
     J[:] = 0.0
     for a in range(dpsi.shape[1]):
         node = gdofs[cell, a]
@@ -357,7 +358,8 @@ class VolumetricForces:
         array: np.ndarray,
     ) -> None:
         """array += the bulk-viscosity force (N) at displacement ``u`` (mm) and ``velocity`` (mm/s);
-        ``density`` (t/mm^3), ``wave_speed`` (mm/s), ``cell_length`` (mm): cell-wise (DG0) Functions."""
+        ``density`` (t/mm^3), ``wave_speed`` (mm/s), ``cell_length`` (mm): cell-wise (DG0)
+        Functions."""
         cell_dofs = density.function_space.dofmap.list[:, 0]
         _add_bulk_viscosity_forces(
             self.cells,
@@ -400,7 +402,7 @@ class VolumetricForces:
         reference = dolfinx.fem.assemble_vector(form)  # local array, ghosts not summed
         ours = np.zeros_like(reference.array)
         add(ours)
-        for (f, _), values in zip(fields, saved):
+        for (f, _), values in zip(fields, saved, strict=True):
             f.x.array[:] = values
         scale = max(np.abs(reference.array).max(), 1e-300)
         return bool(np.abs(ours - reference.array).max() <= rtol * scale)

@@ -37,6 +37,7 @@ class ParticleAssembly:
 
     @property
     def num_particles(self) -> int:
+        """Number of meshed particles (spheres)."""
         return self.radii.size
 
 
@@ -160,7 +161,8 @@ def particle_mesh(
             unit = np.broadcast_to(ball.points, (radii.size,) + ball.points.shape)
             if grading is not None:
                 grading = np.asarray(grading, dtype=float).reshape(radii.size, 3)
-                # the conformal map keeps the unit sphere: apply it to the inscribed ball, then scale
+                # the conformal map keeps the unit sphere: apply it to the inscribed ball, then
+                # scale
                 s = ball.radius_scale
                 unit = np.stack(
                     [
@@ -222,6 +224,7 @@ class CellVolumes:
         self._vec = dolfinx.fem.Function(V0)
 
     def __call__(self) -> np.ndarray:
+        """Volume (mm^3) of each owned cell at the current ``u``."""
         self._vec.x.array[:] = 0.0
         dolfinx.fem.assemble_vector(self._vec.x.array, self._form)
         return self._vec.x.array[self._dofs].copy()
@@ -239,6 +242,7 @@ class ParticleVolumes:
         self._comm = assembly.mesh.comm
 
     def __call__(self) -> np.ndarray:
+        """Current volume (mm^3) of each particle, (N,), the same on every rank."""
         local = np.bincount(self._pid, weights=self._cells(), minlength=self._n)
         return self._comm.allreduce(local, op=MPI.SUM)
 
@@ -269,6 +273,7 @@ class ParticleCentroids:
         self.volumes = np.zeros(self._n)
 
     def __call__(self) -> np.ndarray:
+        """Current centroid (mm) of each particle, (N, 3), the same on every rank."""
         self._vec.x.array[:] = 0.0
         dolfinx.fem.assemble_vector(self._vec.x.array, self._form)
         cell_moments = self._vec.x.array.reshape(-1, 4)[self._dofs]

@@ -9,7 +9,8 @@ Named resolutions (:data:`RESOLUTIONS`, ``(divisions, layers)``):
   layer of 6x6 quadrilaterals per cube face: 432 hexahedra, 561 nodes, 218 surface nodes;
 - ``"chapter4"``: the 10x10 O-grid of the thesis' chapter 4: 1 600 hexahedra, 1 933 nodes, 602
   surface nodes;
-- ``"coarse"``: the earlier default (4^3 core, 4 shell layers): 448 hexahedra, 517 nodes, 98 surface nodes.
+- ``"coarse"``: the earlier default (4^3 core, 4 shell layers): 448 hexahedra, 517 nodes, 98
+  surface nodes.
 ``refinement=k`` multiplies both numbers of subdivisions by ``k``.
 
 Geometry: the outer surface uses the equi-angular cube-to-sphere projection (nearly uniform
@@ -59,10 +60,12 @@ class UnitBallMesh:
 
     @property
     def num_nodes(self) -> int:
+        """Number of nodes."""
         return self.points.shape[0]
 
     @property
     def num_cells(self) -> int:
+        """Number of hexahedra."""
         return self.cells.shape[0]
 
 
@@ -123,7 +126,8 @@ def unit_ball_hex(
 
     Args:
         divisions: hexahedra along an edge of the inner cube (>= 1; None: the default resolution's).
-        layers: hexahedra across the shell, from the inner cube to the sphere (>= 1; None: likewise).
+        layers: hexahedra across the shell, from the inner cube to the sphere (>= 1; None:
+            likewise).
         refinement: integer factor applied to ``divisions`` and ``layers`` (>= 1).
         core_fraction: half size of the inner cube relative to the radius, in (0, 1/sqrt(3)).
             0.5 keeps the smallest edge of a one-layer shell near its largest (the stable explicit
@@ -169,7 +173,7 @@ def unit_ball_hex(
 
     offsets = np.cumsum([0] + [b.shape[0] for b in blocks_x[:-1]])
     all_x = np.concatenate(blocks_x)
-    all_c = np.concatenate([c + o for c, o in zip(blocks_c, offsets)])
+    all_c = np.concatenate([c + o for c, o in zip(blocks_c, offsets, strict=True)])
     # merge the nodes shared by adjacent blocks (computed identically up to round-off)
     key = np.round(all_x * 1e9).astype(np.int64)
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)

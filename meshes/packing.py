@@ -102,6 +102,7 @@ class Packing:
 
     @property
     def num_particles(self) -> int:
+        """Number of particles."""
         return self.radii.size
 
     @property
@@ -177,7 +178,8 @@ class Packing:
             )
             raise ValueError(
                 f"overlap of particles {i[k]} and {j[k]} (image shift {shift[k].tolist()}): "
-                f"{rel[k]:.3g} of the smaller radius{after} > overlap_tolerance={overlap_tolerance:g}"
+                f"{rel[k]:.3g} of the smaller radius{after} "
+                f"> overlap_tolerance={overlap_tolerance:g}"
             )
         return self
 
@@ -284,7 +286,7 @@ def _numbers(path, lineno, line, what, expected) -> list[float]:
     except ValueError:
         raise ValueError(
             f"{path}: line {lineno}: {what} must hold {expected} numbers, got {line.strip()!r}"
-        )
+        ) from None
     if len(values) != expected:
         raise ValueError(
             f"{path}: line {lineno}: {what} must hold {expected} numbers, got {len(values)}"
@@ -335,7 +337,8 @@ def _read_yade(path, cell):
     cell = header_cell if cell is None else cell
     if cell is None:
         raise ValueError(
-            f"{path}: a YADE export without its periodic cell: give it (--cell dx dy dz) or add a header "
+            f"{path}: a YADE export without its periodic cell: "
+            f"give it (--cell dx dy dz) or add a header "
             f"line '# dx dy dz = ...'"
         )
     rows = np.array(rows)
@@ -361,7 +364,8 @@ def _read_lammps(path, cell):
         elif head.startswith("ITEM: BOX BOUNDS"):
             if "XY" in head.split():
                 raise ValueError(
-                    f"{path}: line {offset + k + 1}: a triclinic box is not supported (orthogonal only)"
+                    f"{path}: line {offset + k + 1}: "
+                    "a triclinic box is not supported (orthogonal only)"
                 )
             bounds = [
                 _numbers(path, offset + k + 2 + a, block[k + 1 + a], "box bounds line 'lo hi'", 2)
@@ -382,7 +386,7 @@ def _read_lammps(path, cell):
         )
     size = hi - lo
     axes = []
-    for a, axis in enumerate("xyz"):
+    for _a, axis in enumerate("xyz"):
         for name, scaled in (
             (axis, False),
             (axis + "u", False),
@@ -394,7 +398,8 @@ def _read_lammps(path, cell):
                 break
         else:
             raise ValueError(
-                f"{path}: line {atoms_line - 1}: ATOMS columns need {axis} (or {axis}u, {axis}s); got "
+                f"{path}: line {atoms_line - 1}: "
+                f"ATOMS columns need {axis} (or {axis}u, {axis}s); got "
                 f"{' '.join(names)}"
             )
     if "radius" in names:
@@ -403,7 +408,8 @@ def _read_lammps(path, cell):
         radius_col, factor = names.index("diameter"), 0.5
     else:
         raise ValueError(
-            f"{path}: line {atoms_line - 1}: ATOMS columns need radius (or diameter); got {' '.join(names)}"
+            f"{path}: line {atoms_line - 1}: ATOMS columns need radius (or diameter); "
+            f"got {' '.join(names)}"
         )
     rows = np.array(
         [
@@ -681,9 +687,11 @@ def generate_packing(
 
 @dataclass(frozen=True, eq=False)
 class Duplicates:
-    """Copies of packing particles: copy k is particle ``original[k]`` translated by ``shift[k] * cell``.
+    """Copies of packing particles: copy k is particle ``original[k]`` translated by
+    ``shift[k] * cell``.
 
-    ``original`` (M,) int, ``shift`` (M, 3) int in {-1, 0, 1}, ``centres`` (M, 3) mm, ``radii`` (M,) mm.
+    ``original`` (M,) int, ``shift`` (M, 3) int in {-1, 0, 1}, ``centres`` (M, 3) mm, ``radii``
+    (M,) mm.
     """
 
     original: np.ndarray
@@ -693,6 +701,7 @@ class Duplicates:
 
     @property
     def num_copies(self) -> int:
+        """Number of copies (M)."""
         return self.original.size
 
 
@@ -774,7 +783,8 @@ def periodic_pair_realizations(original: np.ndarray, shift: np.ndarray) -> np.nd
     realization of a periodic pair whose lattice shift has mixed signs, e.g. (-1, 0, +1), since
     copies sit on the + faces only (``duplicate_particles(faces="half")``).
 
-    Returns the (n, n) symmetric boolean matrix (False on the diagonal) for ``ContactModel(allowed=)``.
+    Returns the (n, n) symmetric boolean matrix (False on the diagonal) for
+    ``ContactModel(allowed=)``.
     """
     original = np.asarray(original, dtype=np.int64)
     shift = np.asarray(shift, dtype=np.int64)

@@ -41,7 +41,8 @@ def quarter_sphere_pair(
     size_max: float = 0.3,
     grading: float | None = None,
 ) -> BodyAssembly:
-    """Mesh the two quarter spheres (mm); sizes relative to ``radius`` (tetrahedra before splitting)."""
+    """Mesh the two quarter spheres (mm); sizes relative to ``radius`` (tetrahedra before
+    splitting)."""
     checks = [
         ("size_min", size_min, 1e-3, 0.5),
         ("size_max", size_max, size_min, 1.0),
@@ -53,7 +54,8 @@ def quarter_sphere_pair(
     for name, value, lo, hi in checks:
         if not lo <= value <= hi:
             raise ValueError(
-                f"sphere pair {name} = {value} is out of range [{lo}, {hi}] (relative to the radius)"
+                f"sphere pair {name} = {value} is out of range [{lo}, {hi}] "
+                "(relative to the radius)"
             )
     r = float(radius)
 
@@ -119,7 +121,8 @@ def _contact_cap_size_field(
     gmsh.model.mesh.field.setString(
         field,
         "F",
-        f"Min({size_out}, {size_in} + {grading} * Sqrt(Max({rho} - {cap_radius}, 0)^2 + {depth}^2))",
+        f"Min({size_out}, {size_in} + {grading} * "
+        f"Sqrt(Max({rho} - {cap_radius}, 0)^2 + {depth}^2))",
     )
     return field
 
@@ -140,8 +143,8 @@ def wedge_sphere_pair(
     ``angle`` from it; the workflow ties every node of the second plane to its partner in the first,
     rotated (cyclic symmetry, ``workflows.two_spheres``), which makes the one-cell wedge an
     axisymmetric model (trilinear across the angle: the chord error 1 - cos(angle / 2) is 1.5e-4
-    at 2 degrees). A contact can then be resolved at the thesis' size (0.00125 r) with ~1e4 cells: the
-    cost of a 2-D model, the code of the 3-D one.
+    at 2 degrees). A contact can then be resolved at the thesis' size (0.00125 r) with ~1e4 cells:
+    the cost of a 2-D model, the code of the 3-D one.
 
     gmsh meshes the meridian half-disks with triangles of size ``size_min`` r on the spherical arc
     within ``cap_radius`` r of the axis, growing by ``grading`` per unit distance from that cap
@@ -242,7 +245,8 @@ def _meridian_quads(r: float, size_in: float, cap_radius: float, grading: float,
             types, _, nodes = gmsh.model.mesh.getElements(2, surface)
             if list(types) != [3]:
                 raise RuntimeError(
-                    f"gmsh gave element types {list(types)} on the meridian, expected quadrilaterals (3)"
+                    f"gmsh gave element types {list(types)} on the meridian, "
+                    "expected quadrilaterals (3)"
                 )
             q = index[nodes[0].astype(np.int64)].reshape(-1, 4)
             quads.append(q)

@@ -93,12 +93,12 @@ def gmsh_spheres(
 
     def build(gmsh):
         vols = []
-        for c, r in zip(centres, radii):
+        for c, r in zip(centres, radii, strict=False):
             tag = gmsh.model.occ.addSphere(*c, r)
             vols.append(tag)
             gmsh.model.occ.synchronize()
         gmsh.model.occ.synchronize()
-        for pid, (tag, r) in enumerate(zip(vols, radii)):
+        for pid, (tag, r) in enumerate(zip(vols, radii, strict=False)):
             gmsh.model.addPhysicalGroup(3, [tag], pid + 1)
             bnd = gmsh.model.getBoundary([(3, tag)], oriented=False)
             gmsh.model.addPhysicalGroup(2, [b[1] for b in bnd], pid + 1)

@@ -18,7 +18,8 @@ FACTORY = {PACKAGE / "solvers" / "factory.py", PACKAGE / "solvers" / "kinds.py"}
 
 
 def _modules(*packages):
-    """The modules of the library's ``packages`` (``"."``: all of it, top-level folders included)."""
+    """The modules of the library's ``packages`` (``"."``: all of it, top-level folders
+    included)."""
     for package in packages:
         yield from sorted((PACKAGE / package).rglob("*.py"))
         if package == ".":
@@ -47,7 +48,9 @@ def test_no_long_function_in_workflows_and_solvers():
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 statements = sum(isinstance(x, ast.stmt) for x in ast.walk(node)) - 1
                 if statements > MAX_STATEMENTS:
-                    long.append(f"{path.relative_to(PACKAGE)}:{node.lineno} {node.name} ({statements})")
+                    long.append(
+                        f"{path.relative_to(PACKAGE)}:{node.lineno} {node.name} ({statements})"
+                    )
     assert not long, f"functions over {MAX_STATEMENTS} statements: " + ", ".join(long)
 
 

@@ -659,7 +659,8 @@ def test_mpirun_two_ranks_run_and_restart(tiny_run, tmp_path, root):
             + 1e-30
         )
         # a ratio is compared where its denominator is above round-off: at rest (the first row,
-        # energies of 1e-32 mJ) E_c / E_int is a ratio of summation noise (E_c, E_int are compared as such)
+        # energies of 1e-32 mJ) E_c / E_int is a ratio of summation noise (E_c, E_int are compared
+        # as such)
         rows = (
             serial["E_int"] > 1e-12 * np.nanmax(serial["E_int"])
             if name == "E_c_over_E_int"
@@ -687,7 +688,8 @@ def test_mpirun_two_ranks_run_and_restart(tiny_run, tmp_path, root):
 
 def test_case_file_and_case_object_refuse_the_same_values(tmp_path):
     """A range is defined once (the case section's / ElastoPlastic field): every value a case file
-    refuses as out of range, the case object refuses too, with the same words; its default passes."""
+    refuses as out of range, the case object refuses too, with the same words; its default
+    passes."""
     from mpfem_fenicsx.case import SECTIONS
     from mpfem_fenicsx.cli.casefile import CaseError, to_case
 

@@ -27,7 +27,7 @@ docs = _docs_extension()
 def _sections(markdown: str) -> dict[str, str]:
     """Section name -> the text under its ``## `[section]``` heading."""
     parts = re.split(r"^## `\[(\w+)\]`$", markdown, flags=re.MULTILINE)
-    return dict(zip(parts[1::2], parts[2::2]))
+    return dict(zip(parts[1::2], parts[2::2], strict=True))
 
 
 def test_casefile_reference_lists_every_schema_key_in_its_section():

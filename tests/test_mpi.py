@@ -72,8 +72,10 @@ from mpi4py import MPI
 import mpfem_fenicsx
 from mpfem_fenicsx.meshes.packing import simple_cubic_packing
 from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
-case = CompactionCase.build(spheres=simple_cubic_packing(), target_density=0.56, increments=400, outputs=3,
-                            visual=False, duration=1e-4, directory=sys.argv[1], d_bc=0.8, exact_volume=False,
+case = CompactionCase.build(spheres=simple_cubic_packing(), target_density=0.56, increments=400, \
+outputs=3,
+                            visual=False, duration=1e-4, directory=sys.argv[1], d_bc=0.8, \
+exact_volume=False,
                             condition="CLPS", constraint_mass="consistent", checkpoint_every=0)
 history = run_compaction(case, MPI.COMM_WORLD, log=lambda *a: None).history
 if MPI.COMM_WORLD.rank == 0:

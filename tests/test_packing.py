@@ -1,4 +1,5 @@
-"""Periodic sphere packings (SPEC §5, §9.7; thesis §2.2.1): container, I/O, generator, duplicates."""
+"""Periodic sphere packings (SPEC §5, §9.7; thesis §2.2.1): container, I/O, generator,
+duplicates."""
 
 import time
 from pathlib import Path
@@ -25,7 +26,8 @@ def jammed50():
 
 
 def simple_cubic(r=1.0):
-    """8 spheres at (r, r, r) + {0, 2r}^3 in a cube of side 4r (touching, also through the faces)."""
+    """8 spheres at (r, r, r) + {0, 2r}^3 in a cube of side 4r (touching, also through the
+    faces)."""
     return simple_cubic_packing(r)
 
 
@@ -305,7 +307,8 @@ def test_every_periodic_neighbour_pair_is_realized_once_by_clp_copies(jammed50):
     mixed = near & np.any(s > 0, axis=1) & np.any(s < 0, axis=1)
     assert near.sum() > 100 and mixed.sum() > 0  # the case that copies on half of the faces miss
     counts = [
-        realizations(allowed, a.original, a.shift, *k) for k in zip(i[near], j[near], s[near])
+        realizations(allowed, a.original, a.shift, *k)
+        for k in zip(i[near], j[near], s[near], strict=True)
     ]
     assert counts == [1] * int(near.sum())
 

@@ -67,8 +67,9 @@ def test_stable_increment_and_mass_scaling():
     assert scaled.total_mass == pytest.approx(100.0 * LEAD.density * length**3, rel=1e-10)
 
 
-#: a cell of the isotropic CLPS run at 12 000 increments, folded at the edge of a copy's coupling zone
-#: (two corners pushed inside; vertices in mm, lexicographic order; bench/README.md, element_frequencies.py)
+#: a cell of the isotropic CLPS run at 12 000 increments, folded at the edge of a copy's coupling
+#: zone (two corners pushed inside; vertices in mm, lexicographic order; bench/README.md,
+#: element_frequencies.py)
 FOLDED_CELL = np.array(
     [
         [0.359428, -0.188714, 0.456085],
@@ -85,10 +86,10 @@ FOLDED_CELL = np.array(
 
 def test_stable_length_bounds_the_highest_frequency_of_a_folded_cell():
     """omega_e L / c_d, omega_e the exact highest frequency of the elastic Q1 cell with its lumped
-    mass (bench/element_frequencies.py): 2 sqrt((1 + nu) / (1 - nu)) = 3.19 for a cube (for which L =
-    h is exact on a regular grid, 2 c_d / h); the folded cell reached 8.7 with the vertex distances
-    and volume / face area and rang at the central difference's limit; the Gauss-point bound keeps
-    every valid cell at or below 8 / sqrt(3)."""
+    mass (bench/element_frequencies.py): 2 sqrt((1 + nu) / (1 - nu)) = 3.19 for a cube (for which
+    L = h is exact on a regular grid, 2 c_d / h); the folded cell reached 8.7 with the vertex
+    distances and volume / face area and rang at the central difference's limit; the Gauss-point
+    bound keeps every valid cell at or below 8 / sqrt(3)."""
     import sys
     from pathlib import Path
 
