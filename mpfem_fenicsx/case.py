@@ -87,7 +87,8 @@ class PackingSection:
         check_parameters(self, "packing.")
         if self.r_max < self.r_min:
             raise ValueError(
-                f"packing.r_max = {self.r_max!r} is out of range: must be >= r_min = {self.r_min!r} mm"
+                f"packing.r_max = {self.r_max!r} is out of range: "
+                f"must be >= r_min = {self.r_min!r} mm"
             )
 
 
@@ -392,7 +393,8 @@ class CompactionCase:
             or not solver_kind(solver.kind).stress_control
         ):
             raise ValueError(
-                f"loading.control (stress-driven components) needs boundary.condition CLP or CLPS and "
+                f"loading.control (stress-driven components) needs boundary.condition "
+                f"CLP or CLPS and "
                 f"the explicit solver, got condition = {self.boundary.condition!r}, "
                 f"solver.kind = {solver.kind!r}"
             )

@@ -45,7 +45,8 @@ def add_range_option(
         except ValueError:
             fail(
                 BAD_INPUT,
-                f"argument {flag}: {text!r} is not {'an integer' if allowed.kind is int else 'a number'}",
+                f"argument {flag}: {text!r} is not "
+                f"{'an integer' if allowed.kind is int else 'a number'}",
                 parser.prog,
             )
         why = allowed.problem(parsed)
@@ -207,9 +208,11 @@ def report_compaction(result, say=print) -> None:
 
     say(
         f"done: rho = {h.column('rho')[-1]:.4f} (imposed {h.column('rho_imposed')[-1]:.4f}), "
-        f"sigma_m = {h.column('sigma_m')[-1]:.3f} MPa, sigma_d = {h.column('sigma_d')[-1]:.3f} MPa, "
+        f"sigma_m = {h.column('sigma_m')[-1]:.3f} MPa, "
+        f"sigma_d = {h.column('sigma_d')[-1]:.3f} MPa, "
         f"{round(h.column('n_contacts')[-1])} contacts (Z {h.column('Z')[-1]:.2f}); "
-        f"{result.num_particles_model} particles in the model, {result.num_dofs} dofs, {result.increments} "
+        f"{result.num_particles_model} particles in the model, {result.num_dofs} dofs, "
+        f"{result.increments} "
         f"{solver_kind(case.solver.kind).increment_word}, wall {result.wall_time:.0f} s"
     )
     say(

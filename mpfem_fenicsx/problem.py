@@ -3,7 +3,8 @@
 Data flow per evaluation: u -> F at quadrature points (numba kernel ``forms.kinematics``, checked
 against ``fem.Expression``) -> vectorized
 return mapping (``material.hencky_j2``) writing P_dev (and A_dev) straight into quadrature
-Functions -> residual / Jacobian assembled by DOLFINx from the UFL forms in ``forms/`` (``mpfem_fenicsx.forms``)
+Functions -> residual / Jacobian assembled by DOLFINx from the UFL forms in ``forms/``
+(``mpfem_fenicsx.forms``)
 (the residual's deviatoric part by a numba loop of ``forms.kinematics`` when it reproduces the
 compiled form, checked at construction).
 """
@@ -46,14 +47,16 @@ def _hex_reference_gradients(xi: np.ndarray) -> np.ndarray:
 
 
 _GAUSS_1D = (0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0))
-#: (8, 8, 3) the Q1 reference gradients at the 2x2x2 Gauss points of the unit cube (weights 1/8 each)
+#: (8, 8, 3) the Q1 reference gradients at the 2x2x2 Gauss points of the unit cube (weights 1/8
+#: each)
 HEX_GAUSS_GRADIENTS = np.array(
     [
         _hex_reference_gradients(np.array(xi))
         for xi in np.array(np.meshgrid(*[_GAUSS_1D] * 3, indexing="ij")).reshape(3, -1).T
     ]
 )
-#: (8, 3) the Q1 reference gradients at the centre, the point of the volumetric part (forms.QuadratureRules)
+#: (8, 3) the Q1 reference gradients at the centre, the point of the volumetric part
+#: (forms.QuadratureRules)
 HEX_CENTRE_GRADIENTS = _hex_reference_gradients(np.full(3, 0.5))
 
 
@@ -272,14 +275,17 @@ class SolidProblem:
         return key if array.shape == (rows, self.points_per_cell * width) else None
 
     def _material_coefficients(self, key, values: np.ndarray):
-        """The material array as a deviatoric form's packed coefficients (None: let DOLFINx pack)."""
+        """The material array as a deviatoric form's packed coefficients (None: let DOLFINx
+        pack)."""
         return None if key is None else {key: values.reshape(self.material_cells.size, -1)}
 
-    # -- assembly ------------------------------------------------------------------------------
+    # -- assembly -----------------------------------------------------------------------------
     def create_vector(self) -> PETSc.Vec:
+        """A new PETSc vector on the displacement space (with ghosts), for residuals (N)."""
         return dolfinx.fem.petsc.create_vector(self.V)
 
     def create_matrix(self) -> PETSc.Mat:
+        """A new PETSc matrix with the Jacobian's sparsity pattern (N/mm)."""
         return dolfinx.fem.petsc.create_matrix(self.jacobian_forms[0])
 
     def assemble_residual(self, b: PETSc.Vec) -> None:
@@ -338,6 +344,7 @@ class SolidProblem:
                 ] = self.material.A_dev.reshape(cells.size, width * 9)
 
     def commit(self) -> None:
+        """Accept the material's trial state (and its plastic work increment) as converged."""
         self.material.commit()
 
     # -- integrals over the particles (summed over ranks) -------------------------------------

@@ -58,25 +58,31 @@ class Key:
 
     @property
     def kind(self) -> type:
+        """The key's value type: int, float, bool or str."""
         return self.range.kind
 
     @property
     def doc(self) -> str:
+        """The key's meaning with its unit."""
         return self.range.doc
 
     @property
     def choices(self) -> tuple | None:
+        """The values the key allows, or None if it takes a range."""
         return self.range.choices
 
     @property
     def field(self) -> str:
+        """The key as written in messages: ``[section] name``."""
         return f"[{self.section}] {self.name}"
 
     def allowed(self) -> str:
+        """What the key allows, in words."""
         return self.range.allowed()
 
     def check(self, value: Any, where: str) -> Any:
-        """``value`` if it has the key's type and range, else CaseError naming ``where`` and the key."""
+        """``value`` if it has the key's type and range, else CaseError naming ``where`` and the
+        key."""
         ok_type = (
             isinstance(value, bool)
             if self.kind is bool
@@ -88,7 +94,8 @@ class Key:
         )
         if not ok_type:
             raise CaseError(
-                f"{where}: {self.field} = {value!r} has the wrong type: expected {_KIND_WORDS[self.kind]}"
+                f"{where}: {self.field} = {value!r} has the wrong type: "
+                f"expected {_KIND_WORDS[self.kind]}"
             )
         if self.kind is float:
             value = float(value)
@@ -152,10 +159,11 @@ def parse_case(data: dict, where: str = "case", base: Path | None = None) -> dic
                     f"{where}: unknown key [{section}] {name} (allowed: {', '.join(keys)})"
                 )
             values[(section, name)] = keys[name].check(value, where)
+
     # checks between keys of the file (the rules between fields are the sections' own: to_case)
-    get = lambda s, k: values.get(
-        (s, k), next(x.default for x in SCHEMA if (x.section, x.name) == (s, k))
-    )
+    def get(s, k):
+        return values.get((s, k), next(x.default for x in SCHEMA if (x.section, x.name) == (s, k)))
+
     if ("packing", "file") in values:
         given = [
             k
@@ -251,7 +259,8 @@ def documentation() -> str:
             if k.section == section:
                 default = "(none)" if k.default is None else repr(k.default)
                 lines.append(
-                    f"  {k.name:<17} {k.kind.__name__:<5} default {default:<10} {k.allowed()}: {k.doc}"
+                    f"  {k.name:<17} {k.kind.__name__:<5} default {default:<10} "
+                    f"{k.allowed()}: {k.doc}"
                 )
     return "\n".join(lines)
 

@@ -3,7 +3,8 @@
     mpfem run CASE.toml [--out DIR] [--restart CHECKPOINT]   compaction of a periodic volume
     mpfem pack --particles N --out FILE | --input FILE --out FILE   make or check a packing file
     mpfem plot DIR                                            figures again from a results folder
-    mpfem init CASE.toml                                      a commented case file with the defaults
+    mpfem init CASE.toml                                      a commented case file with
+                                                              the defaults
 
 Exit codes: 0 done; 2 bad input (one line naming the field and the allowed range); 3 the run
 diverged or did not converge (history so far and the last good checkpoint are kept).
@@ -48,9 +49,11 @@ def _parser() -> argparse.ArgumentParser:
         "run",
         help="compact a periodic volume described by a TOML case file",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Compaction of a periodic volume of elastoplastic particles (thesis chapter 2): packing -> "
-        "meshed particles -> contact + periodic constraints -> explicit/implicit solver -> history.",
-        epilog="Outputs in the results folder: history.csv (one row per output; columns in README), "
+        description="Compaction of a periodic volume of elastoplastic particles "
+        "(thesis chapter 2): packing -> meshed particles -> contact + periodic constraints -> "
+        "explicit/implicit solver -> history.",
+        epilog="Outputs in the results folder: history.csv (one row per output; columns in "
+        "README), "
         "packing.txt, particles.xdmf (ParaView: displacement, von_mises_MPa, eps_p, particle, "
         "contact_pressure_MPa), particles.png, loading_path.png, checkpoints/.\n\n"
         "Case file keys (section, key, type, default, allowed, meaning):\n" + documentation(),
@@ -138,14 +141,14 @@ def _run(args, comm) -> None:
     try:
         case = load_case(args.case, out_dir=args.out)
     except CaseError as err:
-        raise _Exit(BAD_INPUT, str(err))
+        raise _Exit(BAD_INPUT, str(err)) from None
     if args.check:
         try:  # the packing as `run` admits it while building, before any mesh (same message)
             admitted = initial_packing(
                 case.packing, case.mesh, case.loading.target_density, log=say
             )
         except (ValueError, OSError) as err:
-            raise _Exit(BAD_INPUT, f"{args.case}: {err}")
+            raise _Exit(BAD_INPUT, f"{args.case}: {err}") from None
         source = (
             f"from {case.packing.file}"
             if case.packing.file
@@ -162,16 +165,18 @@ def _run(args, comm) -> None:
     try:
         res = run_compaction(case, comm, log=say, restart=args.restart, progress=Progress(comm))
     except CheckpointError as err:
-        raise _Exit(BAD_INPUT, str(err))
+        raise _Exit(BAD_INPUT, str(err)) from None
     except RunFailure as err:
-        raise _Exit(RUN_FAILED, str(err))
+        raise _Exit(RUN_FAILED, str(err)) from None
     except ValueError as err:  # bad input found while building: packing file, unreachable density
-        raise _Exit(BAD_INPUT, f"{args.case}: {err}")
+        raise _Exit(BAD_INPUT, f"{args.case}: {err}") from None
     h = res.history
     say(
-        f"done: rho = {h.column('rho')[-1]:.4f} (imposed {h.column('rho_imposed')[-1]:.4f}), sigma_m = "
-        f"{h.column('sigma_m')[-1]:.3f} MPa, {round(h.column('n_contacts')[-1])} contacts (Z {h.column('Z')[-1]:.2f}); "
-        f"{res.num_particles_model} particles in the model, {res.num_dofs} dofs, wall {time.perf_counter() - start:.0f} s"
+        f"done: rho = {h.column('rho')[-1]:.4f} (imposed {h.column('rho_imposed')[-1]:.4f}), "
+        f"sigma_m = {h.column('sigma_m')[-1]:.3f} MPa, "
+        f"{round(h.column('n_contacts')[-1])} contacts (Z {h.column('Z')[-1]:.2f}); "
+        f"{res.num_particles_model} particles in the model, {res.num_dofs} dofs, "
+        f"wall {time.perf_counter() - start:.0f} s"
     )
     say(
         f"outputs in {res.out_dir}/: history.csv, packing.txt, checkpoints/"
@@ -216,7 +221,8 @@ def _pack(args, comm) -> None:
         else:
             if not 0 < args.r_min <= args.r_max:
                 raise ValueError(
-                    f"--r-min = {args.r_min}, --r-max = {args.r_max}: must be 0 < r_min <= r_max (mm)"
+                    f"--r-min = {args.r_min}, --r-max = {args.r_max}: "
+                    "must be 0 < r_min <= r_max (mm)"
                 )
             packing = generate_packing(
                 args.particles,
@@ -226,12 +232,14 @@ def _pack(args, comm) -> None:
                 target_fraction=args.fraction,
             )
     except (ValueError, OSError) as err:
-        raise _Exit(BAD_INPUT, f"{args.input or 'pack'}: {err}")
+        raise _Exit(BAD_INPUT, f"{args.input or 'pack'}: {err}") from None
     if comm.rank == 0:
         write_packing(packing, args.out)
     say(
-        f"{args.out}: {packing.num_particles} spheres, cell {' x '.join(f'{d:.6g}' for d in packing.cell)} mm, "
-        f"radii {packing.radii.min():.4g}-{packing.radii.max():.4g} mm, solid fraction {packing.solid_fraction:.4f}"
+        f"{args.out}: {packing.num_particles} spheres, "
+        f"cell {' x '.join(f'{d:.6g}' for d in packing.cell)} mm, "
+        f"radii {packing.radii.min():.4g}-{packing.radii.max():.4g} mm, "
+        f"solid fraction {packing.solid_fraction:.4f}"
     )
 
 
@@ -249,7 +257,7 @@ def _plot(args, comm) -> None:
     try:
         made = [plot_loading_path(history, folder / "loading_path.png", title=str(folder))]
     except ValueError as err:
-        raise _Exit(BAD_INPUT, str(err))
+        raise _Exit(BAD_INPUT, str(err)) from None
     if (folder / "particles.vtu").is_file():
         made.append(render_grid_file(folder / "particles.vtu", folder / "particles.png"))
     say("wrote " + ", ".join(str(m) for m in made))
@@ -281,4 +289,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def console() -> None:
+    """Console-script wrapper: exit the process with the code returned by main()."""
     sys.exit(main())

@@ -18,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-#: the explicit solver's reduced masses of a constrained model (``ExplicitSettings.constraint_mass``)
+#: the explicit solver's reduced masses of a constrained model
+#: (``ExplicitSettings.constraint_mass``)
 CONSTRAINT_MASSES = ("lumped", "consistent")
 
 
@@ -79,6 +80,7 @@ class ConsistentReducedMass:
         a.axpy(-1.0, self._w)
 
     def destroy(self) -> None:
+        """Free the PETSc objects (solver, matrices, work vectors) this mass holds."""
         for name in ("_ksp", "_S", "_C", "_y", "_z", "_w", "_inverse_free"):
             obj = getattr(self, name, None)
             if obj is not None:

@@ -74,7 +74,7 @@ class Energies:
 
     def load_array(self, values: np.ndarray) -> None:
         """Restore :meth:`to_array`."""
-        for name, value in zip(ENERGY_FIELDS, values):
+        for name, value in zip(ENERGY_FIELDS, values, strict=False):
             setattr(self, name, float(value))
 
 

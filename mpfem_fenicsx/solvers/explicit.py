@@ -115,6 +115,7 @@ class PhaseTimes(dict):
 
     @contextmanager
     def __call__(self, phase: str):
+        """Context manager adding the wall time (s) of its block to ``phase``'s total."""
         start = time.perf_counter()
         try:
             yield
@@ -431,8 +432,8 @@ class ExplicitSolver:
 
     @property
     def reaction(self) -> np.ndarray:
-        """Reaction (N) on every owned unrolled dof at the last step, f_int + f_bv - f_c + f_d + M a_w
-        (a_w the peculiar acceleration; P^T R = 0 up to the lumping of M_red)."""
+        """Reaction (N) on every owned unrolled dof at the last step, f_int + f_bv - f_c + f_d +
+        M a_w (a_w the peculiar acceleration; P^T R = 0 up to the lumping of M_red)."""
         return self._reaction_last
 
     @property
@@ -465,12 +466,12 @@ class ExplicitSolver:
         )
 
     def unbalanced_ratio(self) -> float:
-        """Out-of-balance ratio at the current step (-): ||P^T (f_int + f_bv - f_c)|| / ||P^T f_int||,
-        2-norms over the free (reduced) dofs of the forces the medium exerts, without the integrator's
-        own inertia and relaxation damping, over the internal forces (which carry the contact loads
-        through the particles). 0 in static equilibrium; the explicit relaxation's quasi-static
-        measure (Abaqus' and DEM codes' residual-force ratios are of this kind). NaN before any
-        internal force."""
+        """Out-of-balance ratio at the current step (-): ||P^T (f_int + f_bv - f_c)|| /
+        ||P^T f_int||, 2-norms over the free (reduced) dofs of the forces the medium exerts,
+        without the integrator's own inertia and relaxation damping, over the internal forces
+        (which carry the contact loads through the particles). 0 in static equilibrium; the
+        explicit relaxation's quasi-static measure (Abaqus' and DEM codes' residual-force ratios
+        are of this kind). NaN before any internal force."""
         work = self._force
         self.f_int.copy(work)
         work.axpy(1.0, self.f_visc)
@@ -608,8 +609,10 @@ class ExplicitSolver:
         # before the contact search meets non-finite positions
         if not np.isfinite(self.energies.kinetic):
             raise FloatingPointError(
-                f"explicit integration diverged at step {self.step} (t={self.t:.4g} s, dt={dt:.3g} s): "
-                "non-finite velocities; use more increments (smaller target_dt) or a smaller deformation_margin"
+                f"explicit integration diverged at step {self.step} "
+                f"(t={self.t:.4g} s, dt={dt:.3g} s): "
+                "non-finite velocities; use more increments (smaller target_dt) or a smaller "
+                "deformation_margin"
             )
         self._forces()  # f_int(u_{n+1}), f_bv(u_{n+1}, v_{n+1/2})
         self.energies.elastic = self.problem.stored_energy()

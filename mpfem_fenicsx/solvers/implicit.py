@@ -47,7 +47,8 @@ class StepControl:
             raise ValueError(f"step control needs 0 < dt_min <= dt <= t_end, got {self}")
         if any(not 0 < b < self.t_end for b in self.breakpoints):
             raise ValueError(
-                f"step control breakpoints must lie in (0, t_end = {self.t_end}), got {self.breakpoints}"
+                f"step control breakpoints must lie in (0, t_end = {self.t_end}), "
+                f"got {self.breakpoints}"
             )
 
     def next_stop(self, t: float) -> float:
@@ -89,9 +90,10 @@ class ImplicitSolver:
         controls: list[StepControl] | None = None,
     ):
         """``controls``: the step controls :meth:`run_path` runs one after the other (one per
-        segment of the loading path). ``regularization``: stiffness k_i (N/mm) per owned dof of a pseudo-time viscous drag
-        r_i += k_i (w_i - w_i,n) towards the last converged state (w = u - g, the motion relative
-        to the moving offsets, e.g. a comoving homogeneous flow): it makes free-floating bodies
+        segment of the loading path). ``regularization``: stiffness k_i (N/mm) per owned dof of a
+        pseudo-time viscous drag r_i += k_i (w_i - w_i,n) towards the last converged state
+        (w = u - g, the motion relative to the moving offsets, e.g. a comoving homogeneous
+        flow): it makes free-floating bodies
         (particles before contact) solvable and vanishes as the state stops changing; its work
         is accumulated in :attr:`regularization_work` (mJ) and must stay small. The drag is
         viscous, c (w_i - w_i,n) / dt with c = k_i dt0 (dt0 the step control's increment): a cut
@@ -298,7 +300,9 @@ class ImplicitSolver:
     def total_steps(self) -> int:
         """Increments of :attr:`controls` at their initial increments (no cut-back)."""
         starts = [0.0] + [c.t_end for c in self.controls[:-1]]
-        return sum(round((c.t_end - t0) / c.dt) for c, t0 in zip(self.controls, starts))
+        return sum(
+            round((c.t_end - t0) / c.dt) for c, t0 in zip(self.controls, starts, strict=False)
+        )
 
     def run_path(
         self,
@@ -388,8 +392,8 @@ class ImplicitSolver:
     # -- checkpoints --------------------------------------------------------------------------
     def state_dict(self) -> dict[str, np.ndarray]:
         """This rank's converged state (for checkpoints): time, next increment, reduced and full
-        displacement, regularization anchor and work, plastic work, Newton count; with the material and contact
-        histories (prefixes ``material/`` and ``contact/``)."""
+        displacement, regularization anchor and work, plastic work, Newton count; with the
+        material and contact histories (prefixes ``material/`` and ``contact/``)."""
         data = {
             "t": np.array(self.t),
             "step": np.array(self.step),
@@ -487,7 +491,8 @@ class ImplicitSolver:
                 dt *= 0.5
                 if log:
                     log(
-                        f"  cut-back at t={self.t:.4g}: Newton reason {self.snes.getConvergedReason()}, "
+                        f"  cut-back at t={self.t:.4g}: "
+                        f"Newton reason {self.snes.getConvergedReason()}, "
                         f"dt -> {dt:.3g}"
                     )
                 if dt < control.dt_min:

@@ -12,6 +12,9 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class SolverKind:
+    """A solver's rules, by name: what the problem assembles, how a periodic model is held, what
+    loading and which checkpoints it accepts."""
+
     name: str
     #: the problem assembles the Jacobian forms (Newton's tangent)
     tangent: bool

@@ -20,6 +20,9 @@ import dolfinx.fem
 
 @dataclass
 class ElementMassScaling:
+    """The element mass scaling of a mesh: density factor per owned cell and the cell functions
+    (scaled density t/mm^3, wave speed mm/s, stable length mm) the bulk-viscosity form reads."""
+
     scale: np.ndarray  # density factor (>= 1) of every owned cell
     cell_dofs: np.ndarray  # DG0 dof of every owned cell
     density: dolfinx.fem.Function  # scaled density (t / mm^3) per cell
@@ -73,6 +76,7 @@ class ElementMassScaling:
         return self.safety * length / self.dilatational_speed * (np.sqrt(1.0 + xi * xi) - xi)
 
     def set_lengths(self, length: np.ndarray) -> None:
+        """Set the stable length L_e (mm) of every owned cell (ghosts updated)."""
         self.cell_length.x.array[self.cell_dofs] = length
         self.cell_length.x.scatter_forward()
 

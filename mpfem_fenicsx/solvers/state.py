@@ -25,6 +25,6 @@ def check_layout(data: dict[str, np.ndarray], x, u) -> None:
     """Raise ValueError unless the saved reduced vector and displacement fit ``x`` and ``u``."""
     if data["x"].shape != x.array_r.shape or data["u"].shape != u.x.array.shape:
         raise ValueError(
-            f"checkpoint: the solver state does not match this model and partition ({data['u'].size} "
-            f"local displacement values, this model has {u.x.array.size})"
+            f"checkpoint: the solver state does not match this model and partition "
+            f"({data['u'].size} local displacement values, this model has {u.x.array.size})"
         )

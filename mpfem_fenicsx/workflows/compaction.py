@@ -87,6 +87,9 @@ class RunFailure(RuntimeError):
 
 @dataclass
 class CompactionResult:
+    """What a compaction run returns: its history, packing, dof and model particle counts, wall
+    time (s), increments and results folder."""
+
     history: History
     packing: Packing
     num_dofs: int
@@ -95,8 +98,10 @@ class CompactionResult:
     increments: int
     out_dir: Path
     model: CompactionModel | None = None  # what the run was made of (packing -> ... -> contact)
-    solver: object | None = None  # the solver at the end of the run (its state, energies, timings)
-    #: explicit runs: the energy balance's and the balance's verdict on the loading rate (also logged)
+    # the solver at the end of the run (its state, energies, timings)
+    solver: object | None = None
+    #: explicit runs: the energy balance's and the balance's verdict on the loading rate (also
+    #: logged)
     quasi_static: QuasiStaticCheck | None = None
     case: CompactionCase | None = (
         None  # the case the run ran (with the checkpoint's packing on restart)
@@ -165,6 +170,7 @@ class CompactionModel:
 
     @property
     def is_copy(self) -> np.ndarray:
+        """Boolean mask over the assembly particles: True for the periodic copies."""
         return np.any(self.shift != 0, axis=1)
 
     @property
@@ -234,7 +240,8 @@ def build_compaction(
     radii = radii * admitted.radius_factor
     is_copy = np.any(shift != 0, axis=1)
     log(
-        f"packing: {n} particles, solid fraction {packing.solid_fraction:.4f}, cell {packing.cell}; "
+        f"packing: {n} particles, solid fraction {packing.solid_fraction:.4f}, "
+        f"cell {packing.cell}; "
         f"{int(is_copy.sum())} duplicated particles (d_bc = {duplication_distance:.4g} mm, bc "
         f"{boundary.condition})"
     )
@@ -327,15 +334,16 @@ def make_solver(solver: SolverSection, model: CompactionModel, log=print):
     reads its name), with the increments of the model's whole loading path."""
     problem, bcs, path, loading = model.problem, model.bcs, model.path, model.loading
     model_line = (
-        f"model: {model.radii.size} particles, {model.num_dofs} dofs ({bcs.constraint.num_reduced_global} "
-        f"free), rho0 = {model.rho0:.4f}"
+        f"model: {model.radii.size} particles, {model.num_dofs} dofs "
+        f"({bcs.constraint.num_reduced_global} free), rho0 = {model.rho0:.4f}"
     )
     if solver_kind(solver.kind).static:
         log(
             "WARNING: implicit granular runs are experimental: with the pseudo-time drag the free "
-            "particles are solvable, but Newton needs many cut-backs once contacts yield, and may stall on "
-            "frictional stick / slip switches (verified on the 8-sphere simple cubic cell: compaction, "
-            "restart, chapter-4 reloads); use the explicit solver for production runs"
+            "particles are solvable, but Newton needs many cut-backs once contacts yield, and may "
+            "stall on frictional stick / slip switches (verified on the 8-sphere simple cubic "
+            "cell: compaction, restart, chapter-4 reloads); use the explicit solver for "
+            "production runs"
         )
         nodal_volume = problem.lumped_mass(1.0).x.array[: bcs.constraint.num_owned]
         # backtracking line search: frictional stick / slip switches make full Newton steps cycle
@@ -373,7 +381,8 @@ def make_solver(solver: SolverSection, model: CompactionModel, log=print):
     log(
         f"{model_line} (finite elements {model.rho0_fe:.4f}) -> "
         f"{'stress-controlled' if loading.control is not None else loading.target_density}, "
-        f"dt = {explicit.dt:.3g} s (unscaled {explicit.dt_stable_unscaled:.3g} s), {solver.increments} increments"
+        f"dt = {explicit.dt:.3g} s (unscaled {explicit.dt_stable_unscaled:.3g} s), "
+        f"{solver.increments} increments"
     )
     return explicit
 
@@ -413,6 +422,7 @@ class CompactionCheckpoints:
         self.restart = restart
 
     def due(self, rows: int) -> bool:
+        """Whether a checkpoint is due after ``rows`` history rows (never if ``every`` is 0)."""
         return bool(self.every) and rows % self.every == 0
 
     def write(
@@ -423,6 +433,8 @@ class CompactionCheckpoints:
         reference_centroids: np.ndarray,
         wall_time: float,
     ) -> None:
+        """Write a checkpoint of the run at the solver's step (collective) and prune the old ones
+        to the newest ``keep``."""
         packing, V, control = model.packing, model.problem.V, model.loading.control
         arrays = {f"solver/{k}": v for k, v in solver.state_dict().items()}
         arrays["dof_coordinates"] = _dof_coordinates(V)
@@ -593,12 +605,14 @@ class CompactionRun:
         return self.wall_offset + time.perf_counter() - self.start
 
     def write_checkpoint(self) -> None:
+        """Write a checkpoint of the run as it stands now (collective)."""
         self.checkpoints.write(
             self.solver, self.model, self.history, self.recorder.X0, self.wall_time
         )
 
     def record(self, solver) -> None:
-        """An output: a history row, the ParaView fields, the progress line, a checkpoint when due."""
+        """An output: a history row, the ParaView fields, the progress line, a checkpoint when
+        due."""
         row = self.recorder.measure(solver, self.wall_time)
         self.history.append(**row)
         if self.writer is not None:
@@ -728,8 +742,8 @@ def run_compaction(
     progress: Progress | None = None,
     model: CompactionModel | None = None,
 ) -> CompactionResult:
-    """Compact the volume to ``case.loading.target_density`` (or along its path): ``CompactionRun(...).run()``;
-    the columns of the history: :mod:`.history_recorder`."""
+    """Compact the volume to ``case.loading.target_density`` (or along its path):
+    ``CompactionRun(...).run()``; the columns of the history: :mod:`.history_recorder`."""
     return CompactionRun(case, comm, log, restart=restart, progress=progress, model=model).run()
 
 

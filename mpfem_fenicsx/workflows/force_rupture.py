@@ -6,9 +6,9 @@ Stages (data flow: consolidation -> unload -> checkpoint -> stress probe -> rupt
    up to ``p_load``, then down to ``p_probe``, checkpoint; E_0 = E_d there;
 2. **probe** (``out/probe``): from that checkpoint the three normal stresses are driven linearly
    from p_probe to ``final_stress`` (e.g. (0, 0, -5): uniaxial tension along z with free lateral
-   faces; tension needs adhesion, ``base.contact.gamma`` > 0) over ``probe`` durations, then held. Past
-   the volume's strength the servo can no longer raise the stress: it strains the cell at its
-   largest rate and the particles, no longer held, accelerate;
+   faces; tension needs adhesion, ``base.contact.gamma`` > 0) over ``probe`` durations, then
+   held. Past the volume's strength the servo can no longer raise the stress: it strains the cell
+   at its largest rate and the particles, no longer held, accelerate;
 3. **rupture**, by two independent criteria, both recorded:
    - the kinetic / dissipated energy ratio phi = E_c / E_d (thesis eq. 4.14; Abdelmoula's
      criterion, thesis §4.5.1: "particulièrement adapté à un pilotage en effort") first reaching
@@ -109,8 +109,8 @@ class ForceRuptureCase(StressProbeCase):
             raise ValueError("final_stress must differ from the starting state p_probe I")
         if np.any(final < 0) and not self.base.contact.gamma > 0:
             raise ValueError(
-                f"final_stress is tensile but base.contact.gamma = {self.base.contact.gamma}: without adhesion the "
-                f"volume carries no tension (set gamma > 0 mJ/mm^2)"
+                f"final_stress is tensile but base.contact.gamma = {self.base.contact.gamma}: "
+                f"without adhesion the volume carries no tension (set gamma > 0 mJ/mm^2)"
             )
         if self.w2_window != 0 and not (self.w2_window >= 3 and self.w2_window % 2 == 1):
             raise ValueError(

@@ -244,7 +244,8 @@ def load_and_unload(
     quiet = _quiet(log)
     restart = _newest_checkpoint(out / "load") if resume else None
     log(
-        f"[load] {base.loading.path} compaction to rho = {base.loading.target_density} ({base.solver.increments} "
+        f"[load] {base.loading.path} compaction to rho = {base.loading.target_density} "
+        f"({base.solver.increments} "
         "increments)" + (f", continued from {restart}" if restart else "")
     )
     loaded = run_compaction(
