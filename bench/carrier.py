@@ -42,10 +42,8 @@ from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 
 
 def value_at(history: dict, column: str, rho: float) -> float:
-    """``column`` where the loading branch first reaches ``rho``.
-
-    Linear interpolation; NaN if never.
-    """
+    """``column`` where the loading branch first reaches ``rho`` (linear interpolation; NaN if
+    never)."""
     return sigma_at({"rho": history["rho"], "sigma_m": history[column]}, rho)
 
 
