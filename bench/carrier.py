@@ -1,7 +1,8 @@
 """The comoving carrier experiment: does carrying every particle with the
 imposed homogeneous flow bias the explicit compaction?
 
-    python bench/carrier.py                                   # 50 particles, CLP and GDF, 4000 increments
+    python bench/carrier.py
+        # 50 particles, CLP and GDF, 4000 increments
     python bench/carrier.py --particles 24 --bcs CLP --increments 6000
     python bench/carrier.py --table-only                      # tabulate the runs already made
 
@@ -41,11 +42,13 @@ from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 
 
 def value_at(history: dict, column: str, rho: float) -> float:
-    """``column`` where the loading branch first reaches ``rho`` (linear interpolation; NaN if never)."""
+    """``column`` where the loading branch first reaches ``rho`` (linear interpolation; NaN if
+    never)."""
     return sigma_at({"rho": history["rho"], "sigma_m": history[column]}, rho)
 
 
 def summarize(history: dict) -> dict:
+    """The run's table row: sigma_m (MPa, compression > 0) at DENSITIES, h_d/h_v, end values."""
     ratio = history["h_d"] / np.where(history["h_v"] != 0, np.abs(history["h_v"]), np.nan)
     return {
         **{f"sigma_m_{rho:.2f}": sigma_at(history, rho) for rho in DENSITIES},
@@ -59,6 +62,7 @@ def summarize(history: dict) -> dict:
 
 
 def main(argv=None) -> list[dict]:
+    """Run the missing carrier on/off cases, write the CSV and print the table; return its rows."""
     p = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -94,7 +98,8 @@ def main(argv=None) -> list[dict]:
         done = (run_dir / "done").exists()
         if not done and not args.table_only and ("on" if comoving else "off") in args.carrier:
             say(
-                f"--- {args.particles} particles, {bc}, carrier {'on' if comoving else 'off'} -> {run_dir}"
+                f"--- {args.particles} particles, {bc}, carrier {'on' if comoving else 'off'} -> "
+                f"{run_dir}"
             )
             start = time.perf_counter()
             case = CompactionCase.build(
@@ -137,7 +142,8 @@ def main(argv=None) -> list[dict]:
             writer.writeheader()
             writer.writerows(rows)
         say(
-            "| particles | bc | carrier | sigma_m 0.80 / 0.85 / 0.90 (MPa) | h_d/h_v 0.85 / end | non-affine rms / r "
+            "| particles | bc | carrier | sigma_m 0.80 / 0.85 / 0.90 (MPa) | h_d/h_v 0.85 / end | "
+            "non-affine rms / r "
             "(end) | E_damp / E_d (end) | rho (end) | max sigma_m dev. from carried | wall (s) |"
         )
         say("|---" * 10 + "|")
@@ -145,8 +151,10 @@ def main(argv=None) -> list[dict]:
             say(
                 f"| {r['particles']} | {r['bc']} | {'on' if r['carrier'] else 'off'} | "
                 f"{r['sigma_m_0.80']:.3f} / {r['sigma_m_0.85']:.3f} / {r['sigma_m_0.90']:.3f} | "
-                f"{r['hd_over_hv_0.85']:.4f} / {r['hd_over_hv_end']:.4f} | {r['nonaffine_end']:.4f} | "
-                f"{r['E_damp_over_E_d_end']:.4f} | {r['rho_end']:.4f} | {100 * r['max_dev_sigma_m']:.2f} % | "
+                f"{r['hd_over_hv_0.85']:.4f} / {r['hd_over_hv_end']:.4f} | "
+                f"{r['nonaffine_end']:.4f} | "
+                f"{r['E_damp_over_E_d_end']:.4f} | {r['rho_end']:.4f} | "
+                f"{100 * r['max_dev_sigma_m']:.2f} % | "
                 f"{r['wall_s']:.0f} |"
             )
         sys.stdout.flush()

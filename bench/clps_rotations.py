@@ -6,10 +6,11 @@
 
 The flagship (24 particles, seed 1, isotropic to rho 0.92, explicit, smooth-ramps) under CLPS, its
 copies' reference points coupled to their originals' in translation (eq. 2.15) and, with
-``--rotations on``, in rotation too (eq. 2.16). Runs go to ``OUT/p<particles>_<loading>_rot<on|off>``
-(finished ones are not repeated). The table gives sigma_m at rho 0.80 / 0.85 / 0.90 (MPa, least-
-squares rho), the end state, h_d / h_v, the non-affine rms / r, E_p of the volume and of the model
-(mJ), and the deviation of the run without eq. 2.16 from the one with it.
+``--rotations on``, in rotation too (eq. 2.16). Runs go to
+``OUT/p<particles>_<loading>_rot<on|off>`` (finished ones are not repeated). The table gives
+sigma_m at rho 0.80 / 0.85 / 0.90 (MPa, least-squares rho), the end state, h_d / h_v, the
+non-affine rms / r, E_p of the volume and of the model (mJ), and the deviation of the run without
+eq. 2.16 from the one with it.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 
 
 def summarize(h: dict) -> dict:
+    """The run's table row: sigma_m (MPa, compression > 0) at DENSITIES and the end state."""
     ratio = h["h_d"][-1] / abs(h["h_v"][-1])
     return {
         **{f"sigma_m_{rho:.2f}": sigma_at(h, rho) for rho in DENSITIES},
@@ -43,6 +45,7 @@ def summarize(h: dict) -> dict:
 
 
 def main(argv=None) -> list[dict]:
+    """Run the missing eq. 2.16 on/off cases and print the table; return the rows."""
     p = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -97,15 +100,19 @@ def main(argv=None) -> list[dict]:
             rows[rotations] = summarize(read_csv(run_dir / "history.csv"))
     if comm.rank == 0 and rows:
         say(
-            "| eq. 2.16 | sigma_m 0.80 / 0.85 / 0.90 (MPa) | end sigma_m / rho | h_d/h_v end | non-affine / r end "
+            "| eq. 2.16 | sigma_m 0.80 / 0.85 / 0.90 (MPa) | end sigma_m / rho | h_d/h_v end | "
+            "non-affine / r end "
             "| E_p volume / model (mJ) | contacts end | wall (s) |"
         )
         say("|---" * 8 + "|")
         for rotations, r in rows.items():
             say(
-                f"| {'on' if rotations else 'off'} | {r['sigma_m_0.80']:.3f} / {r['sigma_m_0.85']:.3f} / "
-                f"{r['sigma_m_0.90']:.3f} | {r['sigma_m_end']:.3f} / {r['rho_end']:.4f} | {r['hd_over_hv_end']:.4f} | "
-                f"{r['nonaffine_end']:.4f} | {r['E_p_end']:.4f} / {r['E_p_model_end']:.4f} | {r['contacts_end']} | "
+                f"| {'on' if rotations else 'off'} | {r['sigma_m_0.80']:.3f} / "
+                f"{r['sigma_m_0.85']:.3f} / "
+                f"{r['sigma_m_0.90']:.3f} | {r['sigma_m_end']:.3f} / {r['rho_end']:.4f} | "
+                f"{r['hd_over_hv_end']:.4f} | "
+                f"{r['nonaffine_end']:.4f} | {r['E_p_end']:.4f} / {r['E_p_model_end']:.4f} | "
+                f"{r['contacts_end']} | "
                 f"{r['wall_s']:.0f} |"
             )
         if len(rows) == 2:

@@ -36,6 +36,7 @@ from mpfem_fenicsx.workflows.compaction import CompactionRun, run_compaction
 
 
 def main(argv=None) -> dict:
+    """Time one compaction (short or --full) and return its timings, phases and memory."""
     p = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -61,7 +62,8 @@ def main(argv=None) -> dict:
     p.add_argument(
         "--copies",
         action="store_true",
-        help="CLP by copies tied to their originals (the default, since 2026-11-24: periodic images)",
+        help="CLP by copies tied to their originals (the default, since 2026-11-24: periodic "
+        "images)",
     )
     p.add_argument(
         "--mesh",
@@ -152,7 +154,8 @@ def main(argv=None) -> dict:
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # MB (Linux: KB)
     rho = float(res.history.column("rho")[-1]) if res.history.rows else float("nan")
     result = {
-        "case": f"{args.particles} particles, {args.bc}{' (copies)' if args.copies else ''}, isotropic, {args.solver}",
+        "case": f"{args.particles} particles, {args.bc}{' (copies)' if args.copies else ''}, "
+        f"isotropic, {args.solver}",
         "mode": "full" if args.full else "short",
         "ranks": comm.size,
         "particles_in_model": res.num_particles_model,

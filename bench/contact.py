@@ -24,6 +24,7 @@ from mpfem_fenicsx.problem import SolidProblem
 
 
 def lattice(n: int, seed: int = 0):
+    """Centres (n, 3) on a jittered cubic lattice of spacing 1.95 and radii in [0.95, 1.05]."""
     side = int(np.ceil(n ** (1 / 3)))
     grid = np.array([(i, j, k) for k in range(side) for j in range(side) for i in range(side)])[:n]
     rng = np.random.default_rng(seed)
@@ -33,6 +34,7 @@ def lattice(n: int, seed: int = 0):
 
 
 def main():
+    """Print one JSON object of contact search, force and tangent times (s) per particle count."""
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -51,15 +53,18 @@ def main():
         vec = problem.create_vector()
         contact.evaluate(problem.u, tangent=True)  # JIT warm-up
 
-        def forces():
+        def forces(contact=contact, problem=problem, vec=vec):
             contact.evaluate(problem.u, tangent=False)
             contact.add_residual(vec)
 
-        t_search = median_time(lambda: contact.search(x), args.repeat, comm)
+        t_search = median_time(lambda contact=contact, x=x: contact.search(x), args.repeat, comm)
         t_forces = median_time(forces, args.repeat, comm)
         template = _template(problem)
         t_tangent = median_time(
-            lambda: (contact.evaluate(problem.u, tangent=True), contact.tangent_matrix(template)),
+            lambda contact=contact, problem=problem, template=template: (
+                contact.evaluate(problem.u, tangent=True),
+                contact.tangent_matrix(template),
+            ),
             args.repeat,
             comm,
         )

@@ -1,17 +1,21 @@
-"""Convergence study of the explicit compaction curves: loading rate and particle mesh.
+r"""Convergence study of the explicit compaction curves: loading rate and particle mesh.
 
-    python bench/convergence.py                                  # flagship: N, 2N, 4N; chapter2 vs chapter4
+    python bench/convergence.py
+        # flagship: N, 2N, 4N; chapter2 vs chapter4
     python bench/convergence.py --particles 50 --increments 6000 12000 --meshes chapter2
-    python bench/convergence.py --profile smooth-step smooth-ramps --increments 4000 8000 --meshes chapter2
+    python bench/convergence.py --profile smooth-step smooth-ramps --increments 4000 8000 \
+        --meshes chapter2
     python bench/convergence.py --table-only                     # tabulate the runs already made
-    python bench/convergence.py --particles 24 --loading die --bc CLPS --d-bc 1.5 --divisions 4 --radius-factor 0.975 \
-        --target-density 0.85 --outputs 40 --meshes chapter2 --increments 3000 6000 12000 \
-        --density rho_imposed --densities 0.75 0.80 0.84   # the copies' conditions (validation CI subset)
+    python bench/convergence.py --particles 24 --loading die --bc CLPS --d-bc 1.5 --divisions 4 \
+        --radius-factor 0.975 --target-density 0.85 --outputs 40 --meshes chapter2 \
+        --increments 3000 6000 12000 --density rho_imposed --densities 0.75 0.80 0.84
+        # the copies' conditions (validation CI subset)
 
 Every run is the flagship case (``CompactionCase`` defaults: isotropic, CLP, rho -> 0.92, explicit)
 with ``--particles``, a number of increments and a named particle mesh (and optionally another
 loading, boundary condition, d_bc, particle divisions); its history goes to
-``OUT/p<particles>[_<loading>_<bc>[_dbc<d_bc>][_div<divisions>]]_<mesh>_<profile>_n<increments>/history.csv``
+``OUT/p<particles>[_<loading>_<bc>[_dbc<d_bc>][_div<divisions>]]_<mesh>_<profile>_n<increments>/
+history.csv``
 (a finished run is not repeated). The table (printed, and written to ``OUT/convergence.csv``) gives
 per run: sigma_m (MPa, Love-Weber, compression > 0) at ``--densities`` (default rho = 0.80, 0.85,
 0.90) of the loading branch, read on ``--density`` (rho: the centroids' fit; rho_imposed: the
@@ -55,6 +59,7 @@ def sigma_at(history: dict, rho: float, column: str = "rho") -> float:
 
 
 def summarize(history: dict, densities=DENSITIES, column: str = "rho") -> dict:
+    """The run's table row: sigma_m (MPa, compression > 0) at ``densities`` and the end state."""
     s = history["sigma_m"]
     return {
         **{f"sigma_m_{rho:.2f}": sigma_at(history, rho, column) for rho in densities},
@@ -75,6 +80,7 @@ def summarize(history: dict, densities=DENSITIES, column: str = "rho") -> dict:
 
 
 def main(argv=None) -> list[dict]:
+    """Run the missing rate and mesh cases, write the CSV and print the table; return its rows."""
     p = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -175,7 +181,8 @@ def main(argv=None) -> list[dict]:
             done = (run_dir / "done").exists()
             if not done and not args.table_only:
                 say(
-                    f"--- {args.particles} particles, mesh {mesh}, {profile}, {n} increments -> {run_dir}"
+                    f"--- {args.particles} particles, mesh {mesh}, {profile}, {n} increments -> "
+                    f"{run_dir}"
                 )
                 start = time.perf_counter()
                 case = CompactionCase.build(
@@ -222,18 +229,20 @@ def main(argv=None) -> list[dict]:
             writer.writerows(rows)
         read_on = " / ".join(f"{rho:.2f}" for rho in densities)
         header = (
-            f"| particles | variant | mesh | profile | N | sigma_m at {args.density} {read_on} (MPa) | max dev. "
-            "from finest N | end / max | max abs(rho - rho_fe) / rho | unbalanced (end) | E_c/E_int (end) | "
+            f"| particles | variant | mesh | profile | N | sigma_m at {args.density} {read_on} "
+            "(MPa) | max dev. "
+            "from finest N | end / max | max abs(rho - rho_fe) / rho | unbalanced (end) | "
+            "E_c/E_int (end) | "
             "wall (s) |"
         )
         say(header)
         say("|---" * 12 + "|")
         for r in rows:
             say(
-                f"| {r['particles']} | {r['variant']} | {r['mesh']} | {r['profile']} | {r['increments']} | "
-                + " / ".join(f"{r[c]:.3f}" for c in columns)
-                + " | "
-                f"{100 * r['max_dev_from_finest']:.2f} % | {r['end_over_max']:.4f} | {r['rho_minus_rho_fe_rel']:.2e} | "
+                f"| {r['particles']} | {r['variant']} | {r['mesh']} | {r['profile']} | "
+                f"{r['increments']} | " + " / ".join(f"{r[c]:.3f}" for c in columns) + " | "
+                f"{100 * r['max_dev_from_finest']:.2f} % | {r['end_over_max']:.4f} | "
+                f"{r['rho_minus_rho_fe_rel']:.2e} | "
                 f"{r['unbalanced_end']:.2e} | {r['E_c_over_E_int_end']:.2e} | {r['wall_s']:.0f} |"
             )
         sys.stdout.flush()

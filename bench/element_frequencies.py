@@ -1,6 +1,6 @@
-"""The explicit stable increment against each element's exact highest frequency.
+r"""The explicit stable increment against each element's exact highest frequency.
 
-    mpirun -n 2 python bench/element_frequencies.py --case isotropic_CLPS_n12000 \\
+    mpirun -n 2 python bench/element_frequencies.py --case isotropic_CLPS_n12000 \
         --checkpoint validation/runs/isotropic_CLPS_n12000/checkpoints/step0012000
 
 The explicit solver mass-scales each hexahedron for its stable increment
@@ -13,11 +13,12 @@ its current shape and with its scaled density, the exact highest frequency omega
 Q1 element (2x2x2 Gauss, element row-sum lumped mass rho V / 8, Lame constants of the material),
 then prints omega_e dt (the element alone is stable for omega_e dt <= 2; an assembled mesh's highest
 frequency is at most its elements' highest) and omega_e dt / (2 dt / dt_e), which an undistorted
-cube gives as sqrt((1 + nu) / (1 - nu)) / (safety (sqrt(1 + xi^2) - xi)) (1.35 for lead, nu = 0.435):
-a cell above that is stiffer than the estimate assumes. A last line gives omega_e dt of the element the runs
-integrate (the volumetric part at the centre, ``forms.QuadratureRules``) with the Hencky moduli per
-reference volume: the tangent of the runs (the cube's frequency is the same). Reference printed first: the unit cube's
-omega_e h / c_d against its closed form 2 sqrt((1 + nu) / (1 - nu)) (the all-corners volumetric mode).
+cube gives as sqrt((1 + nu) / (1 - nu)) / (safety (sqrt(1 + xi^2) - xi)) (1.35 for lead,
+nu = 0.435): a cell above that is stiffer than the estimate assumes. A last line gives omega_e dt
+of the element the runs integrate (the volumetric part at the centre, ``forms.QuadratureRules``)
+with the Hencky moduli per reference volume: the tangent of the runs (the cube's frequency is the
+same). Reference printed first: the unit cube's omega_e h / c_d against its closed form
+2 sqrt((1 + nu) / (1 - nu)) (the all-corners volumetric mode).
 Results: bench/README.md, "The stable increment of distorted elements".
 """
 
@@ -58,7 +59,7 @@ def strain_displacement(grad: np.ndarray) -> np.ndarray:
     B = np.zeros((grad.shape[0], 6, 24))
     for i in range(3):
         B[:, i, i::3] = grad[:, :, i]
-    for row, (i, j) in zip(range(3, 6), ((0, 1), (1, 2), (0, 2))):
+    for row, (i, j) in zip(range(3, 6), ((0, 1), (1, 2), (0, 2)), strict=True):
         B[:, row, i::3] = grad[:, :, j]
         B[:, row, j::3] = grad[:, :, i]
     return B
@@ -79,7 +80,8 @@ def element_highest_omega2(
     With the ``reference`` vertices (n, 8, 3) of deformed cells, the moduli act per reference volume
     (Hencky: on the Kirchhoff stress; the spatial modulus is D / J) and the mass is the reference
     one: the weights are the reference Jacobians, the gradients the current ones (stress terms left
-    out; on the ringing copy cell this reproduces the run's own force increments to 1 %, bench/README.md)."""
+    out; on the ringing copy cell this reproduces the run's own force increments to 1 %,
+    bench/README.md)."""
     n = x.shape[0]
     m = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
     D_gauss = D if volumetric is None else D - volumetric * np.outer(m, m)
@@ -112,6 +114,7 @@ def cube_reference(E: float, nu: float, density: float) -> tuple[float, float]:
 
 
 def main(argv=None) -> None:
+    """Print omega_e dt of a checkpoint's cells (quantiles, worst particles) and the unit cube's."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--case", required=True, help="validation case name (validation/cases.py)")
     parser.add_argument(
@@ -178,24 +181,28 @@ def main(argv=None) -> None:
     )
     say(
         f"{omega_dt.size} cells at step {solver.step}: omega_e dt max {omega_dt.max():.3f}, 99.9 % "
-        f"{np.quantile(omega_dt, 0.999):.3f}, median {np.median(omega_dt):.3f} (an element alone is stable <= 2)"
+        f"{np.quantile(omega_dt, 0.999):.3f}, median {np.median(omega_dt):.3f} (an element alone "
+        "is stable <= 2)"
     )
     say(
-        f"omega_e dt / (2 dt / dt_e): quantiles 1 / 50 / 99.9 % {np.quantile(ratio, [0.01, 0.5, 0.999]).round(3)}, "
+        "omega_e dt / (2 dt / dt_e): quantiles 1 / 50 / 99.9 % "
+        f"{np.quantile(ratio, [0.01, 0.5, 0.999]).round(3)}, "
         f"max {ratio.max():.3f}"
     )
     worst = np.zeros(particle.max() + 1)
     np.maximum.at(worst, particle, omega_dt)
     top = np.argsort(worst)[::-1][:8]
     say(
-        f"cells with omega_e dt > 2: {(omega_dt > 2).sum()}; particles with the highest omega_e dt: "
+        f"cells with omega_e dt > 2: {(omega_dt > 2).sum()}; particles with the highest omega_e "
+        "dt: "
         + ", ".join(f"{p}{' (copy)' if model.is_copy[p] else ''} {worst[p]:.3f}" for p in top)
     )
     worst[:] = 0.0
     np.maximum.at(worst, particle, run_element)
     top = np.argsort(worst)[::-1][:4]
     say(
-        f"the runs' element (volumetric part at the centre, moduli per reference volume): omega_e dt max {run_element.max():.3f}, median "
+        "the runs' element (volumetric part at the centre, moduli per reference volume): omega_e "
+        f"dt max {run_element.max():.3f}, median "
         f"{np.median(run_element):.3f}; highest in " + ", ".join(f"{p} {worst[p]:.3f}" for p in top)
     )
 

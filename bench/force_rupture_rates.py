@@ -36,6 +36,7 @@ START, FINAL = np.full(3, 0.2), np.array([0.2, 0.2, -6.0])
 
 
 def main(argv=None) -> int:
+    """Run the rupture probes on the consolidated cell, print a line per probe; return 0."""
     p = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -66,7 +67,10 @@ def main(argv=None) -> int:
         out_dir=args.out,
     )
     state = consolidate(case, MPI.COMM_SELF, log=lambda *a: None)
-    quiet = lambda *a, **k: None
+
+    def quiet(*a, **k):
+        return None
+
     for spec in args.probes:
         kind, value = spec.split(":")
         value = float(value)
@@ -110,7 +114,8 @@ def main(argv=None) -> int:
                 knees.append(f"{tension[k[0]]:.3f}" if k.size else "-")
             k = int(np.argmax(tension))
             print(
-                f"{spec:12s} largest tension {tension[k]:.3f} at strain {h33[k] - h33[0]:.4f}; K_t < 62 MPa from "
+                f"{spec:12s} largest tension {tension[k]:.3f} at strain {h33[k] - h33[0]:.4f}; K_t "
+                "< 62 MPa from "
                 f"{knees[0]}, < 15.5 MPa from {knees[1]}  ({time.perf_counter() - wall:.0f} s)",
                 flush=True,
             )

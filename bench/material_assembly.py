@@ -25,6 +25,7 @@ from mpfem_fenicsx.problem import SolidProblem
 
 
 def main():
+    """Print one JSON object: mesh size and the median wall time (s) and us/qp of each phase."""
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )

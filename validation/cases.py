@@ -6,8 +6,9 @@ library's ``LEAD``), 50 particles (seed 1), friction 0.1, explicit, d_bc per the
 own particle: its appendix-A cube-sphere inscribed in the sphere (``exact_volume=False``, 2.95 %
 less solid than the sphere) while rho counts the spheres' volume (eq. 2.4-2.5), so that "rho =
 0.95" means what it means in the thesis. One die run (``die_CLP_exact_volume``) keeps the
-library's default particle, which holds its sphere's volume, to show what that definition moves. Each stage names its cases; a case runs
-into ``validation/runs/<name>/`` (``done`` written at the end: a finished case is not repeated).
+library's default particle, which holds its sphere's volume, to show what that definition moves.
+Each stage names its cases; a case runs into ``validation/runs/<name>/`` (``done`` written at the
+end: a finished case is not repeated).
 """
 
 from __future__ import annotations
@@ -25,9 +26,9 @@ THESIS_GAMMA_L = {
 #: (CLP) rise above the non-periodic ones (GDF, GDH); the gap stays below 20 %
 THESIS_DIVERGENCE_HV = {"isotropic": -0.17, "die": -0.11}
 THESIS_NONPERIODIC_GAP = 0.20
-#: thesis §2.7 (fig. 2.24b, d): the stress paths sigma_d(sigma_m) of the conditions are alike, except
-#: GDH under die loading, whose deviatoric stress is higher at the same pressure; read at these
-#: sigma_m (MPa) as the mean ratio to CLP's ("alike": within TOLERANCE; GDH: above it)
+#: thesis §2.7 (fig. 2.24b, d): the stress paths sigma_d(sigma_m) of the conditions are alike,
+#: except GDH under die loading, whose deviatoric stress is higher at the same pressure; read at
+#: these sigma_m (MPa) as the mean ratio to CLP's ("alike": within TOLERANCE; GDH: above it)
 PATH_READ_AT = (2.0, 4.0, 6.0, 8.0)
 #: thesis §2.4 (fig. 2.8a): h_d / |h_v| of an isotropic compaction with duplicated-particle
 #: conditions, "environ 6 à 9 %"; the issue's expectation for CLP: about 0
@@ -50,12 +51,13 @@ DBC_READ_AT = (0.85, 0.90, 0.93)
 TOLERANCE = 0.15
 
 
-#: the explicit solver's reduced mass of the constrained model (``ExplicitSettings.constraint_mass``)
-#: per condition in the die and isotropic stages: CLPS with the consistent P^T M P, the particles'
-#: own inertia, as Abaqus' constraint equations keep it (with the row-sum lumping its die run at
-#: 6000 increments loses 42 % of its stress where the ramp decelerates and fails its quasi-static
-#: check; the increments stage, validation/README.md); GDF and GDH with the lumping, with which
-#: they pass their checks; CLP by periodic images has no constraint to lump
+#: the explicit solver's reduced mass of the constrained model
+#: (``ExplicitSettings.constraint_mass``) per condition in the die and isotropic stages: CLPS with
+#: the consistent P^T M P, the particles' own inertia, as Abaqus' constraint equations keep it (with
+#: the row-sum lumping its die run at 6000 increments loses 42 % of its stress where the ramp
+#: decelerates and fails its quasi-static check; the increments stage, validation/README.md); GDF
+#: and GDH with the lumping, with which they pass their checks; CLP by periodic images has no
+#: constraint to lump
 STAGE_CONSTRAINT_MASS = {"CLP": "lumped", "CLPS": "consistent", "GDF": "lumped", "GDH": "lumped"}
 
 #: the chapter-2 set-up every case starts from (its options override these)
@@ -93,6 +95,7 @@ class Case:
         return self.options.get("increments", CHAPTER2_SETUP["increments"])
 
     def compaction_case(self, out_dir: str):
+        """The ``CompactionCase``: the chapter-2 set-up with this case's options, in ``out_dir``."""
         from mpfem_fenicsx.workflows.compaction import CompactionCase
 
         return CompactionCase.build(**{**CHAPTER2_SETUP, **self.options}, directory=out_dir)
@@ -252,7 +255,8 @@ class FanCase:
 
     @property
     def is_thesis_fan(self) -> bool:
-        """The thesis' reloads (A = 1.5 h_v^d at the default rate, smooth step), not a variant of them."""
+        """The thesis' reloads (A = 1.5 h_v^d at the default rate, smooth step), not a variant of
+        them."""
         return (
             self.amplitude_factor == 1.5
             and self.min_reload_increments == 400
@@ -284,6 +288,7 @@ class FanCase:
         )
 
     def yield_surface_case(self, out_dir: str):
+        """This fan's ``YieldSurfaceCase`` (compaction to ``rho_f``, reloads) in ``out_dir``."""
         import math
 
         from mpfem_fenicsx.workflows.compaction import initial_packing
@@ -348,8 +353,8 @@ STAGES = {
     "dbc": [dbc_case(bc, d) for bc, grid in DBC_GRID.items() for d in grid],
     #: the die stage's increments: CLPS (consistent mass) and GDF at 12 000; CLPS with the lumped
     #: mass, which loses 42 % of its stress as the ramp decelerates at 6000, and at 12 000; CLPS at
-    #: 1.0 r_max (146 particles, lumped, the same 30-40 % end loss): the rate question at a third the cost;
-    #: the isotropic CLPS at 12 000 (at 6000 it fails its quasi-static check at rest)
+    #: 1.0 r_max (146 particles, lumped, the same 30-40 % end loss): the rate question at a third
+    #: the cost; the isotropic CLPS at 12 000 (at 6000 it fails its quasi-static check at rest)
     "increments": [
         slow_die_case("CLPS", 12000),
         lumped_mass_die_case("CLPS"),

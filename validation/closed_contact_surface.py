@@ -61,6 +61,7 @@ def measured_at_checkpoints(fan, run_dir: Path) -> float:
 
 
 def main(name: str, out: str, run_dir: str | None = None) -> None:
+    """Rerun CLP fan ``name``'s reloads into ``out``; print Gamma_closed (1/mm) along them."""
     fan = {c.name: c for c in STAGES["fans"]}[name]
     case = fan.yield_surface_case(out)
     if case.base.bc != "CLP":
@@ -86,7 +87,8 @@ def main(name: str, out: str, run_dir: str | None = None) -> None:
             closed0  # the restart row: the unload's history had no such column
         )
         print(
-            f"phi {np.degrees(phi):5.0f} deg: Gamma {rows['Gamma'].min():.3f}-{rows['Gamma'].max():.3f}, "
+            f"phi {np.degrees(phi):5.0f} deg: Gamma "
+            f"{rows['Gamma'].min():.3f}-{rows['Gamma'].max():.3f}, "
             f"Gamma_closed {closed0:.3f} -> {closed.min():.3f}-{closed.max():.3f} "
             f"({closed.min() / closed0 - 1:+.0%} / {closed.max() / closed0 - 1:+.0%}); "
             f"sigma_m at the end {rows['sigma_m'][-1]:.2f} MPa"

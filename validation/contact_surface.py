@@ -27,6 +27,7 @@ from validation.cases import STAGES  # noqa: E402
 
 
 def main(name: str, checkpoint: str) -> None:
+    """Print S (mm^2) of the volume's and of every contact, their ratio and both Gamma (1/mm)."""
     case = {c.name: c for cases in STAGES.values() for c in cases}[name].compaction_case(
         f"/tmp/contact_surface_{name}"
     )
@@ -46,8 +47,10 @@ def main(name: str, checkpoint: str) -> None:
     s_volume, s_model = float(np.sum(weights * pf["area"])), float(pf["area"].sum())
     if MPI.COMM_WORLD.rank == 0:
         print(
-            f"{name} {Path(checkpoint).name}: t = {solver.t:.4g} s, S volume {s_volume:.5g} mm^2, S model "
-            f"{s_model:.5g} mm^2, ratio {s_model / s_volume:.3f}; Gamma {s_volume / volume:.4g}, Gamma_model "
+            f"{name} {Path(checkpoint).name}: t = {solver.t:.4g} s, S volume {s_volume:.5g} mm^2, "
+            "S model "
+            f"{s_model:.5g} mm^2, ratio {s_model / s_volume:.3f}; Gamma {s_volume / volume:.4g}, "
+            "Gamma_model "
             f"{s_model / volume:.4g} mm^-1"
         )
 

@@ -163,7 +163,10 @@ def die_rows(done: dict) -> tuple[list[dict], list[str]]:
             continue
         h = run["history"]
         ours[name] = at_density(h, "sigma_m", 0.95, "rho_imposed")
-        cells = f"| {label} | {thesis} | {ours[name]:.2f} | {h['rho'][-1]:.4f} | {h['rho_fe'][-1]:.4f} |"
+        cells = (
+            f"| {label} | {thesis} | {ours[name]:.2f} | {h['rho'][-1]:.4f} | "
+            f"{h['rho_fe'][-1]:.4f} |"
+        )
         if bc in THESIS_DIE_SIGMA_M:
             quantity = "sigma_m at rho 0.95 (MPa)" + (
                 ", particles holding their sphere's volume" if name.endswith("exact_volume") else ""
@@ -196,9 +199,13 @@ def die_rows(done: dict) -> tuple[list[dict], list[str]]:
         lines += [
             "",
             "The ordering CLP > CLPS > GDF read on "
-            + ", ".join(f"`{name}` ({value:.2f} MPa)" for name, value in zip(read, values))
-            + f": {'met' if ordered else 'not met'} (each condition's die run, or its repeat with more "
-            "increments or another reduced mass where only the repeat passes its quasi-static check).",
+            + ", ".join(
+                f"`{name}` ({value:.2f} MPa)" for name, value in zip(read, values, strict=True)
+            )
+            + f": {'met' if ordered else 'not met'} (each condition's die run, or its repeat "
+            "with more "
+            "increments or another reduced mass where only the repeat passes its quasi-static "
+            "check).",
         ]
     return rows, lines
 
@@ -287,7 +294,8 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
                 f"{100 * r['deviation']:+.1f} % | {r['status']}" if compared else not_compared
             )
             lines.append(
-                f"| {condition} | {case.increments} | {mass} | {at_density(h, 'sigma_m', 0.90, 'rho_imposed'):.2f} / "
+                f"| {condition} | {case.increments} | {mass} | "
+                f"{at_density(h, 'sigma_m', 0.90, 'rho_imposed'):.2f} / "
                 f"{at_density(h, 'sigma_m', 0.93, 'rho_imposed'):.2f} | {h['sigma_m'][k]:.2f} "
                 f"({h['rho_imposed'][k]:.3f}) | {end:.2f} | {h['unbalanced'][-1]:.2f} | "
                 f"{100 * carrier_share(h)[-1]:.0f} % | {quasi_static_cell(h)} | "
@@ -354,7 +362,8 @@ def periodic_rows(done: dict) -> tuple[list[dict], list[str]]:
     rows = []
     levels = " / ".join(f"{s:g}" for s in PATH_READ_AT)
     lines = [
-        "| loading | condition | end sigma_m (MPa) | below CLP at the end (thesis < 20 %) | h_v where CLP rises "
+        "| loading | condition | end sigma_m (MPa) | below CLP at the end (thesis < 20 %) | h_v "
+        "where CLP rises "
         f"above it (thesis) | sigma_d / CLP's at equal sigma_m ({levels} MPa, mean) | status |",
         "|---|---|---|---|---|---|---|",
     ]
@@ -424,7 +433,8 @@ def drift_rows(done: dict) -> tuple[list[dict], list[str]]:
     from the non-affine motion (``drift_noise``), taken out in quadrature."""
     rows = []
     lines = [
-        "| condition | end h_d / abs(h_v) | the centroid fit's noise / abs(h_v), end | drift above the noise / "
+        "| condition | end h_d / abs(h_v) | the centroid fit's noise / abs(h_v), end | drift above "
+        "the noise / "
         "abs(h_v), end (thesis) | h_d / noise at rho_imposed "
         + " / ".join(f"{r:g}" for r in DRIFT_READ_AT)
         + " / end | status |",
@@ -458,7 +468,8 @@ def drift_rows(done: dict) -> tuple[list[dict], list[str]]:
             )
             thesis, verdict = f" ({lo:g}-{hi:g})", "met" if ok else "not met"
         lines.append(
-            f"| {bc} | {h['h_d'][-1] / abs(h['h_v'][-1]):.4f} | {noise[-1] / abs(h['h_v'][-1]):.4f} | "
+            f"| {bc} | {h['h_d'][-1] / abs(h['h_v'][-1]):.4f} | "
+            f"{noise[-1] / abs(h['h_v'][-1]):.4f} | "
             f"{above:.4f}{thesis} | "
             + " / ".join(f"{r:.1f}" for r in ratios + [float(ratio[-1])])
             + f" | {verdict} |"
@@ -527,7 +538,8 @@ def dbc_rows(done: dict) -> tuple[list[dict], list[str]]:
         [],
         [
             f"| condition | sigma_m (MPa) at rho_imposed {reads} / end, per d_bc / r_max (end in "
-            "brackets: not quasi-static, left out) | stable from (ours, rho_imposed) | sigma_m (MPa) at "
+            "brackets: not quasi-static, left out) | stable from (ours, rho_imposed) | sigma_m "
+            "(MPa) at "
             f"rho {reads} (eq. 2.4: the centroids' F, the thesis' abscissa; - where not reached) | "
             "stable from (ours, eq. 2.4) | thesis table 2.3 | status (rho_imposed / eq. 2.4) |",
             "|---|---|---|---|---|---|---|",
@@ -539,7 +551,7 @@ def dbc_rows(done: dict) -> tuple[list[dict], list[str]]:
         imposed = {d: dbc_readings(h) for d, h in finished.items()}
         centroids = {d: dbc_readings(h, "rho") for d, h in finished.items()}
 
-        def cells(readings, brackets):
+        def cells(readings, brackets, finished=finished, runs=runs):
             def cell(d):
                 if d not in readings:
                     return f"{d:g}: not run yet"
@@ -585,7 +597,8 @@ def dbc_rows(done: dict) -> tuple[list[dict], list[str]]:
             said.append(text)
             verdicts.append("met" if ok else "not met")
         lines.append(
-            f"| {bc} | {cells(imposed, True)} | {said[0]} | {cells(centroids, False)} | {said[1]} | "
+            f"| {bc} | {cells(imposed, True)} | {said[0]} | {cells(centroids, False)} | {said[1]} "
+            "| "
             f"{THESIS_STABLE_DBC[bc]} | {' / '.join(verdicts)} |"
         )
     return rows, lines
@@ -612,9 +625,12 @@ def size_rows(done: dict) -> tuple[list[dict], list[str]]:
     below every finished 50-particle packing's: a second 50-particle packing makes the test
     stricter by its spread."""
     lines = [
-        "| particles | packing (seed) | run | end sigma_d (MPa) | end h_d | the centroid fit's noise, end | "
-        "end h_d above the noise | mean sigma_d / sigma_m (sigma_m > 1 MPa) | sigma_m at rho 0.90 (centroids, MPa) | "
-        "gap to CLP there | end sigma_m (rho_imposed 0.95, MPa) | rho of the centroids, end | below CLP at the end |",
+        "| particles | packing (seed) | run | end sigma_d (MPa) | end h_d | the centroid fit's "
+        "noise, end | "
+        "end h_d above the noise | mean sigma_d / sigma_m (sigma_m > 1 MPa) | sigma_m at rho 0.90 "
+        "(centroids, MPa) | "
+        "gap to CLP there | end sigma_m (rho_imposed 0.95, MPa) | rho of the centroids, end | "
+        "below CLP at the end |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     rows, values = [], {}  # values[particles]: the GDF runs' quantities, one tuple per packing
@@ -648,8 +664,10 @@ def size_rows(done: dict) -> tuple[list[dict], list[str]]:
             if name == names[0]:
                 values.setdefault(particles, []).append((h["sigma_d"][-1], path, h_d, abs(below)))
             lines.append(
-                f"| {particles} | {seed} | {name} | {h['sigma_d'][-1]:.3f} | {h['h_d'][-1]:.4f} | {noise:.4f} | "
-                f"{h_d:.4f} | {path:.4f} | {s90:.2f} | {100 * gap:+.1f} % | {h['sigma_m'][-1]:.2f} | "
+                f"| {particles} | {seed} | {name} | {h['sigma_d'][-1]:.3f} | {h['h_d'][-1]:.4f} | "
+                f"{noise:.4f} | "
+                f"{h_d:.4f} | {path:.4f} | {s90:.2f} | {100 * gap:+.1f} % | {h['sigma_m'][-1]:.2f} "
+                "| "
                 f"{h['rho'][-1]:.4f} | {100 * below:+.1f} % |"
             )
     small, large = values.get(SIZE_SMALL, []), values.get(SIZE_LARGE, [])
@@ -679,7 +697,8 @@ def sensitivity_lines(done: dict) -> tuple[list[dict], list[str]]:
     """The thesis' contradictions: the values used against the other one (no thesis number:
     shown in the README, not compared in summary.csv)."""
     lines = [
-        "| parameter | used (run) | other value (run) | end sigma_m used / other (MPa) | end Gamma used / other "
+        "| parameter | used (run) | other value (run) | end sigma_m used / other (MPa) | end Gamma "
+        "used / other "
         "(1/mm) |",
         "|---|---|---|---|---|",
     ]
@@ -713,7 +732,8 @@ def stress_rows(done: dict) -> tuple[list[dict], list[str]]:
     rows, lines = (
         [],
         [
-            "| case | end: Love-Weber / Schmidt / volume average | max gap Schmidt vs LW (loaded rows) | "
+            "| case | end: Love-Weber / Schmidt / volume average | max gap Schmidt vs LW (loaded "
+            "rows) | "
             "max gap volume vs LW | status (within 2 %) |",
             "|---|---|---|---|---|",
         ],
@@ -816,7 +836,8 @@ def rupture_kind(fan: dict) -> str | None:
 
 
 def uniaxial(fan: dict, kind: str | None, which: str) -> float:
-    """Uniaxial ``which`` (compressive / tensile) strength (MPa) of the fan's closed surface ``kind``."""
+    """Uniaxial ``which`` (compressive / tensile) strength (MPa) of the fan's closed surface
+    ``kind``."""
     value = fan["summary"]["uniaxial_MPa"].get(kind, {}).get(which) if kind else None
     return float("nan") if value is None else float(value)
 
@@ -851,8 +872,10 @@ def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
     rows, lines = (
         [],
         [
-            "| fan | loading, rho_f, gamma (mJ/mm^2), A / h_v^d, min reload increments, reload profile | sigma_m loaded / unloaded (MPa) | yield points | "
-            "Gamma unloaded (1/mm) | Gamma_l ours (1/mm) | thesis Gamma_l (table 4.2) | deviation | status | "
+            "| fan | loading, rho_f, gamma (mJ/mm^2), A / h_v^d, min reload increments, reload "
+            "profile | sigma_m loaded / unloaded (MPa) | yield points | "
+            "Gamma unloaded (1/mm) | Gamma_l ours (1/mm) | thesis Gamma_l (table 4.2) | deviation "
+            "| status | "
             "uniaxial compressive yield / tensile rupture (MPa) | wall |",
             "|---|---|---|---|---|---|---|---|---|---|---|",
         ],
@@ -860,7 +883,8 @@ def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
     for case in STAGES["fans"]:
         fan = done.get(case.name)
         head = (
-            f"| {case.name} | {case.loading}, {case.rho_f:g}, {case.gamma:g}, {case.amplitude_factor:g}, "
+            f"| {case.name} | {case.loading}, {case.rho_f:g}, {case.gamma:g}, "
+            f"{case.amplitude_factor:g}, "
             f"{case.min_reload_increments}, {case.reload_profile} |"
         )
         if fan is None:
@@ -878,9 +902,11 @@ def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
             status = (
                 f"{100 * r['deviation']:+.1f} % | {r['status']}"
                 if np.isfinite(g_l)
-                else f"- | not met: no contact collapse within the reloads (Gamma falls by at most {drop:.1f} %)"
+                else f"- | not met: no contact collapse within the reloads (Gamma falls by at most "
+                f"{drop:.1f} %)"
                 if not drop >= 100 * MIN_GAMMA_COLLAPSE
-                else f"- | not met: Gamma falls by up to {drop:.1f} %, gradually: the iso-Gamma curves do not "
+                else f"- | not met: Gamma falls by up to {drop:.1f} %, gradually: the iso-Gamma "
+                "curves do not "
                 f"superpose"
             )
         crossing = len(fan["surfaces"].get(f"gamma_{g_l:.6g}", ()))
@@ -889,7 +915,8 @@ def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
         )
         rupture = rupture_kind(fan)
         strengths = (
-            f"{uniaxial(fan, 'yield', 'compressive'):.3g} / {uniaxial(fan, rupture, 'tensile'):.3g} "
+            f"{uniaxial(fan, 'yield', 'compressive'):.3g} / "
+            f"{uniaxial(fan, rupture, 'tensile'):.3g} "
             f"({'Gamma_l' if rupture and rupture.startswith('gamma') else rupture or 'no rupture'})"
         )
         lines.append(
@@ -926,9 +953,11 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
     how far or how fast the reloads go once they are quasi-static), point by point in the
     directions where both fans cross it."""
     lines = [
-        "| fan | compared with | reload A (1e-3) / increments / mean strain rate (1/s) / profile | yield points | "
+        "| fan | compared with | reload A (1e-3) / increments / mean strain rate (1/s) / profile | "
+        "yield points | "
         "yield: largest shift (common directions) | W2: largest shift (common directions) | "
-        "uniaxial compressive yield (MPa) | tensile rupture (MPa) | isotropic recompression yield / loaded "
+        "uniaxial compressive yield (MPa) | tensile rupture (MPa) | isotropic recompression yield "
+        "/ loaded "
         "sigma_m | reading |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
@@ -951,7 +980,7 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
                 )
             )
 
-        def change(kind, which):
+        def change(kind, which, fan=fan, ref=ref):
             ours, theirs = (uniaxial(f, kind(f), which) for f in (fan, ref))
             return f"{ours:.3g} vs {theirs:.3g}" + (
                 f" ({100 * (ours / theirs - 1):+.0f} %)" if np.isfinite(ours / theirs) else ""
@@ -959,15 +988,25 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
 
         shifts = {kind: surface_shift(fan, ref, kind) for kind in ("yield", "w2")}
         reading = "; ".join(
-            f"{kind} {'not compared' if not n else f'within {100 * x:.1f} %' if x <= 0.05 else f'moves by up to {100 * x:.0f} %'}"
+            f"{kind} "
+            + (
+                "not compared"
+                if not n
+                else f"within {100 * x:.1f} %"
+                if x <= 0.05
+                else f"moves by up to {100 * x:.0f} %"
+            )
             for kind, (x, n) in shifts.items()
         )
         lines.append(
-            f"| {case.name} | {case.compared_with} | {discretization(fan)} vs {discretization(ref)} | "
-            f"{fan['summary']['points'].get('yield', 0)} vs {ref['summary']['points'].get('yield', 0)} "
+            f"| {case.name} | {case.compared_with} | {discretization(fan)} vs "
+            f"{discretization(ref)} | "
+            f"{fan['summary']['points'].get('yield', 0)} vs "
+            f"{ref['summary']['points'].get('yield', 0)} "
             f"of {case.nphi} | "
             + " | ".join(f"{100 * x:.1f} % ({n})" if n else "-" for x, n in shifts.values())
-            + f" | {change(lambda f: 'yield', 'compressive')} | {change(rupture_kind, 'tensile')} | "
+            + f" | {change(lambda f: 'yield', 'compressive')} | "
+            f"{change(rupture_kind, 'tensile')} | "
             f"{recompression_ratio(fan):.3f} vs {recompression_ratio(ref):.3f} | {reading} |"
         )
     return [], lines
@@ -976,7 +1015,8 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
 def closed_yield_fan(fans: dict, name: str) -> str:
     """``name``, or, if its yield surface is open, the fan sharing its loading with reloads at the
     same strain rate (within 1 %) and profile but further (a larger A) whose yield surface is
-    closed: the yield points do not depend on A at a given rate (the reload study), more reach them."""
+    closed: the yield points do not depend on A at a given rate (the reload study), more reach
+    them."""
 
     def closed(n):
         return (
@@ -1067,7 +1107,8 @@ def trend_lines(done: dict) -> tuple[list[dict], list[str]]:
         add(
             "both grow with rho_f (§4.3.1, §4.5)",
             [lo, hi],
-            f"compressive {s[lo][0]:.3g} -> {s[hi][0]:.3g} MPa, tensile {s[lo][1]:.3g} -> {s[hi][1]:.3g} MPa",
+            f"compressive {s[lo][0]:.3g} -> {s[hi][0]:.3g} MPa, tensile {s[lo][1]:.3g} -> "
+            f"{s[hi][1]:.3g} MPa",
             s[hi][0] > s[lo][0] and s[hi][1] > s[lo][1],
         )
     else:
@@ -1088,8 +1129,8 @@ def trend_lines(done: dict) -> tuple[list[dict], list[str]]:
         add(
             "die-loaded surfaces rotate (§4.3.1, fig. 4.7b, d)",
             [die, *iso],
-            f"major axis of the {'yield' if kind == 'yield' else 'W2 rupture'} surfaces from the sigma_m axis: "
-            + ", ".join(f"{n} {a:+.1f} deg" for n, a in angles.items()),
+            f"major axis of the {'yield' if kind == 'yield' else 'W2 rupture'} surfaces from the "
+            "sigma_m axis: " + ", ".join(f"{n} {a:+.1f} deg" for n, a in angles.items()),
             turn > 5.0,
         )
     else:
@@ -1210,7 +1251,7 @@ def figures(done: dict, out: Path) -> None:
     )
 
     fig, ax = plt.subplots(figsize=(6, 4.2))
-    for (loading, table), colour in zip(THESIS_GAMMA_L.items(), ("C0", "C1")):
+    for (loading, table), colour in zip(THESIS_GAMMA_L.items(), ("C0", "C1"), strict=False):
         run = done.get(f"{loading}_CLP_gamma1e-2")
         if run is not None:
             ax.plot(
@@ -1308,7 +1349,7 @@ def periodic_figure(done: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 4, figsize=(17, 4.2))
-    for ax, loading in zip(axes, ("isotropic", "die")):
+    for ax, loading in zip(axes, ("isotropic", "die"), strict=False):
         drawn = False
         for bc, colour in CONDITION_COLOURS.items():
             run = done.get(f"{loading}_{bc}")
@@ -1402,13 +1443,13 @@ def _dbc_panels(done: dict, axes, density: str) -> None:
     """``dbc_figure``'s row of panels against the ``density`` column."""
     import matplotlib.pyplot as plt
 
-    for ax, bc in zip(axes, DBC_GRID):
+    for ax, bc in zip(axes, DBC_GRID, strict=True):
         runs = dict(sorted(dbc_runs(done, bc).items()))  # shades in the order of d_bc
         if bc == "CLP":
             runs["images"] = done.get(die_case(bc).name)
         shades = plt.cm.viridis(np.linspace(0.0, 0.85, len(runs)))
         drawn = False
-        for (d, run), colour in zip(runs.items(), shades):
+        for (d, run), colour in zip(runs.items(), shades, strict=True):
             if run is None:
                 continue
             label = "periodic images (no d_bc)" if d == "images" else f"d_bc {d:g} r_max"
@@ -1455,8 +1496,8 @@ def _dbc_panels(done: dict, axes, density: str) -> None:
 
 def size_figure(done: dict, path: Path) -> None:
     """Thesis §2.8, fig. 2.26: GDF under isotropic loading with 50 (two packings) and 150
-    particles against CLP on the same packings: sigma_m against the centroids' and the imposed density, and the
-    deviatoric stress sigma_d(rho)."""
+    particles against CLP on the same packings: sigma_m against the centroids' and the imposed
+    density, and the deviatoric stress sigma_d(rho)."""
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
@@ -1469,14 +1510,14 @@ def size_figure(done: dict, path: Path) -> None:
             styles[particles, seed],
         )
         for particles, seed, *names in SIZE_PAIRS
-        for name, bc, colour in zip(names, ("GDF", "CLP"), ("C2", "C0"))
+        for name, bc, colour in zip(names, ("GDF", "CLP"), ("C2", "C0"), strict=True)
     ]
     panels = (
         ("rho", "sigma_m", "relative density (volume's centroids)", "sigma_m (MPa)"),
         ("rho_imposed", "sigma_m", "relative density (imposed)", "sigma_m (MPa)"),
         ("rho", "sigma_d", "relative density (volume's centroids)", "sigma_d (MPa)"),
     )
-    for ax, (density, column, xlabel, ylabel) in zip(axes, panels):
+    for ax, (density, column, xlabel, ylabel) in zip(axes, panels, strict=True):
         for name, label, colour, style in runs:
             run = done.get(name)
             if run is not None:
@@ -1581,6 +1622,7 @@ def fan_figure(fans: list, title: str, path: Path) -> None:
 
 
 def replace_block(text: str, name: str, lines: list[str]) -> str:
+    """``text`` with README block ``name`` replaced by ``lines`` (ValueError if it has none)."""
     pattern = re.compile(rf"(<!-- BEGIN {name} -->\n).*?(<!-- END {name} -->)", re.S)
     if not pattern.search(text):
         raise ValueError(f"validation/README.md has no generated block {name!r}")
@@ -1655,6 +1697,7 @@ def overview_lines(done: dict, tables: dict[str, tuple[list[dict], list[str]]]) 
 
 
 def write_report(runs: Path, here: Path) -> list[dict]:
+    """Rewrite the README's tables, summary.csv and the figures from ``runs``; return the rows."""
     done = load_runs(runs)
     rows, tables = [], {}
     readme = here / "README.md"

@@ -1,11 +1,14 @@
 """The validation campaign: run the stages' compactions, then regenerate the report.
 
-    python validation/run.py die            # the die stage's runs (hours on 2 cores), then the report
+    python validation/run.py die
+        # the die stage's runs (hours on 2 cores), then the report
     python validation/run.py die gamma      # several stages
     python validation/run.py --report-only  # tables, figures and summary.csv from the finished runs
     python validation/run.py --case die_CLP_faceted   # one case (several: repeat the option)
-    python validation/run.py --list         # the stages, their cases: done, to run or where they resume
-    python validation/run.py --jobs 2 die   # two cases at a time, one core each (logs in runs/<case>/log.txt)
+    python validation/run.py --list
+        # the stages, their cases: done, to run or where they resume
+    python validation/run.py --jobs 2 die
+        # two cases at a time, one core each (logs in runs/<case>/log.txt)
 
 ``make validate`` runs every stage then the report. Runs go to ``validation/runs/<case>/`` (not
 versioned; a case with a ``done`` file is not repeated, a killed one restarts from its newest
@@ -75,7 +78,8 @@ def run_case(case, comm, say) -> None:
 
 
 def run_state(case) -> str:
-    """ "done", "to run", or where a killed compaction resumes ("resumes at step N of M")."""
+    """The case's state: "done", "to run", or where a killed compaction resumes ("resumes at step
+    N of M")."""
     run_dir = RUNS / case.name
     if (run_dir / "done").exists():
         return "done"
@@ -101,9 +105,12 @@ class FanClock:
         self.start = time.perf_counter()
 
     def total(self) -> float:
+        """The fan's wall time so far (s), the earlier processes' included."""
         return self.before + time.perf_counter() - self.start
 
     def wrap(self, say):
+        """``say`` that first records the wall time so far in <run_dir>/wall_s (one rank writes)."""
+
         def timed(message):
             if self.writes:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -172,6 +179,7 @@ def run_in_parallel(cases, jobs: int, say) -> None:
 
 
 def main(argv=None) -> None:
+    """Run the chosen stages' or cases' missing runs (or list them), then regenerate the report."""
     p = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -183,7 +191,8 @@ def main(argv=None) -> None:
         "--jobs",
         type=int,
         default=1,
-        help="cases run at a time, each in its own process on one core (default 1: in this process)",
+        help="cases run at a time, each in its own process on one core (default 1: in this "
+        "process)",
     )
     p.add_argument("--no-report", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
