@@ -1,4 +1,4 @@
-"""The `mpfem` command line (issue 7): case-file validation, an end-to-end run with its outputs,
+"""The `mpfem` command line: case-file validation, an end-to-end run with its outputs,
 figures drawn again, a forced divergence, and restart from a checkpoint."""
 
 import shutil
@@ -624,7 +624,7 @@ def test_console_script_exit_code(tmp_path, root):
 @pytest.mark.mpi
 def test_mpirun_two_ranks_run_and_restart(tiny_run, tmp_path, root):
     """`mpirun -n 2 mpfem run`: the serial history within 1e-5 (relative to each column family's
-    magnitude; SPEC §9 case 8), and a 2-rank restart equal to the 2-rank run bit for bit."""
+    magnitude), and a 2-rank restart equal to the 2-rank run bit for bit."""
     out, _ = tiny_run
     bin_ = root / ".venv" / "bin"
     half = tmp_path / "a" / "checkpoints" / f"step{TINY_STEPS // 2:07d}"

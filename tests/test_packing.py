@@ -1,4 +1,4 @@
-"""Periodic sphere packings (SPEC §5, §9.7; thesis §2.2.1): container, I/O, generator,
+"""Periodic sphere packings (thesis §2.2.1): container, I/O, generator,
 duplicates."""
 
 import time
@@ -314,7 +314,7 @@ def test_every_periodic_neighbour_pair_is_realized_once_by_clp_copies(jammed50):
 
 
 # ------------------------------------------------------------------------------ DEM exports
-# What DEM codes write (issue 25): YADE's export.text (#format x_y_z_r, the cell in a header a
+# What DEM codes write: YADE's export.text (#format x_y_z_r, the cell in a header a
 # script adds, or given), LAMMPS / LIGGGHTS dumps (box bounds, x y z radius among other columns).
 YADE_HEADER = (
     "# dx dy dz (mm) = 0.827 0.827 0.827 ; solid_fraction = 0.02 ; N = 3\n"

@@ -31,7 +31,7 @@ THESIS_NONPERIODIC_GAP = 0.20
 #: these sigma_m (MPa) as the mean ratio to CLP's ("alike": within TOLERANCE; GDH: above it)
 PATH_READ_AT = (2.0, 4.0, 6.0, 8.0)
 #: thesis §2.4 (fig. 2.8a): h_d / |h_v| of an isotropic compaction with duplicated-particle
-#: conditions, "environ 6 à 9 %"; the issue's expectation for CLP: about 0
+#: conditions, "environ 6 à 9 %"; the campaign's expectation for CLP: about 0
 THESIS_GDF_DRIFT = (0.06, 0.09)
 CLP_DRIFT_LIMIT = 0.03
 #: imposed densities where the report reads h_d against the centroid fit's noise (isotropic)
@@ -47,7 +47,7 @@ DBC_GRID = {"GDF": (1.5, 2.0, 3.0), "CLP": (1.2, 1.5, 1.8, 2.1), "CLPS": (1.0, 1
 #: run passes its quasi-static check (else its end is the ramp deceleration's relaxation: CLPS)
 DBC_STABLE_WITHIN = 0.02
 DBC_READ_AT = (0.85, 0.90, 0.93)
-#: the issue's goal for every compared number
+#: the campaign's goal for every compared number
 TOLERANCE = 0.15
 
 

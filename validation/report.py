@@ -1629,7 +1629,7 @@ def replace_block(text: str, name: str, lines: list[str]) -> str:
     return pattern.sub(lambda m: m.group(1) + "\n".join(lines) + "\n" + m.group(2), text)
 
 
-#: the report's tables in the issue's order: README block, what it compares, the stages its runs
+#: the report's tables in the campaign's order: README block, what it compares, the stages its runs
 #: come from (the overview counts their cases), the function that builds it
 TABLES = (
     ("die", "Die compaction, sigma_m at rho 0.95 (§2.7)", ("die",), die_rows),
