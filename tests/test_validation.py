@@ -713,7 +713,6 @@ def test_list_tells_where_a_killed_run_resumes(tmp_path, monkeypatch):
     import json
 
     from validation import run
-
     from validation.cases import CASES
 
     monkeypatch.setattr(run, "RUNS", tmp_path)
