@@ -9,16 +9,16 @@ Stages (data flow: consolidation -> unload -> checkpoint -> stress probe -> rupt
    faces; tension needs adhesion, ``base.contact.gamma`` > 0) over ``probe`` durations, then
    held. Past the volume's strength the servo can no longer raise the stress: it strains the cell
    at its largest rate and the particles, no longer held, accelerate;
-3. **rupture**, by two independent criteria, both recorded:
-   - the kinetic / dissipated energy ratio phi = E_c / E_d (thesis eq. 4.14; Abdelmoula's
-     criterion, thesis §4.5.1: "particulièrement adapté à un pilotage en effort") first reaching
-     ``phi_c``. Under a quasi-static stress path phi stays at the level of the servo's residual
-     vibrations (``phi_quasi_static``: its median over the probe's first half);
-   - Hill's second-order work W2 = dsigma : dh (eq. 4.15; Cauchy stress tension > 0, Hencky
-     strain) first becoming <= 0, with the increments as Savitzky-Golay derivatives over
-     ``w2_window`` rows (as workflows.yield_surface). On a stress path it marks the peak.
-   The strength along the path is the largest stress reached along its direction
-   (``path_stress``: the projection of sigma - sigma_start on final_stress - sigma_start).
+3. **rupture**, by two independent criteria, both recorded: (a) the kinetic / dissipated
+   energy ratio phi = E_c / E_d (thesis eq. 4.14; Abdelmoula's criterion, thesis §4.5.1:
+   "particulièrement adapté à un pilotage en effort") first reaching ``phi_c``. Under a
+   quasi-static stress path phi stays at the level of the servo's residual vibrations
+   (``phi_quasi_static``: its median over the probe's first half); (b) Hill's second-order work
+   W2 = dsigma : dh (eq. 4.15; Cauchy stress tension > 0, Hencky strain) first becoming <= 0,
+   with the increments as Savitzky-Golay derivatives over ``w2_window`` rows (as
+   workflows.yield_surface). On a stress path it marks the peak. The strength along the path
+   is the largest stress reached along its direction (``path_stress``: the projection of
+   sigma - sigma_start on final_stress - sigma_start).
 
 Outputs in ``out_dir``: ``rupture.csv`` (one row per probe output: RUPTURE_COLUMNS),
 ``rupture_points.csv`` (criterion phi | w2 | peak, time, the three normal stresses, sigma_m, q,
