@@ -36,7 +36,6 @@ import numpy as np
 from convergence import DENSITIES, sigma_at
 from mpi4py import MPI
 
-import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
 from mpfem_fenicsx.io.history import read_csv
 from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
 

@@ -17,7 +17,6 @@ from mpfem_fenicsx.meshes import particle_mesh
 from mpi4py import MPI
 from timing import median_time
 
-import mpfem_fenicsx  # noqa: F401
 from mpfem_fenicsx.contact import ContactLaw, ContactModel
 from mpfem_fenicsx.material import LEAD
 from mpfem_fenicsx.problem import SolidProblem

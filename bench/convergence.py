@@ -38,7 +38,6 @@ import numpy as np
 from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS
 from mpi4py import MPI
 
-import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
 from mpfem_fenicsx.io.history import read_csv
 from mpfem_fenicsx.loading import PROFILES
 from mpfem_fenicsx.solvers.constraint_mass import CONSTRAINT_MASSES

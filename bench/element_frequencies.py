@@ -31,7 +31,6 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
 from mpfem_fenicsx.problem import (
     HEX_CENTRE_GRADIENTS,
     HEX_GAUSS_GRADIENTS,

@@ -26,7 +26,6 @@ import numpy as np
 from mpfem_fenicsx.meshes.packing import simple_cubic_packing
 from mpi4py import MPI
 
-import mpfem_fenicsx  # noqa: F401  (mpi4py before dolfinx)
 from mpfem_fenicsx.loading.mixed import StressControl, normal_stress_path
 from mpfem_fenicsx.workflows.compaction import CompactionCase
 from mpfem_fenicsx.workflows.force_rupture import ForceRuptureCase, rupture_points, rupture_rows

@@ -14,7 +14,6 @@ _workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
 if _workers > 1 and "NUMBA_NUM_THREADS" not in os.environ:
     os.environ["NUMBA_NUM_THREADS"] = str(max(1, len(os.sched_getaffinity(0)) // _workers))
 
-import mpfem_fenicsx  # noqa: E402, F401  (imports dolfinx_solver first)
 
 ROOT = Path(__file__).resolve().parents[1]
 

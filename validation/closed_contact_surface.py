@@ -25,7 +25,6 @@ sys.path.insert(
 import numpy as np  # noqa: E402
 from mpi4py import MPI  # noqa: E402
 
-import mpfem_fenicsx  # noqa: E402,F401  (mpi4py before dolfinx)
 from mpfem_fenicsx.homogenization.surfaces import iso_gamma_point  # noqa: E402
 from mpfem_fenicsx.io import read_csv  # noqa: E402
 from mpfem_fenicsx.workflows.compaction import CompactionRun  # noqa: E402

@@ -20,7 +20,6 @@ sys.path.insert(
 import numpy as np  # noqa: E402
 from mpi4py import MPI  # noqa: E402
 
-import mpfem_fenicsx  # noqa: E402,F401  (mpi4py before dolfinx)
 from mpfem_fenicsx.homogenization import contact_weights  # noqa: E402
 from mpfem_fenicsx.workflows.compaction import CompactionRun  # noqa: E402
 from validation.cases import STAGES  # noqa: E402

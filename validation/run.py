@@ -31,7 +31,6 @@ sys.path.insert(0, str(HERE.parent))  # the repository: the validation package
 
 from mpi4py import MPI  # noqa: E402
 
-import mpfem_fenicsx  # noqa: E402,F401  (mpi4py before dolfinx)
 from validation.cases import CASES, STAGES, FanCase  # noqa: E402
 
 RUNS = HERE / "runs"
