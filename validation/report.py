@@ -260,7 +260,7 @@ def increments_rows(done: dict) -> tuple[list[dict], list[str]]:
             if compared
             else f"{bc} at d_bc {repeated.d_bc:g} r_max"
             if die
-            else f"{bc}, {repeated.options['loading']}"
+            else f"{bc}, {repeated.options['path']}"
         )
         not_compared = "(other d_bc) |" if die else "(not in the thesis) |"
         for case in [repeated, *variants]:

@@ -222,7 +222,7 @@ def main(argv=None) -> None:
             for case in cases:
                 run_case(case, comm, say)
     if comm.rank == 0 and not args.no_report:
-        from report import write_report
+        from validation.report import write_report
 
         write_report(RUNS, HERE)
 
