@@ -148,5 +148,5 @@ def run_probe(
             4, round(case.rows_per_probe * (state.time + case.probe * T) / (case.probe * T))
         ),
     )
-    log(f"probe {name} -> {probe.out_dir}")
+    log(f"probe {name} -> {probe.output.directory}")
     return run_compaction(probe, comm, log=log, restart=state.checkpoint, model=state.model).history
