@@ -48,7 +48,7 @@ def test_control_integrates_the_velocity_gradient():
             rate=1,
             band=1,
         )
-    with pytest.raises(ValueError, match="control .* needs bc CLP or CLPS"):
+    with pytest.raises(ValueError, match="control .* needs boundary.condition CLP or CLPS"):
         CompactionCase.build(condition="GDF", control=control)
 
 
@@ -236,9 +236,9 @@ def test_servo_reads_the_reported_volume_stress(tmp_path):
     control.update = recording_update
     case = small_case(
         tmp_path,
-        bc="CLP",
+        condition="CLP",
         control=control,
-        packing=packing,
+        spheres=packing,
         duration=4e-4,
         material=replace(LEAD, sigma_0=1e4),
         increments=400,
