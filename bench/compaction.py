@@ -25,6 +25,7 @@ import sys
 import tempfile
 import time
 
+import numpy as np
 from mpfem_fenicsx.meshes.cubesphere import RESOLUTIONS, unit_ball_hex
 from mpi4py import MPI
 
@@ -121,6 +122,7 @@ def main(argv=None) -> dict:
         0 if args.full else (int(0.55 * args.increments) if args.warmup is None else args.warmup)
     )
     start = time.perf_counter()
+    marks = {}  # contact exchange counters at the start of the timed part
     if args.full:
         case = CompactionCase.build(**base, outputs=40)
         res = run_compaction(case, comm, log=quiet)
@@ -141,6 +143,7 @@ def main(argv=None) -> dict:
         solver = res.solver
         setup = time.perf_counter() - start
         before = dict(solver.timings)
+        marks = _contact_counters(res.model.contact)
         comm.Barrier()
         t0 = time.perf_counter()
         step0 = solver.step
@@ -174,11 +177,62 @@ def main(argv=None) -> dict:
         "peak_rss_mb_max": round(comm.allreduce(rss, op=MPI.MAX), 1),
         "peak_rss_mb_sum": round(comm.allreduce(rss, op=MPI.SUM), 1),
         "rho": rho,
+        "peak_rss_mb_per_rank": [round(v, 1) for v in comm.allgather(rss)],
+        "contact": _contact_report(res.model, marks, timed_steps, comm),
     }
     if comm.rank == 0:
         print(json.dumps(result))
         sys.stdout.flush()
     return result
+
+
+def _contact_counters(contact) -> dict:
+    """The contact model's running counters: bytes received, gathers, pairs, halo builds."""
+    s = contact.surface
+    return {
+        **{f"bytes_{k}": v for k, v in s.bytes_received.items()},
+        "gathers": s.gathers,
+        "pairs": contact.search.pairs_examined,
+        "builds": contact.halo_builds,
+    }
+
+
+def _contact_report(model, marks: dict, steps: int, comm) -> dict:
+    """Per rank (lists in rank order): the contact surface it holds and treats, next to the whole
+    model's, and what it received per timed step; the mesh's ghost dofs (the halo of the bulk)."""
+    contact = model.contact
+    s = contact.surface
+    now = _contact_counters(contact)
+    delta = {k: v - marks.get(k, 0) for k, v in now.items()}
+    own_bodies = s.slave_bodies
+    ghost = ~np.isin(s.facet_body, own_bodies)
+    rank = {
+        "owned_surface_nodes": int(s.num_owned),
+        "held_surface_nodes": int(s.num_nodes),
+        "held_facets": int(s.facets.shape[0]),
+        "ghost_facets": int(ghost.sum()),
+        "held_bodies": int(s.bodies.size),
+        "slave_bodies": int(own_bodies.size),
+        "pairs_per_step": delta["pairs"] / max(steps, 1),
+        "halo_builds": delta["builds"],
+        "bytes_halo_per_step": delta["bytes_halo"] / max(steps, 1),
+        "bytes_displacement_per_step": delta["bytes_displacement"] / max(steps, 1),
+        "bytes_setup": now["bytes_setup"],
+        "ghost_dofs": int(model.problem.V.dofmap.index_map.num_ghosts * 3),
+    }
+    rows = comm.allgather(rank)
+    total_nodes = sum(r["owned_surface_nodes"] for r in rows)
+    total_facets = comm.allreduce(int((~ghost & np.isin(s.facet_body, own_bodies)).sum()))
+    total_pairs = sum(r["pairs_per_step"] for r in rows)
+    out = {k: [r[k] for r in rows] for k in rank}
+    out["surface_nodes_model"] = total_nodes
+    # facets of bodies cut by the partition are counted by each rank treating them
+    out["surface_facets_model_upper"] = total_facets
+    out["held_node_share"] = [round(r["held_surface_nodes"] / total_nodes, 4) for r in rows]
+    out["pairs_share"] = [
+        round(r["pairs_per_step"] / total_pairs, 4) if total_pairs else 0.0 for r in rows
+    ]
+    return out
 
 
 if __name__ == "__main__":

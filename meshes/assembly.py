@@ -5,7 +5,8 @@ All particles live in a single mesh made of disconnected components. Tags:
 - facet tags: value = particle id for every facet on that particle's surface (all exterior
   facets of the mesh are particle surfaces, since particles are disconnected).
 
-The mesh is built on rank 0 and distributed by DOLFINx's graph partitioner; particle ids are
+The mesh is built on rank 0 and distributed whole particle by whole particle (hexahedra,
+``partition.particle_partitioner``; tetrahedra: DOLFINx's graph partitioner); particle ids are
 recovered on every rank from the original cell index, so no extra communication is needed.
 """
 
@@ -22,6 +23,7 @@ import dolfinx.mesh
 import ufl
 
 from .cubesphere import mobius_ball, unit_ball_hex
+from .partition import particle_partitioner
 
 
 @dataclass
@@ -135,6 +137,7 @@ def particle_mesh(
     tet_refine: list | None = None,
     rotations: np.ndarray | None = None,
     grading: np.ndarray | None = None,
+    weights: np.ndarray | None = None,
 ) -> ParticleAssembly:
     """Mesh the spheres ``(centres[i], radii[i])`` (mm) as one DOLFINx mesh on ``comm``.
 
@@ -152,6 +155,9 @@ def particle_mesh(
         grading: optional (N, 3) vectors g (|g| < 1): particle i's hexahedra are refined towards
             the surface point in direction g/|g| by the conformal map of :func:`mobius_ball`
             (element size x (1 - |g|)/(1 + |g|) there), e.g. at a known contact point.
+        weights: optional (N,) work of each particle for the partition over MPI ranks (default:
+            equal; see :func:`meshes.partition.particle_partitioner`: hexahedral particles are
+            kept whole on one rank, ranks as compact regions).
     """
     centres, radii = _check_particles(centres, radii)
     if cell_type == "hexahedron":
@@ -185,7 +191,9 @@ def particle_mesh(
             x = np.zeros((0, 3))
             cells = np.zeros((0, 8), dtype=np.int64)
         element = basix.ufl.element("Lagrange", "hexahedron", 1, shape=(3,))
-        mesh = dolfinx.mesh.create_mesh(comm, cells, ufl.Mesh(element), x)
+        # whole particles per rank, ranks as compact regions weighted by the particles' work
+        partitioner = particle_partitioner(centres, n_cells, 8, weights)
+        mesh = dolfinx.mesh.create_mesh(comm, cells, ufl.Mesh(element), x, partitioner=partitioner)
         particle_of_cell = np.repeat(np.arange(radii.size), n_cells)
         cell_tags, facet_tags = _tag_mesh(mesh, particle_of_cell)
         return ParticleAssembly(mesh, cell_tags, facet_tags, centres, radii, cell_type)

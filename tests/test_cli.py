@@ -686,6 +686,29 @@ def test_mpirun_two_ranks_run_and_restart(tiny_run, tmp_path, root):
     )
 
 
+@pytest.mark.mpi
+def test_mpirun_three_ranks_give_the_serial_history(tiny_run, tmp_path, root):
+    """`mpirun -n 3 mpfem run` (oversubscribed on 2 cores; whole particles per rank, each rank
+    holding only its particles' neighbours): the same contact count at every output as the
+    serial run, and every column within 1e-5 of its family's magnitude."""
+    out, _ = tiny_run
+    bin_ = root / ".venv" / "bin"
+    proc = subprocess.run(
+        [str(bin_ / "mpirun"), "-n", "3", str(bin_ / "mpfem"), "run", str(root / TINY)]
+        + ["--out", str(tmp_path / "three")],
+        capture_output=True,
+        text=True,
+        cwd=root,
+        timeout=900,
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    serial, three = (read_csv(p / "history.csv") for p in (out, tmp_path / "three"))
+    np.testing.assert_array_equal(serial["n_contacts"], three["n_contacts"])
+    for name in ("rho", "sigma_m", "sigma11", "sigma22", "sigma33", "E_p", "E_int"):
+        scale = np.nanmax(np.abs(serial[name])) + 1e-30
+        assert np.nanmax(np.abs(serial[name] - three[name])) <= 1e-5 * scale, name
+
+
 def test_case_file_and_case_object_refuse_the_same_values(tmp_path):
     """A range is defined once (the case section's / ElastoPlastic field): every value a case file
     refuses as out of range, the case object refuses too, with the same words; its default

@@ -43,6 +43,24 @@ class CouplingRows:
         )
 
 
+def _reduced_index_of(
+    comm: MPI.Comm, cols: np.ndarray, size_global: int, dofs: np.ndarray
+) -> np.ndarray:
+    """Reduced index (-1: not free) of global unrolled ``dofs`` of any rank, given each rank's
+    ``cols`` (reduced index of its owned dofs): a PETSc scatter fetches only the dofs asked for,
+    from their owners (point to point; indices < 2^53 are exact as doubles)."""
+    owned = PETSc.Vec().createMPI((cols.size, size_global), comm=comm)
+    owned.array_w[:] = cols
+    wanted = PETSc.Vec().createSeq(dofs.size, comm=MPI.COMM_SELF)
+    index_set = PETSc.IS().createGeneral(dofs.astype(PETSc.IntType), comm=MPI.COMM_SELF)
+    scatter = PETSc.Scatter().create(owned, index_set, wanted, None)
+    scatter.scatter(owned, wanted, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
+    out = np.rint(wanted.array_r).astype(np.int64)
+    for obj in (scatter, index_set, wanted, owned):
+        obj.destroy()
+    return out
+
+
 class AffineConstraint:
     """u = P u_red + g on the (blocked, unrolled) dofs of a vector space ``V``.
 
@@ -90,8 +108,9 @@ class AffineConstraint:
         cols[self.free] = offset + np.arange(n_red)
         vals_free = np.ones(n_red)
         if comm.allreduce(self.slaves.size, op=MPI.SUM):
-            reduced_of_global = np.concatenate(comm.allgather(cols))  # global dof -> reduced index
-            master_cols = reduced_of_global[np.asarray(couplings.masters, dtype=np.int64)]
+            master_cols = _reduced_index_of(
+                comm, cols, (imap.size_global * bs), np.asarray(couplings.masters, np.int64)
+            )
             if np.any(master_cols < 0):
                 raise ValueError("a coupling master dof is prescribed or itself a slave")
             counts[self.slaves] = np.diff(couplings.indptr)

@@ -56,6 +56,7 @@ from scipy.spatial import cKDTree
 import dolfinx
 
 from ..boundary import boundary_kind
+from ..exchange import KeyedRows
 from ..meshes import node_particles
 from .affine import AffineConstraint, CouplingRows
 
@@ -75,26 +76,51 @@ def cubic_weights(distance: np.ndarray, reach: float) -> np.ndarray:
 
 @dataclass
 class _Nodes:
-    """All mesh nodes of the assembly (gathered on every rank): reference coordinates X, the
-    assembly particle they belong to and their global block index."""
+    """The mesh nodes of the particles this rank needs (whole particles, fetched from their home
+    ranks): reference coordinates X, the assembly particle they belong to and their global block
+    index, sorted by particle, then block (the order of the global numbering, whatever the
+    partition)."""
 
     X: np.ndarray
     particle: np.ndarray
     block: np.ndarray
 
+    def carrier(self, blocks: np.ndarray, centres: np.ndarray, cell: np.ndarray) -> np.ndarray:
+        """X_c - L/2 of the particle of each of ``blocks`` (global, among these nodes), mm."""
+        order = np.argsort(self.block)
+        pos = order[np.searchsorted(self.block[order], blocks)]
+        return centres[self.particle[pos]] - 0.5 * cell
 
-def _gather_nodes(V: dolfinx.fem.FunctionSpace, cell_particle: np.ndarray) -> _Nodes:
+
+def _particle_nodes(V: dolfinx.fem.FunctionSpace, cell_particle: np.ndarray, num_particles: int):
+    """Each particle's owned nodes kept whole at the particle's home rank (``KeyedRows``), and
+    the particles of this rank's owned nodes."""
     imap = V.dofmap.index_map
     n_owned = imap.size_local
     particle = node_particles(V, cell_particle)
     X = V.tabulate_dof_coordinates()[:n_owned]
-    block = imap.local_range[0] + np.arange(n_owned)
-    comm = V.mesh.comm
-    return _Nodes(
-        np.concatenate(comm.allgather(X)),
-        np.concatenate(comm.allgather(particle)),
-        np.concatenate(comm.allgather(block)),
-    )
+    block = imap.local_range[0] + np.arange(n_owned, dtype=np.int64)
+    return KeyedRows(V.mesh.comm, particle, (X, block), num_particles), np.unique(particle)
+
+
+def _fetch_nodes(rows: KeyedRows, particles: np.ndarray) -> _Nodes:
+    """The nodes of ``particles`` (point to point from their homes), sorted as in ``_Nodes``."""
+    particle, X, block = rows.fetch(particles)
+    order = np.lexsort((block, particle))
+    return _Nodes(X[order], particle[order], block[order])
+
+
+def _anchor_particle(kind: str, is_copy: np.ndarray, original: np.ndarray) -> int:
+    """The particle whose outermost node holds the rigid translation (CLP / CLPS): the first
+    particle of the volume that is neither a copy nor, for CLP, copied."""
+    used = np.unique(original[is_copy]) if boundary_kind(kind).tied_nodes else np.zeros(0)
+    candidates = np.flatnonzero(~is_copy & ~np.isin(np.arange(is_copy.size), used))
+    if not candidates.size:
+        raise ValueError(
+            f"{kind}: every particle has a copy; no node left to anchor the rigid "
+            "translation (use a larger cell)"
+        )
+    return int(candidates[0])
 
 
 class GranularBoundaryConditions:
@@ -156,7 +182,15 @@ class GranularBoundaryConditions:
         original = np.asarray(original, dtype=np.int64)
         shift = np.asarray(shift, dtype=np.int64)
         is_copy = np.any(shift != 0, axis=1)
-        nodes = _gather_nodes(V, np.asarray(cell_particle, dtype=np.int64))
+        # the particles this rank needs: those of its nodes, their copies' originals, and the
+        # anchor's particle
+        rows, local = _particle_nodes(V, np.asarray(cell_particle, dtype=np.int64), radii.size)
+        needed = np.union1d(local, original[local])
+        if rules.periodic and anchor:
+            needed = np.union1d(needed, [_anchor_particle(kind, is_copy, original)])
+        nodes = _fetch_nodes(rows, needed)
+        #: bytes of particle nodes this rank received (setup: homes and fetch)
+        self.bytes_received = rows.bytes_received
         self.num_particles = radii.size
         self.comoving = comoving
         self.anchor_block = None  # global dof block of the anchored node (CLP/CLPS with anchor)
@@ -169,18 +203,18 @@ class GranularBoundaryConditions:
         self._dof_rows: list[tuple] = []
         self._prescribed: list[tuple] = []  # (blocks, G (k, 9)) for all 3 components
 
-        by_particle = np.argsort(nodes.particle, kind="stable")
-        starts = np.searchsorted(nodes.particle[by_particle], np.arange(radii.size + 1))
-        self._members = [by_particle[starts[p] : starts[p + 1]] for p in range(radii.size)]
+        starts = np.searchsorted(nodes.particle, np.arange(radii.size + 1))
+        self._members = {int(p): np.arange(starts[p], starts[p + 1]) for p in needed}
 
+        # each rank builds the rows of its own particles (the owner of a row's slave keeps it)
         if rules.driven != "none":
             driven = np.arange(radii.size) if rules.driven == "all" else np.flatnonzero(is_copy)
-            for p in driven:
+            for p in np.intersect1d(driven, local):
                 self._add_coupling(
                     nodes, p, centres[p], radii[p], coupling_radius, centres[p] - 0.5 * self.cell
                 )
         elif not rules.tied_nodes:  # CLPS: reference points
-            for p in np.flatnonzero(is_copy):
+            for p in np.intersect1d(np.flatnonzero(is_copy), local):
                 self._add_periodic_coupling(
                     nodes,
                     p,
@@ -275,6 +309,8 @@ class GranularBoundaryConditions:
     def _add_ties(self, nodes, is_copy, original, shift):
         """CLP: every node of every copy tied to the coincident node of its original."""
         orig_mask = ~is_copy[nodes.particle]
+        if not orig_mask.any() or orig_mask.all():  # no copy (or no original) on this rank
+            return
         tree = cKDTree(nodes.X[orig_mask])
         orig_index = np.flatnonzero(orig_mask)
         copy_nodes = np.flatnonzero(is_copy[nodes.particle])
@@ -305,14 +341,7 @@ class GranularBoundaryConditions:
         """Fix the rigid translation: the outermost node of a particle of the volume, which is
         never a coupling master (CLPS couples the central nodes); CLP ties every node of a copied
         particle, so there the particle must have no copy."""
-        used = set(original[is_copy].tolist()) if boundary_kind(self.kind).tied_nodes else set()
-        candidates = [p for p in range(self.num_particles) if not is_copy[p] and p not in used]
-        if not candidates:
-            raise ValueError(
-                f"{self.kind}: every particle has a copy; no node left to anchor the rigid "
-                "translation (use a larger cell)"
-            )
-        p = candidates[0]
+        p = _anchor_particle(self.kind, is_copy, original)
         members = self._members[p]
         k = members[np.argmax(np.linalg.norm(nodes.X[members] - centres[p], axis=1))]
         # any translation of the whole is equivalent by periodicity; the node moves with its
@@ -369,10 +398,9 @@ class GranularBoundaryConditions:
         #: owned dofs with an offset G vec(H) (constrained ones, and the free ones when comoving)
         self.offset_dofs = constrained
         if self.comoving:
-            carrier = self._carrier_positions(imap.size_global)
-            G[: slaves.size] += self._slave_carriers(slaves, couplings, carrier)
+            G[: slaves.size] += self._slave_carriers(slaves, couplings)
             free = self.constraint.free
-            X = carrier[lo + free // 3]
+            X = self._carrier(lo + free // 3)
             G_free = np.zeros((free.size, 9))
             for j in range(3):
                 G_free[np.arange(free.size), 3 * (free % 3) + j] = X[:, j]
@@ -380,21 +408,18 @@ class GranularBoundaryConditions:
             G = np.concatenate([G, G_free])
         self.G = G
 
-    def _carrier_positions(self, num_blocks) -> np.ndarray:
-        """X_c - L/2 of every node's particle, indexed by global block, (num_blocks, 3) mm."""
-        nodes = self._nodes
-        X = np.zeros((num_blocks, 3))
-        X[nodes.block] = self._centres[nodes.particle] - 0.5 * self.cell
-        return X
+    def _carrier(self, blocks: np.ndarray) -> np.ndarray:
+        """X_c - L/2 of the particle of each node ``blocks`` (global), (n, 3) mm."""
+        return self._nodes.carrier(blocks, self._centres, self.cell)
 
-    def _slave_carriers(self, slaves, couplings, X_of_block) -> np.ndarray:
+    def _slave_carriers(self, slaves, couplings) -> np.ndarray:
         """Carrier part of the slave offsets: u_s = sum_k c_k (w_k + [H (X_k - L/2)]_(i_k)) + g_s
         for master dof k of component i_k, i.e. sum_k c_k X_kj at H_(i_k j) in the G vec(H) form,
-        (num slaves, 9), X_k - L/2 the carrier position of master k (``_carrier_positions``)."""
+        (num slaves, 9), X_k - L/2 the carrier position of master k (``_carrier``)."""
         counts = np.diff(couplings.indptr)
         row = np.repeat(np.arange(slaves.size), counts)
         component = couplings.masters % 3
-        X = X_of_block[couplings.masters // 3]
+        X = self._carrier(couplings.masters // 3)
         G = np.zeros((slaves.size, 9))
         for j in range(3):
             np.add.at(G, (row, 3 * component + j), couplings.coefficients * X[:, j])

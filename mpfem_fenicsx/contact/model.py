@@ -37,7 +37,14 @@ from .kernels import (
     relative_motion,
 )
 from .laws import ContactLaw, evaluate_law
-from .search import ContactPoints, ContactSearch, corner_normals, facet_areas, surface_normals
+from .search import (
+    ContactPoints,
+    ContactSearch,
+    candidate_pairs,
+    corner_normals,
+    facet_areas,
+    surface_normals,
+)
 from .surface import ContactSurface
 
 PASS_WEIGHT = 0.5  # two-pass symmetric treatment
@@ -111,8 +118,11 @@ class ContactModel:
         *,
         shifts: np.ndarray | None = None,
         allowed: np.ndarray | None = None,
+        skin: float | None = None,
     ):
         self.law = law
+        if skin is not None and not skin > 0:
+            raise ValueError(f"contact skin must be > 0 mm, got {skin}")
         self.surface = ContactSurface(V, facet_tags, num_bodies)
         if search_distance < law.delta_max and law.gamma > 0:
             raise ValueError(
@@ -121,10 +131,19 @@ class ContactModel:
             )
         self.search = ContactSearch(self.surface, search_distance, shifts, allowed)
         self.comm = V.mesh.comm
+        #: margin (mm) of the held bodies beyond the search distance: the held set is rebuilt
+        #: when surfaces may have approached by more than it (Verlet list)
+        self.skin = float(skin) if skin is not None else 2.0 * float(search_distance)
+        self.halo_builds = 0
         self.state = ContactState.empty()
         self.trial = ContactState.empty()
-        self.U_committed = np.zeros((self.surface.num_nodes, 3))
+        #: committed displacement of this rank's owned dofs (the held nodes' values scatter
+        #: from it whenever the held set changes)
+        self._owned_committed = np.zeros(self.surface._source.getLocalSize())
         self.shifts_committed = self.search.shifts.copy()
+        self._size_floor = 1e-12 * self._model_extent()
+        self._build_halo(np.zeros((self.surface.num_nodes, 3)))
+        self.U_committed = np.zeros((self.surface.num_nodes, 3))
         #: the last :meth:`evaluate` (empty before the first)
         self.evaluation = ContactEvaluation.empty()
         self._corner: np.ndarray | None = None
@@ -151,25 +170,85 @@ class ContactModel:
             local = self.evaluation.point_force.T @ self.evaluation.points.shift
         return self.comm.allreduce(local, op=MPI.SUM)
 
+    # -- the held bodies (halo) -----------------------------------------------------------------
+    def _model_extent(self) -> float:
+        """Largest extent (mm) of the reference surface (one reduction of 6 numbers)."""
+        X = self.surface.X[self.surface.owned_nodes]
+        lo = X.min(axis=0) if X.size else np.full(3, np.inf)
+        hi = X.max(axis=0) if X.size else np.full(3, -np.inf)
+        glo, ghi = np.empty(3), np.empty(3)
+        self.comm.Allreduce(lo, glo, op=MPI.MIN)
+        self.comm.Allreduce(hi, ghi, op=MPI.MAX)
+        return float(np.max(ghi - glo))
+
+    def _build_halo(self, U: np.ndarray) -> None:
+        """Hold the slave bodies and every body that comes within the search distance + skin of
+        one of them (periodic images and ``allowed`` pairs included) at held displacement U;
+        remember the configuration for :meth:`_refresh_halo`. Collective."""
+        s = self.surface
+        boxes = s.owned_body_boxes(s.X + U)
+        present = np.flatnonzero(np.all(np.isfinite(boxes), axis=(1, 2)))
+        allowed = self.search.allowed
+        slaves = np.searchsorted(present, s.slave_bodies)
+        pairs, _ = candidate_pairs(
+            boxes[present],
+            self.search.distance + self.skin,
+            self.search.shifts,
+            None if allowed is None else allowed[np.ix_(present, present)],
+            slaves=slaves,
+        )
+        self._built_owned = U[s.owned_nodes].copy()  # owned nodes: same order for any held set
+        s.hold(present[np.unique(pairs[:, 1])] if len(pairs) else np.zeros(0, np.int64))
+        self.halo_builds += 1
+        self._built_shifts = self.search.shifts.copy()
+
+    def _refresh_halo(self, U: np.ndarray) -> np.ndarray:
+        """Rebuild the held set if surfaces may have approached by more than the skin since the
+        last build (2 x the largest nodal displacement + the change of the image shifts);
+        returns U on the (possibly new) held set. Collective (one reduction)."""
+        s = self.surface
+        local = (
+            float(np.abs(U[s.owned_nodes] - self._built_owned).max()) * np.sqrt(3.0)
+            if s.num_owned
+            else 0.0
+        )
+        moved = self.comm.allreduce(local, op=MPI.MAX)
+        shifted = (
+            float(np.abs(self.search.shifts - self._built_shifts).max()) * np.sqrt(3.0)
+            if self.search.shifts.shape == self._built_shifts.shape
+            else np.inf
+        )
+        if 2.0 * moved + shifted <= self.skin:
+            return U
+        owned_now = np.zeros_like(self._owned_committed)
+        owned_now.reshape(-1, 3)[s.owned_local_blocks] = U[s.owned_nodes]
+        self._build_halo(U)
+        self.U_committed = s.gather_owned_array(self._owned_committed)
+        self._corner = None
+        return s.gather_owned_array(owned_now)
+
     # -- evaluation ------------------------------------------------------------------------------
     def _keys(self, pts: ContactPoints) -> tuple[np.ndarray, np.ndarray]:
-        """History keys (slave, master body, shift id) of the points, and their shift ids."""
+        """History keys (slave's global dof block, master body, shift id) of the points (the
+        same for every partition), and their shift ids."""
         nb = self.surface.num_bodies
         ns = len(self.search.shifts)
         shift_id = np.zeros(pts.size, np.int64)
         if ns > 1:
             d = np.linalg.norm(pts.shift[:, None, :] - self.search.shifts[None], axis=2)
             shift_id = d.argmin(axis=1)
-        return (pts.slave * nb + pts.master_body) * ns + shift_id, shift_id
+        slave = self.surface.blocks[pts.slave]
+        return (slave * nb + pts.master_body) * ns + shift_id, shift_id
 
     def evaluate(self, u: dolfinx.fem.Function, tangent: bool = False) -> ContactEvaluation:
         """Search, law and forces at displacement u (trial state; see :meth:`commit`); with
         ``tangent`` also the contact tangent (:meth:`tangent_matrix`)."""
         s = self.surface
-        U = s.gather(u)
+        U = self._refresh_halo(s.gather(u))
         x = s.X + U
         start = time.perf_counter()
         pts = self.search(x, self.corner_normals())
+        pts.master_body = s.bodies[pts.master_body]  # held index -> body id
         self.search_time += time.perf_counter() - start
         keys, shift_id = self._keys(pts)
         # image shifts at the last converged state: a deforming periodic cell moves the images
@@ -305,7 +384,7 @@ class ContactModel:
             dgap = np.einsum("pd,pd->p", jump, pts.normal)
             closed = pts.gap < 0
             depth = max(-pts.gap[closed].min(), 0.0) if closed.any() else 0.0
-            depth = max(depth, 1e-12 * np.ptp(self.surface.X))
+            depth = max(depth, self._size_floor)
             limited = (pts.gap >= 0) & (pts.gap + dgap < -depth)
             if limited.any():
                 lam = float(np.min((pts.gap[limited] + depth) / -dgap[limited]))
@@ -320,9 +399,10 @@ class ContactModel:
         return dofs[used].ravel().astype(PETSc.IntType), f[used].ravel()
 
     def nodal_stiffness(self) -> np.ndarray:
-        """Gershgorin row sums (N/mm) of the contact stiffness at the last evaluation, per
-        surface node, summed over ranks (zero before the first evaluation): the penalty k of the
-        law times each point's loaded tributary area, spread on its nodes by |c_a|."""
+        """Gershgorin row sums (N/mm) of the contact stiffness at the last evaluation, at this
+        rank's owned surface nodes (``surface.owned_nodes`` order), summed over the ranks whose
+        points load them (zero before the first evaluation): the penalty k of the law times each
+        point's loaded tributary area, spread on its nodes by |c_a|."""
         rows = np.zeros(self.surface.num_nodes)
         ev = self.evaluation
         if ev.size:
@@ -334,7 +414,7 @@ class ContactModel:
                 weights=(np.abs(ev.weights) * point[:, None])[used],
                 minlength=self.surface.num_nodes,
             )
-        return self.comm.allreduce(rows, op=MPI.SUM)
+        return self.surface.sum_to_owners(rows)
 
     def add_residual(self, r: PETSc.Vec) -> None:
         """r -= contact forces (r is the assembled internal-force vector)."""
@@ -388,6 +468,7 @@ class ContactModel:
         frictional work of the increment is added (summed over ranks)."""
         self.state = self.trial
         self.begin_increment()
+        self._owned_committed = u.x.array[: self._owned_committed.size].copy()
         self.U_committed = self.surface.gather(u)
         self._corner = None
         self.shifts_committed = self.search.shifts.copy()
@@ -396,7 +477,7 @@ class ContactModel:
     def state_dict(self) -> dict[str, np.ndarray]:
         """Committed contact history of this rank's slave points, as arrays (for checkpoints):
         keys, alpha, sigma_max, tangential traction, frictional work per point, committed
-        surface displacement and the total frictional work."""
+        displacement of the owned surface nodes and the total frictional work."""
         st = self.state
         return {
             "keys": st.keys,
@@ -404,14 +485,16 @@ class ContactModel:
             "sigma_max": st.smax,
             "tangential_traction": st.tt,
             "frictional_work": st.work,
-            "surface_displacement": self.U_committed,
+            "surface_displacement": self.U_committed[self.surface.owned_nodes],
             "image_shifts": self.shifts_committed,
             "total_frictional_work": np.array(self.frictional_work),
         }
 
     def load_state(self, data: dict[str, np.ndarray]) -> None:
-        """Restore :meth:`state_dict` (same mesh and partition)."""
-        if data["surface_displacement"].shape != self.U_committed.shape:
+        """Restore :meth:`state_dict` (same mesh and partition). Collective: the held bodies
+        are rebuilt at the restored configuration."""
+        s = self.surface
+        if data["surface_displacement"].shape != (s.num_owned, 3):
             raise ValueError("contact state: surface size differs from this model's")
         self.state = ContactState(
             np.asarray(data["keys"], np.int64),
@@ -422,11 +505,14 @@ class ContactModel:
         )
         self.trial = self.state
         self.begin_increment()
-        self.U_committed = np.asarray(data["surface_displacement"]).copy()
-        self._corner = None
         if "image_shifts" in data:
             self.shifts_committed = np.asarray(data["image_shifts"], dtype=float).copy()
             self.search.shifts = self.shifts_committed.copy()
+        self._owned_committed[:] = 0.0
+        self._owned_committed.reshape(-1, 3)[s.owned_local_blocks] = data["surface_displacement"]
+        self._build_halo(s.gather_owned_array(self._owned_committed))
+        self.U_committed = s.gather_owned_array(self._owned_committed)
+        self._corner = None
         self.frictional_work = float(data["total_frictional_work"])
 
     # -- results -------------------------------------------------------------------------------

@@ -96,25 +96,30 @@ def candidate_pairs(
     distance: float,
     shifts: np.ndarray | None = None,
     allowed: np.ndarray | None = None,
+    slaves: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Ordered (slave, master) body pairs with overlapping inflated boxes, and the shift index.
 
     Returns pairs (m, 2) and shift indices (m,). ``allowed`` (num_bodies, num_bodies) bool can
-    exclude pairs (e.g. a rigid base that never acts as slave).
+    exclude pairs (e.g. a rigid base that never acts as slave); ``slaves``: the bodies that may
+    be slaves (default: all).
     """
     if shifts is None:
         shifts = np.zeros((1, 3))
+    slaves = np.arange(boxes.shape[0]) if slaves is None else np.asarray(slaves, np.int64)
+    if slaves.size == 0 or boxes.shape[0] == 0:
+        return np.zeros((0, 2), np.int64), np.zeros(0, np.int64)
     lo = boxes[:, 0] - distance
     hi = boxes[:, 1] + distance
     centres = 0.5 * (lo + hi)
     half = 0.5 * (hi - lo)
     reach = 2.0 * np.linalg.norm(half, axis=1).max()
-    tree = cKDTree(centres)
+    tree = cKDTree(centres[slaves])
     out_pairs, out_shift = [], []
     for k, shift in enumerate(shifts):  # a handful of lattice shifts (27 at most)
         # image of master b sits at box(b) + shift: query the tree of slave boxes around it
         hits = tree.query_ball_point(centres + shift, r=reach)
-        slave = np.concatenate([np.asarray(h, dtype=np.int64) for h in hits])
+        slave = slaves[np.concatenate([np.asarray(h, dtype=np.int64) for h in hits])]
         master = np.repeat(np.arange(len(hits)), [len(h) for h in hits])
         overlap = np.all(
             (lo[slave] <= hi[master] + shift) & (lo[master] + shift <= hi[slave]), axis=1
@@ -498,7 +503,8 @@ def _facet_boxes(x, facets, nv):
 
 
 class ContactSearch:
-    """Search on a :class:`~mpfem_fenicsx.contact.surface.ContactSurface` (fixed topology)."""
+    """Search on a :class:`~mpfem_fenicsx.contact.surface.ContactSurface`: this rank's slave nodes
+    against the held bodies (``allowed``: (num_bodies, num_bodies) bool over the whole model)."""
 
     def __init__(
         self,
@@ -513,26 +519,46 @@ class ContactSearch:
         self.distance = float(distance)
         self.shifts = np.zeros((1, 3)) if shifts is None else np.asarray(shifts, dtype=float)
         self.allowed = allowed
-        nb = surface.num_bodies
-        order = np.argsort(surface.facet_body, kind="stable")
+        self.pairs_examined = 0  # candidate body pairs of the broad phase, accumulated
+        self._version = -1
+
+    def _index(self) -> None:
+        """Per held body: its facets and its slave nodes (CSR), the allowed pairs among held
+        bodies; rebuilt when the surface's held set changes."""
+        s = self.surface
+        if self._version == s.version:
+            return
+        nb = s.bodies.size
+        order = np.argsort(s.facet_body_local, kind="stable")
         self.body_facets = order.astype(np.int64)
-        self.body_facet_ptr = np.searchsorted(surface.facet_body[order], np.arange(nb + 1)).astype(
+        self.body_facet_ptr = np.searchsorted(s.facet_body_local[order], np.arange(nb + 1)).astype(
             np.int64
         )
-        slaves = surface.owned_nodes
-        sbody = surface.node_body[slaves]
+        slaves = s.owned_nodes
+        sbody = s.node_body_local[slaves]
         order = np.argsort(sbody, kind="stable")
         self.slave_nodes = slaves[order].astype(np.int64)
         self.slave_ptr = np.searchsorted(sbody[order], np.arange(nb + 1)).astype(np.int64)
+        self.slave_bodies = np.flatnonzero(np.diff(self.slave_ptr) > 0)
+        self.allowed_local = (
+            None if self.allowed is None else self.allowed[np.ix_(s.bodies, s.bodies)]
+        )
+        self._version = s.version
 
     def __call__(self, x: np.ndarray, corner: np.ndarray | None = None) -> ContactPoints:
-        """Contact points for current surface positions ``x`` (nS, 3); ``corner`` (nF, 4, 3):
-        the masters' corner normals (:func:`corner_normals`; default: those of ``x``)."""
+        """Contact points for current held surface positions ``x`` (nS, 3); ``corner``
+        (nF, 4, 3): the masters' corner normals (:func:`corner_normals`; default: those of
+        ``x``). ``master_body`` of the points is the held body index (``surface.bodies``)."""
         s = self.surface
-        boxes = body_boxes(x, s.node_body, s.num_bodies)
-        pairs, shift_index = candidate_pairs(boxes, self.distance, self.shifts, self.allowed)
+        self._index()
+        nb = s.bodies.size
+        boxes = body_boxes(x, s.node_body_local, nb)
+        pairs, shift_index = candidate_pairs(
+            boxes, self.distance, self.shifts, self.allowed_local, slaves=self.slave_bodies
+        )
+        self.pairs_examined += len(pairs)
         pair_shift = self.shifts[shift_index]
-        spheres = body_spheres(x, s.node_body, s.num_bodies, boxes)
+        spheres = body_spheres(x, s.node_body_local, nb, boxes)
         counts = np.empty(len(pairs), np.int64)
         _near_counts(
             x,

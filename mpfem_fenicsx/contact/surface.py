@@ -1,10 +1,22 @@
-"""The particles' contact surface, replicated on every rank.
+"""The particles' contact surface, distributed: each rank holds only the bodies near its own.
 
-Every rank holds the whole surface (nodes, facets, particle of each facet): surfaces are small
-next to volumes (218 of the 561 nodes of a default particle), and a replicated master surface
-makes the search independent of the partition. Each rank *treats as slave* only the surface
-nodes it owns, so every contact point is computed exactly once, and results do not depend on
-the number of ranks beyond round-off.
+A rank *treats as slave* the surface nodes whose dof block it owns (every contact point is
+computed exactly once) and *holds* whole bodies: the bodies of its slave nodes and the bodies
+that may touch them (chosen by the contact model, :meth:`ContactSurface.hold`). Whole bodies
+keep every quantity a slave node needs exact and independent of the partition: its facets and
+normals, its tributary area, and the masters' smoothed corner normals. Nothing in a step is
+gathered over the whole surface:
+
+- the held facets come from each body's *home* rank (the rank with most of its facets), by
+  point-to-point messages between the ranks concerned, only when the held set is rebuilt;
+- the displacements of the held nodes come from their owners through a PETSc scatter
+  (``gather``), whose messages go only to the ranks that own held nodes;
+- nodal sums (contact stiffness per node) go back to the owners through the same scatter.
+
+Local numbering: held surface nodes sorted by global dof block, held facets sorted by their
+vertices' global blocks, held bodies sorted by id. The relative order of any two nodes or
+facets is therefore the same on every rank and for every partition, so the search and the law
+do the same arithmetic whatever the number of ranks.
 
 Facets are Q1 quadrilaterals (hexahedra) or P1 triangles (tetrahedra), oriented so that the
 parametric normal x_xi x x_eta points out of the particle. Quadrilateral vertices are kept in
@@ -16,119 +28,243 @@ Triangles: x = (1-xi-eta) x0 + xi x1 + eta x2, vertex 3 = -1.
 from __future__ import annotations
 
 import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
 
 import basix
 import dolfinx
 
+from ..exchange import KeyedRows
+
+#: one facet row as exchanged: body id, 4 global vertex blocks, 4 x 3 reference coordinates
+ROW_BYTES = 8 + 4 * 8 + 12 * 8
+
+
+def _owned_facet_rows(V, facet_tags) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """This rank's owned tagged facets: global vertex blocks (m, 4), reference coordinates
+    (m, 4, 3) in outward order, body ids (m,), and the vertices per facet."""
+    mesh = V.mesh
+    tdim = mesh.topology.dim
+    mesh.topology.create_connectivity(tdim - 1, tdim)
+    mesh.topology.create_connectivity(tdim, tdim - 1)
+    f2c = mesh.topology.connectivity(tdim - 1, tdim)
+    c2f = mesh.topology.connectivity(tdim, tdim - 1)
+    local_facet_vertices = basix.topology(getattr(basix.CellType, mesh.topology.cell_name()))[
+        tdim - 1
+    ]
+    nv = len(local_facet_vertices[0])
+    imap = V.dofmap.index_map
+    num_owned_facets = mesh.topology.index_map(tdim - 1).size_local
+    keep = facet_tags.indices < num_owned_facets  # each facet once, by its owner
+    tagged = facet_tags.indices[keep]
+    geom = mesh.geometry
+    dofmap = V.dofmap.list
+    gdofmap = geom.dofmaps[0]
+    rows_blocks = np.full((tagged.size, 4), -1, dtype=np.int64)
+    rows_x = np.zeros((tagged.size, 4, 3))
+    for n, facet in enumerate(tagged):  # setup only: once per owned facet
+        cell = f2c.links(facet)[0]
+        local = int(np.flatnonzero(c2f.links(cell) == facet)[0])
+        verts = local_facet_vertices[local]
+        blocks = dofmap[cell][verts]
+        x = geom.x[gdofmap[cell][verts]]
+        centre_cell = geom.x[gdofmap[cell]].mean(axis=0)
+        # quad (lexicographic) and triangle alike: x_xi ~ x1 - x0, x_eta ~ x2 - x0 at vertex 0
+        normal = np.cross(x[1] - x[0], x[2] - x[0])
+        order = [0, 1, 2, 3] if nv == 4 else [0, 1, 2]
+        if normal @ (x.mean(axis=0) - centre_cell) < 0:
+            order = [0, 2, 1, 3] if nv == 4 else [0, 2, 1]
+        rows_blocks[n, :nv] = imap.local_to_global(blocks[order].astype(np.int32))
+        rows_x[n, :nv] = x[order]
+    return rows_blocks, rows_x, facet_tags.values[keep].astype(np.int32), nv
+
 
 class ContactSurface:
-    """Global surface of the bodies of ``V``'s mesh, from facet tags (value = body id).
+    """This rank's part of the surface of the bodies of ``V``'s mesh (facet tag = body id).
 
-    Attributes (identical on all ranks):
-        blocks: (nS,) global dof-block index of each surface node (sorted).
+    Attributes of the held part (local numbering, rebuilt by :meth:`hold`):
+        bodies: (nB,) global ids of the held bodies (sorted).
+        blocks: (nS,) global dof-block index of each held surface node (sorted).
         X: (nS, 3) reference coordinates (mm).
-        facets: (nF, 4) surface-node indices (-1 as 4th vertex of triangles).
-        facet_body: (nF,) body id of each facet.
-        node_body: (nS,) body id of each surface node.
-        node_facet_ptr, node_facets: facets around each node (CSR).
-    Per rank:
-        owned_nodes: surface nodes whose dof block this rank owns (its slave nodes).
+        facets: (nF, 4) held-node indices (-1 as 4th vertex of triangles).
+        facet_body, node_body: (nF,), (nS,) global body id of each facet and node.
+        facet_body_local, node_body_local: the same as indices into ``bodies``.
+        node_facet_ptr, node_facets: facets around each held node (CSR).
+        owned_nodes: held nodes whose dof block this rank owns: its slave nodes (the same
+            nodes, in the same order, whatever the held set).
+        owned_local_blocks: their local dof-block indices.
+        version: incremented by every :meth:`hold` (caches keyed on it).
+    Attributes of the rank:
+        num_bodies: number of bodies of the whole model.
+        slave_bodies: global ids of the bodies of the owned surface nodes.
+        home: (num_bodies,) rank that keeps each body's facets for the others (-1: no facet).
+        bytes_received: bytes received by this rank, by kind ("setup", "halo", "displacement").
+        gathers: number of displacement exchanges so far.
     """
 
     def __init__(
         self, V: dolfinx.fem.FunctionSpace, facet_tags: dolfinx.mesh.MeshTags, num_bodies: int
     ):
-        mesh = V.mesh
-        comm = mesh.comm
+        comm = V.mesh.comm
         self.comm = comm
         self.V = V
-        self.num_bodies = num_bodies
+        self.num_bodies = int(num_bodies)
         if V.element.basix_element.degree != 1:
             raise NotImplementedError(
                 "contact surfaces need a degree-1 displacement space (Q1 or P1)"
             )
-        tdim = mesh.topology.dim
-        mesh.topology.create_connectivity(tdim - 1, tdim)
-        mesh.topology.create_connectivity(tdim, tdim - 1)
-        f2c = mesh.topology.connectivity(tdim - 1, tdim)
-        c2f = mesh.topology.connectivity(tdim, tdim - 1)
-        cell_name = mesh.topology.cell_name()
-        local_facet_vertices = basix.topology(getattr(basix.CellType, cell_name))[tdim - 1]
-        nv = len(local_facet_vertices[0])
+        self.bs = V.dofmap.index_map_bs
         imap = V.dofmap.index_map
-        num_owned_facets = mesh.topology.index_map(tdim - 1).size_local
+        self._range = imap.local_range
+        self.bytes_received = {"setup": 0, "halo": 0, "displacement": 0}
+        self.version = 0
+        self.gathers = 0  # displacement exchanges (``gather``), for the byte counts
 
-        keep = facet_tags.indices < num_owned_facets  # each facet once, by its owner
-        tagged = facet_tags.indices[keep]
-        bodies = facet_tags.values[keep]
-        geom = mesh.geometry
-        dofmap = V.dofmap.list
-        gdofmap = geom.dofmaps[0]
-        rows_blocks = np.zeros((tagged.size, 4), dtype=np.int64)
-        rows_x = np.zeros((tagged.size, 4, 3))
-        for n, facet in enumerate(tagged):  # setup only: once per facet
-            cell = f2c.links(facet)[0]
-            local = int(np.flatnonzero(c2f.links(cell) == facet)[0])
-            verts = local_facet_vertices[local]
-            blocks = dofmap[cell][verts]
-            x = geom.x[gdofmap[cell][verts]]
-            centre_cell = geom.x[gdofmap[cell]].mean(axis=0)
-            # quad (lexicographic) and triangle alike: x_xi ~ x1 - x0, x_eta ~ x2 - x0 at vertex 0
-            normal = np.cross(x[1] - x[0], x[2] - x[0])
-            order = [0, 1, 2, 3] if nv == 4 else [0, 1, 2]
-            if normal @ (x.mean(axis=0) - centre_cell) < 0:
-                order = [0, 2, 1, 3] if nv == 4 else [0, 2, 1]
-            gblocks = imap.local_to_global(blocks[order].astype(np.int32))
-            rows_blocks[n, :nv] = gblocks
-            rows_blocks[n, nv:] = -1
-            rows_x[n, :nv] = x[order]
-        gathered = comm.allgather((rows_blocks, rows_x, bodies.astype(np.int32)))
-        all_blocks = np.concatenate([g[0] for g in gathered])
-        all_x = np.concatenate([g[1] for g in gathered])
-        all_bodies = np.concatenate([g[2] for g in gathered])
-        # deterministic order, independent of the partition: sort facets by their vertex blocks
-        order = np.lexsort(all_blocks.T[::-1])
+        blocks, x, bodies, nv = _owned_facet_rows(V, facet_tags)
+        self.vertices_per_facet = nv
+        # the surface nodes this rank owns, with their body: marked by the facets' owners
+        self._template = V.dofmap.index_map  # layout of the displacement (blocks of bs)
+        mark = self._global_vec()
+        valid = blocks >= 0
+        mark.setValues(
+            (blocks[valid] * self.bs).astype(PETSc.IntType),
+            np.repeat(bodies + 1.0, nv),
+            addv=PETSc.InsertMode.INSERT_VALUES,
+        )
+        mark.assemble()
+        owned_body = mark.getArray(readonly=True).reshape(-1, self.bs)[:, 0]
+        owned_blocks = np.flatnonzero(owned_body > 0)
+        self._owned_global = owned_blocks.astype(np.int64) + self._range[0]
+        self._owned_body = (owned_body[owned_blocks] - 1).astype(np.int32)
+        self.slave_bodies = np.unique(self._owned_body)
+        mark.destroy()
+
+        # each body's facets kept whole by its home rank (nothing moves for whole particles)
+        self._facets = KeyedRows(comm, bodies, (blocks, x), self.num_bodies)
+        self.home = self._facets.home
+        self.bytes_received["setup"] += self._facets.bytes_received
+        self._scatter = None
+        self.hold(self.slave_bodies)
+
+    # -- the held part ---------------------------------------------------------------------------
+    def _global_vec(self) -> PETSc.Vec:
+        """A zero PETSc vector with the layout of the displacement (no ghosts)."""
+        imap = self._template
+        vec = PETSc.Vec().createMPI(
+            (imap.size_local * self.bs, imap.size_global * self.bs), bsize=self.bs, comm=self.comm
+        )
+        vec.set(0.0)
+        return vec
+
+    def hold(self, bodies: np.ndarray) -> None:
+        """Hold exactly ``bodies`` (global ids; the slave bodies are always added): receive their
+        facets from their homes, renumber, and rebuild the displacement scatter. Collective."""
+        bodies = np.union1d(np.asarray(bodies, dtype=np.int64), self.slave_bodies)
+        bodies = bodies[self.home[bodies] >= 0]
+        before = self._facets.bytes_received
+        all_bodies, all_blocks, all_x = self._facets.fetch(bodies)
+        self.bytes_received["halo"] += self._facets.bytes_received - before
+        self._number(all_blocks, all_x, all_bodies.astype(np.int32))
+        self._build_scatter()
+        self.version += 1
+
+    def _number(self, all_blocks, all_x, all_bodies) -> None:
+        """Local numbering of the held facets, nodes and bodies (see the module docstring)."""
+        nv = self.vertices_per_facet
+        order = np.lexsort(all_blocks.T[::-1])  # by vertex blocks: partition-independent
         all_blocks, all_x, all_bodies = all_blocks[order], all_x[order], all_bodies[order]
-
         valid = all_blocks >= 0
         self.blocks, inverse = np.unique(all_blocks[valid], return_inverse=True)
         facets = -np.ones_like(all_blocks)
         facets[valid] = inverse
         self.facets = facets.astype(np.int64)
-        self.facet_body = all_bodies
-        self.vertices_per_facet = nv
+        self.bodies, self.facet_body_local = np.unique(all_bodies, return_inverse=True)
+        self.facet_body_local = self.facet_body_local.astype(np.int64)
+        self.facet_body = all_bodies.astype(np.int64)
         X = np.zeros((self.blocks.size, 3))
         X[inverse] = all_x[valid]
         self.X = X
-        node_body = np.zeros(self.blocks.size, dtype=np.int32)
-        node_body[inverse] = np.repeat(all_bodies, nv)
-        self.node_body = node_body
-        # node -> facets incidence (CSR), for nodal quantities gathered from the facets
+        self.node_body = np.zeros(self.blocks.size, dtype=np.int64)
+        self.node_body[inverse] = np.repeat(all_bodies, nv)
+        self.node_body_local = np.searchsorted(self.bodies, self.node_body).astype(np.int64)
         flat = self.facets[:, :nv].ravel()
         order = np.argsort(flat, kind="stable")
         self.node_facets = (order // nv).astype(np.int64)
         self.node_facet_ptr = np.searchsorted(flat[order], np.arange(self.blocks.size + 1)).astype(
             np.int64
         )
-
-        # local access: which surface nodes this rank owns, and their local dof blocks
-        lo, hi = imap.local_range
+        lo, hi = self._range
         owned = (self.blocks >= lo) & (self.blocks < hi)
         self.owned_nodes = np.flatnonzero(owned)
         self.owned_local_blocks = (self.blocks[owned] - lo).astype(np.int32)
-        self._counts = np.array(comm.allgather(self.owned_nodes.size))
-        self._order = np.concatenate(comm.allgather(self.owned_nodes))
-        self.bs = V.dofmap.index_map_bs
+        if not np.array_equal(self.blocks[owned], self._owned_global):
+            raise RuntimeError("contact surface: a held body misses one of this rank's nodes")
+
+    def _build_scatter(self) -> None:
+        """PETSc scatter: displacement vector -> the held nodes' values (nS * bs, sequential)."""
+        if self._scatter is not None:
+            self._scatter.destroy()
+            self._local.destroy()
+            self._source.destroy()
+        idx = (self.blocks[:, None] * self.bs + np.arange(self.bs)).ravel().astype(PETSc.IntType)
+        self._source = self._global_vec()
+        self._local = PETSc.Vec().createSeq(idx.size, comm=MPI.COMM_SELF)
+        index_set = PETSc.IS().createGeneral(idx, comm=MPI.COMM_SELF)
+        self._scatter = PETSc.Scatter().create(self._source, index_set, self._local, None)
+        index_set.destroy()
+        lo, hi = self._range
+        self._remote_values = int(np.count_nonzero((self.blocks < lo) | (self.blocks >= hi)))
 
     @property
     def num_nodes(self) -> int:
-        """Number of surface nodes (all ranks)."""
+        """Number of held surface nodes."""
         return self.blocks.size
 
+    @property
+    def num_owned(self) -> int:
+        """Number of surface nodes this rank owns (its slave nodes)."""
+        return self.owned_nodes.size
+
+    # -- exchanges -------------------------------------------------------------------------------
     def gather(self, u: dolfinx.fem.Function) -> np.ndarray:
-        """Displacement (nS, 3) of every surface node on every rank (one allgather)."""
-        values = u.x.array.reshape(-1, self.bs)[self.owned_local_blocks]
-        parts = self.comm.allgather(values)
-        out = np.empty((self.num_nodes, 3))
-        out[self._order] = np.concatenate(parts)
-        return out
+        """Displacement (nS, 3) of the held surface nodes (from their owners, point to point)."""
+        owned = u.x.array[: self._source.getLocalSize()]
+        return self.gather_owned_array(owned)
+
+    def gather_owned_array(self, owned: np.ndarray) -> np.ndarray:
+        """Held nodes' values (nS, bs) of a nodal field given by its owned values on each rank
+        (``owned``: this rank's owned dof values, blocks of bs)."""
+        self._source.array_w[:] = owned
+        self._scatter.scatter(
+            self._source, self._local, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD
+        )
+        self.bytes_received["displacement"] += 8 * self.bs * self._remote_values
+        self.gathers += 1
+        return self._local.array_r.reshape(-1, self.bs).copy()
+
+    def sum_to_owners(self, values: np.ndarray) -> np.ndarray:
+        """Sum a per-held-node scalar ``values`` (nS,) over the ranks holding each node; returns
+        the sums at this rank's owned nodes (``owned_nodes`` order)."""
+        self._local.zeroEntries()
+        self._local.array_w.reshape(-1, self.bs)[:, 0] = values
+        self._source.zeroEntries()
+        self._scatter.scatter(
+            self._local, self._source, PETSc.InsertMode.ADD_VALUES, PETSc.ScatterMode.REVERSE
+        )
+        return self._source.array_r.reshape(-1, self.bs)[self.owned_local_blocks, 0].copy()
+
+    def owned_body_boxes(self, x: np.ndarray) -> np.ndarray:
+        """(num_bodies, 2, 3) min / max corners of every body's surface at held positions ``x``
+        (nS, 3): each rank reduces its owned nodes, one reduction over the bodies (not the
+        surface). Bodies without nodes get (+inf, -inf)."""
+        boxes = np.empty((self.num_bodies, 2, 3))
+        boxes[:, 0], boxes[:, 1] = np.inf, -np.inf
+        owned = self.owned_nodes
+        body = self.node_body[owned]
+        for d in range(3):  # 3 vectorized reductions, not a loop over nodes
+            np.minimum.at(boxes[:, 0, d], body, x[owned, d])
+            np.maximum.at(boxes[:, 1, d], body, x[owned, d])
+        lo, hi = np.empty((self.num_bodies, 3)), np.empty((self.num_bodies, 3))
+        self.comm.Allreduce(np.ascontiguousarray(boxes[:, 0]), lo, op=MPI.MIN)
+        self.comm.Allreduce(np.ascontiguousarray(boxes[:, 1]), hi, op=MPI.MAX)
+        return np.stack([lo, hi], axis=1)

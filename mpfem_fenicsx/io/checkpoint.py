@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-FORMAT = 1
+FORMAT = 2
 
 
 class CheckpointError(ValueError):

@@ -66,10 +66,6 @@ class ContactPressure:
         self.contact = contact
         Vs = dolfinx.fem.functionspace(V.mesh, ("Lagrange", 1))
         self.function = dolfinx.fem.Function(Vs, name="contact_pressure_MPa")
-        surf = contact.surface
-        # surface node -> local node of this rank (slave points live on owned nodes only)
-        self._local = np.full(surf.num_nodes, -1, dtype=np.int64)
-        self._local[surf.owned_nodes] = surf.owned_local_blocks
 
     def update(self) -> None:
         """Recompute the nodal contact pressure (MPa) from the last contact evaluation."""
@@ -77,7 +73,11 @@ class ContactPressure:
         values[:] = 0.0
         ev = self.contact.evaluation
         if ev.size:
-            nodes = self._local[ev.points.slave]
+            # held surface node -> local node of this rank (slave points live on owned nodes)
+            surf = self.contact.surface
+            local = np.full(surf.num_nodes, -1, dtype=np.int64)
+            local[surf.owned_nodes] = surf.owned_local_blocks
+            nodes = local[ev.points.slave]
             np.add.at(values, nodes[nodes >= 0], ev.T1[nodes >= 0])
         self.function.x.scatter_forward()
 

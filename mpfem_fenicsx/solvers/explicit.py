@@ -352,7 +352,7 @@ class ExplicitSolver:
     def _contact_row_sums(self, contact) -> np.ndarray:
         """Gershgorin row sums (N/mm) of the current contact stiffness at this rank's owned
         surface nodes (zero before the first evaluation)."""
-        return contact.nodal_stiffness()[contact.surface.owned_nodes]
+        return contact.nodal_stiffness()
 
     # -- forces ------------------------------------------------------------------------------
     def _add_viscous_forces(self, array: np.ndarray) -> None:

@@ -75,6 +75,10 @@ from .history_recorder import (
     quasi_static_check,
 )
 
+#: partition weight of a CLP copy (tied nodes, no material: only its contact surface works) next
+#: to a particle's 1
+TIED_COPY_WORK = 0.3
+
 
 class RunFailure(RuntimeError):
     """A run that diverged or did not converge: ``step`` and ``t`` where it stopped, the history
@@ -266,6 +270,8 @@ def build_compaction(
         refinement=mesh_section.refinement,
         exact_volume=mesh_section.exact_volume,
         rotations=rotations,
+        # a tied copy carries no material work, only its contact surface's
+        weights=np.where(is_copy, TIED_COPY_WORK, 1.0) if kind.tied_nodes else None,
     )
     mesh = assembly.mesh
     owned_cells = mesh.topology.index_map(3).size_local
