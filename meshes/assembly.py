@@ -157,7 +157,8 @@ def particle_mesh(
             (element size x (1 - |g|)/(1 + |g|) there), e.g. at a known contact point.
         weights: optional (N,) work of each particle for the partition over MPI ranks (default:
             equal; see :func:`meshes.partition.particle_partitioner`: hexahedral particles are
-            kept whole on one rank, ranks as compact regions).
+            kept whole on one rank, ranks as compact regions, when there are at least as many
+            particles as ranks).
     """
     centres, radii = _check_particles(centres, radii)
     if cell_type == "hexahedron":
@@ -192,7 +193,10 @@ def particle_mesh(
             cells = np.zeros((0, 8), dtype=np.int64)
         element = basix.ufl.element("Lagrange", "hexahedron", 1, shape=(3,))
         # whole particles per rank, ranks as compact regions weighted by the particles' work
-        partitioner = particle_partitioner(centres, n_cells, 8, weights)
+        # (fewer particles than ranks: DOLFINx's graph partitioner splits them)
+        partitioner = (
+            particle_partitioner(centres, n_cells, 8, weights) if radii.size >= comm.size else None
+        )
         mesh = dolfinx.mesh.create_mesh(comm, cells, ufl.Mesh(element), x, partitioner=partitioner)
         particle_of_cell = np.repeat(np.arange(radii.size), n_cells)
         cell_tags, facet_tags = _tag_mesh(mesh, particle_of_cell)
