@@ -197,6 +197,14 @@ def _contact_counters(contact) -> dict:
     }
 
 
+def _neighbours(blocks, local_range, comm) -> int:
+    """Number of other ranks owning held surface nodes (the sources of the displacement
+    exchange); the ranges of all ranks are P pairs of integers."""
+    starts = np.array([r[0] for r in comm.allgather(tuple(local_range))])
+    owners = np.searchsorted(starts, blocks, side="right") - 1
+    return int(np.count_nonzero(np.unique(owners) != comm.rank))
+
+
 def _contact_report(model, marks: dict, steps: int, comm) -> dict:
     """Per rank (lists in rank order): the contact surface it holds and treats, next to the whole
     model's, and what it received per timed step; the mesh's ghost dofs (the halo of the bulk)."""
@@ -219,6 +227,7 @@ def _contact_report(model, marks: dict, steps: int, comm) -> dict:
         "bytes_displacement_per_step": delta["bytes_displacement"] / max(steps, 1),
         "bytes_setup": now["bytes_setup"],
         "ghost_dofs": int(model.problem.V.dofmap.index_map.num_ghosts * 3),
+        "neighbours": _neighbours(s.blocks, s.V.dofmap.index_map.local_range, comm),
     }
     rows = comm.allgather(rank)
     total_nodes = sum(r["owned_surface_nodes"] for r in rows)

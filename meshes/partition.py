@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from dolfinx.graph import adjacencylist
+from dolfinx.cpp.graph import AdjacencyList_int32
 
 
 def coordinate_bisection(points: np.ndarray, weights: np.ndarray, nparts: int) -> np.ndarray:
@@ -84,6 +84,6 @@ def particle_partitioner(
         num_cells = cells[0].size // nodes_per_cell
         part = coordinate_bisection(centres, w, nparts) if num_cells else np.zeros(0, np.int32)
         dest = part[np.arange(num_cells) // cells_per_particle].astype(np.int32)
-        return adjacencylist(dest)._cpp_object
+        return AdjacencyList_int32(dest)  # DOLFINx's C++ list: one destination per cell
 
     return partition

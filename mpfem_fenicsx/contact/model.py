@@ -186,17 +186,26 @@ class ContactModel:
         one of them (periodic images and ``allowed`` pairs included) at held displacement U;
         remember the configuration for :meth:`_refresh_halo`. Collective."""
         s = self.surface
-        boxes = s.owned_body_boxes(s.X + U)
+        x = s.X + U
+        boxes = s.owned_body_boxes(x)
         present = np.flatnonzero(np.all(np.isfinite(boxes), axis=(1, 2)))
         allowed = self.search.allowed
         slaves = np.searchsorted(present, s.slave_bodies)
-        pairs, _ = candidate_pairs(
+        reach = self.search.distance + self.skin
+        pairs, shift_index = candidate_pairs(
             boxes[present],
-            self.search.distance + self.skin,
+            reach,
             self.search.shifts,
             None if allowed is None else allowed[np.ix_(present, present)],
             slaves=slaves,
         )
+        # bounding spheres are much tighter than boxes for round particles
+        centre, radius = s.owned_body_spheres(x, boxes)
+        centre, radius = centre[present], radius[present]
+        gap = np.linalg.norm(
+            centre[pairs[:, 0]] - centre[pairs[:, 1]] - self.search.shifts[shift_index], axis=1
+        )
+        pairs = pairs[gap <= radius[pairs[:, 0]] + radius[pairs[:, 1]] + reach]
         self._built_owned = U[s.owned_nodes].copy()  # owned nodes: same order for any held set
         s.hold(present[np.unique(pairs[:, 1])] if len(pairs) else np.zeros(0, np.int64))
         self.halo_builds += 1

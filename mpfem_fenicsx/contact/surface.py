@@ -268,3 +268,17 @@ class ContactSurface:
         self.comm.Allreduce(np.ascontiguousarray(boxes[:, 0]), lo, op=MPI.MIN)
         self.comm.Allreduce(np.ascontiguousarray(boxes[:, 1]), hi, op=MPI.MAX)
         return np.stack([lo, hi], axis=1)
+
+    def owned_body_spheres(self, x: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Centres (num_bodies, 3, the centres of ``boxes`` from :meth:`owned_body_boxes`) and
+        radii (num_bodies,) of spheres holding every body's surface at held positions ``x``:
+        one reduction over the bodies."""
+        centre = 0.5 * (boxes[:, 0] + boxes[:, 1])
+        owned = self.owned_nodes
+        body = self.node_body[owned]
+        local = np.zeros(self.num_bodies)
+        if owned.size:
+            np.maximum.at(local, body, np.linalg.norm(x[owned] - centre[body], axis=1))
+        radius = np.empty_like(local)
+        self.comm.Allreduce(local, radius, op=MPI.MAX)
+        return centre, radius
