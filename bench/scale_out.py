@@ -6,11 +6,11 @@
 
 Runs ``bench/compaction.py`` (short mode: a few increments from the packing, already in contact)
 under ``mpirun -n P`` for every case and P, one run at a time, and appends each run's JSON (with
-the case, P and the numba threads) to ``--results`` (default ``bench/results/scale_out.jsonl``):
-time by phase, peak memory per rank, and per rank the contact surface held, the candidate pairs
-of the broad phase and the bytes received per step. Runs already in the file are skipped, so an
-interrupted series resumes where it stopped. On a 2-core machine 4 ranks are oversubscribed:
-their bytes and memory are valid, their times are not.
+the case, P and the numba threads) to ``--results`` (default ``bench/measured/scale_out.jsonl``,
+kept in the repository): time by phase, peak memory per rank, and per rank the contact surface
+held, the candidate pairs of the broad phase and the bytes received per step. Runs already in the
+file are skipped, so an interrupted series resumes where it stopped. On a 2-core machine 4 ranks
+are oversubscribed: their bytes and memory are valid, their times are not.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ def main(argv=None) -> None:
     p.add_argument("--threads", type=int, default=1, help="numba threads per rank")
     p.add_argument("--steps", type=int, default=10)
     p.add_argument("--warmup", type=int, default=20)
-    p.add_argument("--results", type=Path, default=HERE / "results" / "scale_out.jsonl")
+    p.add_argument("--results", type=Path, default=HERE / "measured" / "scale_out.jsonl")
     args = p.parse_args(argv)
     args.results.parent.mkdir(parents=True, exist_ok=True)
     done = set()

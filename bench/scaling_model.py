@@ -93,7 +93,7 @@ def main(argv=None) -> None:
     p = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    p.add_argument("--results", type=Path, default=HERE / "results" / "scale_out.jsonl")
+    p.add_argument("--results", type=Path, default=HERE / "measured" / "scale_out.jsonl")
     p.add_argument("--case", default="350:GDF")
     args = p.parse_args(argv)
     runs = load(args.results, args.case)
