@@ -74,9 +74,13 @@ class KeyedRows:
         self._ptr = np.searchsorted(self._keys, np.arange(num_keys + 1))
 
     def _local(self, keys: np.ndarray) -> tuple:
-        idx = np.concatenate(
-            [np.arange(self._ptr[k], self._ptr[k + 1]) for k in keys] + [np.zeros(0, np.int64)]
-        ).astype(np.int64)
+        """(keys, *columns) of the rows this rank keeps for ``keys`` (as home)."""
+        start = self._ptr[keys]
+        count = self._ptr[keys + 1] - start
+        # row indices start_k, start_k + 1, ... of every key, without a loop over the keys
+        idx = np.arange(count.sum(), dtype=np.int64) + np.repeat(
+            start - np.cumsum(count) + count, count
+        )
         return (self._keys[idx], *(c[idx] for c in self._columns))
 
     def fetch(self, keys: np.ndarray) -> tuple:

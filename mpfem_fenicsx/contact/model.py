@@ -139,7 +139,7 @@ class ContactModel:
         self.trial = ContactState.empty()
         #: committed displacement of this rank's owned dofs (the held nodes' values scatter
         #: from it whenever the held set changes)
-        self._owned_committed = np.zeros(self.surface._source.getLocalSize())
+        self._owned_committed = np.zeros(self.surface.num_owned_values)
         self.shifts_committed = self.search.shifts.copy()
         self._size_floor = 1e-12 * self._model_extent()
         self._build_halo(np.zeros((self.surface.num_nodes, 3)))

@@ -35,6 +35,7 @@ import basix
 import dolfinx
 
 from ..exchange import KeyedRows
+from .search import body_boxes
 
 #: one facet row as exchanged: body id, 4 global vertex blocks, 4 x 3 reference coordinates
 ROW_BYTES = 8 + 4 * 8 + 12 * 8
@@ -123,7 +124,7 @@ class ContactSurface:
         blocks, x, bodies, nv = _owned_facet_rows(V, facet_tags)
         self.vertices_per_facet = nv
         # the surface nodes this rank owns, with their body: marked by the facets' owners
-        self._template = V.dofmap.index_map  # layout of the displacement (blocks of bs)
+        self._imap = imap  # layout of the displacement (blocks of bs)
         mark = self._global_vec()
         valid = blocks >= 0
         mark.setValues(
@@ -135,8 +136,7 @@ class ContactSurface:
         owned_body = mark.getArray(readonly=True).reshape(-1, self.bs)[:, 0]
         owned_blocks = np.flatnonzero(owned_body > 0)
         self._owned_global = owned_blocks.astype(np.int64) + self._range[0]
-        self._owned_body = (owned_body[owned_blocks] - 1).astype(np.int32)
-        self.slave_bodies = np.unique(self._owned_body)
+        self.slave_bodies = np.unique((owned_body[owned_blocks] - 1).astype(np.int32))
         mark.destroy()
 
         # each body's facets kept whole by its home rank (nothing moves for whole particles)
@@ -149,7 +149,7 @@ class ContactSurface:
     # -- the held part ---------------------------------------------------------------------------
     def _global_vec(self) -> PETSc.Vec:
         """A zero PETSc vector with the layout of the displacement (no ghosts)."""
-        imap = self._template
+        imap = self._imap
         vec = PETSc.Vec().createMPI(
             (imap.size_local * self.bs, imap.size_global * self.bs), bsize=self.bs, comm=self.comm
         )
@@ -221,6 +221,11 @@ class ContactSurface:
         return self.blocks.size
 
     @property
+    def num_owned_values(self) -> int:
+        """Number of displacement values (blocks x bs) this rank owns."""
+        return self._imap.size_local * self.bs
+
+    @property
     def num_owned(self) -> int:
         """Number of surface nodes this rank owns (its slave nodes)."""
         return self.owned_nodes.size
@@ -228,7 +233,7 @@ class ContactSurface:
     # -- exchanges -------------------------------------------------------------------------------
     def gather(self, u: dolfinx.fem.Function) -> np.ndarray:
         """Displacement (nS, 3) of the held surface nodes (from their owners, point to point)."""
-        owned = u.x.array[: self._source.getLocalSize()]
+        owned = u.x.array[: self.num_owned_values]
         return self.gather_owned_array(owned)
 
     def gather_owned_array(self, owned: np.ndarray) -> np.ndarray:
@@ -257,13 +262,8 @@ class ContactSurface:
         """(num_bodies, 2, 3) min / max corners of every body's surface at held positions ``x``
         (nS, 3): each rank reduces its owned nodes, one reduction over the bodies (not the
         surface). Bodies without nodes get (+inf, -inf)."""
-        boxes = np.empty((self.num_bodies, 2, 3))
-        boxes[:, 0], boxes[:, 1] = np.inf, -np.inf
         owned = self.owned_nodes
-        body = self.node_body[owned]
-        for d in range(3):  # 3 vectorized reductions, not a loop over nodes
-            np.minimum.at(boxes[:, 0, d], body, x[owned, d])
-            np.maximum.at(boxes[:, 1, d], body, x[owned, d])
+        boxes = body_boxes(x[owned], self.node_body[owned], self.num_bodies)
         lo, hi = np.empty((self.num_bodies, 3)), np.empty((self.num_bodies, 3))
         self.comm.Allreduce(np.ascontiguousarray(boxes[:, 0]), lo, op=MPI.MIN)
         self.comm.Allreduce(np.ascontiguousarray(boxes[:, 1]), hi, op=MPI.MAX)
