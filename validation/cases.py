@@ -214,6 +214,15 @@ def adhesive_case(loading: str, delta_max: float | None = None, bc: str = "CLP")
     )
 
 
+def chapter4_case() -> Case:
+    """The thesis' chapter-4 volume: its GDF model with adhesion (``adhesive_case("isotropic",
+    bc="GDF")``) meshed with the chapter-4 particle (the 10x10 O-grid, 1 933 nodes, instead of the
+    chapter-2 6x6 one), isotropic to rho_f = 0.95: how far the node-counted contact area
+    (Gamma_model) moves with the thesis' own chapter-4 mesh."""
+    base = adhesive_case("isotropic", bc="GDF")
+    return Case(f"{base.name}_chapter4", {**base.options, "resolution": "chapter4"})
+
+
 def hardening_case(n: float) -> Case:
     """Die CLP compaction with the hardening exponent of the thesis' input file (0.36; table 2.1
     and the library: 0.35)."""
@@ -377,6 +386,9 @@ STAGES = {
         adhesive_case("die"),
         adhesive_case("die", bc="GDF"),
     ],
+    #: the thesis' chapter-4 volume: its own model meshed with its chapter-4 particle (hours on
+    #: both cores: python validation/run.py chapter4 under mpirun -n 2)
+    "chapter4": [chapter4_case()],
     #: the thesis' contradictions: n 0.35 (table 2.1) / 0.36 (input file), delta_max 0.5 um
     #: (text) / 0.2 um (appendix A); we use 0.35 and 0.5 um
     "sensitivity": [hardening_case(0.36), adhesive_case("die", delta_max=2e-4)],

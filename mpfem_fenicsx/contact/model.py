@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
+from scipy.spatial import cKDTree
 
 import dolfinx
 
@@ -142,7 +143,7 @@ class ContactModel:
         self._owned_committed = np.zeros(self.surface.num_owned_values)
         self.shifts_committed = self.search.shifts.copy()
         self._size_floor = 1e-12 * self._model_extent()
-        self._build_halo(np.zeros((self.surface.num_nodes, 3)))
+        self._build_halo(self._owned_committed)
         self.U_committed = np.zeros((self.surface.num_nodes, 3))
         #: the last :meth:`evaluate` (empty before the first)
         self.evaluation = ContactEvaluation.empty()
@@ -181,12 +182,16 @@ class ContactModel:
         self.comm.Allreduce(hi, ghi, op=MPI.MAX)
         return float(np.max(ghi - glo))
 
-    def _build_halo(self, U: np.ndarray) -> None:
-        """Hold the slave bodies and every body that comes within the search distance + skin of
-        one of them (periodic images and ``allowed`` pairs included) at held displacement U;
-        remember the configuration for :meth:`_refresh_halo`. Collective."""
+    def _build_halo(self, owned_u: np.ndarray) -> None:
+        """Hold what this rank's slave nodes may touch before the next build, at displacement
+        ``owned_u`` (this rank's owned dof values): their own bodies whole, and of every body
+        within the search distance + skin of one of them (periodic images and ``allowed`` pairs
+        included) the facets within that reach, with their rings; remember the configuration for
+        :meth:`_refresh_halo`. Collective."""
         s = self.surface
-        x = s.X + U
+        owned = s.owned_nodes
+        x = s.X.copy()  # only the owned (slave) nodes are current: all that the boxes read
+        x[owned] += owned_u.reshape(-1, 3)[s.owned_local_blocks]
         boxes = s.owned_body_boxes(x)
         present = np.flatnonzero(np.all(np.isfinite(boxes), axis=(1, 2)))
         allowed = self.search.allowed
@@ -205,11 +210,49 @@ class ContactModel:
         gap = np.linalg.norm(
             centre[pairs[:, 0]] - centre[pairs[:, 1]] - self.search.shifts[shift_index], axis=1
         )
-        pairs = pairs[gap <= radius[pairs[:, 0]] + radius[pairs[:, 1]] + reach]
-        self._built_owned = U[s.owned_nodes].copy()  # owned nodes: same order for any held set
-        s.hold(present[np.unique(pairs[:, 1])] if len(pairs) else np.zeros(0, np.int64))
+        near = gap <= radius[pairs[:, 0]] + radius[pairs[:, 1]] + reach
+        pairs, shift_index = pairs[near], shift_index[near]
+        masters = present[pairs[:, 1]] if len(pairs) else np.zeros(0, np.int64)
+        self._built_owned = x[owned] - s.X[owned]  # owned nodes: same order for any held set
+        s.hold(
+            masters,
+            owned_u,
+            select=lambda xf, body: self._within_reach(xf, body, x[owned], masters, shift_index),
+        )
         self.halo_builds += 1
         self._built_shifts = self.search.shifts.copy()
+
+    def _within_reach(self, xf, body, slave_x, masters, shift_index) -> np.ndarray:
+        """Facets (vertex positions xf (m, 4, 3), bodies (m,)) whose box, inflated by the search
+        distance + skin, holds a slave node (``slave_x``) in one of the lattice shifts by which
+        their body is a candidate master (``masters``, ``shift_index``): the facets that the
+        narrow phase can test before the next build (it tests boxes inflated by the distance,
+        and the build is redone before nodes move by half the skin). Each box is taken as a
+        cube of its largest side (a superset)."""
+        chosen = np.zeros(len(body), dtype=bool)
+        if slave_x.shape[0] == 0 or len(body) == 0:
+            return chosen
+        reach = self.search.distance + self.skin
+        lo, hi = xf.min(axis=1), xf.max(axis=1)
+        centre = 0.5 * (lo + hi)
+        half = 0.5 * (hi - lo).max(axis=1) + reach
+        # every (facet, shift) of its body's candidate shifts, without a loop over the facets
+        ns = len(self.search.shifts)
+        combos = np.unique(masters * ns + shift_index)
+        order = np.argsort(body, kind="stable")
+        ptr = np.searchsorted(body[order], np.stack([combos // ns, combos // ns + 1]))
+        count = ptr[1] - ptr[0]
+        rows = order[
+            np.arange(count.sum(), dtype=np.int64)
+            + np.repeat(ptr[0] - np.cumsum(count) + count, count)
+        ]
+        shift = self.search.shifts[np.repeat(combos % ns, count)]
+        tree = cKDTree(slave_x)
+        distance, _ = tree.query(
+            centre[rows] + shift, p=np.inf, distance_upper_bound=float(half.max()) * (1 + 1e-12)
+        )
+        chosen[rows[distance <= half[rows]]] = True
+        return chosen
 
     def _refresh_halo(self, U: np.ndarray) -> np.ndarray:
         """Rebuild the held set if surfaces may have approached by more than the skin since the
@@ -231,7 +274,7 @@ class ContactModel:
             return U
         owned_now = np.zeros_like(self._owned_committed)
         owned_now.reshape(-1, 3)[s.owned_local_blocks] = U[s.owned_nodes]
-        self._build_halo(U)
+        self._build_halo(owned_now)
         self.U_committed = s.gather_owned_array(self._owned_committed)
         self._corner = None
         return s.gather_owned_array(owned_now)
@@ -519,7 +562,7 @@ class ContactModel:
             self.search.shifts = self.shifts_committed.copy()
         self._owned_committed[:] = 0.0
         self._owned_committed.reshape(-1, 3)[s.owned_local_blocks] = data["surface_displacement"]
-        self._build_halo(s.gather_owned_array(self._owned_committed))
+        self._build_halo(self._owned_committed)
         self.U_committed = s.gather_owned_array(self._owned_committed)
         self._corner = None
         self.frictional_work = float(data["total_frictional_work"])

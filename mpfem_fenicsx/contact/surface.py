@@ -1,13 +1,14 @@
-"""The particles' contact surface, distributed: each rank holds only the bodies near its own.
+"""The particles' contact surface, distributed: each rank holds only the surface near its own.
 
 A rank *treats as slave* the surface nodes whose dof block it owns (every contact point is
-computed exactly once) and *holds* whole bodies: the bodies of its slave nodes and the bodies
-that may touch them (chosen by the contact model, :meth:`ContactSurface.hold`). Whole bodies
-keep every quantity a slave node needs exact and independent of the partition: its facets and
-normals, its tributary area, and the masters' smoothed corner normals. Nothing in a step is
-gathered over the whole surface:
+computed exactly once) and *holds* the facets they may touch: its slave bodies whole, and of the
+other bodies within reach only the facets within reach (chosen by the contact model,
+:meth:`ContactSurface.hold`), each with the ring of facets around its vertices. Whole slave bodies
+keep the slave side exact and independent of the partition (facets, normals, tributary areas);
+the ring keeps the masters' smoothed corner normals exact. Nothing in a step is gathered over
+the whole surface:
 
-- the held facets come from each body's *home* rank (the rank with most of its facets), by
+- the facets of a body come from its *home* rank (the rank with most of its facets), by
   point-to-point messages between the ranks concerned, only when the held set is rebuilt;
 - the displacements of the held nodes come from their owners through a PETSc scatter
   (``gather``), whose messages go only to the ranks that own held nodes;
@@ -26,6 +27,8 @@ Triangles: x = (1-xi-eta) x0 + xi x1 + eta x2, vertex 3 = -1.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 from mpi4py import MPI
@@ -156,17 +159,60 @@ class ContactSurface:
         vec.set(0.0)
         return vec
 
-    def hold(self, bodies: np.ndarray) -> None:
-        """Hold exactly ``bodies`` (global ids; the slave bodies are always added): receive their
-        facets from their homes, renumber, and rebuild the displacement scatter. Collective."""
+    def hold(
+        self,
+        bodies: np.ndarray,
+        owned_u: np.ndarray | None = None,
+        select: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    ) -> None:
+        """Hold ``bodies`` (global ids; the slave bodies are always added, whole): receive their
+        facets from their homes, renumber, and rebuild the displacement scatter. Collective.
+
+        With ``select``, the other bodies are held in part: ``select(x, body)`` receives their
+        facets' current vertex positions x (m, 4, 3; ``owned_u`` gives the displacement, this
+        rank's owned dof values; the 4th vertex of a triangle repeats the first) and body ids
+        (m,), and returns which facets the contact needs (bool, m). Each selected facet comes
+        with every facet that shares a vertex with it (the ring that its corner normals average
+        over); the rest is dropped."""
         bodies = np.union1d(np.asarray(bodies, dtype=np.int64), self.slave_bodies)
         bodies = bodies[self.home[bodies] >= 0]
         before = self._facets.bytes_received
         all_bodies, all_blocks, all_x = self._facets.fetch(bodies)
         self.bytes_received["halo"] += self._facets.bytes_received - before
+        if select is not None:
+            keep = self._selected(all_blocks, all_x, all_bodies, owned_u, select)
+            all_bodies, all_blocks, all_x = all_bodies[keep], all_blocks[keep], all_x[keep]
         self._number(all_blocks, all_x, all_bodies.astype(np.int32))
         self._build_scatter()
         self.version += 1
+
+    def _selected(self, blocks, x, bodies, owned_u, select) -> np.ndarray:
+        """Facets to hold among fetched rows: those of the slave bodies, the others' that
+        ``select`` picks, and their rings (see :meth:`hold`)."""
+        keep = np.isin(bodies, self.slave_bodies)
+        other = np.flatnonzero(~keep)
+        if other.size == 0:
+            return keep
+        nv = self.vertices_per_facet
+        vb = blocks[other, :nv]
+        unique, inverse = np.unique(vb, return_inverse=True)
+        source, local, scatter = self._scatter_to(unique)  # one-off: nodes not yet held
+        source.array_w[:] = owned_u
+        scatter.scatter(source, local, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
+        U = local.array_r.reshape(-1, self.bs)[inverse.reshape(vb.shape)]
+        lo, hi = self._range
+        self.bytes_received["halo"] += (
+            8 * self.bs * int(np.count_nonzero((unique < lo) | (unique >= hi)))
+        )
+        for obj in (scatter, local, source):
+            obj.destroy()
+        xc = x[other].copy()
+        xc[:, :nv] += U
+        xc[:, nv:] = xc[:, :1]
+        chosen = np.asarray(select(xc, bodies[other]), dtype=bool)
+        ring = np.isin(vb, vb[chosen]).any(axis=1)  # facets sharing a vertex with a chosen one
+        keep[other[ring]] = True
+        return keep
 
     def _number(self, all_blocks, all_x, all_bodies) -> None:
         """Local numbering of the held facets, nodes and bodies (see the module docstring)."""
@@ -200,18 +246,24 @@ class ContactSurface:
         if not np.array_equal(self.blocks[owned], self._owned_global):
             raise RuntimeError("contact surface: a held body misses one of this rank's nodes")
 
+    def _scatter_to(self, blocks: np.ndarray) -> tuple[PETSc.Vec, PETSc.Vec, PETSc.Scatter]:
+        """(source, local, scatter): the displacement layout -> the values of the global dof
+        ``blocks`` (len(blocks) * bs, sequential, in that order)."""
+        idx = (blocks[:, None] * self.bs + np.arange(self.bs)).ravel().astype(PETSc.IntType)
+        source = self._global_vec()
+        local = PETSc.Vec().createSeq(idx.size, comm=MPI.COMM_SELF)
+        index_set = PETSc.IS().createGeneral(idx, comm=MPI.COMM_SELF)
+        scatter = PETSc.Scatter().create(source, index_set, local, None)
+        index_set.destroy()
+        return source, local, scatter
+
     def _build_scatter(self) -> None:
         """PETSc scatter: displacement vector -> the held nodes' values (nS * bs, sequential)."""
         if self._scatter is not None:
             self._scatter.destroy()
             self._local.destroy()
             self._source.destroy()
-        idx = (self.blocks[:, None] * self.bs + np.arange(self.bs)).ravel().astype(PETSc.IntType)
-        self._source = self._global_vec()
-        self._local = PETSc.Vec().createSeq(idx.size, comm=MPI.COMM_SELF)
-        index_set = PETSc.IS().createGeneral(idx, comm=MPI.COMM_SELF)
-        self._scatter = PETSc.Scatter().create(self._source, index_set, self._local, None)
-        index_set.destroy()
+        self._source, self._local, self._scatter = self._scatter_to(self.blocks)
         lo, hi = self._range
         self._remote_values = int(np.count_nonzero((self.blocks < lo) | (self.blocks >= hi)))
 
