@@ -30,6 +30,7 @@ from mpfem_fenicsx.meshes import particle_mesh
 comm = MPI.COMM_WORLD
 n = 9
 spacing, press = (float(a) for a in sys.argv[3:5]) if len(sys.argv) > 4 else (0.98, 0.01)
+rigid = len(sys.argv) > 5 and sys.argv[5] == "rigid"
 k = np.arange(n)
 centres = np.column_stack([spacing * k, 0.08 * np.sin(k), 0.06 * np.cos(1.3 * k)])
 assembly = particle_mesh(centres, np.full(n, 0.5), comm)
@@ -39,10 +40,9 @@ skin = float(sys.argv[2]) if len(sys.argv) > 2 and sys.argv[2] != "-" else None
 contact = ContactModel(V, assembly.facet_tags, n, law, search_distance=0.05, skin=skin)
 u = dolfinx.fem.Function(V)
 x = V.tabulate_dof_coordinates()
-# press the row together: a uniform strain (particles overlap at the start), or moving them
-# rigidly towards the middle (``approach``: particles apart at the start)
+# press the row together: a uniform strain, or moving the particles rigidly towards the middle
 near = np.linalg.norm(x[:, None] - centres[None], axis=2).argmin(axis=1)
-moved = (centres[near] if len(sys.argv) > 4 else x) - centres.mean(axis=0)
+moved = (centres[near] if rigid else x) - centres.mean(axis=0)
 u.x.array[:] = (-press * moved).ravel()
 contact.evaluate(u)
 s = contact.surface
@@ -97,8 +97,8 @@ if comm.rank == 0:
 
 
 def _row(tmp_path: Path, ranks: int, skin: float | None = None, approach=None) -> dict:
-    """The row on ``ranks`` ranks (``approach``: (spacing, press strain) instead of the default
-    (0.98, 0.01), particles of radius 0.5 mm)."""
+    """The row on ``ranks`` ranks (``approach``: (spacing, press, "strain" or "rigid") instead of
+    the default (0.98, 0.01, "strain"); particles of radius 0.5 mm)."""
     script = tmp_path / "row.py"
     script.write_text(ROW_RUN)
     out = tmp_path / f"row{ranks}_{skin}_{approach}.json"
@@ -147,12 +147,19 @@ def test_each_rank_holds_and_receives_only_its_neighbours_halo(tmp_path):
     assert np.abs(f3 - f1).max() <= 1e-12 * np.abs(f1).max()
     # a skin far below the facet size: the held facets end where the contacts' corner normals
     # need their neighbours (the ring); the forces are still the serial ones
+    # a uniform strain moves the held set with the flow: no rebuild, though the ends move by
+    # 0.045 mm (2 x 0.045 x sqrt(3) would exceed the 0.1 mm skin) ...
+    assert [r["builds"] for r in ranks] == [1, 1, 1]
+    # ... until the strain times (reach + facet side, 0.06 + 0.14 mm) exceeds the skin (0.01 mm)
+    for press, builds in ((0.045, 1), (0.055, 2)):
+        strained = _row(tmp_path, 3, skin=0.01, approach=(0.98, press, "strain"))
+        assert [r["builds"] for r in strained["ranks"]] == [builds] * 3
     for r in ranks:  # each neighbour's nearest facet held with its ring (3 x 3 facets)
         assert r["ring_error"] <= 1e-12
         assert r["ring_facets"] == 9 * (len(r["held"]) - len(r["own"]))
     # particles apart at the build (gaps of 0.2 mm) pressed into contact within the skin: no
     # rebuild, so the facets held must be those that the motion brings within reach
-    apart = [_row(tmp_path, ranks, skin=3.2, approach=(1.2, 0.19)) for ranks in (1, 3)]
+    apart = [_row(tmp_path, ranks, skin=3.2, approach=(1.2, 0.19, "rigid")) for ranks in (1, 3)]
     assert [r["builds"] for r in apart[1]["ranks"]] == [1, 1, 1]
     assert apart[1]["count"] == apart[0]["count"] > 0
     g1, g3 = np.array(apart[0]["body_forces"]), np.array(apart[1]["body_forces"])
