@@ -416,11 +416,13 @@ def test_gamma_rows_compare_every_definition():
     gdf = {"rho_imposed": rho, "Gamma": 10 * (rho - 0.6), "Gamma_model": 46.8 * (rho - 0.6) / 0.35}
     clp = {"rho_imposed": rho, "Gamma": 9 * (rho - 0.6)}
     dry = {"rho_imposed": rho, "Gamma": 5 * (rho - 0.6), "Gamma_model": 30 * (rho - 0.6)}
+    fine = {"rho_imposed": rho, "Gamma": 6 * (rho - 0.6), "Gamma_model": 40 * (rho - 0.6)}
     rows, lines = report.gamma_rows(
         {
             "isotropic_GDF_gamma1e-2": {"history": gdf},
             "isotropic_CLP_gamma1e-2": {"history": clp},
             "isotropic_GDF": {"history": dry},
+            "isotropic_GDF_gamma1e-2_chapter4": {"history": fine},
         }
     )
     by = {(r["case"], r["quantity"]): r for r in rows}
@@ -428,12 +430,13 @@ def test_gamma_rows_compare_every_definition():
     assert model["ours"] == pytest.approx(46.8) and model["status"] == "met"
     assert by[("isotropic_CLP_gamma1e-2", "Gamma at rho_f 0.95 (mm^-1)")]["status"] == "not met"
     line = next(x for x in lines if x.startswith("| isotropic | 0.95 |"))
-    assert line.endswith("| +0.0 % | met | 10.50 |") and "3.15 | 3.50 | 46.80" in line
-    # the no-adhesion run is shown, not compared
-    assert not any(r["case"] == "isotropic_GDF" for r in rows)
+    assert line.endswith("| +0.0 % | met | 10.50 | 14.00 (-70.1 %) |")
+    assert "3.15 | 3.50 | 46.80" in line
+    # the no-adhesion run and the chapter-4 mesh are shown, not compared
+    assert not any(r["case"] in ("isotropic_GDF", "isotropic_GDF_gamma1e-2_chapter4") for r in rows)
     assert any(
         x.startswith("| die | 0.89 | 39.8 | not run yet | not run yet | not run yet")
-        and x.endswith("| not run yet |")
+        and x.endswith("| not run yet | not run |")
         for x in lines
     )
 

@@ -772,19 +772,21 @@ def gamma_rows(done: dict) -> tuple[list[dict], list[str]]:
     and the thesis' own GDF model with S summed over the volume only (Gamma) or over every contact
     of the model (Gamma_model, its footnote 4 of §4.4.1). Status on the GDF model's Gamma_model.
     For reference, not compared: Gamma_model of the chapter-2 GDF run (no adhesion), which isolates
-    the definition of S from the adhesion."""
+    the definition of S from the adhesion, and of the same model meshed with the thesis'
+    chapter-4 particle (a contact area counted on nodes depends on the mesh)."""
     rows, lines = (
         [],
         [
             "| loading | rho_f | thesis Gamma_l (table 4.2) | CLP: Gamma | GDF: Gamma (volume) | "
             "GDF: Gamma_model (every contact) | deviation (Gamma_model) | status | "
-            "GDF without adhesion: Gamma_model |",
-            "|---|---|---|---|---|---|---|---|---|",
+            "GDF without adhesion: Gamma_model | GDF, chapter-4 mesh: Gamma_model (deviation) |",
+            "|---|---|---|---|---|---|---|---|---|---|",
         ],
     )
     for loading, table in THESIS_GAMMA_L.items():
         clp, gdf = done.get(f"{loading}_CLP_gamma1e-2"), done.get(f"{loading}_GDF_gamma1e-2")
         dry = done.get(f"{loading}_GDF")  # the chapter-2 run, gamma = 0
+        fine = done.get(f"{loading}_GDF_gamma1e-2_chapter4")  # the chapter-4 particle
         for rho_f, thesis in table.items():
             cells = []
             for name, run, column in (
@@ -819,8 +821,17 @@ def gamma_rows(done: dict) -> tuple[list[dict], list[str]]:
                     else "(rho_f below the packing's start)"
                 )
                 verdict = f"{deviation} | {last['status']} |"
+            fine_text = "not run"
+            if fine is not None:
+                value = at_density(fine["history"], "Gamma_model", rho_f, "rho_imposed")
+                fine_text = (
+                    f"{value:.2f} ({100 * (value / thesis - 1):+.1f} %)"
+                    if np.isfinite(value)
+                    else "(rho_f below the packing's start)"
+                )
             lines.append(
-                f"| {loading} | {rho_f} | {thesis} | {' | '.join(text)} | {verdict} {dry_text} |"
+                f"| {loading} | {rho_f} | {thesis} | {' | '.join(text)} | {verdict} {dry_text} "
+                f"| {fine_text} |"
             )
     return rows, lines
 
