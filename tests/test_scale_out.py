@@ -165,6 +165,9 @@ def test_each_rank_holds_and_receives_only_its_neighbours_halo(tmp_path):
     g1, g3 = np.array(apart[0]["body_forces"]), np.array(apart[1]["body_forces"])
     assert np.abs(g3 - g1).max() <= 1e-12 * np.abs(g1).max()
     thin = _row(tmp_path, 3, skin=1e-3)
+    # one rank holds the whole surface: it never rebuilds (here 3 ranks do)
+    assert _row(tmp_path, 1, skin=1e-3)["ranks"][0]["builds"] == 1
+    assert [r["builds"] for r in thin["ranks"]] == [2, 2, 2]
     assert thin["count"] == serial["count"]
     assert sum(r["ghost_facets"] for r in thin["ranks"]) < sum(r["ghost_facets"] for r in ranks)
     assert np.abs(np.array(thin["body_forces"]) - f1).max() <= 1e-12 * np.abs(f1).max()

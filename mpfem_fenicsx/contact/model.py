@@ -236,6 +236,10 @@ class ContactModel:
             moment = xb1.T @ xb1
         self._built_moment = self.comm.allreduce(moment, op=MPI.SUM)
         self._built_facet_size = facet_size
+        # every rank holds the whole surface (one rank, or a few particles cut over every rank):
+        # no later build can change the held set
+        whole = bool(np.all(np.isin(np.flatnonzero(s.home >= 0), s.slave_bodies)))
+        self._holds_all = self.comm.allreduce(whole, op=MPI.LAND)
         self.halo_builds += 1
         self._built_shifts = self.search.shifts.copy()
 
@@ -316,10 +320,10 @@ class ContactModel:
 
     def _refresh_halo(self, U: np.ndarray) -> np.ndarray:
         """Rebuild the held set if surfaces may have approached by more than the skin since the
-        last build (:meth:`_approach_bound`); returns U on the (possibly new) held set.
-        Collective."""
+        last build (:meth:`_approach_bound`), unless every rank holds the whole surface; returns
+        U on the (possibly new) held set. Collective."""
         s = self.surface
-        if self._approach_bound(U) <= self.skin:
+        if self._holds_all or self._approach_bound(U) <= self.skin:
             return U
         start = time.perf_counter()
         owned_now = np.zeros_like(self._owned_committed)
