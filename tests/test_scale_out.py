@@ -145,10 +145,8 @@ def test_each_rank_holds_and_receives_only_its_neighbours_halo(tmp_path):
     f1, f3 = np.array(serial["body_forces"]), np.array(three["body_forces"])
     assert np.abs(f1[np.arange(8), np.arange(1, 9), 0]).min() > 0
     assert np.abs(f3 - f1).max() <= 1e-12 * np.abs(f1).max()
-    # a skin far below the facet size: the held facets end where the contacts' corner normals
-    # need their neighbours (the ring); the forces are still the serial ones
     # a uniform strain moves the held set with the flow: no rebuild, though the ends move by
-    # 0.045 mm (2 x 0.045 x sqrt(3) would exceed the 0.1 mm skin) ...
+    # 0.045 mm (2 x 0.045 mm exceeds the 0.05 mm skin) ...
     assert [r["builds"] for r in ranks] == [1, 1, 1]
     # ... until the strain times (reach + facet side, 0.06 + 0.14 mm) exceeds the skin (0.01 mm)
     for press, builds in ((0.045, 1), (0.055, 2)):
@@ -164,6 +162,8 @@ def test_each_rank_holds_and_receives_only_its_neighbours_halo(tmp_path):
     assert apart[1]["count"] == apart[0]["count"] > 0
     g1, g3 = np.array(apart[0]["body_forces"]), np.array(apart[1]["body_forces"])
     assert np.abs(g3 - g1).max() <= 1e-12 * np.abs(g1).max()
+    # a skin far below the facet size: the held facets end where the contacts' corner normals
+    # need their neighbours (the ring); the forces are still the serial ones
     thin = _row(tmp_path, 3, skin=1e-3)
     # one rank holds the whole surface: it never rebuilds (here 3 ranks do)
     assert _row(tmp_path, 1, skin=1e-3)["ranks"][0]["builds"] == 1

@@ -107,7 +107,12 @@ class ContactEvaluation:
 
 
 class ContactModel:
-    """Penalty / adhesive / frictional contact between the bodies tagged in ``facet_tags``."""
+    """Penalty / adhesive / frictional contact between the bodies tagged in ``facet_tags``.
+
+    ``search_distance`` (mm): slave nodes within it of a master facet are contact points;
+    ``shifts`` (m, 3): lattice shifts of the periodic images (mm, the zero shift first);
+    ``allowed``: (bodies, bodies) pairs that may touch; ``skin`` (mm, > 0): the held facets'
+    margin beyond the search distance on each rank (default: the search distance)."""
 
     def __init__(
         self,
@@ -132,9 +137,10 @@ class ContactModel:
             )
         self.search = ContactSearch(self.surface, search_distance, shifts, allowed)
         self.comm = V.mesh.comm
-        #: margin (mm) of the held bodies beyond the search distance: the held set is rebuilt
-        #: when surfaces may have approached by more than it (Verlet list)
-        self.skin = float(skin) if skin is not None else 2.0 * float(search_distance)
+        #: margin (mm) of the held facets beyond the search distance (default: the search
+        #: distance): the held set is rebuilt when surfaces may have approached by more than it
+        #: (a Verlet list; the flagship at 6000 increments rebuilds every ~150 steps)
+        self.skin = float(skin) if skin is not None else float(search_distance)
         self.halo_builds = 0
         self.state = ContactState.empty()
         self.trial = ContactState.empty()
