@@ -15,6 +15,8 @@ import numpy as np
 import pytest
 from mpfem_fenicsx.meshes.partition import coordinate_bisection
 
+from mpfem_fenicsx.contact.search import boxes_hold_a_point
+
 MPIRUN = Path(sys.executable).parent / "mpirun"
 
 ROW_RUN = """
@@ -193,3 +195,18 @@ def test_coordinate_bisection_balances_weight_in_compact_groups():
     )
     with pytest.raises(ValueError, match="weights must be > 0"):
         coordinate_bisection(points, np.zeros(1000), 2)
+
+
+def test_boxes_hold_a_point_agrees_with_brute_force():
+    """The held facets' selection kernel (a grid of cells) against testing every point."""
+    rng = np.random.default_rng(5)
+    points = rng.uniform(0, 10, (3000, 3))
+    centre = rng.uniform(-1, 11, (2000, 3))
+    half = rng.uniform(0.05, 1.0, (2000, 3))
+    lo, hi = centre - half, centre + half
+    lo[:3], hi[:3] = points[:3], points[:3]  # degenerate boxes on a point: bounds included
+    got = boxes_hold_a_point(lo, hi, points)
+    inside = (points[None] >= lo[:, None]) & (points[None] <= hi[:, None])
+    assert np.array_equal(got, inside.all(axis=2).any(axis=1))
+    assert 0.1 < got.mean() < 0.9 and got[:3].all()
+    assert not boxes_hold_a_point(lo, hi, points[:0]).any()

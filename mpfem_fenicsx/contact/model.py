@@ -24,7 +24,6 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
-from scipy.spatial import cKDTree
 
 import dolfinx
 
@@ -41,6 +40,7 @@ from .laws import ContactLaw, evaluate_law
 from .search import (
     ContactPoints,
     ContactSearch,
+    boxes_hold_a_point,
     candidate_pairs,
     corner_normals,
     facet_areas,
@@ -197,10 +197,10 @@ class ContactModel:
         the configuration for :meth:`_refresh_halo`. Collective.
 
         Distances are per coordinate (the narrow phase tests facet boxes inflated by the search
-        distance in each coordinate): a facet is held when the cube of its box's largest side,
-        inflated by the reach, holds a slave node; a body is fetched when its bounding sphere
-        comes within sqrt(3) (reach + half the largest facet side) of a slave body's, so that no
-        facet that passes the cube test is missed."""
+        distance in each coordinate): a facet is held when its box, inflated by the reach,
+        holds a slave node; a body is fetched when its bounding sphere comes within sqrt(3)
+        (reach + half the largest facet side) of a slave body's, so that no such facet is
+        missed."""
         s = self.surface
         owned = s.owned_nodes
         x = s.X.copy()  # only the owned (slave) nodes are current: all that the boxes read
@@ -264,16 +264,14 @@ class ContactModel:
 
     def _within_reach(self, xf, body, slave_x, masters, shift_index) -> np.ndarray:
         """Facets (vertex positions xf (m, 4, 3), bodies (m,)) the narrow phase can test before
-        the next build: those whose box, taken as the cube of its largest side and inflated by
-        the search distance + skin, holds a slave node (``slave_x``) in one of the lattice shifts
-        by which their body is a candidate master (``masters``, ``shift_index``)."""
+        the next build: those whose box, inflated by the search distance + skin, holds a slave
+        node (``slave_x``) in one of the lattice shifts by which their body is a candidate
+        master (``masters``, ``shift_index``)."""
         chosen = np.zeros(len(body), dtype=bool)
         if slave_x.shape[0] == 0 or len(body) == 0:
             return chosen
         reach = self.search.distance + self.skin
-        lo, hi = xf.min(axis=1), xf.max(axis=1)
-        centre = 0.5 * (lo + hi)
-        half = 0.5 * (hi - lo).max(axis=1) + reach
+        lo, hi = xf.min(axis=1) - reach, xf.max(axis=1) + reach
         # every (facet, shift) of its body's candidate shifts, without a loop over the facets
         ns = len(self.search.shifts)
         combos = np.unique(masters * ns + shift_index)
@@ -283,11 +281,8 @@ class ContactModel:
         first = np.repeat(ptr[0] - np.cumsum(count) + count, count)
         rows = order[np.arange(count.sum(), dtype=np.int64) + first]
         shift = self.search.shifts[np.repeat(combos % ns, count)]
-        tree = cKDTree(slave_x)
-        distance, _ = tree.query(
-            centre[rows] + shift, p=np.inf, distance_upper_bound=float(half.max()) * (1 + 1e-12)
-        )
-        chosen[rows[distance <= half[rows]]] = True
+        hit = boxes_hold_a_point(lo[rows] + shift, hi[rows] + shift, slave_x)
+        chosen[rows[hit]] = True
         return chosen
 
     def _approach_bound(self, U: np.ndarray) -> float:

@@ -91,6 +91,60 @@ def body_spheres(
     return spheres
 
 
+@numba.njit(parallel=True, cache=True)
+def _boxes_hold_a_point(lo, hi, points, cell_start, origin, cell, dims, out):
+    for i in numba.prange(lo.shape[0]):
+        first = np.empty(3, np.int64)
+        last = np.empty(3, np.int64)
+        empty = False
+        for d in range(3):
+            first[d] = max(int(np.floor((lo[i, d] - origin[d]) / cell)), 0)
+            last[d] = min(int(np.floor((hi[i, d] - origin[d]) / cell)), dims[d] - 1)
+            if first[d] > last[d]:
+                empty = True
+        if empty:
+            continue
+        found = False
+        for a in range(first[0], last[0] + 1):
+            for b in range(first[1], last[1] + 1):
+                for c in range(first[2], last[2] + 1):
+                    k = (a * dims[1] + b) * dims[2] + c
+                    for j in range(cell_start[k], cell_start[k + 1]):
+                        inside = True
+                        for d in range(3):
+                            if points[j, d] < lo[i, d] or points[j, d] > hi[i, d]:
+                                inside = False
+                        if inside:
+                            found = True
+                            break
+                    if found:
+                        break
+                if found:
+                    break
+            if found:
+                break
+        out[i] = found
+
+
+def boxes_hold_a_point(lo: np.ndarray, hi: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Which axis-aligned boxes [lo_i, hi_i] ((m, 3) each) hold at least one of ``points``
+    (n, 3), bounds included: a uniform grid of cells as large as the largest box side (at most
+    ~2 million cells), each box testing the points of the cells it overlaps."""
+    out = np.zeros(lo.shape[0], dtype=np.bool_)
+    if lo.shape[0] == 0 or points.shape[0] == 0:
+        return out
+    origin = points.min(axis=0)
+    extent = points.max(axis=0) - origin
+    cell = max(float((hi - lo).max()), float(extent.max()) / 128.0, 1e-300)
+    dims = (extent // cell).astype(np.int64) + 1
+    index = np.minimum(((points - origin) // cell).astype(np.int64), dims - 1)
+    key = (index[:, 0] * dims[1] + index[:, 1]) * dims[2] + index[:, 2]
+    order = np.argsort(key, kind="stable")
+    cell_start = np.searchsorted(key[order], np.arange(int(dims.prod()) + 1)).astype(np.int64)
+    _boxes_hold_a_point(lo, hi, points[order], cell_start, origin, cell, dims, out)
+    return out
+
+
 def candidate_pairs(
     boxes: np.ndarray,
     distance: float,
