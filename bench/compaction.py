@@ -238,6 +238,12 @@ def _contact_report(model, marks: dict, steps: int, comm) -> dict:
     # facets of bodies cut by the partition are counted by each rank treating them
     out["surface_facets_model_upper"] = total_facets
     out["held_node_share"] = [round(r["held_surface_nodes"] / total_nodes, 4) for r in rows]
+    # the surface a rank holds as slave and master: its owned nodes' share of the model's nodes
+    # + its ghost facets' share of the model's facets
+    out["held_surface_share"] = [
+        round(r["owned_surface_nodes"] / total_nodes + r["ghost_facets"] / total_facets, 4)
+        for r in rows
+    ]
     out["pairs_share"] = [
         round(r["pairs_per_step"] / total_pairs, 4) if total_pairs else 0.0 for r in rows
     ]

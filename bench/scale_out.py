@@ -68,7 +68,8 @@ def main(argv=None) -> None:
             contact = result["contact"]
             print(
                 f"{key}: {result['s_per_step']:.3f} s/step, peak {result['peak_rss_mb_per_rank']} "
-                f"MB, held {contact['held_node_share']}, pairs {contact['pairs_share']}",
+                f"MB, held {contact['held_surface_share']} (nodes {contact['held_node_share']}), "
+                f"pairs {contact['pairs_share']}",
                 flush=True,
             )
 
