@@ -55,3 +55,27 @@ def test_compaction_benchmark_rejects_bad_input():
     assert out.returncode == 2 and "--steps" in out.stderr
     out = _run("--increments", "20", "--warmup", "20")
     assert out.returncode == 2 and "--warmup" in out.stderr
+
+
+def test_same_history_within_round_off(tmp_path):
+    """bench/same_history.py --within: equal contact counts and rho, sigma_m within the tolerance
+    of their largest value pass; another contact count or a larger difference fails."""
+    from bench.same_history import main
+
+    head = "step,rho,sigma_m,n_contacts,wall_time\n"
+    rows = [(1, 0.6, 0.0, 0), (2, 0.7, 1.5, 10), (3, 0.8, 4.0, 20)]
+
+    def write(name, d_sigma=0.0, d_contacts=0):
+        path = tmp_path / name
+        lines = [
+            f"{s},{r},{m + (d_sigma if s == 3 else 0)},{c + d_contacts},{s}.5"
+            for s, r, m, c in rows
+        ]
+        path.write_text(head + "\n".join(lines) + "\n")
+        return str(path)
+
+    a = write("a.csv")
+    assert main([a, write("b.csv", d_sigma=4e-4), "--within", "1e-3"]) == 0
+    assert main([a, write("c.csv", d_sigma=4e-2), "--within", "1e-3"]) == 1
+    assert main([a, write("d.csv", d_contacts=1), "--within", "1e-3"]) == 1
+    assert main([a, write("e.csv", d_sigma=4e-4)]) == 1  # bit for bit: any difference fails
