@@ -1280,6 +1280,15 @@ def figures(done: dict, out: Path) -> None:
                 color=colour,
                 label=f"{loading}, GDF, every contact of the model (ours)",
             )
+        run = done.get(f"{loading}_GDF_gamma1e-2_chapter4")
+        if run is not None:
+            ax.plot(
+                run["history"]["rho_imposed"],
+                run["history"]["Gamma_model"],
+                ":",
+                color=colour,
+                label=f"{loading}, GDF, every contact, chapter-4 mesh (ours)",
+            )
         ax.plot(
             list(table),
             list(table.values()),
