@@ -1271,24 +1271,17 @@ def figures(done: dict, out: Path) -> None:
                 color=colour,
                 label=f"{loading}, CLP, gamma 1e-2 (ours)",
             )
-        run = done.get(f"{loading}_GDF_gamma1e-2")
-        if run is not None and "Gamma_model" in run["history"]:
-            ax.plot(
-                run["history"]["rho_imposed"],
-                run["history"]["Gamma_model"],
-                "--",
-                color=colour,
-                label=f"{loading}, GDF, every contact of the model (ours)",
-            )
-        run = done.get(f"{loading}_GDF_gamma1e-2_chapter4")
-        if run is not None:
-            ax.plot(
-                run["history"]["rho_imposed"],
-                run["history"]["Gamma_model"],
-                ":",
-                color=colour,
-                label=f"{loading}, GDF, every contact, chapter-4 mesh (ours)",
-            )
+        curves = (("", "--", "of the model"), ("_chapter4", ":", "chapter-4 mesh"))
+        for suffix, style, what in curves:
+            run = done.get(f"{loading}_GDF_gamma1e-2{suffix}")
+            if run is not None and "Gamma_model" in run["history"]:
+                ax.plot(
+                    run["history"]["rho_imposed"],
+                    run["history"]["Gamma_model"],
+                    style,
+                    color=colour,
+                    label=f"{loading}, GDF, every contact {what} (ours)",
+                )
         ax.plot(
             list(table),
             list(table.values()),
