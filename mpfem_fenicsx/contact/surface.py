@@ -62,24 +62,28 @@ def _owned_facet_rows(V, facet_tags) -> tuple[np.ndarray, np.ndarray, np.ndarray
     keep = facet_tags.indices < num_owned_facets  # each facet once, by its owner
     tagged = facet_tags.indices[keep]
     geom = mesh.geometry
-    dofmap = V.dofmap.list
-    gdofmap = geom.dofmaps[0]
+    # the (first) cell of each facet and the facet's local index in it
+    cells = f2c.array[f2c.offsets[tagged]]
+    per_cell = len(local_facet_vertices)
+    cell_facets = c2f.array[c2f.offsets[cells][:, None] + np.arange(per_cell)]
+    local = np.argmax(cell_facets == tagged[:, None], axis=1)
+    verts = np.asarray(local_facet_vertices)[local]  # (m, nv) cell-local vertices
+    blocks = V.dofmap.list[cells[:, None], verts]
+    gdofs = geom.dofmaps[0]
+    x = geom.x[gdofs[cells[:, None], verts]]
+    centre_cell = geom.x[gdofs[cells]].mean(axis=1)
+    # quad (lexicographic) and triangle alike: x_xi ~ x1 - x0, x_eta ~ x2 - x0 at vertex 0;
+    # outward when the normal points away from the cell's centre, else swap vertices 1 and 2
+    normal = np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0])
+    inward = np.einsum("ij,ij->i", normal, x.mean(axis=1) - centre_cell) < 0
+    order = np.where(inward[:, None], [0, 2, 1, 3][:nv], [0, 1, 2, 3][:nv])
+    blocks = np.take_along_axis(blocks, order, axis=1)
+    x = np.take_along_axis(x, order[:, :, None], axis=1)
     rows_blocks = np.full((tagged.size, 4), -1, dtype=np.int64)
     rows_x = np.zeros((tagged.size, 4, 3))
-    for n, facet in enumerate(tagged):  # setup only: once per owned facet
-        cell = f2c.links(facet)[0]
-        local = int(np.flatnonzero(c2f.links(cell) == facet)[0])
-        verts = local_facet_vertices[local]
-        blocks = dofmap[cell][verts]
-        x = geom.x[gdofmap[cell][verts]]
-        centre_cell = geom.x[gdofmap[cell]].mean(axis=0)
-        # quad (lexicographic) and triangle alike: x_xi ~ x1 - x0, x_eta ~ x2 - x0 at vertex 0
-        normal = np.cross(x[1] - x[0], x[2] - x[0])
-        order = [0, 1, 2, 3] if nv == 4 else [0, 1, 2]
-        if normal @ (x.mean(axis=0) - centre_cell) < 0:
-            order = [0, 2, 1, 3] if nv == 4 else [0, 2, 1]
-        rows_blocks[n, :nv] = imap.local_to_global(blocks[order].astype(np.int32))
-        rows_x[n, :nv] = x[order]
+    if tagged.size:
+        rows_blocks[:, :nv] = imap.local_to_global(blocks.ravel().astype(np.int32)).reshape(-1, nv)
+    rows_x[:, :nv] = x
     return rows_blocks, rows_x, facet_tags.values[keep].astype(np.int32), nv
 
 
