@@ -342,10 +342,7 @@ class ContactModel:
         same for every partition), and their shift ids."""
         nb = self.surface.num_bodies
         ns = len(self.search.shifts)
-        shift_id = np.zeros(pts.size, np.int64)
-        if ns > 1:
-            d = np.linalg.norm(pts.shift[:, None, :] - self.search.shifts[None], axis=2)
-            shift_id = d.argmin(axis=1)
+        shift_id = pts.shift_index
         slave = self.surface.blocks[pts.slave]
         return (slave * nb + pts.master_body) * ns + shift_id, shift_id
 

@@ -42,6 +42,7 @@ class ContactPoints:
     gap: np.ndarray  # (n,) normal gap, mm (< 0: overlap)
     normal: np.ndarray  # (n, 3) master outward unit normal
     shift: np.ndarray  # (n, 3) lattice shift applied to the master (mm)
+    shift_index: np.ndarray  # (n,) index of that shift in the search's ``shifts``
 
     @property
     def size(self) -> int:
@@ -53,7 +54,7 @@ class ContactPoints:
         """No slave points."""
         i0 = np.zeros(0, np.int64)
         return ContactPoints(
-            i0, i0, i0, np.zeros((0, 2)), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3))
+            i0, i0, i0, np.zeros((0, 2)), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), i0
         )
 
 
@@ -675,4 +676,5 @@ class ContactSearch:
             out_gap[valid],
             out_normal[valid],
             out_shift[valid],
+            np.repeat(shift_index, counts)[valid],  # the points of pair k follow offsets[k]
         )
