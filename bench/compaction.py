@@ -11,9 +11,10 @@ are timed from a state already in contact (``--warmup`` increments first, not ti
 figure is the cost per step of the contact-rich part of a run. Full mode: the whole run.
 
 Prints one JSON object: case, dofs, particles in the model, nodes per particle, steps, wall_s
-(timed part), s_per_step, us_per_dof_step, phases (s: material, assembly, contact_search,
-contact_forces, constraints, update, mass_scaling, output; plus setup), their shares, peak
-resident memory (MB, max and sum over ranks), rho reached and the number of ranks.
+(timed part), s_per_step, us_per_dof_step, phases (s, the largest over ranks, and per rank:
+material, assembly, contact_search, contact_forces, contact_halo, constraints, update; plus
+setup), their shares, peak resident memory (MB, max and sum over ranks), rho reached and the
+number of ranks.
 """
 
 from __future__ import annotations
@@ -153,7 +154,8 @@ def main(argv=None) -> dict:
         timed_steps = solver.step - step0
         phases = {k: v - before.get(k, 0.0) for k, v in solver.timings.items()}
         phases.pop("output", None)
-    phases = {k: comm.allreduce(v, op=MPI.MAX) for k, v in phases.items()}
+    per_rank = {k: [round(x, 4) for x in comm.allgather(v)] for k, v in sorted(phases.items())}
+    phases = {k: max(v) for k, v in per_rank.items()}
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # MB (Linux: KB)
     rho = float(res.history.column("rho")[-1]) if res.history.rows else float("nan")
     result = {
@@ -174,6 +176,7 @@ def main(argv=None) -> dict:
         "us_per_dof_step": 1e6 * wall / max(timed_steps, 1) / res.num_dofs,
         "phases_s": {k: round(v, 4) for k, v in sorted(phases.items())},
         "phase_share": {k: round(v / wall, 4) for k, v in sorted(phases.items())},
+        "phases_s_per_rank": per_rank,
         "peak_rss_mb_max": round(comm.allreduce(rss, op=MPI.MAX), 1),
         "peak_rss_mb_sum": round(comm.allreduce(rss, op=MPI.SUM), 1),
         "rho": rho,

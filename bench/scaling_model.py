@@ -46,12 +46,15 @@ NODE = {"bandwidth": 5e9, "latency": 0.5e-6, "name": "shared memory, one node"}
 
 
 def load(path: Path, case: str) -> dict[int, dict]:
-    """The runs of one case (``particles:bc``) at one numba thread, by number of ranks."""
+    """The runs of one case (``particles:bc``) at one numba thread, by number of ranks: of
+    repeated runs the fastest."""
     runs = {}
     for line in path.read_text().splitlines():
         run = json.loads(line)
         if run["key"].startswith(case + "/") and run.get("numba_threads") == 1:
-            runs[run["ranks"]] = run
+            best = runs.get(run["ranks"])
+            if best is None or run["s_per_step"] < best["s_per_step"]:
+                runs[run["ranks"]] = run
     return runs
 
 
