@@ -60,6 +60,20 @@ def test_periodic_image_contact_equals_direct_contact():
     assert np.allclose(image, direct, rtol=1e-8, atol=1e-9 * np.linalg.norm(direct))
 
 
+def test_points_name_their_lattice_shift():
+    """Each contact point carries the index of its master's lattice shift (the history key's):
+    particle 1 sits one cell to the left of its contact with particle 0, so the points of 0 meet
+    1 through the shift +cell (index 2) and those of 1 meet 0 through -cell (index 1)."""
+    cell = 5.0  # the particles' direct gap (1.06 mm) beyond the search distance
+    shifts = np.array([[0, 0, 0], [-cell, 0, 0], [cell, 0, 0]], dtype=float)
+    m = _model([[0, 0, 0], [1.94 - cell, 0.07, 0.03]], [1.0, 1.0], shifts=shifts)
+    pts = m.evaluation.points
+    slave_body = m.surface.node_body[pts.slave]
+    assert pts.size > 0 and set(slave_body.tolist()) == {0, 1}
+    assert np.array_equal(m.search.shifts[pts.shift_index], pts.shift)
+    assert np.array_equal(pts.shift_index, np.where(slave_body == 0, 2, 1))
+
+
 def test_no_contact_when_apart():
     m = _model([[0, 0, 0], [2.5, 0, 0]], [1.0, 1.0])
     assert m.evaluation.size == 0
