@@ -37,3 +37,33 @@ def test_newton_converges_fast(hertz):
     _, res = hertz
     # consistent node-to-surface tangent: a handful of iterations per load step
     assert max(res.newton_iterations) <= 8
+
+
+@pytest.fixture(scope="module")
+def on_plane(tmp_path_factory):
+    """The upper sphere of the same mesh pressed on a rigid frictionless plane by half the
+    approach: the plane is the two spheres' symmetry plane."""
+    case = HertzCase(size_min=0.01, steps=10, partner="plane", delta_max_over_r=0.0025)
+    return case, run_hertz(
+        case, tmp_path_factory.mktemp("hertz_plane"), MPI.COMM_SELF, log=lambda *a: None
+    )
+
+
+def test_sphere_on_a_rigid_plane_carries_the_two_spheres_force_at_half_the_approach(
+    hertz, on_plane
+):
+    _, pair = hertz
+    case, plane = on_plane
+    h = plane.history
+    delta, force, ref = h.column("delta_mm"), h.column("force_N"), h.column("force_hertz_N")
+    assert np.allclose(2.0 * delta, pair.history.column("delta_mm"))
+    # two realizations of one problem: within 2 % at every load step where the contact spans
+    # two elements (measured: 0.2 %; 2.7 % at the first step, a contact radius of 1.6 elements)
+    resolved = delta >= 5e-4 * case.radius
+    assert np.abs(force / pair.history.column("force_N") - 1.0)[resolved].max() < 0.02
+    # and Hertz's sphere on a plane, R = r, E* = E / (1 - nu^2)
+    assert np.allclose(
+        ref, 4.0 / 3.0 * case.E / (1 - case.nu**2) * np.sqrt(case.radius) * delta**1.5
+    )
+    assert np.abs(force[resolved] / ref[resolved] - 1.0).max() < 0.05
+    assert max(plane.newton_iterations) <= 6  # the tool's tangent keeps Newton quadratic

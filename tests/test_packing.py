@@ -507,3 +507,68 @@ def test_lengths_in_metres_get_a_one_line_warning(tmp_path):
     )
     assert "--length-scale 1000" in notes[0]
     assert metres_warning(Packing([1, 1, 1], [[0.5] * 3], [5e-4])) is not None  # r under 1 um
+
+
+# --------------------------------------------------------------------------------------------
+# Packings in a container (a die, a box): no periodic cell
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("shape, aspect", [("cylinder", 1.5), ("box", (1.0, 1.0, 2.0))])
+def test_container_packing_fills_its_container_without_overlap(shape, aspect):
+    from mpfem_fenicsx.meshes.container import generate_container_packing
+
+    s = generate_container_packing(40, 0.08, 0.14, 3, 0.45, shape=shape, aspect=aspect)
+    again = generate_container_packing(40, 0.08, 0.14, 3, 0.45, shape=shape, aspect=aspect)
+    assert np.array_equal(s.centres, again.centres)  # seeded: the same packing
+    assert s.solid_fraction == pytest.approx(0.45, rel=1e-6)
+    assert s.max_overlap() == 0.0
+    assert np.all(s.container.wall_gaps(s.centres, s.radii) >= 0.0)
+    if shape == "cylinder":
+        assert s.container.height / (2 * s.container.radius) == pytest.approx(1.5)
+    else:
+        L = np.asarray(s.container.lengths)
+        assert np.allclose(L / L[0], aspect)
+    # an independent check of the overlaps: all pairs by brute force
+    d = np.linalg.norm(s.centres[:, None] - s.centres[None], axis=2)
+    gap = d - (s.radii[:, None] + s.radii[None])
+    assert gap[~np.eye(40, dtype=bool)].min() >= 0.0
+
+
+def test_jammed_container_packing_is_denser_than_a_requested_loose_one():
+    from mpfem_fenicsx.meshes.container import generate_container_packing
+
+    jammed = generate_container_packing(40, 0.08, 0.14, 3, None)
+    assert 0.45 < jammed.solid_fraction < 0.6
+    with pytest.raises(ValueError, match="unreachable"):
+        generate_container_packing(40, 0.08, 0.14, 3, min(0.6, jammed.solid_fraction + 0.05))
+
+
+def test_spheres_without_a_cell_round_trip(tmp_path):
+    from mpfem_fenicsx.meshes.container import Spheres, read_spheres, write_spheres
+
+    s = Spheres(np.array([[0.0, 0.0, 0.0], [0.5, 0.1, -0.2]]), np.array([0.2, 0.25]))
+    write_spheres(s, tmp_path / "s.txt")
+    back = read_spheres(tmp_path / "s.txt", length_scale=2.0)
+    assert np.allclose(back.centres, 2 * s.centres) and np.allclose(back.radii, 2 * s.radii)
+    # a periodic packing file is refused: it has a cell line
+    (tmp_path / "p.txt").write_text("1 1 1\n0.5 0.5 0.5 0.1\n")
+    with pytest.raises(ValueError, match="periodic packing file"):
+        read_spheres(tmp_path / "p.txt")
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(target_fraction=0.7), "target_fraction"),
+        (dict(shape="sphere"), "shape"),
+        (dict(aspect=-1.0), "aspect"),
+        (dict(r_max=0.01), "r_max"),
+    ],
+)
+def test_container_packing_refuses_bad_input(kwargs, message):
+    from mpfem_fenicsx.meshes.container import generate_container_packing
+
+    args = dict(n=10, r_min=0.08, r_max=0.14, seed=0, target_fraction=0.3) | kwargs
+    with pytest.raises(ValueError, match=message):
+        generate_container_packing(**args)

@@ -28,15 +28,16 @@ from petsc4py import PETSc
 import dolfinx
 
 from .guards import AdhesiveGuards
+from .history import ContactState
 from .kernels import (
     contact_areas,
     coo_entries,
-    lookup,
     point_tangents,
     point_weights,
     relative_motion,
 )
 from .laws import ContactLaw, evaluate_law
+from .rigid import RigidContact
 from .search import (
     ContactPoints,
     ContactSearch,
@@ -49,24 +50,6 @@ from .search import (
 from .surface import ContactSurface
 
 PASS_WEIGHT = 0.5  # two-pass symmetric treatment
-
-
-@dataclass
-class ContactState:
-    """History of the contact points, sorted by key."""
-
-    keys: np.ndarray
-    alpha: np.ndarray
-    smax: np.ndarray
-    tt: np.ndarray
-    work: np.ndarray  # frictional work W_f per point, mJ
-
-    @staticmethod
-    def empty() -> ContactState:
-        """No contact points."""
-        return ContactState(
-            np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.zeros(0)
-        )
 
 
 @dataclass
@@ -112,7 +95,9 @@ class ContactModel:
     ``search_distance`` (mm): slave nodes within it of a master facet are contact points;
     ``shifts`` (m, 3): lattice shifts of the periodic images (mm, the zero shift first);
     ``allowed``: (bodies, bodies) pairs that may touch; ``skin`` (mm, > 0): the held facets'
-    margin beyond the search distance on each rank (default: the search distance)."""
+    margin beyond the search distance on each rank (default: the search distance); ``tools``:
+    rigid tools (:class:`~mpfem_fenicsx.tools.RigidTool`) whose contact with the surface nodes
+    (:class:`~.rigid.RigidContact`, :attr:`tools`) joins the forces, tangent and history."""
 
     def __init__(
         self,
@@ -125,6 +110,7 @@ class ContactModel:
         shifts: np.ndarray | None = None,
         allowed: np.ndarray | None = None,
         skin: float | None = None,
+        tools=None,
     ):
         self.law = law
         if skin is not None and not skin > 0:
@@ -136,6 +122,8 @@ class ContactModel:
                 f"({law.delta_max} mm) so that adhesive points are tracked"
             )
         self.search = ContactSearch(self.surface, search_distance, shifts, allowed)
+        #: the contact with rigid tools (None without tools)
+        self.tools = RigidContact(self.surface, tools, search_distance) if tools else None
         self.comm = V.mesh.comm
         #: margin (mm) of the held facets beyond the search distance (default: the search
         #: distance): the held set is rebuilt when surfaces may have approached by more than it
@@ -160,6 +148,13 @@ class ContactModel:
         self.search_time = 0.0  # accumulated wall time of the search (s), for benchmarks
         self.halo_time = 0.0  # accumulated wall time of the halo builds after the first (s)
         self._V = V
+
+    @property
+    def max_penalty(self) -> float:
+        """The largest normal or tangential penalty (N/mm^3) of the particles' and tools' laws:
+        what a surface node's contact stiffness per area may reach."""
+        own = max(self.law.kernel_parameters()[:2])
+        return own if self.tools is None else max(own, self.tools.max_penalty)
 
     def set_periodic_images(self, lattice: np.ndarray, cell_vectors: np.ndarray) -> None:
         """Images of the masters shifted by ``lattice @ cell_vectors`` (lattice (m, 3) integers,
@@ -364,13 +359,7 @@ class ContactModel:
             else pts.shift
         )
         # history of the points already in contact at the last converged state
-        old = self.state
-        alpha_n, smax_n, work_n = np.zeros(keys.size), np.zeros(keys.size), np.zeros(keys.size)
-        tt_n = np.zeros((keys.size, 3))
-        if old.keys.size:  # new points start with an empty history
-            pos, known = lookup(old.keys, keys)
-            alpha_n[known], smax_n[known] = old.alpha[pos[known]], old.smax[pos[known]]
-            tt_n[known], work_n[known] = old.tt[pos[known]], old.work[pos[known]]
+        alpha_n, smax_n, tt_n, work_n = self.state.history_of(keys)
         self.guards.adjust_history(keys, alpha_n, smax_n)
 
         n = pts.size
@@ -380,6 +369,7 @@ class ContactModel:
         jump = relative_motion(nodes, weights, U - self.U_committed)
         jump -= pts.shift - shift_n  # relative motion includes the image's displacement
         facet_normal, _ = surface_normals(x, s.facets, s.vertices_per_facet)
+        facet_area = facet_areas(x, s.facets, s.vertices_per_facet)
         area = np.empty(n)
         if n:
             contact_areas(
@@ -387,7 +377,7 @@ class ContactModel:
                 pts.normal,
                 s.node_facet_ptr,
                 s.node_facets,
-                facet_areas(x, s.facets, s.vertices_per_facet),
+                facet_area,
                 facet_normal,
                 s.vertices_per_facet,
                 area,
@@ -437,6 +427,8 @@ class ContactModel:
         self.trial = ContactState(
             keys[order], alpha[order], smax[order], Tt[order], (work_n + scale * dissipation)[order]
         )
+        if self.tools is not None:
+            self.tools.evaluate(x, U - self.U_committed, facet_normal, facet_area, tangent)
         if tangent:
             nn = 1 + s.vertices_per_facet
             K = np.empty((n, 3 * nn, 3 * nn))
@@ -468,6 +460,10 @@ class ContactModel:
             vals = np.empty(size)
             k = coo_entries(nodes[:, :nn], s.blocks, K, rows, cols, vals) if n else 0
             self._coo = (rows[:k], cols[:k], vals[:k])
+            if self.tools is not None:
+                self._coo = tuple(
+                    np.concatenate([a, b]) for a, b in zip(self._coo, self.tools.coo, strict=True)
+                )
         return self.evaluation
 
     def penetration_step_limit(self, direction: dolfinx.fem.Function) -> float:
@@ -494,6 +490,15 @@ class ContactModel:
             limited = (pts.gap >= 0) & (pts.gap + dgap < -depth)
             if limited.any():
                 lam = float(np.min((pts.gap[limited] + depth) / -dgap[limited]))
+        if self.tools is not None and self.tools.evaluation.size:
+            ev = self.tools.evaluation  # the tools stand still within an increment
+            dgap = np.einsum("pd,pd->p", self.surface.gather(direction)[ev.slave], ev.normal)
+            closed = ev.gap < 0
+            depth = max(-ev.gap[closed].min(), 0.0) if closed.any() else 0.0
+            depth = max(depth, self._size_floor)
+            limited = (ev.gap >= 0) & (ev.gap + dgap < -depth)
+            if limited.any():
+                lam = min(lam, float(np.min((ev.gap[limited] + depth) / -dgap[limited])))
         return self.comm.allreduce(lam, op=MPI.MIN)
 
     def nodal_forces(self) -> tuple[np.ndarray, np.ndarray]:
@@ -502,7 +507,11 @@ class ContactModel:
         used = nodes >= 0
         f = weights[:, :, None] * self.evaluation.point_force[:, None, :]  # (n, 5, 3)
         dofs = self.surface.blocks[np.where(used, nodes, 0)][:, :, None] * 3 + np.arange(3)
-        return dofs[used].ravel().astype(PETSc.IntType), f[used].ravel()
+        dofs, values = dofs[used].ravel().astype(PETSc.IntType), f[used].ravel()
+        if self.tools is not None:
+            tool_dofs, tool_values = self.tools.nodal_forces()
+            dofs, values = np.concatenate([dofs, tool_dofs]), np.concatenate([values, tool_values])
+        return dofs, values
 
     def nodal_stiffness(self) -> np.ndarray:
         """Gershgorin row sums (N/mm) of the contact stiffness at the last evaluation, at this
@@ -520,6 +529,8 @@ class ContactModel:
                 weights=(np.abs(ev.weights) * point[:, None])[used],
                 minlength=self.surface.num_nodes,
             )
+        if self.tools is not None:
+            rows = rows + self.tools.nodal_stiffness()
         return self.surface.sum_to_owners(rows)
 
     def add_residual(self, r: PETSc.Vec) -> None:
@@ -579,13 +590,17 @@ class ContactModel:
         self._corner = None
         self.shifts_committed = self.search.shifts.copy()
         self.frictional_work += self.comm.allreduce(self.evaluation.dissipation, op=MPI.SUM)
+        if self.tools is not None:
+            self.tools.commit()
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """Committed contact history of this rank's slave points, as arrays (for checkpoints):
         keys, alpha, sigma_max, tangential traction, frictional work per point, committed
         displacement of the owned surface nodes and the total frictional work."""
         st = self.state
+        tools = {} if self.tools is None else self.tools.state_dict()
         return {
+            **{f"tools/{k}": v for k, v in tools.items()},
             "keys": st.keys,
             "alpha": st.alpha,
             "sigma_max": st.smax,
@@ -620,6 +635,8 @@ class ContactModel:
         self.U_committed = s.gather_owned_array(self._owned_committed)
         self._corner = None
         self.frictional_work = float(data["total_frictional_work"])
+        if self.tools is not None:
+            self.tools.load_state({k[6:]: v for k, v in data.items() if k.startswith("tools/")})
 
     # -- results -------------------------------------------------------------------------------
     def count(self, compressive_only: bool = False) -> int:

@@ -47,6 +47,8 @@ class PrescribedDisplacements:
         self.constraint: AffineConstraint | None = None
         #: fixed multipoint rows (e.g. cyclic symmetry), built with the prescribed dofs
         self.couplings: CouplingRows | None = None
+        #: callables ``t -> None`` placed with the prescribed values (e.g. rigid tools' motion)
+        self.followers: list[Callable[[float], None]] = []
 
     def add(self, dofs: np.ndarray, value: Callable | float = 0.0) -> PrescribedDisplacements:
         """Prescribe ``dofs`` to ``value`` (mm): a number, an array, or t -> either."""
@@ -79,5 +81,8 @@ class PrescribedDisplacements:
         return out
 
     def apply(self, t: float) -> None:
-        """Set the prescribed values of time ``t`` (s) in the constraint."""
+        """Set the prescribed values of time ``t`` (s) in the constraint and move the
+        followers (rigid tools) to ``t``."""
         self.constraint.set_prescribed(self.values(t))
+        for follow in self.followers:
+            follow(t)

@@ -300,7 +300,7 @@ class ExplicitSolver:
             ),
             minlength=surf.num_nodes,
         )
-        k_node = contact.law.penalty * area[surf.owned_nodes]
+        k_node = contact.max_penalty * area[surf.owned_nodes]
         blocks = surf.owned_local_blocks
         m_node = mass.x.array.reshape(-1, 3)[blocks, 0]
         s = self.settings.safety
@@ -460,8 +460,16 @@ class ExplicitSolver:
         return self.static_reaction
 
     def energy_record(self) -> dict[str, float]:
-        """The energies of a history row (mJ): :meth:`Energies.record`."""
-        return self.energies.record()
+        """The energies of a history row (mJ): :meth:`Energies.record`; rigid tools' work on the
+        particles (their forces along their motion) joins W_ext and, as the contact forces'
+        tally only sees the particles' side of it, E_contact."""
+        record = self.energies.record()
+        tools = None if self.contact is None else self.contact.tools
+        if tools is not None:
+            work = float(tools.tool_work.sum())
+            record["W_ext"] += work
+            record["E_contact"] += work
+        return record
 
     @property
     def total_steps(self) -> int:

@@ -1,9 +1,17 @@
-"""Hertz contact of two identical elastic spheres, frictionless (a verification case).
+"""Hertz contact of two identical elastic spheres, or of a sphere on a rigid plane,
+frictionless (a verification case).
 
 Spheres of radius r centred at (0, 0, -r) and (0, 0, r), touching at the origin; P1 tetrahedra
 from gmsh, refined around the contact point. Each sphere is driven by a small rigid core (the
 nodes within ``core`` r of its centre) moving by -/+ delta/2 along z, so delta is the approach of
 the centres. Reference: F = 4/3 E* sqrt(R) delta^(3/2), E* = E / (2 (1 - nu^2)), R = r / 2.
+
+``partner="plane"``: the upper sphere alone pressed by its core onto the rigid plane z = 0 (a
+:class:`~mpfem_fenicsx.tools.RigidTool`), delta the approach of its centre to the plane;
+reference R = r, E* = E / (1 - nu^2). The plane is the symmetry plane of the two-sphere contact:
+the sphere on the plane at delta / 2 carries the two spheres' force at delta, when the plane's
+penalty is twice the particles' (the particle-particle spring spans both sides of the symmetry
+plane, the tool's one side only).
 
 ``HertzCase(solver="explicit")`` runs the same case with central differences (mass scaling to
 ``explicit_increments`` increments, smooth-step approach): slow enough, it should reproduce the
@@ -25,12 +33,13 @@ from ..contact import ContactLaw, ContactModel
 from ..contact.laws import default_penalty
 from ..io import History
 from ..loading import PrescribedDisplacements, component_dofs
-from ..material import ElastoPlastic
+from ..material import LEAD, ElastoPlastic
 from ..meshes import particle_mesh
 from ..parameters import check_parameters, parameter
 from ..problem import SolidProblem
 from ..solvers import SOLVERS, StepControl, create_solver, loading_amplitude, solver_kind
 from ..solvers.explicit import ExplicitSettings
+from ..tools import Plane, RigidTool
 
 
 @dataclass(frozen=True)
@@ -74,6 +83,17 @@ class HertzCase:
         1e-3, "explicit: time of the approach, mass-scaled (s)", low=0, open_low=True
     )
     rows: int = parameter(40, "explicit: history rows", low=2, high=100000)
+    material: str = parameter(
+        "elastic",
+        "elastic (E, nu) or the thesis' lead (table 2.1: yield and power-law hardening; the "
+        "Hertz column is then its elastic reference)",
+        choices=("elastic", "lead"),
+    )
+    partner: str = parameter(
+        "sphere",
+        "what the sphere is pressed against: an identical sphere, or a rigid plane",
+        choices=("sphere", "plane"),
+    )
 
     def __post_init__(self):
         check_parameters(self, prefix="HertzCase.")
@@ -85,8 +105,11 @@ class HertzCase:
 
     def hertz_force(self, delta):
         """Hertz force (N) at the centre approach ``delta`` (mm)."""
-        e_star = self.E / (2.0 * (1.0 - self.nu**2))
-        return 4.0 / 3.0 * e_star * np.sqrt(self.radius / 2.0) * np.asarray(delta) ** 1.5
+        plane = self.partner == "plane"
+        E, nu = (LEAD.E, LEAD.nu) if self.material == "lead" else (self.E, self.nu)
+        e_star = E / ((1.0 if plane else 2.0) * (1.0 - nu**2))
+        R = self.radius if plane else self.radius / 2.0
+        return 4.0 / 3.0 * e_star * np.sqrt(R) * np.asarray(delta) ** 1.5
 
 
 @dataclass
@@ -114,11 +137,13 @@ def run_hertz(
     )
     kind = solver_kind(solver)
     r = case.radius
+    plane = case.partner == "plane"
+    signs = (1.0,) if plane else (-1.0, 1.0)
     with warnings.catch_warnings():  # P1 tetrahedra: fine for this elastic, compressible case
         warnings.simplefilter("ignore")
         assembly = particle_mesh(
-            [[0, 0, -r], [0, 0, r]],
-            [r, r],
+            [[0, 0, sign * r] for sign in signs],
+            [r] * len(signs),
             comm,
             cell_type="tetrahedron",
             tet_order=1,
@@ -126,36 +151,52 @@ def run_hertz(
             tet_refine=[
                 ((0.0, 0.0, 0.0), case.size_min * r, case.refine_radius * r, 0.8 * r),
                 # enough nodes in the driving cores to hold them rigidly
-                ((0.0, 0.0, -r), 0.3 * case.core * r, case.core * r, 0.5 * r),
-                ((0.0, 0.0, r), 0.3 * case.core * r, case.core * r, 0.5 * r),
+                *[
+                    ((0.0, 0.0, sign * r), 0.3 * case.core * r, case.core * r, 0.5 * r)
+                    for sign in signs
+                ],
             ],
         )
-        material = ElastoPlastic(
-            E=case.E, nu=case.nu, sigma_0=1e12, hardening="linear", K=0.0, H=0.0
+        material = (
+            LEAD
+            if case.material == "lead"
+            else ElastoPlastic(E=case.E, nu=case.nu, sigma_0=1e12, hardening="linear", K=0.0, H=0.0)
         )
         problem = SolidProblem(assembly.mesh, material, tangent=kind.tangent)
     V = problem.V
-    penalty = default_penalty(case.E, case.size_min * r, case.penalty_factor)
+    penalty = default_penalty(material.E, case.size_min * r, case.penalty_factor)
     law = ContactLaw(penalty=penalty, friction=0.0, gamma=0.0)
-    contact = ContactModel(V, assembly.facet_tags, 2, law, search_distance=0.05 * r)
+    # the plane: the symmetry plane of the two spheres' contact, hence twice their penalty
+    tools = [RigidTool("plane", Plane(), ContactLaw(penalty=2.0 * penalty, friction=0.0))]
+    contact = ContactModel(
+        V, assembly.facet_tags, len(signs), law, 0.05 * r, tools=tools if plane else None
+    )
     delta_end = case.delta_max_over_r * r
 
     def core(sign):
         return lambda x: (x[0] ** 2 + x[1] ** 2 + (x[2] - sign * r) ** 2) <= (case.core * r) ** 2
 
     bcs = PrescribedDisplacements(V)
-    for sign in (-1.0, 1.0):
+    for sign in signs:
         for c in (0, 1):
             bcs.add(component_dofs(V, core(sign), c))
-    lower = component_dofs(V, core(-1.0), 2)
     upper = component_dofs(V, core(1.0), 2)
     amplitude = loading_amplitude(solver, explicit_time)
-    bcs.add(lower, lambda t: 0.5 * delta_end * amplitude(t)).add(
-        upper, lambda t: -0.5 * delta_end * amplitude(t)
+    # each sphere's core moves by its share of the approach (all of it against the plane)
+    share = 1.0 if plane else 0.5
+    if not plane:
+        bcs.add(component_dofs(V, core(-1.0), 2), lambda t: share * delta_end * amplitude(t))
+    bcs.add(upper, lambda t: -share * delta_end * amplitude(t))
+    name = ("force.csv" if kind.static else f"force_{solver}.csv").replace(
+        "force", "force_plane" if plane else "force"
     )
-    name = "force.csv" if kind.static else f"force_{solver}.csv"
     history = History(Path(out_dir) / name, ["delta_mm", "force_N", "force_hertz_N"], comm)
     iterations = []
+
+    def points() -> int:
+        """Compressed contact points, on the other sphere or on the plane."""
+        on_tools = 0 if contact.tools is None else contact.tools.tool_forces()["points"].sum()
+        return contact.count(True) + int(on_tools)
 
     def record(s):
         delta = delta_end * amplitude(s.t)
@@ -165,7 +206,7 @@ def run_hertz(
         log(
             f"  delta/r = {delta / r:.5f}: F = {force:.4f} N, Hertz {case.hertz_force(delta):.4f} "
             "N "
-            f"({100 * (force / case.hertz_force(delta) - 1):+.2f} %), {contact.count(True)} "
+            f"({100 * (force / case.hertz_force(delta) - 1):+.2f} %), {points()} "
             "contact points, "
             f"{iterations[-1]} Newton iterations"
         )
