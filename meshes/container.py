@@ -24,7 +24,7 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-from . import packing as _packing
+from .packing import sphere_rows
 
 
 @dataclass(frozen=True)
@@ -144,10 +144,13 @@ class Spheres:
 
 
 @numba.njit(cache=True)
-def _forces(x, rad, pi, pj, walls, kind, f):  # pragma: no cover
+def _forces(x, rad, pi, pj, walls, kind, gravity, f):  # pragma: no cover
     """Harmonic repulsion forces f (n, 3) and the largest overlap: spheres pairs (pi, pj) and the
-    walls (kind 0: cylinder, walls = [R, H]; kind 1: box, walls = [Lx, Ly, Lz])."""
+    walls (kind 0: cylinder, walls = [R, H]; kind 1: box, walls = [Lx, Ly, Lz]); a weight
+    ``gravity`` r^3 along -z on each sphere."""
     f[:] = 0.0
+    for i in range(x.shape[0]):
+        f[i, 2] = -gravity * rad[i] ** 3
     omax = 0.0
     for k in range(pi.shape[0]):
         i, j = pi[k], pj[k]
@@ -188,7 +191,7 @@ def _forces(x, rad, pi, pj, walls, kind, f):  # pragma: no cover
 
 @numba.njit(cache=True)
 def _fire_walls(
-    x, v, rad, pi, pj, walls, kind, xref, state, max_steps, tol, ftol, half_skin
+    x, v, rad, pi, pj, walls, kind, gravity, xref, state, max_steps, tol, ftol, half_skin
 ):  # pragma: no cover
     """FIRE minimisation of the harmonic repulsion (:func:`_forces`); return codes 0 relaxed,
     1 jammed, 2 rebuild the neighbour list, 3 budget spent (the periodic generator's)."""
@@ -197,7 +200,7 @@ def _fire_walls(
     code = 3
     for _ in range(max_steps):
         state[3] += 1
-        omax = _forces(x, rad, pi, pj, walls, kind, f)
+        omax = _forces(x, rad, pi, pj, walls, kind, gravity, f)
         power = np.sum(f * v)
         ff = np.sum(f * f)
         fmax2 = 0.0
@@ -237,8 +240,9 @@ def _fire_walls(
     return code
 
 
-def _relax(x, rad, walls, kind, tol, skin, deadline, max_steps=200_000) -> bool:
-    """Relax x in place with a Verlet list; True when every overlap < tol."""
+def _relax(x, rad, walls, kind, tol, skin, deadline, max_steps=200_000, gravity=0.0) -> bool:
+    """Relax x in place with a Verlet list; True when every overlap < tol (with ``gravity``:
+    until the forces balance, tol < 0)."""
     v = np.zeros_like(x)
     state = np.array([0.05, 0.1, 0.0, 0.0])
     while True:
@@ -248,10 +252,23 @@ def _relax(x, rad, walls, kind, tol, skin, deadline, max_steps=200_000) -> bool:
         pj = np.ascontiguousarray(pairs[:, 1]) if len(pairs) else np.zeros(0, np.int64)
         chunk = int(min(20000, max_steps - state[3]))
         code = _fire_walls(
-            x, v, rad, pi, pj, walls, kind, x.copy(), state, chunk, tol, 1e-2 * tol, 0.5 * skin
+            x,
+            v,
+            rad,
+            pi,
+            pj,
+            walls,
+            kind,
+            gravity,
+            x.copy(),
+            state,
+            chunk,
+            tol,
+            1e-2 * abs(tol),
+            0.5 * skin,
         )
         if code in (0, 1):
-            return code == 0
+            return code == 0 or gravity > 0.0
         if state[3] >= max_steps:
             return False
         if time.perf_counter() > deadline:
@@ -272,9 +289,12 @@ def generate_container_packing(
 ) -> Spheres:
     """Seeded frictionless random packing of ``n`` spheres (radii uniform in [r_min, r_max] mm)
     in a container at solid fraction ``target_fraction`` (sphere volume / container volume, in
-    (0, 0.6]: walls keep a random packing looser than a periodic one), or, with None, compressed
-    until jammed (the increment bisected down to 1e-4; the last relaxed state is returned: every
-    sphere held by its neighbours and the walls but a few rattlers, a die filled and tapped):
+    (0, 0.6]: walls keep a random packing looser than a periodic one; the spheres do not touch),
+    or, with None, poured: the spheres settle under a weak weight (a sphere alone on the floor
+    would overlap it by 1e-6 r_min) until the forces balance, and the container's top is put on
+    the highest sphere: every sphere rests on others or the walls (a die filled by pouring; its
+    fraction and height / width follow from the settling, the width from ``aspect`` at an
+    assumed fraction of 0.55):
 
     - ``shape="cylinder"``: a :class:`CylinderContainer` of height / diameter ``aspect``;
     - ``shape="box"``: a :class:`BoxContainer` of side ratios ``aspect`` (3 numbers).
@@ -303,7 +323,9 @@ def generate_container_packing(
     solid = 4.0 / 3.0 * np.pi * np.sum(radii**3)
     # the container at the dilute fraction phi0 for radius factor 1; radii grow as g = (phi /
     # phi0)^(1/3)
-    phi0 = 0.25 if target_fraction is None else min(0.25, target_fraction)
+    if target_fraction is None:
+        return _poured(radii, rng, shape, ratios, r_min, deadline)
+    phi0 = min(0.25, target_fraction)
     volume = solid / phi0
     if shape == "cylinder":
         # pi R^2 (2 R aspect) = volume
@@ -330,28 +352,67 @@ def generate_container_packing(
 
     if not relax(phi_ok, x, tol):
         raise ValueError(f"target_fraction={target_fraction} unreachable: jammed at {phi_ok:.4f}")
-    phi_end = 1.0 if target_fraction is None else target_fraction
-    while phi_ok < phi_end and dphi >= 1e-4:
-        phi = min(phi_ok + dphi, phi_end)
+    while phi_ok < target_fraction and dphi >= 1e-4:
+        phi = min(phi_ok + dphi, target_fraction)
         trial = x.copy()
         if relax(phi, trial, tol):
             x, phi_ok = trial, phi
         else:
             dphi *= 0.5
-    if target_fraction is not None and phi_ok < target_fraction:
+    if phi_ok < target_fraction:
         raise ValueError(f"target_fraction={target_fraction} unreachable: jammed at {phi_ok:.4f}")
     polished = x.copy()
     if relax(phi_ok, polished, 1e-9 * r_min):
         x = polished
     g = (phi_ok / phi0) ** (1.0 / 3.0)
-    # final lengths: the radii are the drawn ones; the container and centres scale by 1 / g,
-    # then grow by the tiny factor that removes the remaining overlaps exactly
-    spheres = Spheres(x / g, radii, container.scaled(1.0 / g))
+    # final lengths: the radii are the drawn ones; the container and centres scale by 1 / g
+    return _without_overlap(Spheres(x / g, radii, container.scaled(1.0 / g)))
+
+
+def _without_overlap(spheres: Spheres) -> Spheres:
+    """The spheres with centres and container grown by the tiny factor that removes their
+    remaining overlaps (radii unchanged)."""
     overlap = spheres.max_overlap()
-    if overlap > 0.0:
-        grow = 1.0 + 2.0 * overlap + 1e-12
-        spheres = Spheres(spheres.centres * grow, radii, spheres.container.scaled(grow))
-    return spheres
+    if overlap == 0.0:
+        return spheres
+    grow = 1.0 + 2.0 * overlap + 1e-12
+    return Spheres(spheres.centres * grow, spheres.radii, spheres.container.scaled(grow))
+
+
+#: poured packings: the weight of the smallest sphere over the contact stiffness, / r_min (-)
+POURED_WEIGHT = 1e-6
+
+
+def _poured(radii, rng, shape, ratios, r_min, deadline) -> Spheres:
+    """Spheres settled under a weak weight in a container whose width follows from ``ratios``
+    at an assumed fraction of 0.55 (:func:`generate_container_packing`)."""
+    n = radii.size
+    solid = 4.0 / 3.0 * np.pi * np.sum(radii**3)
+    volume = solid / 0.55
+    if shape == "cylinder":
+        R = float((volume / (2.0 * np.pi * float(ratios))) ** (1.0 / 3.0))
+        tall = solid / (0.2 * np.pi * R**2)
+        walls, kind = np.array([R, tall]), 0
+        rho = (R - radii) * np.sqrt(rng.random(n))
+        theta = 2.0 * np.pi * rng.random(n)
+        x = np.column_stack([rho * np.cos(theta), rho * np.sin(theta), tall * rng.random(n)])
+    else:
+        side = (volume / np.prod(ratios)) ** (1.0 / 3.0)
+        lengths = side * np.asarray(ratios)
+        lengths[2] = solid / (0.2 * lengths[0] * lengths[1])
+        walls, kind = lengths, 1
+        x = rng.random((n, 3)) * lengths
+    skin = 0.3 * r_min
+    if not _relax(x, radii, walls, kind, 1e-4 * r_min, skin, deadline):
+        raise ValueError("poured packing: the spheres could not be placed in the container")
+    weight = POURED_WEIGHT * r_min  # the smallest sphere's weight, stiffness x length
+    _relax(x, radii, walls, kind, -0.1 * weight, skin, deadline, 2_000_000, weight / r_min**3)
+    top = float(np.max(x[:, 2] + radii))
+    if shape == "cylinder":
+        container = CylinderContainer(float(walls[0]), top)
+    else:
+        container = BoxContainer((float(walls[0]), float(walls[1]), top))
+    return _without_overlap(Spheres(x, radii, container))
 
 
 def write_spheres(spheres: Spheres, path) -> None:
@@ -369,12 +430,5 @@ def read_spheres(path, length_scale: float = 1.0) -> Spheres:
     path = Path(path)
     if not (np.isfinite(length_scale) and length_scale > 0):
         raise ValueError(f"length_scale must be > 0, got {length_scale}")
-    fmt = _packing.packing_format(path)
-    if fmt == "plain":
-        raise ValueError(
-            f"{path}: a periodic packing file (its first line is a cell 'dx dy dz'); a list of "
-            "spheres has 'x y z r' lines only"
-        )
-    reader = _packing._read_lammps if fmt == "lammps" else _packing._read_yade
-    _, centres, radii, _ = reader(path, (1.0, 1.0, 1.0))
-    return Spheres(np.asarray(centres) * length_scale, np.asarray(radii) * length_scale)
+    centres, radii = sphere_rows(path)
+    return Spheres(centres * length_scale, radii * length_scale)

@@ -39,6 +39,7 @@ __all__ = [
     "generate_packing",
     "packing_format",
     "simple_cubic_packing",
+    "sphere_rows",
     "periodic_pair_realizations",
     "read_packing",
     "write_packing",
@@ -277,6 +278,22 @@ def read_packing(
         centres[centres >= cell] = 0.0  # mod of a tiny negative value rounds up to the cell size
     packing = Packing(cell, centres, radii)
     return packing.validate(overlap_tolerance) if validate else packing
+
+
+def sphere_rows(path) -> tuple[np.ndarray, np.ndarray]:
+    """Centres (N, 3) and radii (N,) of a YADE export or a LAMMPS / LIGGGHTS dump's last
+    snapshot as written: no cell, no wrapping (spheres between walls). A ``plain`` periodic
+    packing file is refused: its first line is a cell."""
+    path = Path(path)
+    fmt = packing_format(path)
+    if fmt == "plain":
+        raise ValueError(
+            f"{path}: a periodic packing file (its first line is a cell 'dx dy dz'); a list of "
+            "spheres has 'x y z r' lines only"
+        )
+    reader = _read_lammps if fmt == "lammps" else _read_yade
+    _, centres, radii, _ = reader(path, (1.0, 1.0, 1.0))
+    return np.asarray(centres, dtype=float), np.asarray(radii, dtype=float)
 
 
 def _numbers(path, lineno, line, what, expected) -> list[float]:

@@ -149,13 +149,6 @@ class ContactModel:
         self.halo_time = 0.0  # accumulated wall time of the halo builds after the first (s)
         self._V = V
 
-    @property
-    def max_penalty(self) -> float:
-        """The largest normal or tangential penalty (N/mm^3) of the particles' and tools' laws:
-        what a surface node's contact stiffness per area may reach."""
-        own = max(self.law.kernel_parameters()[:2])
-        return own if self.tools is None else max(own, self.tools.max_penalty)
-
     def set_periodic_images(self, lattice: np.ndarray, cell_vectors: np.ndarray) -> None:
         """Images of the masters shifted by ``lattice @ cell_vectors`` (lattice (m, 3) integers,
         the zero shift first; cell_vectors (3, 3), rows = current cell vectors F0 (L_i e_i), mm).

@@ -107,7 +107,9 @@ class RigidEvaluation:
 class RigidContact:
     """Contact of the surface nodes of ``surface`` (a :class:`ContactSurface`) against ``tools``
     (objects with ``name``, ``shape``, ``law``, ``motion``, ``servo``: :class:`~mpfem_fenicsx.tools.
-    RigidTool`) within ``search_distance`` (mm)."""
+    RigidTool`) within ``search_distance`` (mm). A servo-driven tool moves by
+    :meth:`servo_step` (a workflow calls it after every explicit increment), the others follow
+    their motion (:meth:`move`, called with the prescribed displacements)."""
 
     def __init__(self, surface, tools, search_distance: float):
         names = [t.name for t in tools]
@@ -145,13 +147,18 @@ class RigidContact:
         """Place the displacement-driven tools at time ``t`` (s); servo-driven tools keep the
         translation their servo set."""
         for i, tool in enumerate(self.tools):
-            if not tool.servo:
+            if tool.servo is None:
                 self.translation[i] = tool.motion(t)
 
-    @property
-    def max_penalty(self) -> float:
-        """The largest normal or tangential penalty of the tools' laws (N/mm^3)."""
-        return max(max(t.law.kernel_parameters()[:2]) for t in self.tools)
+    def servo_step(self, t: float, dt: float) -> None:
+        """Move the force-controlled tools by their servos over the next increment, from the
+        particles' forces on them at time ``t`` (collective: one reduction)."""
+        if all(tool.servo is None for tool in self.tools):
+            return
+        force = self.tool_forces()["force"]
+        for i, tool in enumerate(self.tools):
+            if tool.servo is not None:
+                self.translation[i] += tool.servo.step(t, dt, force[i])
 
     # -- evaluation ----------------------------------------------------------------------------
     def _query(self, tool: int, x: np.ndarray, reach: float):
@@ -338,6 +345,9 @@ class RigidContact:
             "tool_work": self.tool_work.copy(),
             "tool_force": self._force_committed.copy(),
             "total_frictional_work": np.array(self.frictional_work),
+            "servo_state": np.array(
+                [t.servo.state if t.servo is not None else [np.nan, 0.0] for t in self.tools]
+            ),
         }
 
     def load_state(self, data: dict[str, np.ndarray]) -> None:
@@ -360,3 +370,6 @@ class RigidContact:
         self.tool_work = np.array(data["tool_work"], dtype=float)
         self._force_committed = np.array(data["tool_force"], dtype=float)
         self.frictional_work = float(data["total_frictional_work"])
+        for tool, state in zip(self.tools, data["servo_state"], strict=True):
+            if tool.servo is not None:
+                tool.servo.state = np.array(state, dtype=float)

@@ -300,7 +300,7 @@ class ExplicitSolver:
             ),
             minlength=surf.num_nodes,
         )
-        k_node = contact.max_penalty * area[surf.owned_nodes]
+        k_node = contact.law.penalty * area[surf.owned_nodes]
         blocks = surf.owned_local_blocks
         m_node = mass.x.array.reshape(-1, 3)[blocks, 0]
         s = self.settings.safety

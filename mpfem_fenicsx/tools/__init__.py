@@ -14,6 +14,7 @@ import numpy as np
 
 from ..contact.laws import ContactLaw
 from .motion import KeyframePath, fixed
+from .servo import ForceServo
 from .shapes import CylinderInside, Plane, TriangulatedSurface, read_stl, write_stl
 
 
@@ -21,13 +22,13 @@ from .shapes import CylinderInside, Plane, TriangulatedSurface, read_stl, write_
 class RigidTool:
     """A rigid tool: its ``shape`` (reference placement, mm), its contact ``law`` with the
     particles (own penalty, friction, adhesion) and its ``motion`` (t -> translation (3,) mm;
-    a force-controlled tool's translation is set by its servo instead, ``servo=True``)."""
+    a force-controlled tool is moved by its ``servo`` instead, :class:`ForceServo`)."""
 
     name: str
     shape: Plane | CylinderInside | TriangulatedSurface
     law: ContactLaw = field(default_factory=ContactLaw)
     motion: Callable[[float], np.ndarray] = fixed
-    servo: bool = False
+    servo: ForceServo | None = None
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name:
@@ -38,6 +39,7 @@ class RigidTool:
 
 __all__ = [
     "CylinderInside",
+    "ForceServo",
     "KeyframePath",
     "Plane",
     "RigidTool",

@@ -12,13 +12,18 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from mpi4py import MPI
 from scipy.spatial.transform import Rotation
 
 from ..homogenization import hencky_strain
+from ..loading import GradientPath, compaction_gradient
 from ..meshes.packing import simple_cubic_packing
-from .compaction import CompactionCase
+from ..solvers.explicit import ExplicitSettings
+from ..tools import Plane, RigidTool
+from .compaction import CompactionCase, contact_law
+from .tooled import ToolHistory, build_tooled, run_tooled, tool_law, tooled_solver
 
-__all__ = ["COMPONENTS", "MESH_ROTATION", "checks", "simple_cubic_case"]
+__all__ = ["COMPONENTS", "MESH_ROTATION", "between_walls", "checks", "simple_cubic_case"]
 
 #: one generic orientation for every particle mesh (0.3 rad about (1, 2, 3)): identical particles
 #: stay exact translates while their contact points are inside facets (no node-on-node contact)
@@ -72,3 +77,95 @@ def checks(result) -> dict[str, np.ndarray]:
     out["sigma_m_love_weber"] = h.column("sigma_m")
     out["sigma_m_schmidt"] = schmidt
     return out
+
+
+def between_walls(
+    radius: float = 0.1,
+    target_density: float = 0.95,
+    increments: int = 4000,
+    duration: float = 1e-3,
+    out_dir: str = "results/simple_cubic/walls",
+    outputs: int = 40,
+    comm=None,
+    log=print,
+):
+    """The cell's eight spheres in a box of six frictionless rigid planes on its contact planes
+    x, y, z = 0 and 4 r (the periodic cell's symmetry planes), die-compacted by the top plane:
+    its height follows the periodic die path's F0_zz(t) (the same smooth ramps over
+    ``duration``), the other planes stay. The same particle meshes as :func:`simple_cubic_case`
+    (inscribed, the generic rotation), the same contact law between the spheres; the planes'
+    penalty is twice it (:func:`~.tooled.tool_law`).
+
+    Returns the :class:`~.tooled.ToolHistory` with ``rho`` (the spheres' volume over the box's,
+    eq. 2.5) and the stresses from the planes' forces (compression > 0, each the mean of the two
+    opposite planes): ``sigma_zz_walls`` = force / (4 r)^2, ``sigma_xx_walls``,
+    ``sigma_yy_walls`` = force / (4 r x the current height)."""
+    comm = comm or MPI.COMM_WORLD
+    periodic = simple_cubic_case("die", radius, target_density, increments, visual=False)
+    packing, L = simple_cubic_packing(radius), 4.0 * radius
+    divisions, _ = periodic.mesh.subdivisions
+    h_contact = radius * np.pi / (2 * divisions * periodic.mesh.refinement)
+    law = contact_law(periodic.contact, periodic.material, h_contact)
+    # the periodic die path: F0_zz(t) from pi / 6 to the target density
+    path = GradientPath(
+        [(duration, compaction_gradient("die", np.pi / 6.0, target_density))],
+        profiles=(periodic.loading.profile,),
+    )
+
+    def top(t):
+        return np.array([0.0, 0.0, L * (path(t)[2, 2] - 1.0)])
+
+    wall = tool_law(law, 0.0)
+    planes = [
+        RigidTool(name, Plane(point, normal), wall)
+        for name, point, normal in [
+            ("x0", (0, 0, 0), (1, 0, 0)),
+            ("x1", (L, 0, 0), (-1, 0, 0)),
+            ("y0", (0, 0, 0), (0, 1, 0)),
+            ("y1", (0, L, 0), (0, -1, 0)),
+            ("z0", (0, 0, 0), (0, 0, 1)),
+        ]
+    ]
+    planes.append(RigidTool("z1", Plane((0, 0, L), (0, 0, -1)), wall, top))
+    model = build_tooled(
+        packing.centres,
+        packing.radii,
+        planes,
+        law,
+        periodic.material,
+        comm,
+        resolution=periodic.mesh.resolution,
+        exact_volume=False,
+        rotation=periodic.mesh.rotation,
+    )
+    solver = tooled_solver(
+        model,
+        ExplicitSettings(
+            t_end=duration,
+            target_dt=duration / increments,
+            local_damping=periodic.solver.local_damping,
+        ),
+    )
+    history = ToolHistory(
+        model,
+        f"{out_dir}/history.csv",
+        extra=("rho", "sigma_xx_walls", "sigma_yy_walls", "sigma_zz_walls"),
+    )
+
+    spheres = float(np.sum(4.0 / 3.0 * np.pi * packing.radii**3))  # V_p of eq. 2.5
+
+    def record(s):
+        height = L * path(s.t)[2, 2]
+        forces = model.tools.tool_forces()["force"]
+        history.row(
+            s,
+            rho=spheres / (L * L * height),
+            sigma_xx_walls=0.5 * (forces[1, 0] - forces[0, 0]) / (L * height),
+            sigma_yy_walls=0.5 * (forces[3, 1] - forces[2, 1]) / (L * height),
+            sigma_zz_walls=0.5 * (forces[5, 2] - forces[4, 2]) / (L * L),
+        )
+
+    log(f"simple cubic cell between walls: {model.num_dofs} dofs, {increments} increments")
+    run_tooled(model, solver, record, outputs=outputs)
+    history.write()
+    return history

@@ -1,0 +1,194 @@
+"""Volumes pressed by rigid tools: particles without a periodic cell, moved by contact only.
+
+The shared stages of the tool-driven workflows (closed die, box of six planes, the simple cubic
+cell between walls): mesh the spheres, build the bulk problem and the contact with the tools,
+integrate with the explicit solver (each particle's rigid motion damped, the force-controlled
+tools moved by their servos after every increment) and record one history row per output:
+
+- ``time`` (s); per tool ``<name>_ux/_uy/_uz`` its translation (mm), ``<name>_Fx/_Fy/_Fz`` the
+  force the particles exert on it (N), ``<name>_N`` the sum of the normal forces pressing on it
+  (N, compression > 0);
+- ``contact_points`` (loaded points, particle-particle and on tools), the energies (mJ; the
+  tools' work on the particles is in W_ext) and the out-of-balance ratio ``unbalanced`` (-).
+
+No gravity, no carrier: a particle not touched stays where it is.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from ..contact import ContactLaw, ContactModel
+from ..io import History
+from ..loading import PrescribedDisplacements
+from ..material import ElastoPlastic
+from ..meshes import node_particles, particle_mesh, particle_volumes
+from ..meshes.cubesphere import RESOLUTIONS, unit_ball_hex
+from ..problem import SolidProblem
+from ..solvers import create_solver
+from ..solvers.explicit import ExplicitSettings
+
+#: relative gap between the particles' start spheres (through their surface nodes) and to the
+#: tools: a packing that touches starts touching, without overlap
+START_GAP = 1e-4
+#: the energies of a history row
+ENERGIES = ("W_ext", "E_int", "E_p", "E_contact", "E_c", "E_damp", "E_visc", "E_mass")
+
+
+def mesh_radii(radii: np.ndarray, resolution: str, exact_volume: bool = True) -> np.ndarray:
+    """The radii to mesh spheres of ``radii`` with (mm): the volume-exact particles' surface
+    nodes lie at ``radius_scale`` times their radius; they are put START_GAP inside the sphere."""
+    divisions, layers = RESOLUTIONS[resolution]
+    scale = unit_ball_hex(divisions, layers, exact_volume=exact_volume).radius_scale
+    return (1.0 - START_GAP) / scale * np.asarray(radii, dtype=float)
+
+
+def tool_law(law: ContactLaw, friction: float) -> ContactLaw:
+    """The particles' law against a rigid tool with its own ``friction``: twice the particles'
+    penalty (a wall is the symmetry plane of a particle-particle contact, whose penalty spring
+    spans both sides of it: a sphere on a wall at delta / 2 then carries two spheres' force at
+    delta), the same adhesion."""
+    return ContactLaw(
+        penalty=2.0 * law.penalty,
+        tangential_penalty=None if law.tangential_penalty is None else 2 * law.tangential_penalty,
+        friction=friction,
+        gamma=law.gamma,
+        delta_max=law.delta_max,
+        asperity_yield=law.asperity_yield,
+        alpha_forced=law.alpha_forced,
+    )
+
+
+@dataclass
+class ToolModel:
+    """A tool-driven volume: its meshed particles, bulk problem, contact (with the tools) and
+    the (empty) prescribed displacements that move the tools."""
+
+    assembly: object
+    problem: SolidProblem
+    contact: ContactModel
+    bcs: PrescribedDisplacements
+    radii: np.ndarray  # meshed radii (mm)
+    solid_volume: float  # the particles' finite-element volume at the start (mm^3)
+
+    @property
+    def num_dofs(self) -> int:
+        """Displacement dofs of the whole model."""
+        return self.problem.V.dofmap.index_map.size_global * 3
+
+    @property
+    def tools(self):
+        """The contact with the tools (:class:`~mpfem_fenicsx.contact.rigid.RigidContact`)."""
+        return self.contact.tools
+
+
+def build_tooled(
+    centres: np.ndarray,
+    radii: np.ndarray,
+    tools: list,
+    law: ContactLaw,
+    material: ElastoPlastic,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    *,
+    resolution: str = "chapter2",
+    exact_volume: bool = True,
+    rotation: np.ndarray | None = None,
+) -> ToolModel:
+    """Mesh spheres (``radii``: the meshed ones, :func:`mesh_radii`), the bulk problem and the
+    contact between the particles and with ``tools`` (:class:`~mpfem_fenicsx.tools.RigidTool`)."""
+    divisions, layers = RESOLUTIONS[resolution]
+    radii = np.asarray(radii, dtype=float)
+    assembly = particle_mesh(
+        centres,
+        radii,
+        comm,
+        divisions=divisions,
+        layers=layers,
+        exact_volume=exact_volume,
+        rotations=None if rotation is None else np.broadcast_to(rotation, (radii.size, 3, 3)),
+    )
+    problem = SolidProblem(assembly.mesh, material, tangent=False)
+    contact = ContactModel(
+        problem.V,
+        assembly.facet_tags,
+        radii.size,
+        law,
+        search_distance=max(0.05 * float(radii.min()), 2 * law.delta_max),
+        tools=tools,
+    )
+    bcs = PrescribedDisplacements(problem.V)  # nothing prescribed: the tools move the particles
+    bcs.followers.append(contact.tools.move)
+    solid = float(particle_volumes(assembly, problem.u).sum())
+    return ToolModel(assembly, problem, contact, bcs, radii, solid)
+
+
+def tooled_solver(model: ToolModel, settings: ExplicitSettings, damping: str = "node"):
+    """The explicit solver of a tool-driven volume. ``damping``: what the local damping acts on,
+    every node's motion ("node": the particles' vibrations between the tools die out too, as in
+    a static relaxation), or every particle's rigid motion only ("particle": the particles'
+    deformation is not resisted)."""
+    if damping not in ("node", "particle"):
+        raise ValueError(f"damping = {damping!r} must be 'node' or 'particle'")
+    cell_particle = model.assembly.cell_tags.values[: model.problem.num_cells]
+    bodies = node_particles(model.problem.V, cell_particle) if damping == "particle" else None
+    return create_solver(
+        "explicit",
+        model.problem,
+        model.bcs,
+        contact=model.contact,
+        settings=settings,
+        damped_bodies=bodies,
+    )
+
+
+def run_tooled(model: ToolModel, solver, on_output, outputs: int = 100) -> None:
+    """Integrate to the end of the solver's time, the servos stepped after every increment."""
+    tools = model.tools
+    solver.run_path(on_output, outputs=outputs, on_step=lambda s: tools.servo_step(s.t, s.dt))
+
+
+class ToolHistory:
+    """The history of a tool-driven run (module docstring) with the caller's ``extra`` columns."""
+
+    def __init__(self, model: ToolModel, path: str | Path, extra: tuple[str, ...] = ()):
+        self.model = model
+        names = model.tools.names
+        per_tool = [f"{n}_{q}" for n in names for q in ("ux", "uy", "uz", "Fx", "Fy", "Fz", "N")]
+        self.columns = [
+            "time",
+            *extra,
+            *per_tool,
+            "contact_points",
+            *ENERGIES,
+            "unbalanced",
+        ]
+        self.history = History(Path(path), self.columns, model.problem.comm)
+
+    def row(self, solver, **extra) -> dict[str, np.ndarray]:
+        """Measure and append a row at the solver's state; returns the tools' forces."""
+        tools = self.model.tools
+        forces = tools.tool_forces()
+        values = {"time": solver.t, **extra}
+        for i, name in enumerate(tools.names):
+            for a, axis in enumerate("xyz"):
+                values[f"{name}_u{axis}"] = tools.translation[i, a]
+                values[f"{name}_F{axis}"] = forces["force"][i, a]
+            values[f"{name}_N"] = forces["normal"][i]
+        values["contact_points"] = self.model.contact.count(True) + int(forces["points"].sum())
+        energies = solver.energy_record()
+        values.update({k: energies[k] for k in ENERGIES})
+        values["unbalanced"] = solver.unbalanced_ratio()
+        self.history.append(**values)
+        return forces
+
+    def column(self, name: str) -> np.ndarray:
+        """One column of the rows so far."""
+        return self.history.column(name)
+
+    def write(self) -> Path:
+        """Write the CSV (rank 0)."""
+        return self.history.write()

@@ -1,0 +1,118 @@
+"""Rigid tools in explicit runs: a particle pressed between two punches inside a die, by a
+prescribed motion and by a force servo; restart with the tools' contact history; the tools'
+forces against the particles' own balance."""
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from mpfem_fenicsx.contact import ContactLaw
+from mpfem_fenicsx.material import LEAD
+from mpfem_fenicsx.solvers.explicit import ExplicitSettings
+from mpfem_fenicsx.tools import CylinderInside, ForceServo, KeyframePath, Plane, RigidTool
+from mpfem_fenicsx.workflows.tooled import (
+    build_tooled,
+    mesh_radii,
+    run_tooled,
+    tool_law,
+    tooled_solver,
+)
+
+R = 0.1  # particle radius, mm
+T = 1e-3  # pressing time, s
+
+
+def _pressed(upper_motion=None, servo=None, die_friction=0.3, increments=4000, hold=0.5):
+    """One lead particle on a lower punch at z = 0, in a die of radius 1.02 r with friction,
+    pressed by an upper punch from z = 2 r over T (``increments``), then held for ``hold`` T."""
+    law = ContactLaw(penalty=10 * LEAD.E / (R * np.pi / 12), friction=0.1)
+    radius = mesh_radii([R], "coarse")
+    tools = [
+        RigidTool(
+            "upper",
+            Plane((0, 0, 2 * R), (0, 0, -1)),
+            tool_law(law, 0.1),
+            upper_motion or (lambda t: np.zeros(3)),
+            servo,
+        ),
+        RigidTool("lower", Plane((0, 0, 0), (0, 0, 1)), tool_law(law, 0.1)),
+        RigidTool("die", CylinderInside(1.02 * R), tool_law(law, die_friction)),
+    ]
+    model = build_tooled(
+        [[0.0, 0.0, R]], radius, tools, law, LEAD, MPI.COMM_SELF, resolution="coarse"
+    )
+    solver = tooled_solver(
+        model,
+        ExplicitSettings(t_end=(1 + hold) * T, target_dt=T / increments, local_damping=0.7),
+    )
+    return model, solver
+
+
+def test_pressed_particle_balances_the_punches_and_the_die():
+    """At rest after a smooth-step squeeze of 20 % of its height into a die whose wall it
+    reaches (friction 0.3): the tools' forces sum to zero (the particle is in equilibrium), the
+    upper punch carries the lower one's force plus the die's friction."""
+    path = KeyframePath((0.0, T), ((0, 0, 0), (0, 0, -0.4 * R)))
+    model, solver = _pressed(path)
+    run_tooled(model, solver, lambda s: None, outputs=2)
+    f = model.tools.tool_forces()
+    upper, lower, die = f["force"][:, 2]  # the particle's forces on the tools, along z
+    assert upper > 0.05 and lower < 0.0  # N: it pushes the upper punch up, the lower one down
+    assert f["normal"][2] > 0.0  # it has spread onto the die's wall
+    assert abs(upper + lower + die) < 0.01 * upper  # equilibrium of the particle at rest
+    # the die's friction holds the particle up: the lower punch carries less than the upper
+    assert die < 0.0 and -lower < upper
+    assert solver.unbalanced_ratio() < 0.02
+    # the tools' work on the particle (their forces along their motion, trapezoidal) against
+    # what the particle absorbed, tallied separately: internal work, bulk viscosity, kinetic,
+    # damping, the tools' friction and the penalty springs' energy 1/2 T1^2 / k A
+    tools, e = model.tools, solver.energy_record()
+    ev = tools.evaluation
+    k = np.array([t.law.penalty for t in tools.tools])[ev.tool]
+    springs = float(np.sum(0.5 * np.maximum(ev.T1, 0.0) ** 2 / k * ev.area))
+    absorbed = e["E_int"] + e["E_visc"] + e["E_c"] + e["E_damp"] - e["E_mass"]
+    absorbed += tools.frictional_work + springs
+    assert tools.tool_work.sum() == pytest.approx(absorbed, rel=0.02)
+    assert e["W_ext"] == pytest.approx(tools.tool_work.sum())  # the tools' work is W_ext
+
+
+def test_force_servo_holds_the_punch_force():
+    """A force-controlled upper punch: the particle's force on it reaches the target."""
+    target = 2.0  # N
+    servo = ForceServo(lambda t: target, (0, 0, -1), rate=0.5 * R / T, band=0.5, filter_time=T / 50)
+    model, solver = _pressed(servo=servo, die_friction=0.0, increments=2000, hold=1.0)
+    forces = []
+    run_tooled(model, solver, lambda s: forces.append(model.tools.tool_forces()["force"][0, 2]), 20)
+    assert forces[-1] == pytest.approx(target, rel=0.05)
+    assert model.tools.translation[0, 2] < 0  # the servo moved the punch down
+
+
+def test_restart_continues_the_tool_contact_history_bit_for_bit():
+    path = KeyframePath((0.0, T), ((0, 0, 0), (0, 0, -0.3 * R)))
+    model, solver = _pressed(path, increments=300, hold=0.0)
+    run_tooled(model, solver, lambda s: None, outputs=2)
+    whole = model.problem.u.x.array.copy()
+    # the same run stopped half-way, its state restored on a new model, continued
+    first, s1 = _pressed(path, increments=300, hold=0.0)
+    s1.run_path(None, max_steps=s1.total_steps // 2)
+    state = s1.state_dict()
+    assert any(k.startswith("contact/tools/") for k in state)
+    assert state["contact/tools/keys"].size > 0  # the tools' contact points have a history
+    second, s2 = _pressed(path, increments=300, hold=0.0)
+    s2.load_state(state)
+    run_tooled(second, s2, lambda s: None, outputs=2)
+    assert np.array_equal(second.problem.u.x.array, whole)
+    assert np.array_equal(second.tools.translation, model.tools.translation)
+    assert second.tools.tool_work == pytest.approx(model.tools.tool_work, rel=1e-12)
+
+
+def test_tool_names_and_delta_max_are_checked():
+    law = ContactLaw(penalty=1e6, gamma=1e-3, delta_max=1e-3)
+    tools = [RigidTool("a", Plane()), RigidTool("a", Plane((0, 0, 1), (0, 0, -1)))]
+    with pytest.raises(ValueError, match="unique"):
+        build_tooled([[0, 0, R]], [R], tools, law, LEAD, MPI.COMM_SELF, resolution="coarse")
+    adhesive = [RigidTool("wall", Plane(), law)]
+    from mpfem_fenicsx.contact.rigid import RigidContact
+
+    with pytest.raises(ValueError, match="delta_max"):
+        RigidContact(None, adhesive, search_distance=1e-4)
