@@ -106,10 +106,10 @@ class RigidEvaluation:
 
 class RigidContact:
     """Contact of the surface nodes of ``surface`` (a :class:`ContactSurface`) against ``tools``
-    (objects with ``name``, ``shape``, ``law``, ``motion``, ``servo``: :class:`~mpfem_fenicsx.tools.
-    RigidTool`) within ``search_distance`` (mm). A servo-driven tool moves by
-    :meth:`servo_step` (a workflow calls it after every explicit increment), the others follow
-    their motion (:meth:`move`, called with the prescribed displacements)."""
+    (objects with ``name``, ``shape``, ``law``, ``motion``, ``servo``: the
+    :class:`~mpfem_fenicsx.tools.RigidTool`) within ``search_distance`` (mm). A servo-driven
+    tool moves by :meth:`servo_step` (a workflow calls it after every explicit increment), the
+    others follow their motion (:meth:`move`, called with the prescribed displacements)."""
 
     def __init__(self, surface, tools, search_distance: float):
         names = [t.name for t in tools]
