@@ -2,6 +2,7 @@
 
     python demos/hertz.py [--size-min 0.005] [--steps 10] [--out results/hertz]
     python demos/hertz.py --solver explicit [--increments 8000]    # after the implicit run
+    python demos/hertz.py --partner plane    # one sphere on a rigid plane (R = r)
 
 E = 200000 MPa, nu = 0.3, r = 1 mm; P1 tetrahedra refined around the contact point. Writes
 <out>/force.csv (delta_mm, force_N, force_hertz_N) and <out>/force.png; prints the largest
@@ -34,6 +35,7 @@ def main(argv=None):
     parser.add_argument("--out", default="results/hertz")
     add_parameter_option(parser, HertzCase, "solver")
     add_parameter_option(parser, HertzCase, "explicit_increments", flag="--increments")
+    add_parameter_option(parser, HertzCase, "partner")
     args = parser.parse_args(argv)
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
@@ -43,11 +45,13 @@ def main(argv=None):
             steps=args.steps,
             solver=args.solver,
             explicit_increments=args.increments,
+            partner=args.partner,
         )
+    stem = "force_plane" if case.partner == "plane" else "force"
     if not solver_kind(case.solver).static:  # a dynamic run compared with the static one
         res = run_hertz(case, args.out, comm, log=say)
         say(f"{res.num_dofs} dofs, {res.wall_time:.1f} s")
-        implicit = Path(args.out) / "force.csv"
+        implicit = Path(args.out) / f"{stem}.csv"
         if implicit.exists():
             ref = np.loadtxt(implicit, delimiter=",", skiprows=1)
             h = res.history
@@ -74,15 +78,15 @@ def main(argv=None):
 
         d = np.linspace(0, delta.max(), 200)
         fig, ax = plt.subplots(figsize=(5.5, 4))
-        ax.plot(d, HertzCase().hertz_force(d), "k-", label="Hertz")
+        ax.plot(d, case.hertz_force(d), "k-", label="Hertz")
         ax.plot(delta, force, "o", label="mpfem (P1, NTS penalty)")
         ax.set_xlabel("centre approach delta (mm)")
         ax.set_ylabel("force (N)")
         ax.legend()
         ax.grid(alpha=0.3)
         fig.tight_layout()
-        fig.savefig(Path(args.out) / "force.png", dpi=120)
-        say(f"wrote {args.out}/force.csv and force.png")
+        fig.savefig(Path(args.out) / f"{stem}.png", dpi=120)
+        say(f"wrote {args.out}/{stem}.csv and {stem}.png")
 
 
 if __name__ == "__main__":

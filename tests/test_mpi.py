@@ -24,6 +24,13 @@ CASES = {
     ),
     # base and block land on different ranks: contact across the partition
     "flat-contact": ("flat_contact.py", [], ["normal.csv", "tangential.csv"], 1e-7),
+    # one sphere over 2 ranks on a rigid plane: the tool's points, forces and tangent per rank
+    "sphere-on-plane": (
+        "hertz.py",
+        ["--partner", "plane", "--size-min", "0.02", "--steps", "4"],
+        ["force_plane.csv"],
+        1e-7,
+    ),
     # the granular volume (24 particles + CLP shell copies over 2 ranks) runs through `mpfem run`
     # in tests/test_cli.py::test_mpirun_two_ranks_run_and_restart
 }

@@ -469,13 +469,12 @@ class ContactModel:
         the period-2 open / closed cycles at the rim of a growing contact. Limiting the step to
         the scale of the existing penetrations lets the point enter the contact gently and carry
         its stiffness into the next iteration (a penetration-controlled step, not a change of
-        the solution)."""
+        the solution). Collective."""
         lam = 1.0
         pts = self.evaluation.points
+        moved = self.surface.gather(direction)  # collective: on every rank, points or not
         if pts.size:
-            jump = relative_motion(
-                self.evaluation.nodes, self.evaluation.weights, self.surface.gather(direction)
-            )
+            jump = relative_motion(self.evaluation.nodes, self.evaluation.weights, moved)
             dgap = np.einsum("pd,pd->p", jump, pts.normal)
             closed = pts.gap < 0
             depth = max(-pts.gap[closed].min(), 0.0) if closed.any() else 0.0
@@ -483,9 +482,9 @@ class ContactModel:
             limited = (pts.gap >= 0) & (pts.gap + dgap < -depth)
             if limited.any():
                 lam = float(np.min((pts.gap[limited] + depth) / -dgap[limited]))
-        if self.tools is not None and self.tools.evaluation.size:
+        if self.tools is not None:
             ev = self.tools.evaluation  # the tools stand still within an increment
-            dgap = np.einsum("pd,pd->p", self.surface.gather(direction)[ev.slave], ev.normal)
+            dgap = np.einsum("pd,pd->p", moved[ev.slave], ev.normal)
             closed = ev.gap < 0
             depth = max(-ev.gap[closed].min(), 0.0) if closed.any() else 0.0
             depth = max(depth, self._size_floor)
