@@ -44,6 +44,20 @@ class Smoke:
 #: history columns left empty where undefined (kinetic over internal energy while E_int <= 0)
 UNDEFINED = ("E_c_over_E_int",)
 SMOKE: dict[str, Smoke] = {
+    "closed_die": Smoke(
+        (
+            "--particles",
+            "3",
+            "--increments",
+            "2000",
+            "--target-density",
+            "0.6",
+            "--outputs",
+            "8",
+            "--no-visual",
+        ),
+        ("history.csv", "density_bins.csv", "summary.json"),
+    ),
     "cubic_cell": Smoke(
         ("--increments", "200", "--target-density", "0.56"), ("history.csv", "stresses.png")
     ),
@@ -105,6 +119,22 @@ SMOKE: dict[str, Smoke] = {
         ("--particles", "24", "--increments", "100", "--outputs", "5"),
         ("history.csv", "loading_path.png"),
         nan_ok=UNDEFINED,
+    ),
+    "triaxial_box": Smoke(
+        (
+            "--particles",
+            "3",
+            "--increments",
+            "2000",
+            "--fill",
+            "0.4",
+            "--target-density",
+            "0.55",
+            "--outputs",
+            "4",
+            "--no-visual",
+        ),
+        ("history.csv", "summary.json"),
     ),
     "two_spheres": Smoke(
         ("--ratios", "1.0", "--size-min", "0.1", "--load-steps", "2", "--unload-steps", "2"),

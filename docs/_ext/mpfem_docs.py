@@ -381,9 +381,10 @@ def generate(app=None) -> None:
     """Write the generated pages: the case-file reference, the README summaries and figure
     lists (``docs/_generated/``), the flagship figure snippet and one page per demo
     (``docs/demos/<demo>.md``, stale ones removed)."""
-    from mpfem_fenicsx.cli.casefile import SCHEMA
+    from mpfem_fenicsx.cli.casefile import SCHEMA, tool_schema
 
     _write(GENERATED / "casefile_keys.md", casefile_reference(SCHEMA))
+    _write(GENERATED / "casefile_tool_keys.md", casefile_reference(tool_schema()))
     for name, readme in (
         ("validation", ROOT / "validation" / "README.md"),
         ("bench", ROOT / "bench" / "README.md"),

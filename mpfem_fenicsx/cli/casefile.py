@@ -212,6 +212,72 @@ def load_case(path: str | Path, out_dir: str | None = None) -> CompactionCase:
     )
 
 
+def tool_cases() -> dict[str, type]:
+    """The tool-driven cases a case file may hold instead of a periodic compaction: one section
+    alone, ``[die]`` (:class:`~mpfem_fenicsx.workflows.closed_die.ClosedDieCase`) or ``[box]``
+    (:class:`~mpfem_fenicsx.workflows.box.BoxCase`), its keys the case's declared parameters
+    (``ratios`` of ``[box]``: a list of three numbers)."""
+    from ..workflows.box import BoxCase
+    from ..workflows.closed_die import ClosedDieCase
+
+    return {"die": ClosedDieCase, "box": BoxCase}
+
+
+def tool_schema() -> tuple[Key, ...]:
+    """The keys of the tool-driven cases' sections (``[die]``, ``[box]``), in order."""
+    return tuple(key for name, cls in tool_cases().items() for key in declared_keys(name, cls))
+
+
+def load_tool_case(path: str | Path, out_dir: str | None = None):
+    """The tool-driven case of a case file holding ``[die]`` or ``[box]`` (validated like the
+    others: CaseError naming the key), or None when it holds neither."""
+    path = Path(path)
+    where = str(path)
+    if not path.is_file():
+        raise CaseError(f"{where}: no such case file")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise CaseError(f"{where}: not valid TOML: {err}") from None
+    cases = tool_cases()
+    kinds = [k for k in data if k in cases]
+    if not kinds:
+        return None
+    if len(data) > 1:
+        other = next(k for k in data if k != kinds[0])
+        raise CaseError(
+            f"{where}: [{kinds[0]}] is a case of its own: remove [{other}] (allowed alone: "
+            f"{', '.join(f'[{k}]' for k in cases)})"
+        )
+    kind, table = kinds[0], data[kinds[0]]
+    if not isinstance(table, dict):
+        raise CaseError(f"{where}: {kind} must be a [{kind}] table, got {table!r}")
+    cls = cases[kind]
+    keys = {k.name: k for k in declared_keys(kind, cls)}
+    values: dict[str, Any] = {}
+    for name, value in table.items():
+        if kind == "box" and name == "ratios":
+            ok = (
+                isinstance(value, list)
+                and len(value) == 3
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+            )
+            if not ok:
+                raise CaseError(f"{where}: [box] ratios = {value!r} must be a list of 3 numbers")
+            values[name] = tuple(float(v) for v in value)
+            continue
+        if name not in keys:
+            allowed = ", ".join([*keys, *(["ratios"] if kind == "box" else [])])
+            raise CaseError(f"{where}: unknown key [{kind}] {name} (allowed: {allowed})")
+        values[name] = keys[name].check(value, where)
+    values["out_dir"] = out_dir or values.get("out_dir") or f"results/{path.stem}"
+    try:
+        return cls(**values)
+    except ValueError as err:
+        message = re.sub(r"^(closed die|box): ", "", str(err))
+        raise CaseError(f"{where}: [{kind}] {message}") from None
+
+
 def to_case(
     values: dict[tuple[str, str], Any], out_dir: str, where: str = "case"
 ) -> CompactionCase:

@@ -135,10 +135,13 @@ def _run(args, comm) -> None:
     from ..io.checkpoint import CheckpointError
     from ..io.progress import Progress
     from ..workflows.compaction import RunFailure, initial_packing, run_compaction
-    from .casefile import CaseError, load_case
+    from .casefile import CaseError, load_case, load_tool_case
 
     say = _say(comm)
     try:
+        tooled = load_tool_case(args.case, out_dir=args.out)
+        if tooled is not None:
+            return _run_tooled(tooled, args, comm)
         case = load_case(args.case, out_dir=args.out)
     except CaseError as err:
         raise _Exit(BAD_INPUT, str(err)) from None
@@ -186,6 +189,37 @@ def _run(args, comm) -> None:
             else ""
         )
     )
+
+
+def _run_tooled(case, args, comm) -> None:
+    """A ``[die]`` or ``[box]`` case: pour or pack, press by the rigid tools, report."""
+    from ..workflows.box import BoxCase, run_box
+    from ..workflows.closed_die import run_closed_die
+    from ..workflows.compaction import RunFailure
+
+    say = _say(comm)
+    if args.check:
+        say(f"{args.case}: valid: {type(case).__name__} of {case.particles} particles")
+        return
+    if args.restart:
+        raise _Exit(BAD_INPUT, f"{args.case}: --restart is for periodic compaction cases")
+    try:
+        if isinstance(case, BoxCase):
+            _, summary = run_box(case, comm, log=say)
+            say(
+                f"done: rho = {summary['rho']:.4f}, wall stresses xx / yy / zz = "
+                f"{summary['sigma_xx_walls']:.3f} / {summary['sigma_yy_walls']:.3f} / "
+                f"{summary['sigma_zz_walls']:.3f} MPa; outputs in {case.out_dir}/"
+            )
+        else:
+            result = run_closed_die(case, comm, log=say)
+            for line in result.report():
+                say(line)
+            say(f"outputs in {case.out_dir}/")
+    except RunFailure as err:
+        raise _Exit(RUN_FAILED, str(err)) from None
+    except ValueError as err:
+        raise _Exit(BAD_INPUT, f"{args.case}: {err}") from None
 
 
 def _pack(args, comm) -> None:

@@ -86,6 +86,7 @@ class RelaxationDamping:
         mass_red: PETSc.Vec,
         velocity: np.ndarray,
         scratch: PETSc.Vec,
+        reference: np.ndarray | None = None,
     ) -> np.ndarray:
         """The local non-viscous damping force (N, owned dofs, driving-force convention) for the
         sum of the other forces ``force`` (owned dofs) and its reduction ``r_red`` = P^T force;
@@ -97,7 +98,9 @@ class RelaxationDamping:
         peculiar velocity W_b, F_b the body's out-of-balance force (sum of -force over its nodes,
         tied copy nodes included), spread over the nodes in proportion to their mass; the
         mass-weighted mean is removed (no net force on the volume). Without bodies: on every free
-        reduced dof, d = alpha |r_red| sign(v_red), lifted to the full dofs as M P (d / m_red)."""
+        reduced dof, d = alpha |r_red| sign(v_red - v_ref), lifted to the full dofs as M P (d /
+        m_red); ``reference`` v_ref (reduced dofs, default 0): the velocity the damping does not
+        resist (a tool-driven volume's homogeneous flow between its tools)."""
         alpha = self.local
         n = self.constraint.num_owned
         if self.bodies is not None:
@@ -115,7 +118,13 @@ class RelaxationDamping:
                 self._lifted.array_w[:n] = lifted
                 self.constraint.restrict(self._lifted, scratch)
         else:
-            scratch.array_w[:] = alpha * np.abs(r_red.array_r) * np.sign(v_red.array_r)
+            if reference is not None and reference.size != v_red.array_r.size:
+                raise ValueError(
+                    f"damping reference: {reference.size} values for {v_red.array_r.size} "
+                    "reduced dofs (an unconstrained model's owned dofs)"
+                )
+            relative = v_red.array_r if reference is None else v_red.array_r - reference
+            scratch.array_w[:] = alpha * np.abs(r_red.array_r) * np.sign(relative)
             scaled = scratch.duplicate()
             scaled.pointwiseDivide(scratch, mass_red)
             with self._phase("constraints"):

@@ -199,6 +199,10 @@ class ExplicitSolver:
             damped_bodies,
             self.timings,
         )
+        #: optional t -> velocity (mm/s, reduced dofs) that the local damping does not resist
+        #: (node-wise damping of an unconstrained model: the homogeneous flow between rigid
+        #: tools, :func:`~mpfem_fenicsx.workflows.tooled.flow_between_tools`); None: rest
+        self.damping_reference = None
         self._force = problem.create_vector()  # their sum, reused every step
         self.x = self.constraint.create_reduced_vector()
         self.v_red = self.x.duplicate()
@@ -525,6 +529,7 @@ class ExplicitSolver:
             self.mass_red,
             self._v_half_prev,
             self.a_red,
+            None if self.damping_reference is None else self.damping_reference(self.t),
         )
         if self.settings.damping > 0:
             self.f_damp.array_w[:n] += lifted

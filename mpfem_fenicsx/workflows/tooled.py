@@ -145,6 +145,32 @@ def tooled_solver(model: ToolModel, settings: ExplicitSettings, damping: str = "
     )
 
 
+def flow_between_tools(model: ToolModel, pairs, h: float):
+    """The homogeneous flow between pairs of planes, as a damping reference of the explicit
+    solver (``solver.damping_reference``): ``pairs`` of (axis, lower tool, upper tool, lower
+    plane's reference coordinate, upper's) (tool indices, mm); along each axis the velocity
+    grows linearly from the lower plane's to the upper one's, the tools' velocities by central
+    differences of their motions over ``h`` (s). Returns t -> velocity (mm/s, owned dofs)."""
+    V = model.problem.V
+    n = V.dofmap.index_map.size_local
+    X = V.tabulate_dof_coordinates()[:n]
+    tools = model.tools.tools
+
+    def velocity(t: float) -> np.ndarray:
+        u = model.problem.u.x.array[: 3 * n].reshape(-1, 3)
+        v = np.zeros((n, 3))
+        for axis, lo, hi, x_lo, x_hi in pairs:
+            p_lo = x_lo + tools[lo].motion(t)[axis]
+            p_hi = x_hi + tools[hi].motion(t)[axis]
+            v_lo = (tools[lo].motion(t + h)[axis] - tools[lo].motion(t - h)[axis]) / (2 * h)
+            v_hi = (tools[hi].motion(t + h)[axis] - tools[hi].motion(t - h)[axis]) / (2 * h)
+            s = np.clip((X[:, axis] + u[:, axis] - p_lo) / (p_hi - p_lo), 0.0, 1.0)
+            v[:, axis] = v_lo + (v_hi - v_lo) * s
+        return v.ravel()
+
+    return velocity
+
+
 def run_tooled(model: ToolModel, solver, on_output, outputs: int = 100) -> None:
     """Integrate to the end of the solver's time, the servos stepped after every increment."""
     tools = model.tools

@@ -1,0 +1,501 @@
+"""Closed-die compaction of a poured powder between rigid punches: pressing, hold, unloading
+(springback) and ejection.
+
+The set-up of the field's die simulations (Procopio & Zavaliangos, Harthong et al., Güner et
+al.): spheres poured into a cylindrical die (:func:`~mpfem_fenicsx.meshes.container.
+generate_container_packing` with ``target_fraction=None``), three rigid tools, the particles
+moved by contact only (no periodic cell, no carrier):
+
+- ``upper``: the upper punch, the plane z = H0 (the poured column's top) facing down;
+- ``lower``: the lower punch, the plane z = 0 facing up;
+- ``die``: the die's wall, the inside of the cylinder of the container's radius, from z = 0 to
+  its top z = H0 (an ejected compact leaves it).
+
+The punches follow a :class:`~mpfem_fenicsx.tools.KeyframePath` of four stages, each a smooth
+step in time (durations in units of the pressing time T):
+
+1. **pressing** (T): the upper punch (single action) or both punches (double action, half the
+   travel each) move until the green density reaches ``target_density``;
+2. **hold** (``hold`` T): the punches stay; the compact relaxes to rest (the quasi-static check);
+3. **unloading** (``unload`` T): the upper punch retreats by ``lift`` of the compact's height;
+   the compact springs back axially (its height measured from its particles' surface nodes);
+4. **ejection** (``eject`` T): the lower punch pushes the compact up and out of the die (the upper
+   punch moves away with it); the largest lower-punch force is the ejection force.
+
+History (``history.csv``, one row per output; :class:`~.tooled.ToolHistory` columns, compression
+> 0): ``stage`` (1-4), ``green_density`` = the particles' volume at the start over the volume
+between the punches in the die, pi R^2 (z_upper - z_lower) (thesis eq. 2.5's rho with the tools'
+volume), ``compact_height`` (mm, from the surface nodes), ``upper_pressure`` /
+``lower_pressure`` (MPa, the punches' axial force over pi R^2), ``die_normal`` (N, the sum of
+the wall's normal forces) and ``die_friction`` (N, the axial force the compact drags the wall
+with: > 0 upwards), and per tool its translation and force.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+import dolfinx
+import ufl
+
+from ..contact import ContactLaw
+from ..material import LEAD
+from ..meshes.container import CylinderContainer, Spheres, generate_container_packing
+from ..parameters import check_parameters, parameter
+from ..solvers.explicit import ExplicitSettings
+from ..tools import CylinderInside, KeyframePath, Plane, RigidTool
+from .compaction import RunFailure
+from .history_recorder import UNBALANCED_AT_REST_LIMIT
+from .tooled import (
+    ToolHistory,
+    build_tooled,
+    flow_between_tools,
+    mesh_radii,
+    tool_law,
+    tooled_solver,
+)
+
+#: the four stages, in order
+STAGES = ("pressing", "hold", "unloading", "ejection")
+#: largest kinetic energy during pressing, as a share of the tools' work so far, that the
+#: quasi-static check accepts (after the first 5 % of the pressing's work)
+KINETIC_SHARE_LIMIT = 0.01
+
+
+@dataclass(frozen=True)
+class ClosedDieCase:
+    """A closed-die compaction (module docstring). Lengths mm, times s, stresses MPa; lead
+    particles (thesis table 2.1)."""
+
+    particles: int = parameter(12, "particles poured into the die", low=1)
+    radius: float = parameter(0.1, "mean particle radius (mm)", low=0, open_low=True)
+    spread: float = parameter(
+        0.2, "radii uniform within radius x (1 +/- spread) (-)", low=0, high=1, open_high=True
+    )
+    seed: int = parameter(1, "seed of the poured packing", low=0)
+    aspect: float = parameter(
+        1.0, "poured column's height / diameter, about (-)", low=0, open_low=True
+    )
+    target_density: float = parameter(
+        0.85,
+        "green density at the end of pressing (-)",
+        low=0,
+        high=1,
+        open_low=True,
+        open_high=True,
+    )
+    action: str = parameter(
+        "single", "pressing by the upper punch or by both punches", choices=("single", "double")
+    )
+    wall_friction: float = parameter(0.1, "die-wall Coulomb coefficient (-)", low=0)
+    punch_friction: float = parameter(0.1, "punches' Coulomb coefficient (-)", low=0)
+    friction: float = parameter(0.1, "particle-particle Coulomb coefficient (-)", low=0)
+    penalty_factor: float = parameter(
+        10.0, "contact penalty / (E / h_contact) (-, thesis §3.3)", low=0, open_low=True
+    )
+    resolution: str = parameter(
+        "chapter2", "particle mesh", choices=("chapter2", "chapter4", "coarse")
+    )
+    pressing_time: float = parameter(1e-3, "pressing time T (s)", low=0, open_low=True)
+    increments: int = parameter(
+        20000, "explicit increments of the pressing time T (the other stages alike)", low=1
+    )
+    hold: float = parameter(0.2, "hold after pressing (T)", low=0, open_low=True)
+    unload: float = parameter(0.2, "upper punch's retreat time (T)", low=0, open_low=True)
+    lift: float = parameter(
+        0.05, "upper punch's retreat (pressed compact heights)", low=0, high=1, open_low=True
+    )
+    eject: float = parameter(1.0, "ejection time (T)", low=0, open_low=True)
+    local_damping: float = parameter(
+        0.7, "local damping coefficient (-)", low=0, high=1, open_high=True
+    )
+    damping: str = parameter("node", "what the local damping acts on", choices=("node", "particle"))
+    damping_frame: str = parameter(
+        "flow",
+        "node-wise damping resists the motion relative to the homogeneous flow between the "
+        "punches, or to rest",
+        choices=("flow", "rest"),
+    )
+    outputs: int = parameter(60, "history rows", low=4)
+    out_dir: str = parameter("results/closed_die", "results folder")
+    bins: int = parameter(5, "axial and radial bins of the green density", low=1)
+
+    def __post_init__(self):
+        check_parameters(self, prefix="closed die: ")
+
+    @property
+    def stage_ends(self) -> np.ndarray:
+        """The end times (s) of the four stages."""
+        T = self.pressing_time
+        return T * np.cumsum([1.0, self.hold, self.unload, self.eject])
+
+
+def pour(case: ClosedDieCase) -> Spheres:
+    """The case's spheres poured into a die (seeded): every sphere rests on others."""
+    r = case.radius
+    return generate_container_packing(
+        case.particles,
+        r * (1 - case.spread),
+        r * (1 + case.spread),
+        case.seed,
+        None,
+        shape="cylinder",
+        aspect=case.aspect,
+    )
+
+
+def punch_paths(case: ClosedDieCase, height: float, solid: float, die_radius: float):
+    """The upper and lower punches' keyframe paths (translations along z, mm) for a poured
+    column of ``height`` (mm) and particles' volume ``solid`` (mm^3) in a die of ``die_radius``;
+    returns (upper, lower, pressed height)."""
+    pressed = solid / (case.target_density * np.pi * die_radius**2)
+    if pressed >= height:
+        raise ValueError(
+            f"closed die: target_density = {case.target_density} is below the poured density "
+            f"{solid / (np.pi * die_radius**2 * height):.3f}"
+        )
+    travel = height - pressed
+    up_travel, low_travel = (travel, 0.0) if case.action == "single" else (travel / 2, travel / 2)
+    t1, t2, t3, t4 = case.stage_ends
+    lift = case.lift * pressed
+    # the lower punch's face ends at the die's top (z = height): the compact is out
+    eject = height - low_travel
+    z_up = [0.0, -up_travel, -up_travel, -up_travel + lift, -up_travel + lift + eject]
+    z_low = [0.0, low_travel, low_travel, low_travel, low_travel + eject]
+    times = (0.0, t1, t2, t3, t4)
+    upper = KeyframePath(times, tuple((0.0, 0.0, z) for z in z_up))
+    lower = KeyframePath(times, tuple((0.0, 0.0, z) for z in z_low))
+    return upper, lower, pressed
+
+
+class CellVolumes:
+    """Current volume (mm^3) and centroid (mm) of every owned cell (DG0 forms compiled once)."""
+
+    def __init__(self, u: dolfinx.fem.Function):
+        mesh = u.function_space.mesh
+        DG0 = dolfinx.fem.functionspace(mesh, ("DG", 0))
+        v = ufl.TestFunction(DG0)
+        J = ufl.det(ufl.Identity(3) + ufl.grad(u))
+        x = ufl.SpatialCoordinate(mesh) + u
+        self._forms = [dolfinx.fem.form(J * v * ufl.dx)]
+        self._forms += [dolfinx.fem.form(x[i] * J * v * ufl.dx) for i in range(3)]
+        self._n = mesh.topology.index_map(3).size_local
+        self._dofs = DG0.dofmap.list[: self._n, 0]
+
+    def __call__(self) -> tuple[np.ndarray, np.ndarray]:
+        """(volumes (n,), centroids (n, 3)) of the owned cells."""
+        values = [dolfinx.fem.assemble_vector(f).array[self._dofs] for f in self._forms]
+        volume = values[0]
+        return volume, np.column_stack(values[1:]) / volume[:, None]
+
+
+def density_bins(volume, centroid, radius, z_low, z_high, bins, comm) -> dict[str, np.ndarray]:
+    """The green density's distribution: the particles' volume in ``bins`` axial slices of
+    [z_low, z_high] and ``bins`` annuli of equal area of the die of ``radius`` (mm), over the
+    slice's or annulus' volume (cells counted where their centroid lies; -)."""
+    height = z_high - z_low
+    axial = np.clip(((centroid[:, 2] - z_low) / height * bins).astype(int), 0, bins - 1)
+    rho = np.hypot(centroid[:, 0], centroid[:, 1])
+    radial = np.clip(((rho / radius) ** 2 * bins).astype(int), 0, bins - 1)
+    local = np.stack([np.bincount(axial, volume, bins), np.bincount(radial, volume, bins)])
+    total = comm.allreduce(local, op=MPI.SUM)
+    slice_volume = np.pi * radius**2 * height / bins
+    return {
+        "z_mid": z_low + (np.arange(bins) + 0.5) * height / bins,
+        "axial": total[0] / slice_volume,
+        "r_mid": radius * np.sqrt((np.arange(bins) + 0.5) / bins),
+        "radial": total[1] / slice_volume,
+    }
+
+
+@dataclass
+class ClosedDieResult:
+    """What a closed-die run measured (lengths mm, forces N, pressures MPa)."""
+
+    history: ToolHistory
+    summary: dict = field(default_factory=dict)
+    bins: dict = field(default_factory=dict)
+
+    def report(self) -> list[str]:
+        """Lines for the run's log."""
+        s = self.summary
+        lines = [
+            f"pressed: green density {s['green_density_pressed']:.4f}, upper punch "
+            f"{s['upper_pressure_pressed']:.3f} MPa, lower punch {s['lower_pressure_pressed']:.3f}"
+            f" MPa (lower / upper {s['transmission']:.3f}), die wall normal "
+            f"{s['die_normal_pressed']:.4g} N, friction {s['die_friction_pressed']:.4g} N",
+            f"springback: compact height {s['height_pressed']:.5f} -> {s['height_unloaded']:.5f}"
+            f" mm ({100 * s['springback']:.2f} %)",
+            f"ejection force: {s['ejection_force']:.4g} N (largest lower-punch force while the "
+            "compact leaves the die)",
+            "green density by height (bottom -> top): "
+            + " ".join(f"{v:.3f}" for v in self.bins["axial"]),
+            "green density by radius (axis -> wall): "
+            + " ".join(f"{v:.3f}" for v in self.bins["radial"]),
+            self.quasi_static_line(),
+            f"wall time {s['wall_time_s']:.0f} s on {s['ranks']} rank(s), {s['dofs']} dofs",
+        ]
+        return lines
+
+    @property
+    def quasi_static(self) -> bool:
+        """Out of balance at rest after the hold and the kinetic share during pressing within
+        their limits."""
+        s = self.summary
+        return bool(
+            s["unbalanced_hold"] <= UNBALANCED_AT_REST_LIMIT
+            and s["kinetic_share_pressing"] <= KINETIC_SHARE_LIMIT
+        )
+
+    def quasi_static_line(self) -> str:
+        """The quasi-static check's line."""
+        s = self.summary
+        found = (
+            f"out of balance {s['unbalanced_hold']:.2g} at rest after the hold (limit "
+            f"{UNBALANCED_AT_REST_LIMIT:g}), kinetic energy at most "
+            f"{100 * s['kinetic_share_pressing']:.2f} % of the tools' work while pressing "
+            f"(limit {100 * KINETIC_SHARE_LIMIT:g} %)"
+        )
+        if self.quasi_static:
+            return f"quasi-static check passed: {found}"
+        return f"quasi-static check FAILED: {found}: run with more increments"
+
+
+def run_closed_die(
+    case: ClosedDieCase,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    spheres: Spheres | None = None,
+    log=print,
+    render: bool = True,
+) -> ClosedDieResult:
+    """Pour (or take ``spheres`` in a :class:`CylinderContainer` standing on z = 0), press,
+    hold, unload and eject (module docstring); writes ``history.csv``, ``density_bins.csv``,
+    ``summary.json``, ``pressing_curve.png`` and the compact's pictures in ``case.out_dir``."""
+    start = time.perf_counter()
+    out = Path(case.out_dir)
+    if comm.rank == 0:
+        out.mkdir(parents=True, exist_ok=True)
+    if spheres is None:
+        spheres = pour(case)
+    container = spheres.container
+    if not isinstance(container, CylinderContainer):
+        raise ValueError("closed die: the spheres must come in a cylinder container")
+    R, H0 = container.radius, container.height
+    radii = mesh_radii(spheres.radii, case.resolution)
+    h_contact = float(np.mean(spheres.radii)) * np.pi / (2 * _divisions(case.resolution))
+    law = ContactLaw(penalty=case.penalty_factor * LEAD.E / h_contact, friction=case.friction)
+    solid = float(np.sum(4.0 / 3.0 * np.pi * radii**3))
+    upper_path, lower_path, pressed = punch_paths(case, H0, solid, R)
+    tools = [
+        RigidTool(
+            "upper", Plane((0, 0, H0), (0, 0, -1)), tool_law(law, case.punch_friction), upper_path
+        ),
+        RigidTool(
+            "lower", Plane((0, 0, 0), (0, 0, 1)), tool_law(law, case.punch_friction), lower_path
+        ),
+        RigidTool(
+            "die", CylinderInside(R, extent=(-np.inf, H0)), tool_law(law, case.wall_friction)
+        ),
+    ]
+    model = build_tooled(spheres.centres, radii, tools, law, LEAD, comm, resolution=case.resolution)
+    t_end = float(case.stage_ends[-1])
+    dt = case.pressing_time / case.increments
+    solver = tooled_solver(
+        model,
+        ExplicitSettings(t_end=t_end, target_dt=dt, local_damping=case.local_damping),
+        damping=case.damping,
+    )
+    if case.damping == "node" and case.damping_frame == "flow":
+        solver.damping_reference = flow_between_tools(model, [(2, 1, 0, 0.0, H0)], 0.5 * dt)
+    extra = (
+        "stage",
+        "green_density",
+        "compact_height",
+        "upper_pressure",
+        "lower_pressure",
+        "die_normal",
+        "die_friction",
+    )
+    history = ToolHistory(model, out / "history.csv", extra=extra)
+    volumes = CellVolumes(model.problem.u)
+    coords = model.problem.V.tabulate_dof_coordinates()[
+        : model.problem.V.dofmap.index_map.size_local
+    ]
+    area = np.pi * R**2
+    log(
+        f"closed die: {spheres.num_particles} particles poured to {H0:.4f} mm in a die of radius "
+        f"{R:.4f} mm (density {solid / (area * H0):.3f}), {case.action} action to "
+        f"{case.target_density}; {model.num_dofs} dofs, {solver.total_steps} increments"
+    )
+
+    def compact_height() -> tuple[float, float]:
+        z = coords[:, 2] + model.problem.u.x.array.reshape(-1, 3)[: len(coords), 2]
+        lo = comm.allreduce(float(z.min()) if z.size else np.inf, op=MPI.MIN)
+        hi = comm.allreduce(float(z.max()) if z.size else -np.inf, op=MPI.MAX)
+        return lo, hi
+
+    state = {"stage_rows": {}, "bins": None, "t0": time.perf_counter(), "ejection": 0.0}
+    ends = case.stage_ends
+
+    def stage_of(t: float) -> int:
+        return min(int(np.searchsorted(ends, t - 0.5 * dt)) + 1, 4)
+
+    def record(s, stage_end: bool = False):
+        stage = stage_of(s.t)
+        f = model.tools.tool_forces()
+        z_up = H0 + model.tools.translation[0, 2]
+        z_low = model.tools.translation[1, 2]
+        lo, hi = compact_height()
+        F = f["force"]
+        history.row(
+            s,
+            stage=stage,
+            green_density=solid / (area * max(z_up - z_low, 1e-300)),
+            compact_height=hi - lo,
+            upper_pressure=F[0, 2] / area,
+            lower_pressure=-F[1, 2] / area,
+            die_normal=f["normal"][2],
+            die_friction=F[2, 2],
+        )
+        if stage_end:  # the end state of a stage
+            state["stage_rows"][STAGES[stage - 1]] = len(history.column("time")) - 1
+            if stage == 2:
+                vol, cen = volumes()
+                state["bins"] = density_bins(vol, cen, R, z_low, z_up, case.bins, comm)
+                if render:
+                    _pictures(model, out / "pressed.png", "pressed compact (end of hold)")
+        elif comm.rank == 0:
+            elapsed = time.perf_counter() - state["t0"]
+            frac = s.t / t_end
+            eta = elapsed * (1 - frac) / max(frac, 1e-12)
+            print(
+                f"  [{STAGES[stage - 1]}] t/T {s.t / case.pressing_time:.3f}, green density "
+                f"{solid / (area * (z_up - z_low)):.4f}, upper {F[0, 2] / area:.3f} MPa, "
+                f"unbalanced {s.unbalanced_ratio():.3g}, {100 * frac:.0f} %, ETA {eta:.0f} s",
+                flush=True,
+            )
+
+    def on_step(s):
+        model.tools.servo_step(s.t, s.dt)
+        stage = stage_of(s.t)
+        if stage == 4:  # the ejection force: the lower punch's largest, step by step
+            state["ejection"] = max(state["ejection"], -model.tools.tool_forces()["force"][1, 2])
+        # the increment that ends a stage (the last one ends the run: recorded by run's output)
+        if stage < 4 and abs(s.t - ends[stage - 1]) < 0.5 * dt:
+            record(s, stage_end=True)
+
+    def on_output(s):
+        record(s, stage_end=s.t >= t_end - 0.5 * dt)
+
+    try:
+        solver.run_path(on_output, outputs=case.outputs, on_step=on_step)
+    except FloatingPointError as err:  # the history so far is kept; exit 3 in the demos
+        path = history.write()
+        raise RunFailure(
+            f"{err} (history so far: {path})", solver.step, solver.t, path, None
+        ) from None
+    history.write()
+    if render:
+        _pictures(model, out / "ejected.png", "ejected compact")
+    rows = state["stage_rows"]
+    col = history.column
+    press, hold, unload = rows["pressing"], rows["hold"], rows["unloading"]
+    stage = col("stage")
+    w_ext, e_c = col("W_ext"), col("E_c")
+    pressing = (stage == 1) & (w_ext > 0.05 * w_ext[press])
+    summary = {
+        "case": asdict(case),
+        "particles": spheres.num_particles,
+        "die_radius": R,
+        "fill_height": H0,
+        "poured_density": solid / (area * H0),
+        "green_density_pressed": float(col("green_density")[hold]),
+        "upper_pressure_pressed": float(col("upper_pressure")[hold]),
+        "lower_pressure_pressed": float(col("lower_pressure")[hold]),
+        "transmission": float(col("lower_pressure")[hold] / col("upper_pressure")[hold]),
+        "die_normal_pressed": float(col("die_normal")[hold]),
+        "die_friction_pressed": float(col("die_friction")[hold]),
+        "tools_force_sum_pressed": float(
+            (col("upper_Fz")[hold] + col("lower_Fz")[hold] + col("die_Fz")[hold])
+            / max(abs(col("upper_Fz")[hold]), 1e-300)
+        ),
+        "peak_upper_pressure": float(col("upper_pressure")[: press + 1].max()),
+        "height_pressed": float(col("compact_height")[hold]),
+        "height_unloaded": float(col("compact_height")[unload]),
+        "springback": float(col("compact_height")[unload] / col("compact_height")[hold] - 1),
+        "ejection_force": float(state["ejection"]),
+        "unbalanced_hold": float(col("unbalanced")[hold]),
+        "kinetic_share_pressing": float(np.max(e_c[pressing] / w_ext[pressing]))
+        if pressing.any()
+        else 0.0,
+        "wall_time_s": time.perf_counter() - start,
+        "ranks": comm.size,
+        "dofs": model.num_dofs,
+        "increments_total": solver.total_steps,
+    }
+    bins = state["bins"]
+    if comm.rank == 0:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "summary.json").write_text(json.dumps(summary, indent=1))
+        np.savetxt(
+            out / "density_bins.csv",
+            np.column_stack([bins["z_mid"], bins["axial"], bins["r_mid"], bins["radial"]]),
+            delimiter=",",
+            header="z_mid_mm,green_density_axial,r_mid_mm,green_density_radial",
+            comments="",
+        )
+        if render:
+            plot_pressing_curve(history, out / "pressing_curve.png")
+    return ClosedDieResult(history, summary, bins)
+
+
+def _divisions(resolution: str) -> int:
+    from ..meshes.cubesphere import RESOLUTIONS
+
+    return RESOLUTIONS[resolution][0]
+
+
+def _pictures(model, path: Path, title: str) -> None:
+    from ..io.fields import CellFields
+    from ..io.render import render_deformed
+
+    fields = CellFields(model.problem, model.assembly.cell_tags)
+    fields.update()
+    render_deformed(model.problem.u, fields.von_mises, path, title=title, save_grid=True)
+
+
+def plot_pressing_curve(history: ToolHistory, png: Path) -> Path:
+    """The pressing curve: the punches' pressures (MPa) against the green density."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    col = history.column
+    stage = col("stage")
+    fig, ax = plt.subplots(figsize=(5.5, 4))
+    for name, style in (("upper", "-"), ("lower", "--")):
+        for k, colour in ((1, "C0"), (2, "C1"), (3, "C2")):
+            mask = stage == k
+            if mask.any():
+                ax.plot(
+                    col("green_density")[mask],
+                    col(f"{name}_pressure")[mask],
+                    style,
+                    color=colour,
+                    label=f"{name} punch, {STAGES[k - 1]}",
+                )
+    ax.set_xlabel("green density (-)")
+    ax.set_ylabel("punch pressure (MPa, compression > 0)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(png, dpi=120)
+    plt.close(fig)
+    return png
