@@ -1,8 +1,8 @@
 """A box of six independently driven rigid planes: hydrostatic or true-triaxial compaction.
 
     python demos/triaxial_box.py
-        # embedded default: 12 lead particles, hydrostatic (ratios 1 1 1) to a density of 0.8
-    python demos/triaxial_box.py --ratios 1 0.5 0.25 --target-density 0.75
+        # embedded default: 12 lead particles, hydrostatic (ratios 1 1 1), density 0.4 -> 0.75
+    python demos/triaxial_box.py --ratios 1 0.5 0.25 --target-density 0.7
     mpirun -n 2 python demos/triaxial_box.py
 
 Pipeline: a seeded frictionless packing in a box at --fill (no sphere touches another or a

@@ -122,14 +122,14 @@ SMOKE: dict[str, Smoke] = {
     ),
     "triaxial_box": Smoke(
         (
-            "--particles",
-            "3",
             "--increments",
             "2000",
+            "--particles",
+            "4",
             "--fill",
-            "0.4",
+            "0.3",
             "--target-density",
-            "0.55",
+            "0.45",
             "--outputs",
             "4",
             "--no-visual",

@@ -137,6 +137,21 @@ def test_keyframe_path_stops_at_its_keyframes():
     assert np.allclose((path(1.0 + h) - path(1.0 - h)) / (2 * h), 0.0, atol=1e-6)
 
 
+def test_a_ramped_path_moves_at_constant_speed_between_its_ramps():
+    """A press at constant speed: 1 / (1 - r) of the mean speed between the ramps, at rest at
+    both keyframes, continuous speed, the whole travel at the end."""
+    r, h = 0.1, 1e-7
+    path = KeyframePath((0.0, 2.0), ((0, 0, 0), (0, 0, -1)), ramp=r)
+    speed = [(path(t + h)[2] - path(t - h)[2]) / (2 * h) for t in np.linspace(0.2 + h, 1.8, 9)]
+    assert np.allclose(speed, -0.5 / (1 - r), rtol=1e-6)
+    assert abs(path(h)[2] - path(0.0)[2]) / h < 1e-5 and np.allclose(path(2.0), [0, 0, -1])
+    t = np.linspace(0.0, 2.0, 2001)
+    v = np.gradient([path(x)[2] for x in t], t)
+    assert np.abs(np.diff(v)).max() < 0.01  # no jump of speed at the ramps' ends
+    with pytest.raises(ValueError, match="ramp = 0.7 is out of range"):
+        KeyframePath((0.0, 1.0), ((0, 0, 0), (0, 0, 1)), ramp=0.7)
+
+
 @pytest.mark.parametrize(
     "build, message",
     [
