@@ -196,16 +196,20 @@ def parse_case(data: dict, where: str = "case", base: Path | None = None) -> dic
     return values
 
 
+def _read_toml(path: Path) -> dict:
+    """The parsed TOML of a case file (CaseError if missing or not TOML)."""
+    if not path.is_file():
+        raise CaseError(f"{path}: no such case file")
+    try:
+        return tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise CaseError(f"{path}: not valid TOML: {err}") from None
+
+
 def load_case(path: str | Path, out_dir: str | None = None) -> CompactionCase:
     """Read, validate and convert a case file (raises :class:`CaseError`)."""
-    path = Path(path)
-    where = str(path)
-    if not path.is_file():
-        raise CaseError(f"{where}: no such case file")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as err:
-        raise CaseError(f"{where}: not valid TOML: {err}") from None
+    path, where = Path(path), str(path)
+    data = _read_toml(path)
     values = parse_case(data, where, base=path.parent)
     return to_case(
         values, out_dir or values.get(("output", "directory")) or f"results/{path.stem}", where
@@ -231,14 +235,8 @@ def tool_schema() -> tuple[Key, ...]:
 def load_tool_case(path: str | Path, out_dir: str | None = None):
     """The tool-driven case of a case file holding ``[die]`` or ``[box]`` (validated like the
     others: CaseError naming the key), or None when it holds neither."""
-    path = Path(path)
-    where = str(path)
-    if not path.is_file():
-        raise CaseError(f"{where}: no such case file")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as err:
-        raise CaseError(f"{where}: not valid TOML: {err}") from None
+    path, where = Path(path), str(path)
+    data = _read_toml(path)
     cases = tool_cases()
     kinds = [k for k in data if k in cases]
     if not kinds:

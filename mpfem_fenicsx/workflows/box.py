@@ -32,9 +32,10 @@ from ..contact import ContactLaw
 from ..material import LEAD
 from ..meshes.container import BoxContainer, Spheres, generate_container_packing
 from ..meshes.cubesphere import RESOLUTIONS
-from ..parameters import check_parameters, parameter
+from ..parameters import check_parameters, parameter, parameter_of
 from ..solvers.explicit import ExplicitSettings
 from ..tools import KeyframePath, Plane, RigidTool
+from .closed_die import ClosedDieCase
 from .compaction import RunFailure
 from .history_recorder import UNBALANCED_AT_REST_LIMIT
 from .tooled import (
@@ -55,10 +56,8 @@ class BoxCase:
     """A box compaction (module docstring). Lengths mm, times s; lead particles."""
 
     particles: int = parameter(12, "particles in the box", low=1)
-    radius: float = parameter(0.1, "mean particle radius (mm)", low=0, open_low=True)
-    spread: float = parameter(
-        0.2, "radii uniform within radius x (1 +/- spread) (-)", low=0, high=1, open_high=True
-    )
+    radius: float = parameter_of(ClosedDieCase, "radius")
+    spread: float = parameter_of(ClosedDieCase, "spread")
     seed: int = parameter(1, "seed of the packing", low=0)
     fill: float = parameter(
         0.4, "solid fraction of the generated packing (-)", low=0, high=0.6, open_low=True
@@ -73,14 +72,10 @@ class BoxCase:
         open_high=True,
     )
     wall_friction: float = parameter(0.0, "walls' Coulomb coefficient (-)", low=0)
-    friction: float = parameter(0.1, "particle-particle Coulomb coefficient (-)", low=0)
-    penalty_factor: float = parameter(
-        10.0, "contact penalty / (E / h_contact) (-, thesis §3.3)", low=0, open_low=True
-    )
-    resolution: str = parameter(
-        "chapter2", "particle mesh", choices=("chapter2", "chapter4", "coarse")
-    )
-    pressing_time: float = parameter(1e-3, "pressing time T (s)", low=0, open_low=True)
+    friction: float = parameter_of(ClosedDieCase, "friction")
+    penalty_factor: float = parameter_of(ClosedDieCase, "penalty_factor")
+    resolution: str = parameter_of(ClosedDieCase, "resolution")
+    pressing_time: float = parameter_of(ClosedDieCase, "pressing_time")
     increments: int = parameter(16000, "explicit increments of the pressing time T", low=1)
     hold: float = parameter(0.3, "hold after pressing (T)", low=0, open_low=True)
     ramp: float = parameter(
@@ -90,9 +85,7 @@ class BoxCase:
         high=0.5,
         open_low=True,
     )
-    local_damping: float = parameter(
-        0.7, "local damping coefficient (-)", low=0, high=1, open_high=True
-    )
+    local_damping: float = parameter_of(ClosedDieCase, "local_damping")
     outputs: int = parameter(40, "history rows", low=2)
     out_dir: str = parameter("results/triaxial_box", "results folder")
 
