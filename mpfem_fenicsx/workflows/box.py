@@ -28,10 +28,8 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from ..contact import ContactLaw
 from ..material import LEAD
 from ..meshes.container import BoxContainer, Spheres, generate_container_packing
-from ..meshes.cubesphere import RESOLUTIONS
 from ..parameters import check_parameters, parameter, parameter_of
 from ..solvers.explicit import ExplicitSettings
 from ..tools import KeyframePath, Plane, RigidTool
@@ -43,6 +41,7 @@ from .tooled import (
     build_tooled,
     flow_between_tools,
     mesh_radii,
+    particle_law,
     tool_law,
     tooled_solver,
 )
@@ -145,8 +144,7 @@ def run_box(
         raise ValueError("box: the spheres must come in a box container")
     L0 = np.asarray(spheres.container.lengths)
     radii = mesh_radii(spheres.radii, case.resolution)
-    h_contact = float(np.mean(spheres.radii)) * np.pi / (2 * RESOLUTIONS[case.resolution][0])
-    law = ContactLaw(penalty=case.penalty_factor * LEAD.E / h_contact, friction=case.friction)
+    law = particle_law(spheres.radii, case.resolution, case.penalty_factor, case.friction)
     solid = float(np.sum(4.0 / 3.0 * np.pi * radii**3))
     rho0 = solid / float(np.prod(L0))
     t_press = case.pressing_time

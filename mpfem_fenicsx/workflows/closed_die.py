@@ -59,7 +59,6 @@ from mpi4py import MPI
 import dolfinx
 import ufl
 
-from ..contact import ContactLaw
 from ..material import LEAD
 from ..meshes.container import CylinderContainer, Spheres, generate_container_packing
 from ..parameters import check_parameters, parameter
@@ -72,6 +71,7 @@ from .tooled import (
     build_tooled,
     flow_between_tools,
     mesh_radii,
+    particle_law,
     tool_law,
     tooled_solver,
 )
@@ -316,8 +316,7 @@ def _die_model(case: ClosedDieCase, spheres: Spheres, comm):
     punch leaves it), the punches' paths and the particles' volume (mm^3)."""
     R, H0 = spheres.container.radius, spheres.container.height
     radii = mesh_radii(spheres.radii, case.resolution)
-    h_contact = float(np.mean(spheres.radii)) * np.pi / (2 * _divisions(case.resolution))
-    law = ContactLaw(penalty=case.penalty_factor * LEAD.E / h_contact, friction=case.friction)
+    law = particle_law(spheres.radii, case.resolution, case.penalty_factor, case.friction)
     solid = float(np.sum(4.0 / 3.0 * np.pi * radii**3))
     upper_path, lower_path, _ = punch_paths(case, H0, solid, R)
     punch, wall = tool_law(law, case.punch_friction), tool_law(law, case.wall_friction)
@@ -538,12 +537,6 @@ def _z_range(coords: np.ndarray, u, comm) -> tuple[float, float]:
 def _ratio(a: float, b: float) -> float:
     """a / b, NaN when b is 0 (a punch that carries nothing)."""
     return float(a / b) if b != 0 else float("nan")
-
-
-def _divisions(resolution: str) -> int:
-    from ..meshes.cubesphere import RESOLUTIONS
-
-    return RESOLUTIONS[resolution][0]
 
 
 def _pictures(model, path: Path, title: str) -> None:

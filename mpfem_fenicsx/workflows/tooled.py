@@ -25,7 +25,7 @@ from mpi4py import MPI
 from ..contact import ContactLaw, ContactModel
 from ..io import History
 from ..loading import PrescribedDisplacements
-from ..material import ElastoPlastic
+from ..material import LEAD, ElastoPlastic
 from ..meshes import node_particles, particle_mesh, particle_volumes
 from ..meshes.cubesphere import RESOLUTIONS, unit_ball_hex
 from ..problem import SolidProblem
@@ -45,6 +45,14 @@ def mesh_radii(radii: np.ndarray, resolution: str, exact_volume: bool = True) ->
     divisions, layers = RESOLUTIONS[resolution]
     scale = unit_ball_hex(divisions, layers, exact_volume=exact_volume).radius_scale
     return (1.0 - START_GAP) / scale * np.asarray(radii, dtype=float)
+
+
+def particle_law(radii, resolution: str, penalty_factor: float, friction: float) -> ContactLaw:
+    """The lead particles' contact law of a tool-driven volume: penalty ``penalty_factor`` x E /
+    h_contact (thesis §3.3), h_contact = pi r_mean / (2 divisions) the surface element size of
+    the ``resolution``'s cube-sphere, Coulomb ``friction``."""
+    h_contact = float(np.mean(radii)) * np.pi / (2 * RESOLUTIONS[resolution][0])
+    return ContactLaw(penalty=penalty_factor * LEAD.E / h_contact, friction=friction)
 
 
 def tool_law(law: ContactLaw, friction: float) -> ContactLaw:
