@@ -80,6 +80,7 @@ class RigidEvaluation:
     branch: np.ndarray  # (n,) law branch codes
     force: np.ndarray  # (n, 3) force on the slave node (N)
     dissipation: float  # frictional work of this trial increment on this rank (mJ)
+    position: np.ndarray  # (n, 3) the slave node's current position (mm)
 
     @property
     def size(self) -> int:
@@ -101,6 +102,7 @@ class RigidEvaluation:
             np.zeros(0, np.int64),
             np.zeros((0, 3)),
             0.0,
+            np.zeros((0, 3)),
         )
 
 
@@ -218,7 +220,17 @@ class RigidContact:
         T1, Tt, alpha, smax, diss, branch = self._law(tool, gap, slip, normal, history)
         force = area[:, None] * (T1[:, None] * normal + Tt)
         self.evaluation = RigidEvaluation(
-            slave, tool, gap, normal, T1, Tt, area, branch, force, float(np.sum(area * diss))
+            slave,
+            tool,
+            gap,
+            normal,
+            T1,
+            Tt,
+            area,
+            branch,
+            force,
+            float(np.sum(area * diss)),
+            x[slave],
         )
         order = np.argsort(keys)
         self.trial = ContactState(

@@ -11,7 +11,10 @@ the centres. Reference: F = 4/3 E* sqrt(R) delta^(3/2), E* = E / (2 (1 - nu^2)),
 reference R = r, E* = E / (1 - nu^2). The plane is the symmetry plane of the two-sphere contact:
 the sphere on the plane at delta / 2 carries the two spheres' force at delta, when the plane's
 penalty is twice the particles' (the particle-particle spring spans both sides of the symmetry
-plane, the tool's one side only).
+plane, the tool's one side only). On the plane the history also holds the contact radius a
+(from the second moment of the plane's nodal forces) and Hertz's force at it,
+F = 4 E* a^3 / (3 R): a relation local to the contact, which the compliance of the finite sphere
+between its core and the contact (of order a / r in the force at an approach) leaves alone.
 
 ``HertzCase(solver="explicit")`` runs the same case with central differences (mass scaling to
 ``explicit_increments`` increments, smooth-step approach): slow enough, it should reproduce the
@@ -103,13 +106,38 @@ class HertzCase:
                 "r)"
             )
 
-    def hertz_force(self, delta):
-        """Hertz force (N) at the centre approach ``delta`` (mm)."""
+    def hertz_moduli(self) -> tuple[float, float]:
+        """Hertz's effective modulus E* (MPa) and radius R (mm) of this contact."""
         plane = self.partner == "plane"
         E, nu = (LEAD.E, LEAD.nu) if self.material == "lead" else (self.E, self.nu)
         e_star = E / ((1.0 if plane else 2.0) * (1.0 - nu**2))
-        R = self.radius if plane else self.radius / 2.0
+        return e_star, self.radius if plane else self.radius / 2.0
+
+    def hertz_force(self, delta):
+        """Hertz force (N) at the centre approach ``delta`` (mm): F = 4/3 E* sqrt(R) delta^3/2."""
+        e_star, R = self.hertz_moduli()
         return 4.0 / 3.0 * e_star * np.sqrt(R) * np.asarray(delta) ** 1.5
+
+    def hertz_force_at_radius(self, a):
+        """Hertz force (N) at the contact radius ``a`` (mm): F = 4 E* a^3 / (3 R).
+
+        Unlike the force at an approach, this relation is local to the contact: the compliance
+        of a finite sphere between its driving core and the contact (of order a / r against
+        the half-space's approach) shifts the approach, not the contact's size and pressure."""
+        e_star, R = self.hertz_moduli()
+        return 4.0 * e_star * np.asarray(a) ** 3 / (3.0 * R)
+
+
+def plane_contact_radius(evaluation, comm: MPI.Comm) -> float:
+    """The contact radius (mm) on the plane z = 0 from the second moment of its normal forces
+    about the z axis: Hertz's pressure p0 sqrt(1 - rho^2 / a^2) has <rho^2> = 2 a^2 / 5.
+
+    A moment of the nodal forces, not the outermost loaded node: it varies smoothly with the
+    load instead of jumping by an element size."""
+    f = evaluation.area * evaluation.T1  # normal force of every point (N, compression > 0)
+    rho2 = evaluation.position[:, 0] ** 2 + evaluation.position[:, 1] ** 2
+    total, moment = comm.allreduce(np.array([f.sum(), (f * rho2).sum()]), op=MPI.SUM)
+    return float(np.sqrt(2.5 * moment / total)) if total > 0 else 0.0
 
 
 @dataclass
@@ -190,7 +218,10 @@ def run_hertz(
     name = ("force.csv" if kind.static else f"force_{solver}.csv").replace(
         "force", "force_plane" if plane else "force"
     )
-    history = History(Path(out_dir) / name, ["delta_mm", "force_N", "force_hertz_N"], comm)
+    columns = ["delta_mm", "force_N", "force_hertz_N"]
+    if plane:  # the contact radius measured on the plane and Hertz's force at that radius
+        columns += ["contact_radius_mm", "force_hertz_radius_N"]
+    history = History(Path(out_dir) / name, columns, comm)
     iterations = []
 
     def points() -> int:
@@ -201,14 +232,23 @@ def run_hertz(
     def record(s):
         delta = delta_end * amplitude(s.t)
         force = -s.reactions(upper)  # the upper core pushes down: compressive force > 0
-        history.append(delta_mm=delta, force_N=force, force_hertz_N=float(case.hertz_force(delta)))
+        row = dict(delta_mm=delta, force_N=force, force_hertz_N=float(case.hertz_force(delta)))
+        if plane:
+            a = plane_contact_radius(contact.tools.evaluation, comm)
+            row.update(
+                contact_radius_mm=a, force_hertz_radius_N=float(case.hertz_force_at_radius(a))
+            )
+        history.append(**row)
         iterations.append(s.snes.getIterationNumber() if kind.static else 0)  # Newton's
+        at_radius = (
+            f", at the contact radius {100 * (force / row['force_hertz_radius_N'] - 1):+.2f} %"
+            if plane
+            else ""
+        )
         log(
             f"  delta/r = {delta / r:.5f}: F = {force:.4f} N, Hertz {case.hertz_force(delta):.4f} "
-            "N "
-            f"({100 * (force / case.hertz_force(delta) - 1):+.2f} %), {points()} "
-            "contact points, "
-            f"{iterations[-1]} Newton iterations"
+            f"N ({100 * (force / case.hertz_force(delta) - 1):+.2f} %{at_radius}), {points()} "
+            f"contact points, {iterations[-1]} Newton iterations"
         )
 
     log(f"Hertz: {V.dofmap.index_map.size_global * 3} dofs, penalty {penalty:.3g} N/mm^3")
