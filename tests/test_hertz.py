@@ -110,7 +110,7 @@ def test_contact_radius_of_a_hertz_pressure_from_its_second_moment():
     evaluation = SimpleNamespace(
         area=np.full(loaded.sum(), h * h),
         T1=T1[loaded],
-        position=np.c_[x[loaded], y[loaded], np.zeros(loaded.sum())],
+        reference=np.c_[x[loaded], y[loaded], np.zeros(loaded.sum())],
     )
     assert plane_contact_radius(evaluation, MPI.COMM_SELF) == pytest.approx(a, rel=2e-3)
 

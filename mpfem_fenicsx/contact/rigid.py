@@ -80,7 +80,7 @@ class RigidEvaluation:
     branch: np.ndarray  # (n,) law branch codes
     force: np.ndarray  # (n, 3) force on the slave node (N)
     dissipation: float  # frictional work of this trial increment on this rank (mJ)
-    position: np.ndarray  # (n, 3) the slave node's current position (mm)
+    reference: np.ndarray  # (n, 3) the slave node's reference (undeformed) position (mm)
 
     @property
     def size(self) -> int:
@@ -230,7 +230,7 @@ class RigidContact:
             branch,
             force,
             float(np.sum(area * diss)),
-            x[slave],
+            s.X[slave],
         )
         order = np.argsort(keys)
         self.trial = ContactState(

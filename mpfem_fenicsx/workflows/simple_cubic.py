@@ -21,7 +21,14 @@ from ..meshes.packing import simple_cubic_packing
 from ..solvers.explicit import ExplicitSettings
 from ..tools import Plane, RigidTool
 from .compaction import CompactionCase, contact_law
-from .tooled import ToolHistory, build_tooled, run_tooled, tool_law, tooled_solver
+from .tooled import (
+    ToolHistory,
+    build_tooled,
+    flow_between_tools,
+    run_tooled,
+    tool_law,
+    tooled_solver,
+)
 
 __all__ = ["COMPONENTS", "MESH_ROTATION", "between_walls", "checks", "simple_cubic_case"]
 
@@ -88,18 +95,24 @@ def between_walls(
     outputs: int = 40,
     comm=None,
     log=print,
+    damping_frame: str = "rest",
 ):
     """The cell's eight spheres in a box of six frictionless rigid planes on its contact planes
     x, y, z = 0 and 4 r (the periodic cell's symmetry planes), die-compacted by the top plane:
     its height follows the periodic die path's F0_zz(t) (the same smooth ramps over
     ``duration``), the other planes stay. The same particle meshes as :func:`simple_cubic_case`
     (inscribed, the generic rotation), the same contact law between the spheres; the planes'
-    penalty is twice it (:func:`~.tooled.tool_law`).
+    penalty is twice it (:func:`~.tooled.tool_law`). The node-wise local damping resists the
+    motion of every node (``damping_frame="rest"``) or its motion relative to the homogeneous
+    flow between the bottom and top planes (``"flow"``, the periodic cell's comoving frame; its
+    rows farther from the periodic cell's at 16 000 and 32 000 increments: bench/README.md).
 
     Returns the :class:`~.tooled.ToolHistory` with ``rho`` (the spheres' volume over the box's,
     eq. 2.5) and the stresses from the planes' forces (compression > 0, each the mean of the two
     opposite planes): ``sigma_zz_walls`` = force / (4 r)^2, ``sigma_xx_walls``,
     ``sigma_yy_walls`` = force / (4 r x the current height)."""
+    if damping_frame not in ("flow", "rest"):
+        raise ValueError(f"damping_frame = {damping_frame!r} must be 'flow' or 'rest'")
     comm = comm or MPI.COMM_WORLD
     periodic = simple_cubic_case("die", radius, target_density, increments, visual=False)
     packing, L = simple_cubic_packing(radius), 4.0 * radius
@@ -146,6 +159,10 @@ def between_walls(
             local_damping=periodic.solver.local_damping,
         ),
     )
+    if damping_frame == "flow":  # planes z0 (index 4) at 0 and z1 (5) at L
+        solver.damping_reference = flow_between_tools(
+            model, [(2, 4, 5, 0.0, L)], 0.5 * duration / increments
+        )
     history = ToolHistory(
         model,
         f"{out_dir}/history.csv",
