@@ -386,8 +386,7 @@ def run_closed_die(
         f"{case.target_density}; {model.num_dofs} dofs, {solver.total_steps} increments"
     )
 
-    state = {"stage_rows": {}, "bins": None, "t0": time.perf_counter(), "ejection": float("nan")}
-    state.update(ejection_steps=0, ejection_balanced=0)
+    state = {"stage_rows": {}, "bins": None, "t0": time.perf_counter(), **EJECTION_START}
     ends = case.stage_ends
 
     starts = np.r_[0.0, ends[:-1]]
@@ -442,10 +441,7 @@ def run_closed_die(
         model.tools.servo_step(s.t, s.dt)
         stage = stage_of(s.t)
         if constant_speed(s.t, 4):  # the ejection force: the lower punch's largest, step by step
-            push = balanced_push(model.tools.tool_forces()["force"][:, 2])
-            state["ejection_steps"] += 1
-            state["ejection_balanced"] += int(np.isfinite(push))
-            state["ejection"] = float(np.fmax(state["ejection"], push))
+            _count_ejection(state, model.tools.tool_forces()["force"][:, 2])
         # the increment that ends a stage (the last one ends the run: recorded by run's output)
         if stage < 4 and abs(s.t - ends[stage - 1]) < 0.5 * dt:
             record(s, stage_end=True)
@@ -504,6 +500,18 @@ def balanced_push(forces_z: np.ndarray, limit: float = BALANCE_LIMIT) -> float:
     if lower == 0.0 or abs(np.sum(forces_z)) > limit * abs(lower):
         return float("nan")
     return float(-lower)
+
+
+#: the ejection's counters in a run's state: the force, increments at constant speed, balanced
+EJECTION_START = {"ejection": float("nan"), "ejection_steps": 0, "ejection_balanced": 0}
+
+
+def _count_ejection(state: dict, forces_z: np.ndarray) -> None:
+    """One increment of the ejection at constant speed: its balanced push in ``state``."""
+    push = balanced_push(forces_z)
+    state["ejection_steps"] += 1
+    state["ejection_balanced"] += int(np.isfinite(push))
+    state["ejection"] = float(np.fmax(state["ejection"], push))
 
 
 def _pressing_figures(history: ToolHistory, state: dict, constant_speed) -> dict:
