@@ -165,7 +165,10 @@ class ImplicitSolver:
         self.snes = PETSc.SNES().create(self.comm)
         self.snes.setOptionsPrefix(prefix)
         opts = PETSc.Options()
-        for key, value in {**DEFAULT_OPTIONS, **(petsc_options or {})}.items():
+        options = {**DEFAULT_OPTIONS, **(petsc_options or {})}
+        if options["pc_type"] not in ("lu", "cholesky"):  # iterative: no factorization package
+            options.pop("pc_factor_mat_solver_type")
+        for key, value in options.items():
             opts[prefix + key] = value
         self.snes.setFromOptions()
         self.snes.setConvergenceHistory(reset=True)
