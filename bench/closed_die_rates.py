@@ -46,6 +46,7 @@ def run(increments: int, frame: str) -> Path:
 def table(folders: list[Path]) -> str:
     """The comparison table (Markdown) of the kept runs."""
     from mpfem_fenicsx.io.history import read_csv
+    from mpfem_fenicsx.workflows.closed_die import balanced_push
 
     head = " | ".join(f"p_up / p_low at {d}" for d in DENSITIES)
     lines = [
@@ -66,11 +67,11 @@ def table(folders: list[Path]) -> str:
             up = np.interp(d, rho, h["upper_pressure"][pressing])
             low = np.interp(d, rho, h["lower_pressure"][pressing])
             cells.append(f"{up:.2f} / {low:.2f}")
-        # the ejection force from the history's rows where the tools balance within 5 % (the
-        # compact's inertia left out; summaries before that measure kept every increment's)
-        F = np.column_stack([h[f"{t}_Fz"] for t in ("upper", "lower", "die")])
-        rows = (h["stage"] == 4) & (F[:, 1] != 0) & (np.abs(F.sum(1)) <= 0.05 * np.abs(F[:, 1]))
-        eject = (-F[rows, 1]).max() if rows.any() else float("nan")
+        # the ejection force from the history's rows where the tools balance (the compact's
+        # inertia left out; summaries before that measure kept every increment's)
+        F = np.column_stack([h[f"{t}_Fz"] for t in ("upper", "lower", "die")])[h["stage"] == 4]
+        pushes = [balanced_push(f) for f in F]
+        eject = np.nanmax(pushes) if np.isfinite(pushes).any() else float("nan")
         lines.append(
             f"| {folder.name} | "
             + " | ".join(cells)

@@ -70,15 +70,18 @@ def table() -> str:
     def increments(folder: Path) -> int:
         return int(folder.name.split("_n")[1])
 
+    def history_path(folder: Path) -> Path:  # the periodic runs write into their path's folder
+        return folder / ("die" if folder.name.startswith("periodic") else "") / "history.csv"
+
     def done(folder: Path) -> bool:  # a run still going (or cut) has not reached 0.95
-        path = folder / ("die" if folder.name.startswith("periodic") else "") / "history.csv"
+        path = history_path(folder)
         return path.is_file() and read_csv(path)["rho"][-1] >= 0.95 - 1e-6
 
     periodic = sorted(filter(done, KEPT.glob("periodic_n*")), key=increments)
     walls = sorted(filter(done, KEPT.glob("walls_*")), key=increments)
     if not periodic or not walls:
         return "(no runs kept)"
-    ref = read_csv(periodic[-1] / "die" / "history.csv")
+    ref = read_csv(history_path(periodic[-1]))
     lines = [
         f"reference: the periodic cell at {increments(periodic[-1])} increments, end "
         + " / ".join(f"{ref[c][-1]:.2f}" for _, c in PAIRS)
@@ -89,7 +92,7 @@ def table() -> str:
         "|---|---|---|---|---|",
     ]
     for folder in [*periodic[:-1], *walls]:
-        h = read_csv(folder / ("die" if folder.name.startswith("periodic") else "") / "history.csv")
+        h = read_csv(history_path(folder))
         cols = [c for c, _ in PAIRS] if folder.name.startswith("walls") else [c for _, c in PAIRS]
         ends, worst, where = [], [], []
         for col, (_, ref_col) in zip(cols, PAIRS, strict=True):
