@@ -279,6 +279,12 @@ class LoadingSection:
             )
 
 
+#: the implicit solver's linear solvers (``[solver] linear_solver``) and the size up to which
+#: ``auto`` factorizes (free dofs: MUMPS' memory and time grow fast beyond it)
+LINEAR_SOLVERS = ("auto", "direct", "iterative")
+DIRECT_SOLVER_DOFS = 300_000
+
+
 @dataclass(frozen=True)
 class SolverSection:
     """``[solver]``: the explicit (central differences, mass scaling, damping) or implicit
@@ -292,6 +298,13 @@ class SolverSection:
     )
     increments: int = parameter(6000, "explicit increments over the loading", low=10)
     steps: int = parameter(100, "implicit load steps (adaptive, cut back when Newton fails)", low=1)
+    linear_solver: str = parameter(
+        "auto",
+        "implicit linear solver: direct (MUMPS LU), iterative (GMRES + smoothed-aggregation "
+        f"AMG with the rigid-body near-nullspace) or auto (direct up to {DIRECT_SOLVER_DOFS} "
+        "free dofs)",
+        choices=LINEAR_SOLVERS,
+    )
     damping: float = parameter(
         0.0,
         "explicit viscous damping of the particles' rigid motion relative to the imposed "
@@ -312,8 +325,9 @@ class SolverSection:
         "explicit reduced mass of the constrained model: lumped row sums or the consistent P^T M P",
         choices=CONSTRAINT_MASSES,
     )
-    #: implicit: pseudo-time drag k_i = regularization E V_i / h^2 towards the last converged
-    #: state (V_i nodal volume, h contact element size): holds particles before contact
+    #: implicit: pseudo-time drag towards the last converged state, in total regularization
+    #: E V_p / h^2 per particle (V_p its volume, h the contact element size) on the particle's
+    #: core (workflows.compaction.core_drag): holds particles before contact
     regularization: float = 0.05
     #: implicit: steps of each of the loading's ``segments_after`` (missing ones: the
     #: compaction's increment)

@@ -144,6 +144,7 @@ def compaction_parser(loading: str, doc: str) -> argparse.ArgumentParser:
     option("solver", "increments")
     option("loading", "profile")
     option("solver", "steps")
+    option("solver", "linear_solver")
     option("mesh", "resolution", "--mesh")
     option("mesh", "refinement")
     option("output", "outputs")
@@ -176,7 +177,12 @@ def compaction_case(args: argparse.Namespace, loading: str) -> CompactionCase:
             loading=LoadingSection(
                 path=loading, target_density=args.target_density, profile=args.profile
             ),
-            solver=SolverSection(kind=args.solver, increments=args.increments, steps=args.steps),
+            solver=SolverSection(
+                kind=args.solver,
+                increments=args.increments,
+                steps=args.steps,
+                linear_solver=args.linear_solver,
+            ),
             output=OutputSection(
                 directory=args.out,
                 outputs=args.outputs,

@@ -653,6 +653,9 @@ def test_mpirun_two_ranks_run_and_restart(tiny_run, tmp_path, root):
     for name in serial:
         if name == "wall_time":
             continue
+        if np.isnan(serial[name]).all():  # a column this solver does not fill (implicit-only)
+            assert np.isnan(a[name]).all() and np.isnan(b[name]).all(), name
+            continue
         family = name.rstrip("0123456789_")
         scale = (
             max(np.nanmax(np.abs(serial[k])) for k in serial if k.rstrip("0123456789_") == family)

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from mpfem_fenicsx.contact.kernels import slip_reversal_limit, trial_shear
 from mpfem_fenicsx.contact.laws import ContactLaw, evaluate_law
 
 
@@ -107,3 +108,34 @@ def test_stored_tangential_traction_rotates_with_contact_frame(theta):
     # a traction along the rotation axis is unchanged
     _, Tt, _, _, _ = _law(law, [-1e-7], tt=(0.0, 3.0, 0.0), normal=normal)
     assert Tt[0] == pytest.approx([0.0, 3.0, 0.0])
+
+
+def test_trial_shear_recovered_from_the_returned_traction_and_dissipation():
+    """|T_t,trial| = |T_t| + k_t w / |T_t| for a slipping point (its trial is known here: the
+    stored traction minus k_t x the slip), |T_t| for a sticking one."""
+    law = ContactLaw(penalty=1e9, friction=0.1)
+    kt = law.kernel_parameters()[1]
+    for slip, trial in ((3e-8, 30.0), (7e-8, 70.0), (5e-9, 5.0)):
+        _, Tt, _, _, w = _law(law, [-1e-7], slip=(slip, 0.0, 0.0))
+        assert trial_shear(Tt, w, kt)[0] == pytest.approx(trial)
+
+
+def test_newton_update_reverses_a_slipping_point_at_most_to_its_cone_centre():
+    """The limited update, applied to the law, leaves the point's trial traction on its side
+    of the cone's centre, and a slip continued along its direction is not limited."""
+    law = ContactLaw(penalty=1e9, friction=0.1)
+    kt = law.kernel_parameters()[1]
+    slip = 3e-8  # trial 30 MPa, slips at 10 MPa
+    _, Tt, _, _, w = _law(law, [-1e-7], slip=(slip, 0.0, 0.0))
+    branch = np.array([4 * 2 + 0])  # slip, overlap
+    normal = np.array([[0.0, 0.0, 1.0]])
+    trial = trial_shear(Tt, w, kt)
+    update = np.array([[-1e-7, 0.0, 5e-9]])  # back by 1e-7 mm (trial to -70 MPa) + a normal part
+    lam = slip_reversal_limit(update, normal, Tt, trial, branch, kt)
+    assert lam == pytest.approx(0.3)  # 3e-8 of the 1e-7 mm back: the trial to 0
+    _, Tt_after, _, _, _ = _law(law, [-1e-7], slip=(slip + lam * update[0, 0], 0.0, 0.0))
+    assert Tt_after[0, 0] == pytest.approx(0.0, abs=1e-9)  # stick, at the centre
+    onward = np.array([[1e-6, 0.0, 0.0]])
+    assert slip_reversal_limit(onward, normal, Tt, trial, branch, kt) == 1.0
+    stick = np.array([4 * 1 + 0])
+    assert slip_reversal_limit(update, normal, Tt, trial, stick, kt) == 1.0

@@ -59,6 +59,9 @@ def test_two_ranks_reproduce_serial(case, root, tmp_path):
         assert list(serial) == list(parallel)
         for name in set(serial) - IGNORED:
             assert serial[name].shape == parallel[name].shape, (csv, name)
+            if np.isnan(serial[name]).all():  # a column this solver does not fill
+                assert np.isnan(parallel[name]).all(), (csv, name)
+                continue
             # a column that is round-off (e.g. an off-diagonal stress) is compared with the
             # magnitude of its family (sigma11..33, F11..33, ...)
             family = name.rstrip("0123456789_")

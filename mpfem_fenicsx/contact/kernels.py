@@ -9,7 +9,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .laws import SOFTENING, law_point
+from .laws import SLIP, SOFTENING, law_point
 from .search import FACING, project_point
 
 
@@ -297,3 +297,45 @@ def contact_areas(
             if dot < -FACING:
                 acc += facet_area[f] / nv
         out[p] = acc
+
+
+def trial_shear(Tt: np.ndarray, dissipation: np.ndarray, kt: np.ndarray | float) -> np.ndarray:
+    """Magnitude of each point's trial tangential traction |T_t,n - k_t delta_t| (MPa) from its
+    returned traction ``Tt`` (n, 3) and its frictional dissipation per unit area (mJ/mm^2): a
+    slipping point dissipates |T_t| (|T_t,trial| - |T_t|) / k_t (thesis eq. 3.17-3.19), a
+    sticking one nothing (its trial is its traction)."""
+    magnitude = np.linalg.norm(Tt, axis=1)
+    return magnitude + kt * dissipation / np.maximum(magnitude, 1e-300)
+
+
+def slip_reversal_limit(
+    motion: np.ndarray,
+    normal: np.ndarray,
+    Tt: np.ndarray,
+    trial: np.ndarray,
+    branch: np.ndarray,
+    kt: np.ndarray | float,
+) -> float:
+    """Largest fraction (0, 1] of a Newton update that brings no slipping point back past the
+    centre of its Coulomb cone, on the linearized slips.
+
+    ``motion`` (n, 3): each point's slave motion relative to its master along the update (mm);
+    ``normal``, ``Tt`` (MPa), ``trial`` (:func:`trial_shear`, MPa), ``branch`` of the
+    evaluation the update was computed at; ``kt``: the tangential penalty (N/mm^3), one or per
+    point. A slipping point's tangent has no stiffness along its slip, so an update that
+    reverses it can carry it through its whole stick range (2 mu T1 / kt, ~1e-7 mm) and out on
+    the far side, where the full step raises the residual and the line search crawls. Its trial
+    traction shrinks by kt x the reversal: reversing by at most |T_t,trial| / kt lands it at
+    worst at the cone's centre, on the stick branch whose stiffness the next iterate carries
+    (thesis eq. 3.14-3.17)."""
+    slip = branch // 4 == SLIP
+    if not slip.any():
+        return 1.0
+    kt = np.broadcast_to(np.asarray(kt, dtype=float), branch.shape)[slip]
+    d, n, t = motion[slip], normal[slip], Tt[slip]
+    d = d - np.einsum("pd,pd->p", d, n)[:, None] * n
+    # the traction opposes the slave's slip: a motion along it reverses the slip
+    back = np.einsum("pd,pd->p", d, t) / np.maximum(np.linalg.norm(t, axis=1), 1e-300)
+    room = trial[slip] / kt
+    limited = back > room
+    return float(np.min(room[limited] / back[limited])) if limited.any() else 1.0

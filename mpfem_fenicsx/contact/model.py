@@ -35,6 +35,8 @@ from .kernels import (
     point_tangents,
     point_weights,
     relative_motion,
+    slip_reversal_limit,
+    trial_shear,
 )
 from .laws import ContactLaw, evaluate_law
 from .rigid import RigidContact
@@ -66,6 +68,7 @@ class ContactEvaluation:
     branch: np.ndarray  # (n,) law branch codes (laws.normal_branch / tangent branch)
     point_force: np.ndarray  # (n, 3) force on the slave, both passes' weight included (N)
     dissipation: float  # frictional work of this trial increment on this rank (mJ)
+    trial_shear: np.ndarray  # (n,) magnitude of the trial tangential traction (MPa)
 
     @property
     def size(self) -> int:
@@ -86,6 +89,7 @@ class ContactEvaluation:
             np.zeros(0, np.int64),
             np.zeros((0, 3)),
             0.0,
+            n0,
         )
 
 
@@ -414,6 +418,7 @@ class ContactModel:
             branch,
             scale[:, None] * (T1[:, None] * pts.normal + Tt),
             float(np.sum(scale * dissipation)),
+            trial_shear(Tt, dissipation, params[1]),
         )
         order = np.argsort(keys)
         self.guards.remember(keys[order], branch[order])
@@ -459,39 +464,57 @@ class ContactModel:
                 )
         return self.evaluation
 
-    def penetration_step_limit(self, direction: dolfinx.fem.Function) -> float:
-        """Largest fraction (0, 1] of a displacement update ``direction`` that keeps every open
-        contact point (gap >= 0 at the last evaluation) from penetrating deeper than the deepest
-        current penetration, on the linearized gaps (same on all ranks).
+    def step_limit(self, direction: dolfinx.fem.Function, slip: bool = True) -> float:
+        """Largest fraction (0, 1] of a displacement update ``direction`` that Newton may take
+        at the last evaluation, on the linearized gaps and slips (same on all ranks): the
+        smaller of two limits, on each point's relative motion along the update
+        (:func:`~.kernels.relative_motion`; a tool point's own, the tools standing still within
+        an increment).
 
+        Penetration: no open point (gap >= 0) goes deeper than the deepest current penetration.
         Newton's linearization gives an open point no contact stiffness, so on a soft (plastic)
         substrate one iteration can drive it far into the master, the next pushes it back out:
         the period-2 open / closed cycles at the rim of a growing contact. Limiting the step to
         the scale of the existing penetrations lets the point enter the contact gently and carry
         its stiffness into the next iteration (a penetration-controlled step, not a change of
-        the solution). Collective."""
+        the solution).
+
+        Slip reversal (``slip``): no slipping point goes back past the centre of its Coulomb
+        cone (:func:`~.kernels.slip_reversal_limit`). Collective."""
         lam = 1.0
         pts = self.evaluation.points
         moved = self.surface.gather(direction)  # collective: on every rank, points or not
         if pts.size:
-            jump = relative_motion(self.evaluation.nodes, self.evaluation.weights, moved)
-            dgap = np.einsum("pd,pd->p", jump, pts.normal)
-            closed = pts.gap < 0
-            depth = max(-pts.gap[closed].min(), 0.0) if closed.any() else 0.0
-            depth = max(depth, self._size_floor)
-            limited = (pts.gap >= 0) & (pts.gap + dgap < -depth)
-            if limited.any():
-                lam = float(np.min((pts.gap[limited] + depth) / -dgap[limited]))
+            ev = self.evaluation
+            jump = relative_motion(ev.nodes, ev.weights, moved)
+            lam = self._penetration_limit(pts.gap, np.einsum("pd,pd->p", jump, pts.normal))
+            if slip:
+                kt = self.law.kernel_parameters()[1]
+                lam = min(
+                    lam, slip_reversal_limit(jump, pts.normal, ev.Tt, ev.trial_shear, ev.branch, kt)
+                )
         if self.tools is not None:
-            ev = self.tools.evaluation  # the tools stand still within an increment
-            dgap = np.einsum("pd,pd->p", moved[ev.slave], ev.normal)
-            closed = ev.gap < 0
-            depth = max(-ev.gap[closed].min(), 0.0) if closed.any() else 0.0
-            depth = max(depth, self._size_floor)
-            limited = (ev.gap >= 0) & (ev.gap + dgap < -depth)
-            if limited.any():
-                lam = min(lam, float(np.min((ev.gap[limited] + depth) / -dgap[limited])))
+            ev = self.tools.evaluation
+            if ev.size:
+                jump = moved[ev.slave]
+                dgap = np.einsum("pd,pd->p", jump, ev.normal)
+                lam = min(lam, self._penetration_limit(ev.gap, dgap))
+                if slip:
+                    kt = self.tools.tangential_penalties(ev.tool)
+                    lam = min(
+                        lam,
+                        slip_reversal_limit(jump, ev.normal, ev.Tt, ev.trial_shear, ev.branch, kt),
+                    )
         return self.comm.allreduce(lam, op=MPI.MIN)
+
+    def _penetration_limit(self, gap: np.ndarray, dgap: np.ndarray) -> float:
+        """The penetration part of :meth:`step_limit` for points of gaps ``gap`` (mm) moving by
+        ``dgap`` (mm) along the update."""
+        closed = gap < 0
+        depth = max(-gap[closed].min(), 0.0) if closed.any() else 0.0
+        depth = max(depth, self._size_floor)
+        limited = (gap >= 0) & (gap + dgap < -depth)
+        return float(np.min((gap[limited] + depth) / -dgap[limited])) if limited.any() else 1.0
 
     def nodal_forces(self) -> tuple[np.ndarray, np.ndarray]:
         """Global dof indices and values of the contact forces on the bodies (N)."""

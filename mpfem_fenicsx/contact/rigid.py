@@ -25,6 +25,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .history import ContactState
+from .kernels import trial_shear
 from .laws import evaluate_law, law_point
 
 #: relative size of the central-difference step of the tangent (times the point's sqrt(area))
@@ -81,6 +82,7 @@ class RigidEvaluation:
     force: np.ndarray  # (n, 3) force on the slave node (N)
     dissipation: float  # frictional work of this trial increment on this rank (mJ)
     reference: np.ndarray  # (n, 3) the slave node's reference (undeformed) position (mm)
+    trial_shear: np.ndarray  # (n,) magnitude of the trial tangential traction (MPa)
 
     @property
     def size(self) -> int:
@@ -103,6 +105,7 @@ class RigidEvaluation:
             np.zeros((0, 3)),
             0.0,
             np.zeros((0, 3)),
+            z,
         )
 
 
@@ -166,6 +169,11 @@ class RigidContact:
     def _query(self, tool: int, x: np.ndarray, reach: float):
         """Indices, gaps and normals of the points ``x`` within ``reach`` of tool ``tool``."""
         return self.tools[tool].shape.gap_normal(x - self.translation[tool], reach)
+
+    def tangential_penalties(self, tool: np.ndarray) -> np.ndarray:
+        """The tangential penalty k_t (N/mm^3) of each point's tool (``tool``: tool indices)."""
+        kt = np.array([t.law.kernel_parameters()[1] for t in self.tools])
+        return kt[np.asarray(tool, dtype=np.int64)]
 
     def _law(self, tool: np.ndarray, gap, slip, normal, history, branch=None):
         """Law per tool (a loop over the few tools): T1 (n,), Tt (n, 3), alpha, smax,
@@ -231,6 +239,7 @@ class RigidContact:
             force,
             float(np.sum(area * diss)),
             s.X[slave],
+            trial_shear(Tt, diss, self.tangential_penalties(tool)),
         )
         order = np.argsort(keys)
         self.trial = ContactState(

@@ -484,6 +484,10 @@ class ExplicitSolver:
             else int(np.ceil(self.settings.t_end / self.dt - 1e-9))
         )
 
+    def iteration_record(self) -> dict[str, float]:
+        """NaN: an explicit increment has no Newton iterations and no cut-backs."""
+        return dict.fromkeys(("newton_iterations", "linear_iterations", "cutbacks"), float("nan"))
+
     def unbalanced_ratio(self) -> float:
         """Out-of-balance ratio at the current step (-): ||P^T (f_int + f_bv - f_c)|| /
         ||P^T f_int||, 2-norms over the free (reduced) dofs of the forces the medium exerts,

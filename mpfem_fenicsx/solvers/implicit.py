@@ -39,6 +39,9 @@ class StepControl:
     dt_max: float = 0.1
     grow: float = 1.5  # increment growth after an easy step (<= easy_iterations)
     easy_iterations: int = 6
+    #: converged increments after a cut-back before the increment may grow again (a cut
+    #: increment grown straight back would pose the failed problem again)
+    settle_steps: int = 2
     #: times that increments land on exactly (e.g. the end of loading before unloading)
     breakpoints: tuple[float, ...] = ()
 
@@ -68,6 +71,69 @@ DEFAULT_OPTIONS = {
     "pc_type": "lu",
     "pc_factor_mat_solver_type": "mumps",
 }
+
+
+#: PETSc options of the iterative linear solver: GMRES (the frictional contact tangent is not
+#: symmetric) preconditioned by smoothed-aggregation AMG, with the rigid-body modes as its
+#: near-nullspace (:func:`rigid_body_modes`); an inexact Newton step to 1e-8 of the residual
+ITERATIVE_OPTIONS = {
+    "ksp_type": "gmres",
+    "ksp_gmres_restart": 200,
+    "ksp_rtol": 1e-8,
+    "ksp_max_it": 2000,
+    "pc_type": "gamg",
+    "pc_gamg_threshold": 0.01,
+    "mg_levels_ksp_type": "chebyshev",
+    "mg_levels_pc_type": "jacobi",
+}
+
+
+#: Newton's failures as the cut-back messages name them (PETSc's converged reasons)
+FAILURES = {
+    PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT: "reached its iteration limit",
+    PETSc.SNES.ConvergedReason.DIVERGED_DTOL: "stalled",
+    PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH: "line search failed",
+    PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE: "linear solve failed",
+    PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_NANORINF: "residual not finite",
+}
+
+#: Newton's stall test (:meth:`ImplicitSolver._converged`): an attempt ends when its residual
+#: has not halved over the last 8 iterations
+STALL_WINDOW = 8
+STALL_RATIO = 0.5
+
+
+def rigid_body_modes(constraint, positions: np.ndarray) -> list[PETSc.Vec]:
+    """The six rigid-body modes (three translations, three rotations about the origin) of the
+    bodies at ``positions`` (owned nodes, (n, 3), mm), in the reduced coordinates of
+    ``constraint`` (a reduced unknown is its free dof's value), orthonormalized: the
+    near-nullspace of smoothed-aggregation AMG. An aggregate sees them restricted to its nodes,
+    i.e. the rigid modes of the part of a particle it covers: the modes the particles'
+    elasticity leaves soft, which a plain (scalar) aggregation cannot represent."""
+    free = constraint.free
+    node, comp = free // 3, free % 3
+    x = positions[node]
+    modes = np.zeros((6, free.size))
+    for c in range(3):
+        modes[c, comp == c] = 1.0
+    # rotation about axis a: (e_a x X) component comp
+    cross = {
+        0: {1: -x[:, 2], 2: x[:, 1]},
+        1: {0: x[:, 2], 2: -x[:, 0]},
+        2: {0: -x[:, 1], 1: x[:, 0]},
+    }
+    for a, parts in cross.items():
+        for c, values in parts.items():
+            modes[3 + a, comp == c] = values[comp == c]
+    vectors = []
+    for row in modes:  # modified Gram-Schmidt (collective dots)
+        v = constraint.create_reduced_vector()
+        v.array_w[:] = row
+        for w in vectors:
+            v.axpy(-v.dot(w), w)
+        v.normalize()
+        vectors.append(v)
+    return vectors
 
 
 class ImplicitSolver:
@@ -126,6 +192,11 @@ class ImplicitSolver:
         #: increment, 1 on a full one (and in the tangent kept between increments)
         self.drag_scale = 1.0
         self.step_limits: list[float] = []  # contact step fractions applied (diagnostics)
+        self.last_iterations = 0  # Newton iterations of the last converged increment
+        self.last_linear_iterations = 0  # its linear solver iterations (predictor included)
+        self.cutbacks = 0  # failed attempts (increments retried shorter) since the start
+        self._since_cutback = np.inf  # converged increments since the last cut-back
+        self._unbalanced = float("nan")
         #: plastic dissipation of the converged increments (mJ), accumulated before each commit
         #: (after it the material's trial increment is the converged state's: zero)
         self.plastic_work = 0.0
@@ -170,13 +241,56 @@ class ImplicitSolver:
             options.pop("pc_factor_mat_solver_type")
         for key, value in options.items():
             opts[prefix + key] = value
+        #: smoothed-aggregation AMG gets the rigid-body modes as its near-nullspace
+        self._near_nullspace = options["pc_type"] == "gamg"
+        self._attach_near_nullspace(self.J_red)
         self.snes.setFromOptions()
         self.snes.setConvergenceHistory(reset=True)
         if contact is not None:
             self._direction = dolfinx.fem.Function(problem.V)
             self.snes.setLineSearchPreCheck(self._limit_contact_step)
+        self.snes.setConvergenceTest(self._converged)
         self.snes.setFunction(self._residual, self.r_red)
         self.snes.setJacobian(self._jacobian, self.J_red, self.J_red)
+
+    def _converged(self, snes, its: int, norms) -> int:
+        """Newton's convergence test: PETSc's absolute and relative residual tests and iteration
+        limit, and a stall test: after ``STALL_WINDOW`` iterations or more, a residual that has
+        not fallen below ``STALL_RATIO`` x its value ``STALL_WINDOW`` iterations before ends the
+        attempt (DIVERGED_DTOL; contact or stick / slip states cycling: a shorter increment is
+        the remedy, and each further iteration wastes a factorization)."""
+        fnorm = norms[2]
+        if its == 0:
+            self._fnorms = []
+        self._fnorms.append(fnorm)
+        rtol, atol, _, max_it = snes.getTolerances()
+        reason = PETSc.SNES.ConvergedReason
+        if not np.isfinite(fnorm):
+            return reason.DIVERGED_FUNCTION_NANORINF
+        if fnorm <= atol:
+            return reason.CONVERGED_FNORM_ABS
+        if its > 0 and fnorm <= rtol * self._fnorms[0]:
+            return reason.CONVERGED_FNORM_RELATIVE
+        if its >= max_it:
+            return reason.DIVERGED_MAX_IT
+        if its >= STALL_WINDOW and fnorm > STALL_RATIO * self._fnorms[its - STALL_WINDOW]:
+            return reason.DIVERGED_DTOL
+        return reason.ITERATING
+
+    def _attach_near_nullspace(self, J: PETSc.Mat) -> None:
+        """Give ``J`` the rigid-body modes of the current configuration as its near-nullspace
+        (an AMG preconditioner only)."""
+        if not self._near_nullspace:
+            return
+        V = self.problem.V
+        n = V.dofmap.index_map.size_local
+        positions = V.tabulate_dof_coordinates()[:n] + self.problem.u.x.array[: 3 * n].reshape(
+            -1, 3
+        )
+        modes = rigid_body_modes(self.constraint, positions)
+        J.setNearNullSpace(PETSc.NullSpace().create(vectors=modes, comm=self.comm))
+        for v in modes:
+            v.destroy()
 
     def _peculiar(self) -> np.ndarray:
         """w = u - g on the owned dofs: the displacement relative to the moving offsets."""
@@ -206,11 +320,12 @@ class ImplicitSolver:
 
     def _limit_contact_step(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """Line-search pre-check: shorten the Newton update (x <- x - y) so that open contact
-        points do not overshoot into the masters (:meth:`ContactModel.penetration_step_limit`);
-        at least a tenth of the step is kept so that Newton cannot stall."""
+        points do not overshoot into the masters nor slipping points back through their stick
+        range (:meth:`ContactModel.step_limit`); at least a tenth of the step is kept so that
+        Newton cannot stall."""
         self.constraint.expand(y, self._direction, with_offset=False)
         self._direction.x.array[:] *= -1.0
-        lam = max(self.contact.penetration_step_limit(self._direction), 0.1)
+        lam = max(self.contact.step_limit(self._direction), 0.1)
         if lam < 1.0:
             y.scale(lam)
         self.step_limits.append(lam)
@@ -296,8 +411,43 @@ class ImplicitSolver:
         )
 
     def unbalanced_ratio(self) -> float:
-        """NaN: Newton's converged residual (its tolerance) bounds the out-of-balance forces."""
-        return float("nan")
+        """Out-of-balance ratio of the last converged increment (-): ||P^T f_reg|| / ||P^T f_int||
+        with f_reg the regularization's drag at convergence, the one force of the converged
+        residual that is not the medium's (Newton's tolerance bounds the rest): what the
+        particles would still carry out of balance without it, the measure of the explicit
+        solver's ratio. 0 without regularization; NaN before any internal force."""
+        return self._unbalanced
+
+    def iteration_record(self) -> dict[str, float]:
+        """Newton and linear solver iterations of the last converged increment (the linear ones
+        of its predictor too) and the cut-backs since t = 0 (the failed attempts, counted from
+        this solver's start or its checkpoint)."""
+        return dict(
+            newton_iterations=float(self.last_iterations),
+            linear_iterations=float(self.last_linear_iterations),
+            cutbacks=float(self.cutbacks),
+        )
+
+    def _out_of_balance(self) -> float:
+        """:meth:`unbalanced_ratio` at the converged trial state, before its commit (the drag
+        towards the last converged state vanishes at the commit). Collective."""
+        if self.regularization is None:
+            return 0.0
+        n = self.constraint.num_owned
+        force = self.problem.create_vector()
+        self.problem.assemble_residual(force)
+        drag = force.duplicate()
+        drag.array_w[:n] = (
+            self.drag_scale * self.regularization.array_r * (self._peculiar() - self._w_converged)
+        )
+        reduced = self.x.duplicate()
+        self.constraint.restrict(force, reduced)
+        scale = reduced.norm()
+        self.constraint.restrict(drag, reduced)
+        ratio = reduced.norm() / scale if scale > 0.0 else float("nan")
+        for vec in (force, drag, reduced):
+            vec.destroy()
+        return ratio
 
     @property
     def total_steps(self) -> int:
@@ -352,6 +502,8 @@ class ImplicitSolver:
             reduced = reduced.duplicate(copy=True)
         self.J_red.destroy()
         self.J_red = reduced
+        if hasattr(self, "snes"):
+            self._attach_near_nullspace(self.J_red)
         self.snes.setJacobian(self._jacobian, self.J_red, self.J_red)
         self.snes.getKSP().getPC().reset()
         self._tangent_valid = True
@@ -383,7 +535,13 @@ class ImplicitSolver:
         self.x.axpy(1.0, dx)
         for vec in (g_old, dg, force, rhs, dx):
             vec.destroy()
+        predictor_its = ksp.getIterationNumber()
+        start = time.perf_counter()
         self.snes.solve(None, self.x)
+        self.timings["newton"] = self.timings.get("newton", 0.0) + time.perf_counter() - start
+        #: linear solver iterations of the last attempt (predictor and Newton steps; 1 per solve
+        #: for a direct solver)
+        self.attempt_linear_iterations = predictor_its + self.snes.getLinearSolveIterations()
         #: residual norms of the last Newton solve (N), for convergence-rate checks
         self.residual_norms = np.array(self.snes.getConvergenceHistory()[0], dtype=float)
         its = self.snes.getIterationNumber()
@@ -402,6 +560,11 @@ class ImplicitSolver:
             "step": np.array(self.step),
             "dt_next": np.array(np.nan if self.dt_next is None else self.dt_next),
             "iterations_total": np.array(self.iterations_total),
+            "last_iterations": np.array(self.last_iterations),
+            "last_linear_iterations": np.array(self.last_linear_iterations),
+            "cutbacks": np.array(self.cutbacks),
+            "since_cutback": np.array(float(self._since_cutback)),
+            "unbalanced": np.array(self._unbalanced),
             "x": self.x.array_r.copy(),
             "u": self.problem.u.x.array.copy(),
             "regularization_work": np.array(self.regularization_work),
@@ -419,6 +582,12 @@ class ImplicitSolver:
         self.step = int(data.get("step", 0))  # checkpoints before 2026-11-25 did not record it
         self.dt_next = None if np.isnan(data["dt_next"]) else float(data["dt_next"])
         self.iterations_total = int(data["iterations_total"])
+        # checkpoints before 2026-12-02 did not record these
+        self.last_iterations = int(data.get("last_iterations", 0))
+        self.last_linear_iterations = int(data.get("last_linear_iterations", 0))
+        self.cutbacks = int(data.get("cutbacks", 0))
+        self._since_cutback = float(data.get("since_cutback", np.inf))
+        self._unbalanced = float(data.get("unbalanced", np.nan))
         self.regularization_work = float(data["regularization_work"])
         self.plastic_work = float(data["plastic_work"])
         load_histories(self.problem, self.contact, data)
@@ -489,20 +658,25 @@ class ImplicitSolver:
             ok, its = self.solve_increment(t_new)
             self.iterations_total += its
             if not ok:
+                self.cutbacks += 1
+                self._since_cutback = 0
                 self.x_old.copy(self.x)  # restore the last converged state
                 self.bcs.apply(self.t)
                 dt *= 0.5
                 if log:
+                    why = self.snes.getConvergedReason()
                     log(
-                        f"  cut-back at t={self.t:.4g}: "
-                        f"Newton reason {self.snes.getConvergedReason()}, "
-                        f"dt -> {dt:.3g}"
+                        f"  cut-back at t={self.t:.4g}: Newton {FAILURES.get(why, why)} after "
+                        f"{its} iterations, dt -> {dt:.3g}"
                     )
                 if dt < control.dt_min:
                     raise NonConvergence(
                         f"Newton did not converge at t={self.t:.6g} even with dt={dt:.3g} < dt_min"
                     )
                 continue
+            self._unbalanced = self._out_of_balance()
+            self.last_iterations = its
+            self.last_linear_iterations = self.attempt_linear_iterations
             self.plastic_work += self.problem.plastic_dissipation_increment()
             self.problem.commit()
             if self.contact is not None:
@@ -519,7 +693,8 @@ class ImplicitSolver:
             self.x.copy(self.x_old)
             self.drag_scale = 1.0  # the tangent kept between increments, as a restart builds it
             self._refresh_tangent()  # as a restart from here would (restarts are exact)
-            if its <= control.easy_iterations:
+            self._since_cutback += 1
+            if its <= control.easy_iterations and self._since_cutback > control.settle_steps:
                 dt = min(dt * control.grow, control.dt_max)
             self.dt_next = dt  # before on_step: a checkpoint written there continues with it
             if on_step:

@@ -80,6 +80,12 @@ class Solver(Protocol):
         the solver has no such measure."""
         ...
 
+    def iteration_record(self) -> dict[str, float]:
+        """The increments' nonlinear iterations of a history row: ``newton_iterations`` of the
+        last increment and the ``cutbacks`` (failed attempts) so far; NaN for a solver without
+        them."""
+        ...
+
     def state_dict(self) -> dict[str, np.ndarray]:
         """This rank's complete state after an increment (a checkpoint's arrays)."""
         ...

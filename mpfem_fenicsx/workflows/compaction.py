@@ -23,6 +23,7 @@ from mpi4py import MPI
 
 from ..boundary import boundary_kind
 from ..case import (
+    DIRECT_SOLVER_DOFS,
     BoundarySection,
     CompactionCase,
     ContactSection,
@@ -67,6 +68,7 @@ from ..meshes.packing import (
 from ..problem import SolidProblem
 from ..solvers import NonConvergence, StepControl, create_solver, solver_kind
 from ..solvers.explicit import ExplicitSettings
+from ..solvers.implicit import ITERATIVE_OPTIONS
 from .history_recorder import (
     COLUMNS,
     QUASI_STATIC_CHECK_COLUMNS,
@@ -345,13 +347,11 @@ def make_solver(solver: SolverSection, model: CompactionModel, log=print):
     )
     if solver_kind(solver.kind).static:
         log(
-            "WARNING: implicit granular runs are experimental: with the pseudo-time drag the free "
-            "particles are solvable, but Newton needs many cut-backs once contacts yield, and may "
-            "stall on frictional stick / slip switches (verified on the 8-sphere simple cubic "
-            "cell: compaction, restart, chapter-4 reloads); use the explicit solver for "
-            "production runs"
+            "WARNING: implicit granular runs are experimental: the drag on the particles' cores "
+            "holds them until their contacts do, but Newton takes ~20 iterations per load step "
+            "once contacts yield (the flagship: hours, against minutes explicit); use the "
+            "explicit solver for production runs"
         )
-        nodal_volume = problem.lumped_mass(1.0).x.array[: bcs.constraint.num_owned]
         # backtracking line search: frictional stick / slip switches make full Newton steps cycle
         # (an explicit state relaxed to rest stalled at 1e-1 of its residual without it)
         implicit = create_solver(
@@ -359,11 +359,8 @@ def make_solver(solver: SolverSection, model: CompactionModel, log=print):
             problem,
             bcs,
             contact=model.contact,
-            petsc_options={"snes_linesearch_type": "bt"},
-            regularization=solver.regularization
-            * problem.params.E
-            * nodal_volume
-            / model.contact_length**2,
+            petsc_options={"snes_linesearch_type": "bt", **linear_solver_options(solver, model)},
+            regularization=core_drag(model, solver.regularization),
             controls=implicit_step_controls(solver, loading.duration, path),
         )
         log(f"{model_line} -> {loading.target_density}, implicit, {implicit.total_steps} steps")
@@ -391,6 +388,56 @@ def make_solver(solver: SolverSection, model: CompactionModel, log=print):
         f"{solver.increments} increments"
     )
     return explicit
+
+
+def linear_solver_options(solver: SolverSection, model: CompactionModel) -> dict:
+    """PETSc options of the ``[solver] linear_solver``: none for the direct solver (the implicit
+    solver's MUMPS default), the iterative solver's (``ITERATIVE_OPTIONS``) otherwise; ``auto``
+    takes the direct one up to ``DIRECT_SOLVER_DOFS`` free dofs."""
+    choice = solver.linear_solver
+    if choice == "auto":
+        free = model.bcs.constraint.num_reduced_global
+        choice = "direct" if free <= DIRECT_SOLVER_DOFS else "iterative"
+    return {} if choice == "direct" else dict(ITERATIVE_OPTIONS)
+
+
+#: the particle core that carries the implicit solver's drag: nodes within this fraction of the
+#: radius from the particle's centre (reference configuration)
+DRAG_CORE_RADIUS = 0.5
+
+
+def core_drag(model: CompactionModel, factor: float) -> np.ndarray:
+    """The implicit solver's pseudo-time drag stiffness k_i (N/mm) per owned dof: on each
+    particle a total factor E V_p / h^2 (V_p the particle's volume, h the contact element size),
+    spread over the nodes of its core (within ``DRAG_CORE_RADIUS`` r of its centre) in
+    proportion to their nodal volumes; zero elsewhere.
+
+    The drag holds what the static problem cannot: the rigid motion of a particle before its
+    contacts do (singular without it). The core moves with the particle's rigid motion and
+    barely deforms (plastic flow is at the contacts), so the drag leaves the contact zones'
+    deformation free: on the flagship's first contacts its work is 2-5 % of E_p, against
+    ~50 % with the same total spread over every node (which resists each increment's
+    deformation with a few % of the elastic stiffness, more than a yielding contact has)."""
+    problem, constraint = model.problem, model.bcs.constraint
+    V = problem.V
+    particle = node_particles(V, model.assembly.cell_tags.values[: problem.num_cells])
+    X = V.tabulate_dof_coordinates()[: particle.size]
+    radius = model.radii[particle]
+    core = np.linalg.norm(X - model.centres[particle], axis=1) < DRAG_CORE_RADIUS * radius
+    volume = problem.lumped_mass(1.0).x.array[: 3 * particle.size : 3]
+    # each particle's total and core nodal volume, summed over ranks (a particle may be split)
+    bodies = model.radii.size
+    totals = np.bincount(particle, weights=volume, minlength=bodies)
+    in_core = np.bincount(particle, weights=np.where(core, volume, 0.0), minlength=bodies)
+    totals, in_core = (model.problem.comm.allreduce(a) for a in (totals, in_core))
+    # the shells of tied copies (CLP) carry no material: no volume, no drag (their originals'
+    # drag holds them)
+    if np.any((totals > 0.0) & (in_core <= 0.0)):
+        raise ValueError("core_drag: a particle has no node within its drag core")
+    ratio = np.divide(totals, in_core, out=np.zeros(bodies), where=in_core > 0.0)
+    k = factor * problem.params.E / model.contact_length**2 * volume
+    k = np.where(core, k * ratio[particle], 0.0)
+    return np.repeat(k, 3)[: constraint.num_owned]
 
 
 def damped_bodies(bc: str, original: np.ndarray) -> np.ndarray:
@@ -629,8 +676,7 @@ class CompactionRun:
             self.solver.total_steps,
             rho=row["rho"],
             sigma_m=row["sigma_m"],
-            extra=f"unbalanced {row['unbalanced']:.2g}  contacts {row['n_contacts']:.0f} "
-            f"(Z {row['Z']:.2f})  E_p {row['E_p']:.3g} mJ  E_c {row['E_c']:.2g} mJ",
+            extra=_progress_note(row),
         )
         if self.checkpoints.due(len(self.history.rows)):
             self.write_checkpoint()
@@ -754,7 +800,13 @@ def run_compaction(
 
 
 #: columns added since the first checkpoints (which do not list theirs): filled with NaN on restart
-_COLUMNS_ADDED = ("Gamma_model", "Gamma_closed")
+_COLUMNS_ADDED = (
+    "Gamma_model",
+    "Gamma_closed",
+    "newton_iterations",
+    "linear_iterations",
+    "cutbacks",
+)
 
 
 def _history_rows(meta: dict, columns: list[str]) -> list[list[float]]:
@@ -789,7 +841,13 @@ def implicit_step_controls(
         else:
             n = max(1, round(length * solver.steps / duration))
         dt = length / n
-        controls.append(StepControl(t_end=knots[k + 1], dt=dt, dt_max=dt, dt_min=dt / 256))
+        # a granular increment takes ~15-20 Newton iterations whatever its length (contact rims
+        # entering, ~100 material points crossing the yield surface per iteration on the
+        # flagship): growing back after a cut-back only below 6 (the default) would keep the cut
+        # increment for the rest of the path
+        controls.append(
+            StepControl(t_end=knots[k + 1], dt=dt, dt_max=dt, dt_min=dt / 256, easy_iterations=20)
+        )
     return controls
 
 
@@ -807,6 +865,23 @@ def _anchor_displacement(bcs: GranularBoundaryConditions, V, u: np.ndarray, t: f
                 - bcs.displacement_gradient(t) @ bcs.anchor_carrier
             )
     return V.mesh.comm.allreduce(c)
+
+
+def _progress_note(row: dict[str, float]) -> str:
+    """The progress line's measures of a history row: the out-of-balance ratio, the contacts,
+    E_p; an explicit row's kinetic energy, an implicit row's Newton iterations, cut-backs and
+    drag work (E_damp) over E_p."""
+    note = (
+        f"unbalanced {row['unbalanced']:.2g}  contacts {row['n_contacts']:.0f} "
+        f"(Z {row['Z']:.2f})  E_p {row['E_p']:.3g} mJ"
+    )
+    if np.isnan(row["newton_iterations"]):
+        return note + f"  E_c {row['E_c']:.2g} mJ"
+    drag = f"{row['E_damp'] / row['E_p_model']:.2%}" if row["E_p_model"] > 0 else "-"
+    return note + (
+        f"  Newton {row['newton_iterations']:.0f} it  cut-backs {row['cutbacks']:.0f}  "
+        f"E_drag / E_p {drag}"
+    )
 
 
 def _dof_coordinates(V) -> np.ndarray:

@@ -41,13 +41,18 @@ History columns (one row per output; thesis §2.3, §4.2, appendix C):
   E_f (eq. 4.10, the chapter-4 iso-dissipation criterion), E_p_model and E_d_model the same over
   the whole model (copies included; = E_p, E_d for CLP, whose copies are stiffless shells),
   E_c kinetic (of the motion relative to the imposed flow), E_int internal work, E_el stored
-  elastic, E_contact work absorbed by contact, E_visc bulk viscosity, E_damp relaxation damping,
-  E_mass kinetic energy added by variable mass scaling (mass raised at an unchanged velocity; since
-  2026-11-28, NaN in older histories), W_ext external work;
+  elastic, E_contact work absorbed by contact, E_visc bulk viscosity, E_damp relaxation damping
+  (implicit: the pseudo-time drag's work), E_mass kinetic energy added by variable mass scaling
+  (mass raised at an unchanged velocity; since 2026-11-28, NaN in older histories), W_ext
+  external work;
 - unbalanced: out-of-balance ratio ||P^T (f_int + f_bv - f_c)|| / ||P^T f_int|| over the free dofs
-  (ExplicitSolver.unbalanced_ratio: 0 in static equilibrium; NaN for implicit rows, whose Newton
-  tolerance bounds it); E_c_over_E_int = E_c / E_int (kinetic over internal energy, -): the two
+  (ExplicitSolver.unbalanced_ratio: 0 in static equilibrium; implicit rows: the pseudo-time
+  drag's share ||P^T f_reg|| / ||P^T f_int||, the force the converged residual holds that is not
+  the medium's); E_c_over_E_int = E_c / E_int (kinetic over internal energy, -): the two
   quasi-static measures of an explicit row;
+- newton_iterations and linear_iterations (of the row's increment; the linear ones include its
+  predictor, 1 per solve for the direct solver), cutbacks (failed attempts so far): implicit
+  rows (NaN for explicit ones);
 - wall_time (s).
 
 Quasi-static check of an explicit run (:func:`quasi_static_check`, logged at its end): the
@@ -111,6 +116,7 @@ ENERGIES = [
     "W_ext",
 ]
 QUASI_STATIC = ["unbalanced", "E_c_over_E_int"]
+NONLINEAR = ["newton_iterations", "linear_iterations", "cutbacks"]
 COLUMNS = (
     KINEMATICS
     + STRESS_INVARIANTS
@@ -119,6 +125,7 @@ COLUMNS = (
     + CONTACTS
     + ENERGIES
     + QUASI_STATIC
+    + NONLINEAR
     + ["wall_time"]
 )
 
@@ -360,6 +367,7 @@ class HistoryRecorder:
             **energies,
             unbalanced=solver.unbalanced_ratio(),
             E_c_over_E_int=energies["E_c"] / energies["E_int"] if energies["E_int"] > 0 else np.nan,
+            **solver.iteration_record(),
             wall_time=wall_time,
         )
         return row

@@ -1,0 +1,90 @@
+"""The flagship compacted by Newton against its explicit default, row by row.
+
+    python bench/implicit_vs_explicit.py                 # the table of the kept histories
+    python bench/implicit_vs_explicit.py --run explicit  # (re)run one realization, then the table
+    python bench/implicit_vs_explicit.py --run implicit --restart CHECKPOINT   # continue one
+
+Two realizations of one compaction (`demos/isotropic.py`'s default: 24 lead particles, CLP by
+images, rho 0.59 -> 0.92): central differences with mass scaling and local damping at 6000
+increments, and the quasi-static Newton path at 100 load steps (pseudo-time drag on the
+particles' cores). The histories are kept in bench/measured/implicit_flagship/<solver>/; the
+implicit run checkpoints every 5 steps there (resumable with ``--restart``). The table gives
+sigma_m of both at the issue's densities (the explicit curve interpolated where the implicit one
+has reached them), the implicit run's progress (rho, Newton iterations per step, cut-backs,
+the drag's work over E_p, the drag's out-of-balance share) and both wall times.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent
+KEPT = ROOT / "measured" / "implicit_flagship"
+DENSITIES = (0.62, 0.65, 0.70, 0.75, 0.80, 0.85, 0.90)
+
+
+def read(path: Path) -> dict[str, np.ndarray]:
+    """A history's columns as float arrays (empty cells NaN)."""
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    return {k: np.array([float(r[k]) if r[k] else np.nan for r in rows]) for k in rows[0]}
+
+
+def run(solver: str, restart: str | None) -> None:
+    """One realization through the flagship demo (the case's defaults but the solver)."""
+    out = KEPT / solver
+    cmd = [sys.executable, str(ROOT.parent / "demos" / "isotropic.py"), "--no-visual"]
+    cmd += ["--solver", solver, "--out", str(out)]
+    if solver == "implicit":
+        cmd += ["--checkpoint-every", "5"]
+    if restart:
+        cmd += ["--restart", restart]
+    subprocess.run(cmd, check=True)
+
+
+def table() -> None:
+    """The comparison of the kept histories."""
+    explicit, implicit = (read(KEPT / s / "history.csv") for s in ("explicit", "implicit"))
+    print("| rho | explicit sigma_m (MPa) | implicit sigma_m (MPa) | implicit / explicit - 1 |")
+    print("|---|---|---|---|")
+    for rho in DENSITIES:
+        if rho > implicit["rho"].max():
+            print(
+                f"| {rho:.2f} | {np.interp(rho, explicit['rho'], explicit['sigma_m']):.4g} "
+                "| not reached | |"
+            )
+            continue
+        e = np.interp(rho, explicit["rho"], explicit["sigma_m"])
+        i = np.interp(rho, implicit["rho"], implicit["sigma_m"])
+        print(f"| {rho:.2f} | {e:.4g} | {i:.4g} | {i / e - 1:+.2%} |")
+    its = implicit["newton_iterations"]
+    end = -1
+    print(
+        f"\nimplicit: {its.size} steps to rho {implicit['rho'][end]:.4f}, Newton iterations per "
+        f"step {np.nanmedian(its):.0f} (median, max {np.nanmax(its):.0f}), "
+        f"{implicit['cutbacks'][end]:.0f} cut-backs, E_drag / E_p "
+        f"{implicit['E_damp'][end] / implicit['E_p'][end]:.2%}, drag share of the forces "
+        f"{implicit['unbalanced'][end]:.3f}; wall {implicit['wall_time'][end]:.0f} s "
+        f"(explicit: {explicit['wall_time'][-1]:.0f} s to rho {explicit['rho'][-1]:.4f})"
+    )
+
+
+def main(argv=None) -> None:
+    """Run what ``--run`` asks, then print the table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--run", choices=("explicit", "implicit"), default=None)
+    parser.add_argument("--restart", default=None, help="implicit: continue from a checkpoint")
+    args = parser.parse_args(argv)
+    if args.run:
+        run(args.run, args.restart)
+    table()
+
+
+if __name__ == "__main__":
+    main()

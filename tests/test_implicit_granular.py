@@ -1,0 +1,90 @@
+"""The implicit solver on granular volumes: the AMG preconditioner's rigid-body modes, the
+iterative linear solver against the direct one, the pseudo-time drag on the particles' cores."""
+
+import numpy as np
+import pytest
+from mpfem_fenicsx.meshes import node_particles, particle_mesh
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from mpfem_fenicsx.constraints.affine import AffineConstraint
+from mpfem_fenicsx.material import ElastoPlastic
+from mpfem_fenicsx.problem import SolidProblem
+from mpfem_fenicsx.solvers.implicit import rigid_body_modes
+from mpfem_fenicsx.workflows.compaction import (
+    DRAG_CORE_RADIUS,
+    build_compaction,
+    core_drag,
+    run_compaction,
+)
+from test_granular import quiet, small_case
+
+
+def test_rigid_body_modes_span_the_stiffness_nullspace_of_a_free_particle():
+    """The six modes are orthonormal and the assembled tangent of an unconstrained particle maps
+    each to zero (round-off of K's entries), while a deformation mode is not in its nullspace."""
+    mesh = particle_mesh([[0.0, 0.0, 0.0]], [1.0], MPI.COMM_SELF).mesh
+    problem = SolidProblem(mesh, ElastoPlastic(), tangent=True)
+    constraint = AffineConstraint(problem.V, np.zeros(0, np.int64))
+    K = problem.create_matrix()
+    problem.update_material(tangent=True)
+    problem.assemble_jacobian(K)
+    n = problem.V.dofmap.index_map.size_local
+    X = problem.V.tabulate_dof_coordinates()[:n]
+    modes = rigid_body_modes(constraint, X + np.array([0.3, -0.2, 0.1]))
+    gram = np.array([[a.dot(b) for b in modes] for a in modes])
+    assert np.abs(gram - np.eye(6)).max() < 1e-12
+    scale = K.norm(PETSc.NormType.INFINITY)
+    y = modes[0].duplicate()
+    for v in modes:
+        K.mult(v, y)
+        assert y.norm(PETSc.NormType.INFINITY) < 1e-10 * scale
+    stretch = modes[0].duplicate()  # u = (x, 0, 0): a uniaxial strain
+    stretch.array_w[:] = np.where(constraint.free % 3 == 0, X[constraint.free // 3, 0], 0.0)
+    K.mult(stretch, y)
+    assert y.norm(PETSc.NormType.INFINITY) > 1e-3 * scale * stretch.norm(PETSc.NormType.INFINITY)
+
+
+def test_drag_rides_on_the_particle_cores_with_its_total_per_particle(tmp_path):
+    """The drag stiffness sits on the nodes within the core radius only, and each particle's
+    sum is factor x E V_p / h^2 with V_p its finite-element volume (the nodal volumes' sum)."""
+    model = build_compaction(small_case(tmp_path, kind="implicit"), MPI.COMM_SELF, log=quiet)
+    k = core_drag(model, 0.05).reshape(-1, 3)[:, 0]
+    problem = model.problem
+    X = problem.V.tabulate_dof_coordinates()[: k.size]
+    particle = node_particles(problem.V, model.assembly.cell_tags.values[: problem.num_cells])
+    distance = np.linalg.norm(X - model.centres[particle], axis=1)
+    volume = problem.lumped_mass(1.0).x.array[: 3 * k.size : 3]
+    solid = np.bincount(particle, weights=volume)
+    assert np.count_nonzero(solid) == 8  # the cell's particles (the copies: massless shells)
+    inner = distance < DRAG_CORE_RADIUS * model.radii[particle]
+    assert np.all(k[~inner] == 0.0)
+    assert np.all(k[inner & (solid[particle] > 0)] > 0.0)
+    expected = 0.05 * problem.params.E / model.contact_length**2
+    totals = np.bincount(particle, weights=k)[solid > 0] / solid[solid > 0]
+    assert totals == pytest.approx(np.full(totals.size, expected), rel=1e-12)
+
+
+def test_iterative_linear_solver_gives_the_direct_solution(tmp_path):
+    """The simple cubic cell compacted by Newton with GMRES + smoothed-aggregation AMG (the
+    rigid-body near-nullspace) and with MUMPS: the same displacements to 1e-8 of their size,
+    the same stresses; the iterative run reports its Krylov iterations."""
+    runs = {}
+    for solver in ("direct", "iterative"):
+        case = small_case(
+            tmp_path / solver,
+            condition="CLP",
+            kind="implicit",
+            images=True,
+            target_density=0.53,
+            steps=2,
+            linear_solver=solver,
+        )
+        runs[solver] = run_compaction(case, MPI.COMM_SELF, log=quiet)
+    u = {s: r.model.problem.u.x.array for s, r in runs.items()}
+    assert np.abs(u["iterative"] - u["direct"]).max() < 1e-8 * np.abs(u["direct"]).max()
+    sigma = {s: r.history.column("sigma_m") for s, r in runs.items()}
+    assert sigma["iterative"] == pytest.approx(sigma["direct"], rel=1e-7, abs=1e-9)
+    assert sigma["direct"][-1] > 0.01  # MPa: the cell was compacted
+    linear = runs["iterative"].history.column("linear_iterations")
+    assert np.all(linear > runs["iterative"].history.column("newton_iterations"))
