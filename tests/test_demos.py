@@ -42,7 +42,8 @@ class Smoke:
 #: reads a packing file ({packing}: written by the test), else the generator's smallest periodic
 #: volume (24 particles); a hundred or so increments; visual output off where there is a switch
 #: history columns left empty where undefined (kinetic over internal energy while E_int <= 0)
-UNDEFINED = ("E_c_over_E_int",)
+#: NaN where undefined: a ratio at rest; the Newton columns of explicit rows
+UNDEFINED = ("E_c_over_E_int", "newton_iterations", "linear_iterations", "cutbacks")
 SMOKE: dict[str, Smoke] = {
     "closed_die": Smoke(
         (

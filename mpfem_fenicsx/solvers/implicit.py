@@ -40,8 +40,10 @@ class StepControl:
     grow: float = 1.5  # increment growth after an easy step (<= easy_iterations)
     easy_iterations: int = 6
     #: converged increments after a cut-back before the increment may grow again (a cut
-    #: increment grown straight back would pose the failed problem again)
-    settle_steps: int = 2
+    #: increment grown straight back would pose the failed problem again; granular volumes: 2)
+    settle_steps: int = 0
+    #: Newton's stall test window (iterations; None: no stall test, the iteration limit only)
+    stall_window: int | None = None
     #: times that increments land on exactly (e.g. the end of loading before unloading)
     breakpoints: tuple[float, ...] = ()
 
@@ -97,8 +99,9 @@ FAILURES = {
     PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_NANORINF: "residual not finite",
 }
 
-#: Newton's stall test (:meth:`ImplicitSolver._converged`): an attempt ends when its residual
-#: has not halved over the last 8 iterations
+#: Newton's stall test (:meth:`ImplicitSolver._converged`, on when a step control sets its
+#: ``stall_window``, e.g. the granular volumes' STALL_WINDOW): an attempt ends when its residual
+#: has not fallen below STALL_RATIO x its value ``stall_window`` iterations before
 STALL_WINDOW = 8
 STALL_RATIO = 0.5
 
@@ -196,6 +199,7 @@ class ImplicitSolver:
         self.last_linear_iterations = 0  # its linear solver iterations (predictor included)
         self.cutbacks = 0  # failed attempts (increments retried shorter) since the start
         self._since_cutback = np.inf  # converged increments since the last cut-back
+        self._stall_window = None  # the running step control's (None: no stall test)
         self._unbalanced = float("nan")
         #: plastic dissipation of the converged increments (mJ), accumulated before each commit
         #: (after it the material's trial increment is the converged state's: zero)
@@ -255,10 +259,11 @@ class ImplicitSolver:
 
     def _converged(self, snes, its: int, norms) -> int:
         """Newton's convergence test: PETSc's absolute and relative residual tests and iteration
-        limit, and a stall test: after ``STALL_WINDOW`` iterations or more, a residual that has
-        not fallen below ``STALL_RATIO`` x its value ``STALL_WINDOW`` iterations before ends the
-        attempt (DIVERGED_DTOL; contact or stick / slip states cycling: a shorter increment is
-        the remedy, and each further iteration wastes a factorization)."""
+        limit, and (the step control's ``stall_window`` set) a stall test: after that many
+        iterations or more, a residual that has not fallen below ``STALL_RATIO`` x its value that
+        many iterations before ends the attempt (DIVERGED_DTOL; contact or stick / slip states
+        cycling: a shorter increment is the remedy, and each further iteration wastes a
+        factorization)."""
         fnorm = norms[2]
         if its == 0:
             self._fnorms = []
@@ -273,7 +278,12 @@ class ImplicitSolver:
             return reason.CONVERGED_FNORM_RELATIVE
         if its >= max_it:
             return reason.DIVERGED_MAX_IT
-        if its >= STALL_WINDOW and fnorm > STALL_RATIO * self._fnorms[its - STALL_WINDOW]:
+        window = self._stall_window
+        if (
+            window is not None
+            and its >= window
+            and fnorm > STALL_RATIO * self._fnorms[its - window]
+        ):
             return reason.DIVERGED_DTOL
         return reason.ITERATING
 
@@ -645,6 +655,7 @@ class ImplicitSolver:
         """Advance from the current time to control.t_end; ``on_step`` after each converged step
         (a restarted solver continues with the increment it would have tried next)."""
         dt = control.dt if self.dt_next is None else min(self.dt_next, control.dt_max)
+        self._stall_window = control.stall_window
         steps = 0
         self.x.copy(self.x_old)
         while self.t < control.t_end * (1 - 1e-12):

@@ -68,7 +68,7 @@ from ..meshes.packing import (
 from ..problem import SolidProblem
 from ..solvers import NonConvergence, StepControl, create_solver, solver_kind
 from ..solvers.explicit import ExplicitSettings
-from ..solvers.implicit import ITERATIVE_OPTIONS
+from ..solvers.implicit import ITERATIVE_OPTIONS, STALL_WINDOW
 from .history_recorder import (
     COLUMNS,
     QUASI_STATIC_CHECK_COLUMNS,
@@ -846,7 +846,15 @@ def implicit_step_controls(
         # flagship): growing back after a cut-back only below 6 (the default) would keep the cut
         # increment for the rest of the path
         controls.append(
-            StepControl(t_end=knots[k + 1], dt=dt, dt_max=dt, dt_min=dt / 256, easy_iterations=20)
+            StepControl(
+                t_end=knots[k + 1],
+                dt=dt,
+                dt_max=dt,
+                dt_min=dt / 256,
+                easy_iterations=20,
+                settle_steps=2,
+                stall_window=STALL_WINDOW,
+            )
         )
     return controls
 
