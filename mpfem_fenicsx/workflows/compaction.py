@@ -209,10 +209,13 @@ def loading_path(loading: LoadingSection, rho0: float) -> GradientPath:
 
 def contact_law(contact: ContactSection, material: ElastoPlastic, h_contact: float) -> ContactLaw:
     """The contact law of the ``[contact]`` section (thesis §3.3) with the penalty
-    ``penalty_factor x E / h_contact`` (h_contact: the surface element edge, mm); raises
+    ``penalty_factor x E / h_contact`` (h_contact: the surface element edge, mm) and the
+    tangential penalty ``tangential_penalty_ratio`` x it (eq. 3.14); raises
     ValueError if the adhesive law has no softening branch at that penalty."""
+    penalty = default_penalty(material.E, h_contact, contact.penalty_factor)
     law = ContactLaw(
-        penalty=default_penalty(material.E, h_contact, contact.penalty_factor),
+        penalty=penalty,
+        tangential_penalty=contact.tangential_penalty_ratio * penalty,
         friction=contact.friction,
         gamma=contact.gamma,
         delta_max=contact.delta_max,
