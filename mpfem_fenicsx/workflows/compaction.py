@@ -351,8 +351,9 @@ def make_solver(solver: SolverSection, model: CompactionModel, log=print):
     if solver_kind(solver.kind).static:
         log(
             "WARNING: implicit granular runs are experimental: the drag on the particles' cores "
-            "holds them until their contacts do, but Newton takes ~20 iterations per load step "
-            "once contacts yield (the flagship: hours, against minutes explicit); use the "
+            "holds them until their contacts do, but Newton takes ~13 iterations per load step "
+            "once contacts yield and the steps shrink as the particles' plastic zones grow "
+            "(the flagship: over an hour, against minutes explicit); use the "
             "explicit solver for production runs"
         )
         # backtracking line search: frictional stick / slip switches make full Newton steps cycle
