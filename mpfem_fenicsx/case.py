@@ -336,10 +336,29 @@ class SolverSection:
         "explicit reduced mass of the constrained model: lumped row sums or the consistent P^T M P",
         choices=CONSTRAINT_MASSES,
     )
-    #: implicit: pseudo-time drag towards the last converged state, in total regularization
-    #: E V_p / h^2 per particle (V_p its volume, h the contact element size) on the particle's
-    #: core (workflows.compaction.core_drag): holds particles before contact
-    regularization: float = 0.05
+    release_iterations: int = parameter(
+        0,
+        "implicit: Newton iterations releasing each converged step from the drag (static "
+        "equilibrium without it; 0: keep the drag's solution)",
+        low=0,
+        high=100,
+    )
+    regularization: float = parameter(
+        0.05,
+        "implicit: pseudo-time drag on a particle that fewer than 4 contacts hold, in "
+        "E V_p / h^2 (V_p its volume, h the contact element size) (-)",
+        low=0,
+        high=1,
+        open_low=True,
+    )
+    held_regularization: float = parameter(
+        5e-4,
+        "implicit: the drag on a particle that 4 or more force-carrying contacts hold, in "
+        "E V_p / h^2 (-)",
+        low=0,
+        high=1,
+        open_low=True,
+    )
     #: implicit: steps of each of the loading's ``segments_after`` (missing ones: the
     #: compaction's increment)
     segment_steps: tuple = ()

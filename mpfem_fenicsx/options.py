@@ -145,6 +145,8 @@ def compaction_parser(loading: str, doc: str) -> argparse.ArgumentParser:
     option("loading", "profile")
     option("solver", "steps")
     option("solver", "linear_solver")
+    option("solver", "release_iterations")
+    option("solver", "held_regularization")
     option("mesh", "resolution", "--mesh")
     option("mesh", "refinement")
     option("output", "outputs")
@@ -182,6 +184,8 @@ def compaction_case(args: argparse.Namespace, loading: str) -> CompactionCase:
                 increments=args.increments,
                 steps=args.steps,
                 linear_solver=args.linear_solver,
+                release_iterations=args.release_iterations,
+                held_regularization=args.held_regularization,
             ),
             output=OutputSection(
                 directory=args.out,

@@ -15,6 +15,7 @@ from mpfem_fenicsx.workflows.compaction import (
     DRAG_CORE_RADIUS,
     build_compaction,
     core_drag,
+    held_drag,
     run_compaction,
 )
 from test_granular import quiet, small_case
@@ -63,6 +64,36 @@ def test_drag_rides_on_the_particle_cores_with_its_total_per_particle(tmp_path):
     expected = 0.05 * problem.params.E / model.contact_length**2
     totals = np.bincount(particle, weights=k)[solid > 0] / solid[solid > 0]
     assert totals == pytest.approx(np.full(totals.size, expected), rel=1e-12)
+
+
+def test_drag_weakens_on_the_particles_their_contacts_hold(tmp_path):
+    """held_drag: the core drag at ``regularization`` on a particle with fewer than 4
+    force-carrying contacts, at ``held_regularization`` on the others. Before contact every
+    particle has the full drag; the simple cubic cell compacted by Newton (6 contacts each)
+    ends with every particle held, and the solver carries that drag; on a contact list given
+    by hand, a particle with 3 loaded pairs and one with its own image (counted twice) is held,
+    one with 3 loaded pairs and an unloaded fourth is not."""
+    case = small_case(
+        tmp_path, condition="CLP", kind="implicit", images=True, target_density=0.53, steps=2
+    )
+    section = case.solver
+    ratio = section.held_regularization / section.regularization
+    assert ratio < 0.1
+    model = build_compaction(case, MPI.COMM_SELF, log=quiet)
+    full = core_drag(model, section.regularization)
+    assert np.array_equal(held_drag(model, section)(), full)  # no contact yet
+    result = run_compaction(case, MPI.COMM_SELF, log=quiet)
+    update = held_drag(result.model, section)
+    assert update() == pytest.approx(full * ratio, rel=1e-12)
+    assert result.solver.regularization.array_r == pytest.approx(full * ratio, rel=1e-12)
+    # by hand: bodies 0 (pairs with 1, 2, 3 and its own image), 1 (0, 2, 4 loaded, 5 unloaded)
+    pairs = np.array([[0, 1], [0, 2], [0, 3], [0, 0], [1, 2], [1, 4], [1, 5]])
+    points = np.array([3, 1, 2, 5, 1, 1, 0])
+    model.contact.pair_forces = lambda: {"pairs": pairs, "points": points}
+    k = held_drag(model, section)().reshape(-1, 3)[:, 0]
+    particle = node_particles(model.problem.V, model.assembly.cell_tags.values)[: k.size]
+    expected = full.reshape(-1, 3)[:, 0] * np.where(particle == 0, ratio, 1.0)
+    assert k == pytest.approx(expected, rel=1e-12)
 
 
 def test_iterative_linear_solver_gives_the_direct_solution(tmp_path):

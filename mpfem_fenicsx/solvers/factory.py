@@ -21,10 +21,13 @@ def create_solver(
     settings: ExplicitSettings | None = None,
     petsc_options: dict | None = None,
     regularization=None,
+    release_iterations: int = 0,
+    drag_update=None,
     damped_bodies=None,
 ) -> Solver:
     """The solver ``name`` on ``problem`` with ``bcs``: implicit with its step ``controls``
-    (``petsc_options``, ``regularization``), explicit with its ``settings`` (``damped_bodies``)."""
+    (``petsc_options``, ``regularization``, ``release_iterations``, ``drag_update``), explicit
+    with its ``settings`` (``damped_bodies``)."""
     if solver_kind(name).static:
         if not controls:
             raise ValueError("create_solver: the implicit solver needs its step controls")
@@ -34,6 +37,8 @@ def create_solver(
             contact=contact,
             petsc_options=petsc_options,
             regularization=regularization,
+            release_iterations=release_iterations,
+            drag_update=drag_update,
             controls=controls,
         )
     if settings is None:

@@ -365,6 +365,8 @@ def make_solver(solver: SolverSection, model: CompactionModel, log=print):
             contact=model.contact,
             petsc_options={"snes_linesearch_type": "bt", **linear_solver_options(solver, model)},
             regularization=core_drag(model, solver.regularization),
+            release_iterations=solver.release_iterations,
+            drag_update=held_drag(model, solver),
             controls=implicit_step_controls(solver, loading.duration, path),
         )
         log(f"{model_line} -> {loading.target_density}, implicit, {implicit.total_steps} steps")
@@ -442,6 +444,33 @@ def core_drag(model: CompactionModel, factor: float) -> np.ndarray:
     k = factor * problem.params.E / model.contact_length**2 * volume
     k = np.where(core, k * ratio[particle], 0.0)
     return np.repeat(k, 3)[: constraint.num_owned]
+
+
+#: force-carrying contacts from which the implicit drag counts a particle as held by its
+#: contacts (d + 1 in 3-D: the rattler threshold of the coordination number)
+HELD_CONTACTS = 4
+
+
+def held_drag(model: CompactionModel, solver: SolverSection):
+    """The implicit solver's ``drag_update``: :func:`core_drag` at ``solver.regularization`` on
+    the particles with fewer than ``HELD_CONTACTS`` force-carrying contacts at the committed
+    state (counted per volume particle: a copy shares its original's), at
+    ``solver.held_regularization`` on the others. The drag holds particles until their contacts
+    do; on a held particle it only steadies Newton (a drag as strong as the free particles'
+    resists the network's rearrangement and adds a stress of several %)."""
+    full = core_drag(model, solver.regularization)
+    held = full * (solver.held_regularization / solver.regularization)
+    V = model.problem.V
+    particle = node_particles(V, model.assembly.cell_tags.values[: model.problem.num_cells])
+    body = model.original[np.repeat(particle, 3)[: full.size]]
+
+    def update() -> np.ndarray:
+        forces = model.contact.pair_forces()  # summed over ranks
+        pairs = forces["pairs"][forces["points"] > 0]
+        contacts = np.bincount(model.original[pairs.ravel()], minlength=model.original.size)
+        return np.where(contacts[body] >= HELD_CONTACTS, held, full)
+
+    return update
 
 
 def damped_bodies(bc: str, original: np.ndarray) -> np.ndarray:
