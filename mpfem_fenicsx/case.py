@@ -336,13 +336,6 @@ class SolverSection:
         "explicit reduced mass of the constrained model: lumped row sums or the consistent P^T M P",
         choices=CONSTRAINT_MASSES,
     )
-    release_iterations: int = parameter(
-        0,
-        "implicit: Newton iterations releasing each converged step from the drag (static "
-        "equilibrium without it; 0: keep the drag's solution)",
-        low=0,
-        high=100,
-    )
     regularization: float = parameter(
         0.05,
         "implicit: pseudo-time drag on a particle that fewer than 4 contacts hold, in "

@@ -145,7 +145,6 @@ def compaction_parser(loading: str, doc: str) -> argparse.ArgumentParser:
     option("loading", "profile")
     option("solver", "steps")
     option("solver", "linear_solver")
-    option("solver", "release_iterations")
     option("solver", "held_regularization")
     option("mesh", "resolution", "--mesh")
     option("mesh", "refinement")
@@ -184,7 +183,6 @@ def compaction_case(args: argparse.Namespace, loading: str) -> CompactionCase:
                 increments=args.increments,
                 steps=args.steps,
                 linear_solver=args.linear_solver,
-                release_iterations=args.release_iterations,
                 held_regularization=args.held_regularization,
             ),
             output=OutputSection(

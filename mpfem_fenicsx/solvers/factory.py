@@ -21,12 +21,11 @@ def create_solver(
     settings: ExplicitSettings | None = None,
     petsc_options: dict | None = None,
     regularization=None,
-    release_iterations: int = 0,
     drag_update=None,
     damped_bodies=None,
 ) -> Solver:
     """The solver ``name`` on ``problem`` with ``bcs``: implicit with its step ``controls``
-    (``petsc_options``, ``regularization``, ``release_iterations``, ``drag_update``), explicit
+    (``petsc_options``, ``regularization``, ``drag_update``), explicit
     with its ``settings`` (``damped_bodies``)."""
     if solver_kind(name).static:
         if not controls:
@@ -37,7 +36,6 @@ def create_solver(
             contact=contact,
             petsc_options=petsc_options,
             regularization=regularization,
-            release_iterations=release_iterations,
             drag_update=drag_update,
             controls=controls,
         )

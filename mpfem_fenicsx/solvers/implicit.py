@@ -105,14 +105,6 @@ FAILURES = {
 STALL_WINDOW = 8
 STALL_RATIO = 0.5
 
-#: a release's tangent keeps this fraction of the drag (:meth:`ImplicitSolver._try_release`):
-#: enough to keep bodies without stiffness nonsingular, too little to slow Newton down
-RELEASE_TANGENT_DRAG = 1e-3
-
-#: a release ends when the drag-free residual is this fraction of the internal forces' norm
-#: ||P^T f_int|| (the out-of-balance ratio it then reports)
-RELEASE_TOLERANCE = 1e-3
-
 
 def rigid_body_modes(constraint, positions: np.ndarray) -> list[PETSc.Vec]:
     """The six rigid-body modes (three translations, three rotations about the origin) of the
@@ -165,7 +157,6 @@ class ImplicitSolver:
         prefix: str = "mpfem_implicit_",
         regularization: np.ndarray | None = None,
         controls: list[StepControl] | None = None,
-        release_iterations: int = 0,
         drag_update: Callable[[], np.ndarray] | None = None,
     ):
         """``controls``: the step controls :meth:`run_path` runs one after the other (one per
@@ -179,15 +170,6 @@ class ImplicitSolver:
         increment dt < dt0 stiffens it by dt0 / dt (:attr:`drag_scale`), so that a cut-back
         shortens the pseudo-time step even where the boundary does not move (a hold at a fixed
         gradient, whose every retry would otherwise pose the same Newton problem).
-
-        ``release_iterations`` > 0 (with a regularization): each converged increment is then
-        released from its drag: up to that many further Newton iterations on the drag-free
-        residual from the drag's solution, the drag kept in the tangent only (a
-        Levenberg-Marquardt step: a body without stiffness and without load does not move). If
-        they reach the increment's tolerance the increment ends in static equilibrium (no drag
-        force, no drag work); otherwise it keeps the drag's solution and the next releases are
-        tried less often (after 1, 2, 4, ... 16 increments), back to every increment at the next
-        success. :attr:`released` counts the released increments.
 
         ``drag_update``: the drag stiffness per owned dof for the committed state (e.g. weaker on
         the particles their contacts hold), called at every commit and after a restart (a
@@ -217,13 +199,7 @@ class ImplicitSolver:
         #: factor of the drag's stiffness in the increment being solved: dt0 / dt on a cut
         #: increment, 1 on a full one (and in the tangent kept between increments)
         self.drag_scale = 1.0
-        self.release_iterations = int(release_iterations)
         self.drag_update = drag_update
-        self.released = 0  # increments ended in static equilibrium by a release
-        self._drag_off = False  # the residual without the drag (a release, its accepted state)
-        self._release_wait = 0  # converged increments before the next release attempt
-        self._release_skip = 1  # increments skipped after a failed release (doubling to 16)
-        self._target_norm = None  # a release's residual target (N), its only convergence test
         self.step_limits: list[float] = []  # contact step fractions applied (diagnostics)
         self.last_iterations = 0  # Newton iterations of the last converged increment
         self.last_linear_iterations = 0  # its linear solver iterations (predictor included)
@@ -293,10 +269,7 @@ class ImplicitSolver:
             return reason.DIVERGED_FUNCTION_NANORINF
         if fnorm <= atol:
             return reason.CONVERGED_FNORM_ABS
-        if self._target_norm is not None:  # a release: its absolute target only
-            if fnorm <= self._target_norm:
-                return reason.CONVERGED_FNORM_ABS
-        elif its > 0 and fnorm <= rtol * self._fnorms[0]:
+        if its > 0 and fnorm <= rtol * self._fnorms[0]:
             return reason.CONVERGED_FNORM_RELATIVE
         if its >= max_it:
             return reason.DIVERGED_MAX_IT
@@ -367,7 +340,7 @@ class ImplicitSolver:
         t1 = time.perf_counter()
         self.problem.assemble_residual(self.r_full)
         t2 = time.perf_counter()
-        if self.regularization is not None and not self._drag_off:
+        if self.regularization is not None:
             n = self.constraint.num_owned
             drag = self.drag_scale * self.regularization.array_r
             self.r_full.array_w[:n] += drag * (self._peculiar() - self._w_converged)
@@ -397,7 +370,7 @@ class ImplicitSolver:
         self.problem.assemble_jacobian(self.K)
         if self.regularization is not None:
             self.K.axpy(
-                self.drag_scale * (RELEASE_TANGENT_DRAG if self._drag_off else 1.0),
+                self.drag_scale,
                 self._regularization_matrix,
                 PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN,
             )
@@ -495,8 +468,6 @@ class ImplicitSolver:
         towards the last converged state vanishes at the commit). Collective."""
         if self.regularization is None:
             return 0.0
-        if self._drag_off:  # released: the drag-free residual left
-            return self._release_ratio
         n = self.constraint.num_owned
         force = self.problem.create_vector()
         self.problem.assemble_residual(force)
@@ -615,51 +586,6 @@ class ImplicitSolver:
             self._tangent_valid = False
         return reason > 0, its
 
-    def _try_release(self) -> int:
-        """Release the converged increment from its drag (``release_iterations``): Newton on the
-        drag-free residual from the drag's solution until it is ``RELEASE_TOLERANCE`` of the
-        internal forces' norm, the tangent keeping ``RELEASE_TANGENT_DRAG`` of the drag. On
-        failure the drag's solution and its trial states are restored. Returns the iterations
-        spent (0 when not tried)."""
-        if self._release_wait > 0:
-            self._release_wait -= 1
-            return 0
-        scale = self._internal_force_norm()
-        x_drag = self.x.copy()
-        max_it = self.snes.getTolerances()[3]
-        self._drag_off, self._target_norm = True, RELEASE_TOLERANCE * scale
-        self.snes.setTolerances(max_it=self.release_iterations)
-        try:
-            self.snes.solve(None, self.x)
-        finally:
-            self.snes.setTolerances(max_it=max_it)
-            self._target_norm = None
-        its = self.snes.getIterationNumber()
-        if self.snes.getConvergedReason() > 0:
-            self.released += 1
-            self._release_skip = 1
-            self._release_ratio = self._fnorms[-1] / scale
-        else:  # back to the drag's solution (its material and contact trial states)
-            self._drag_off = False
-            x_drag.copy(self.x)
-            self._residual(None, self.x, self.r_red)
-            self._release_wait = self._release_skip
-            self._release_skip = min(2 * self._release_skip, 16)
-        x_drag.destroy()
-        return its
-
-    def _internal_force_norm(self) -> float:
-        """||P^T f_int|| (N) of the bulk's internal forces at the current trial state (the
-        scale of :meth:`unbalanced_ratio`: the contact forces balance them)."""
-        force = self.problem.create_vector()
-        self.problem.assemble_residual(force)
-        reduced = self.x.duplicate()
-        self.constraint.restrict(force, reduced)
-        norm = reduced.norm()
-        for vec in (force, reduced):
-            vec.destroy()
-        return norm
-
     # -- checkpoints --------------------------------------------------------------------------
     def state_dict(self) -> dict[str, np.ndarray]:
         """This rank's converged state (for checkpoints): time, next increment, reduced and full
@@ -679,7 +605,6 @@ class ImplicitSolver:
             "u": self.problem.u.x.array.copy(),
             "regularization_work": np.array(self.regularization_work),
             "plastic_work": np.array(self.plastic_work),
-            "release": np.array([self.released, self._release_wait, self._release_skip]),
         }
         if self.regularization is not None:
             data["w_converged"] = self._w_converged.copy()
@@ -701,9 +626,6 @@ class ImplicitSolver:
         self._unbalanced = float(data.get("unbalanced", np.nan))
         self.regularization_work = float(data["regularization_work"])
         self.plastic_work = float(data["plastic_work"])
-        self.released, self._release_wait, self._release_skip = (
-            int(v) for v in data.get("release", (0, 0, 1))
-        )
         load_histories(self.problem, self.contact, data)
         self.bcs.apply(self.t)
         self.x.array_w[:] = data["x"]
@@ -789,8 +711,6 @@ class ImplicitSolver:
                         f"Newton did not converge at t={self.t:.6g} even with dt={dt:.3g} < dt_min"
                     )
                 continue
-            if self.release_iterations and self.regularization is not None:
-                self.iterations_total += self._try_release()
             self._unbalanced = self._out_of_balance()
             self.last_iterations = its
             self.last_linear_iterations = self.attempt_linear_iterations
@@ -799,13 +719,11 @@ class ImplicitSolver:
             if self.contact is not None:
                 self.contact.commit(self.problem.u)
             if self.regularization is not None:
-                w = self._peculiar()
-                dw = w - self._w_converged
-                if not self._drag_off:  # a released increment: no drag force, no work
-                    force = self.drag_scale * self.regularization.array_r * dw
-                    self.regularization_work += self.comm.allreduce(float(np.sum(force * dw)))
-                self._w_converged[:] = w
-                self._drag_off = False
+                dw = self._peculiar() - self._w_converged
+                self.regularization_work += self.comm.allreduce(
+                    float(self.drag_scale * np.sum(self.regularization.array_r * dw * dw))
+                )
+                self._w_converged[:] = self._peculiar()
             self.t = t_new
             self.step += 1
             steps += 1

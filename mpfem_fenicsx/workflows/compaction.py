@@ -365,7 +365,6 @@ def make_solver(solver: SolverSection, model: CompactionModel, log=print):
             contact=model.contact,
             petsc_options={"snes_linesearch_type": "bt", **linear_solver_options(solver, model)},
             regularization=core_drag(model, solver.regularization),
-            release_iterations=solver.release_iterations,
             drag_update=held_drag(model, solver),
             controls=implicit_step_controls(solver, loading.duration, path),
         )
