@@ -415,9 +415,11 @@ def test_explicit_unload_state_continued_implicitly(fan, tmp_path):
     u = result["unloaded"]
     implicit = replace(case, solver="implicit", reload_steps=20, out_dir=str(tmp_path))
     settled, model = settle(implicit, u, MPI.COMM_SELF, log=lambda *a: None)
-    # dissipation of the settle <= 1e-4 E_0: 30x below the yield criterion's 3e-3 (measured 1.3e-5
-    # since the smoothed-normal projection, whose corner normals are those of the last commit)
-    assert settled.E_0 == pytest.approx(u.E_0, rel=1e-4)
+    # dissipation of the settle <= 1e-3 E_0 (E_0 is read again at its end, so the reloads'
+    # 3e-3 criterion does not count it): measured 7e-4 with the drag weakened on the particles
+    # their contacts hold (the held network settles towards static equilibrium), 1.3e-5 with the
+    # full drag on every particle
+    assert settled.E_0 == pytest.approx(u.E_0, rel=1e-3)
     assert abs(settled.sigma_m_unloaded) < abs(u.sigma_m_unloaded)
     before, _ = load_checkpoint(u.checkpoint, MPI.COMM_SELF)
     after, meta = load_checkpoint(settled.checkpoint, MPI.COMM_SELF)
@@ -441,8 +443,9 @@ def test_settle_cut_backs_stiffen_the_drag_and_a_tight_budget_settles(fan, tmp_p
     drag is viscous: a cut increment dt stiffens it by dt0 / dt (seen failing with a drag
     independent of dt: every cut-back down to dt_min failed, 2026-11-27). With the drag on the
     particles' cores a cut-back no longer eases the contact zones' problem (a budget of 6
-    iterations fails at every cut, measured 2026-12-02): 7 settle the explicit unload state in
-    the hold's two increments."""
+    iterations fails at every cut, measured 2026-12-02): 7 settle the explicit unload state,
+    in the hold's two increments with the full drag on every particle, in 9 (cut-backs) with the
+    drag weakened on the particles their contacts hold."""
     from dataclasses import replace
 
     from mpi4py import MPI
@@ -469,12 +472,14 @@ def test_settle_cut_backs_stiffen_the_drag_and_a_tight_budget_settles(fan, tmp_p
         log=lambda *a: None,
     )
     time = read_csv(tmp_path / "settle" / "history.csv")["time"]
-    assert np.count_nonzero(time > u.t_unloaded * (1 + 1e-9)) == 2
-    assert settled.E_0 == pytest.approx(u.E_0, rel=1e-4)
+    assert 2 <= np.count_nonzero(time > u.t_unloaded * (1 + 1e-9)) <= 12
+    assert settled.E_0 == pytest.approx(u.E_0, rel=1e-3)  # as the settle without a budget
     assert abs(settled.sigma_m_unloaded) < abs(u.sigma_m_unloaded)
-    # every attempt's drag: dt0 / dt on a cut increment, 1 on a full one
+    # every attempt's drag: dt0 / dt on a cut increment, 1 on a full one; an increment shortened
+    # to land on the hold's end keeps the drag of the increment it was cut from
     dt0 = max(dt for dt, _ in scales)
-    assert all(scale == pytest.approx(max(1.0, dt0 / dt)) for dt, scale in scales)
+    assert all(1.0 <= scale <= max(1.0, dt0 / dt) * (1 + 1e-9) for dt, scale in scales)
+    assert max(scale for _, scale in scales) >= 2.0  # cut increments were tried
 
 
 def test_implicit_fan_resumed_from_explicit_unload_settles_once(fan, tmp_path):
