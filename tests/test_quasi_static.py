@@ -67,13 +67,14 @@ def test_rho_and_rho_fe_agree_in_every_row(history):
 
 
 def test_compaction_ends_in_equilibrium_without_a_hook(history):
-    """Measured 2026-11-27: last row / maximum sigma_m 0.970-0.971, unbalanced 0.0067, E_c / E_int
-    8.0e-6 (the code of 9833426 and of bce0f89, each also with target_density + 1e-12: the end
-    ratio moves by 1e-3 under round-off, so its bound, 0.97 until then and failed once at 0.9698,
-    sits clear of that noise). Not a test of the local damping: without it this volume ends at
-    0.974, unbalanced 0.0087, E_c / E_int 7e-5 (the loading-rate study is bench/convergence.py)."""
+    """Measured 2026-12-02 at the default tangential penalty k_t = 0.01 k: last row / maximum
+    sigma_m 0.950, unbalanced 0.0075, E_c / E_int 2.8e-5 (at k_t = k, the thesis' eq. 3.14: 0.971,
+    0.0067, 8.0e-6; the softer stick lets the volume relax 2 % more at rest). The end ratio moves
+    by 1e-3 under round-off, so its bound sits clear of that noise. Not a test of the local
+    damping: without it this volume ended at 0.974 at k_t = k, unbalanced 0.0087, E_c / E_int
+    7e-5 (the loading-rate study is bench/convergence.py)."""
     sigma_m = history.column("sigma_m")
-    assert sigma_m[-1] >= 0.95 * sigma_m.max()
+    assert sigma_m[-1] >= 0.93 * sigma_m.max()
     assert history.column("unbalanced")[-1] < 0.01
     assert history.column("E_c_over_E_int")[-1] < 1e-4
 
