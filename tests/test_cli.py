@@ -393,6 +393,20 @@ def test_restart_reads_history_rows_by_column_name():
         _history_rows({"history": [[1.0, 2.0]]}, columns)
 
 
+def test_restart_accepts_a_mesh_regenerated_to_round_off_not_another_partition():
+    """A checkpoint names its owned dof coordinates: meshes regenerated on another machine
+    differ by round-off (4e-16 mm measured) and restart; reordered or moved nodes do not."""
+    from mpfem_fenicsx.workflows.compaction import _same_partition
+
+    rng = np.random.default_rng(0)
+    X = rng.uniform(0.0, 0.64, (500, 3))
+    assert _same_partition(X, X + 4.4e-16 * rng.choice([-1.0, 1.0], X.shape))
+    assert not _same_partition(X, X[rng.permutation(500)])  # another ordering / partition
+    assert not _same_partition(X, X + np.where(np.arange(500)[:, None] == 7, 1e-3, 0.0))
+    assert not _same_partition(X, X[:499])
+    assert _same_partition(X[:0], X[:0])  # a rank without owned dofs
+
+
 #: 50 spheres, contact overlaps up to 0.12 % of a radius (made by tests/test_packing.py's recipe)
 YADE_50 = "tests/data/yade_50_overlapping.txt"
 REDUCTION = "radius reduction x0.9895 (instead of x0.99) for the packing's 0.12 % overlaps"
