@@ -933,10 +933,8 @@ def _same_partition(saved: np.ndarray, here: np.ndarray) -> bool:
     The particle meshes are regenerated at every run: on another machine (another CPU, another
     libm) their nodes may move by round-off (~1e-16 of the cell), never by a mesh size; another
     partition or ordering moves them by a mesh size. The tolerance is 1e-10 of the extent."""
-    if saved.shape != here.shape:
-        return False
-    extent = float(np.ptp(here, axis=0).max()) if here.size else 0.0
-    return bool(np.all(np.abs(saved - here) <= 1e-10 * max(extent, 1e-300)))
+    extent = float(np.ptp(here)) if here.size else 0.0
+    return saved.shape == here.shape and np.allclose(saved, here, rtol=0.0, atol=1e-10 * extent)
 
 
 class _LogStream:
