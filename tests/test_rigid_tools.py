@@ -1,6 +1,8 @@
-"""Rigid tools in explicit runs: a particle pressed between two punches inside a die, by a
-prescribed motion and by a force servo; restart with the tools' contact history; the tools'
-forces against the particles' own balance."""
+"""Rigid tools: a particle pressed between two punches inside a die, by a prescribed motion
+and by a force servo; restart with the tools' contact history; the tools' forces against the
+particles' own balance; Newton on a tool-driven volume against the explicit state at rest."""
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -12,9 +14,11 @@ from mpfem_fenicsx.solvers.explicit import ExplicitSettings
 from mpfem_fenicsx.tools import CylinderInside, ForceServo, KeyframePath, Plane, RigidTool
 from mpfem_fenicsx.workflows.tooled import (
     build_tooled,
+    flow_displacement,
     mesh_radii,
     run_tooled,
     tool_law,
+    tooled_newton,
     tooled_solver,
 )
 
@@ -155,3 +159,55 @@ def test_simple_cubic_cell_between_walls_ends_at_the_periodic_cells_stresses(tmp
             periodic.column(f"sigma{cell}")[-1], rel=0.02
         )
     assert walls.column("rho")[-1] == pytest.approx(0.95, rel=1e-6)
+
+
+def _squeezed(static: bool, squeeze: float = 0.2):
+    """An elastic lead particle (no yield) between two frictionless planes z = 0 and 2 r, the
+    upper one moved down by ``squeeze`` r over T (smooth step): by Newton in 8 load steps (the
+    drag's frame the flow between the planes) or explicit (4000 increments, held T to rest)."""
+    law = ContactLaw(penalty=10 * LEAD.E / (R * np.pi / 12))
+    path = KeyframePath((0.0, T), ((0, 0, 0), (0, 0, -squeeze * R)))
+    tools = [
+        RigidTool("upper", Plane((0, 0, 2 * R), (0, 0, -1)), tool_law(law, 0.0), path),
+        RigidTool("lower", Plane((0, 0, 0), (0, 0, 1)), tool_law(law, 0.0)),
+    ]
+    radius = mesh_radii([R], "coarse")
+    elastic = replace(LEAD, sigma_0=1e5)
+    model = build_tooled(
+        [[0.0, 0.0, R]],
+        radius,
+        tools,
+        law,
+        elastic,
+        MPI.COMM_SELF,
+        resolution="coarse",
+        tangent=static,
+    )
+    if static:
+        frame = flow_displacement(model, [(2, 1, 0, 0.0, 2 * R)])
+        solver = tooled_newton(model, T, 8, R * np.pi / 8, frame=frame)
+    else:
+        solver = tooled_solver(
+            model, ExplicitSettings(t_end=2 * T, target_dt=T / 4000, local_damping=0.7)
+        )
+    return model, solver
+
+
+def test_newton_between_two_planes_gives_the_explicit_state_at_rest():
+    """Two realizations of one static squeeze (an elastic particle between two frictionless
+    planes, 20 % of its height): Newton's end state carries the explicit run's force at rest
+    (3.96185 against 3.96137 N measured), both planes the same force; Newton converges
+    quadratically (4 iterations per step measured)."""
+    forces, rows = {}, {True: [], False: []}
+    for static in (True, False):
+        model, solver = _squeezed(static)
+        run_tooled(model, solver, lambda s, mine=rows[static]: mine.append(s.t), outputs=2)
+        forces[static] = model.tools.tool_forces()["force"][:, 2]  # upper, lower (N)
+        if static:
+            assert len(rows[True]) >= 8  # every converged step is an output
+            assert solver.iteration_record()["newton_iterations"] <= 6
+            assert solver.energy_record()["E_damp"] < 0.05 * solver.energy_record()["E_el"]
+    newton, explicit = forces[True], forces[False]
+    assert newton[0] > 1.0  # N: the particle pushes the upper plane up
+    assert abs(newton[0] + newton[1]) < 1e-6 * newton[0]  # the planes balance
+    assert newton[0] == pytest.approx(explicit[0], rel=2e-3)

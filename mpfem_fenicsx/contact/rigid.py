@@ -339,6 +339,15 @@ class RigidContact:
             "points": total[:, 7],
         }
 
+    def tools_touched(self, num_bodies: int) -> np.ndarray:
+        """(num_bodies,) the number of tools each body has loaded points on (pressing or
+        adhering, T1 != 0), summed over ranks: a particle's contacts with the tools."""
+        ev = self.evaluation
+        local = np.zeros((num_bodies, len(self.tools)))
+        loaded = ev.T1 != 0.0
+        np.add.at(local, (self.surface.node_body[ev.slave[loaded]], ev.tool[loaded]), 1.0)
+        return np.count_nonzero(self.comm.allreduce(local, op=MPI.SUM), axis=1)
+
     # -- history -------------------------------------------------------------------------------
     def commit(self) -> None:
         """End of an increment: the trial history becomes the committed one; the tools' work

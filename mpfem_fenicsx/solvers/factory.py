@@ -22,10 +22,11 @@ def create_solver(
     petsc_options: dict | None = None,
     regularization=None,
     drag_update=None,
+    drag_frame=None,
     damped_bodies=None,
 ) -> Solver:
     """The solver ``name`` on ``problem`` with ``bcs``: implicit with its step ``controls``
-    (``petsc_options``, ``regularization``, ``drag_update``), explicit
+    (``petsc_options``, ``regularization``, ``drag_update``, ``drag_frame``), explicit
     with its ``settings`` (``damped_bodies``)."""
     if solver_kind(name).static:
         if not controls:
@@ -37,6 +38,7 @@ def create_solver(
             petsc_options=petsc_options,
             regularization=regularization,
             drag_update=drag_update,
+            drag_frame=drag_frame,
             controls=controls,
         )
     if settings is None:

@@ -158,6 +158,7 @@ class ImplicitSolver:
         regularization: np.ndarray | None = None,
         controls: list[StepControl] | None = None,
         drag_update: Callable[[], np.ndarray] | None = None,
+        drag_frame: Callable[[float], np.ndarray] | None = None,
     ):
         """``controls``: the step controls :meth:`run_path` runs one after the other (one per
         segment of the loading path). ``regularization``: stiffness k_i (N/mm) per owned dof of a
@@ -173,7 +174,13 @@ class ImplicitSolver:
 
         ``drag_update``: the drag stiffness per owned dof for the committed state (e.g. weaker on
         the particles their contacts hold), called at every commit and after a restart (a
-        function of the committed state: restarts stay exact)."""
+        function of the committed state: restarts stay exact).
+
+        ``drag_frame``: t -> a reference displacement (mm, owned dofs) whose motion the drag lets
+        pass, for models without moving offsets (tool-driven volumes: the homogeneous flow
+        between the tools, the role the comoving offsets play in a periodic volume): the drag
+        acts on w = u - g - frame(t), and each increment's predictor adds the frame's increment
+        to the free unknowns (a model without couplings: a reduced unknown is its free dof)."""
         if problem.jacobian_forms is None:
             raise ValueError("the implicit solver needs SolidProblem(..., tangent=True)")
         configure_runtime(problem.comm)
@@ -200,6 +207,8 @@ class ImplicitSolver:
         #: increment, 1 on a full one (and in the tangent kept between increments)
         self.drag_scale = 1.0
         self.drag_update = drag_update
+        self.drag_frame = drag_frame
+        self._frame = self._frame_at(0.0)
         self.step_limits: list[float] = []  # contact step fractions applied (diagnostics)
         self.last_iterations = 0  # Newton iterations of the last converged increment
         self.last_linear_iterations = 0  # its linear solver iterations (predictor included)
@@ -328,9 +337,16 @@ class ImplicitSolver:
             self.set_regularization(self.drag_update())
 
     def _peculiar(self) -> np.ndarray:
-        """w = u - g on the owned dofs: the displacement relative to the moving offsets."""
+        """w = u - g on the owned dofs: the displacement relative to the moving offsets (and to
+        the drag's frame at the time being solved, if any)."""
         n = self.constraint.num_owned
-        return self.problem.u.x.array[:n] - self.constraint.g.x.array[:n]
+        return self.problem.u.x.array[:n] - self.constraint.g.x.array[:n] - self._frame
+
+    def _frame_at(self, t: float) -> np.ndarray | float:
+        """The drag frame's displacement at ``t`` (owned dofs; 0 without a frame)."""
+        if self.drag_frame is None:
+            return 0.0
+        return np.asarray(self.drag_frame(t), dtype=float)[: self.constraint.num_owned]
 
     # -- SNES callbacks -----------------------------------------------------------------------
     def _residual(self, snes, x: PETSc.Vec, r: PETSc.Vec) -> None:
@@ -556,6 +572,7 @@ class ImplicitSolver:
         if self.contact is not None:
             self.contact.begin_increment()
         g_old = self.constraint.g.x.petsc_vec.copy()
+        frame_old, self._frame = self._frame, self._frame_at(t_new)
         self.bcs.apply(t_new)
         dg = self.constraint.g.x.petsc_vec.copy()
         dg.axpy(-1.0, g_old)
@@ -569,6 +586,8 @@ class ImplicitSolver:
         dx = self.x.duplicate()
         ksp.solve(rhs, dx)
         self.x.axpy(1.0, dx)
+        if self.drag_frame is not None:  # the frame's motion spread on the free unknowns
+            self.x.array_w[:] += (self._frame - frame_old)[self.constraint.free]
         for vec in (g_old, dg, force, rhs, dx):
             vec.destroy()
         predictor_its = ksp.getIterationNumber()
@@ -626,6 +645,7 @@ class ImplicitSolver:
         self._unbalanced = float(data.get("unbalanced", np.nan))
         self.regularization_work = float(data["regularization_work"])
         self.plastic_work = float(data["plastic_work"])
+        self._frame = self._frame_at(self.t)
         load_histories(self.problem, self.contact, data)
         self.bcs.apply(self.t)
         self.x.array_w[:] = data["x"]
@@ -664,6 +684,7 @@ class ImplicitSolver:
         )
         load_histories(self.problem, self.contact, data)
         self.bcs.apply(self.t)
+        self._frame = self._frame_at(self.t)
         self.problem.u.x.array[:] = data["u"]
         self.constraint.reduce_values(self.problem.u, self.x)
         self.constraint.expand(self.x, self.problem.u)
@@ -699,6 +720,7 @@ class ImplicitSolver:
                 self._since_cutback = 0
                 self.x_old.copy(self.x)  # restore the last converged state
                 self.bcs.apply(self.t)
+                self._frame = self._frame_at(self.t)
                 dt *= 0.5
                 if log:
                     why = self.snes.getConvergedReason()

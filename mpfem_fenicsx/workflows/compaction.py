@@ -423,26 +423,44 @@ def core_drag(model: CompactionModel, factor: float) -> np.ndarray:
     deformation free: on the flagship's first contacts its work is 2-5 % of E_p, against
     ~50 % with the same total spread over every node (which resists each increment's
     deformation with a few % of the elastic stiffness, more than a yielding contact has)."""
-    problem, constraint = model.problem, model.bcs.constraint
+    problem = model.problem
+    return particle_core_drag(
+        problem,
+        model.assembly.cell_tags.values[: problem.num_cells],
+        model.centres,
+        model.radii,
+        factor * problem.params.E / model.contact_length**2,
+    )[: model.bcs.constraint.num_owned]
+
+
+def particle_core_drag(
+    problem: SolidProblem,
+    cell_particle: np.ndarray,
+    centres: np.ndarray,
+    radii: np.ndarray,
+    stiffness: float,
+) -> np.ndarray:
+    """The drag of :func:`core_drag` on any assembly of particles (``cell_particle``: the
+    particle of each owned cell; ``centres``, ``radii``: mm, reference configuration): per owned
+    node dof (blocks of 3), each particle's total ``stiffness`` x V_p (N/mm, ``stiffness`` in
+    N/mm^4) spread over its core's nodes by their nodal volumes. A particle without volume (a
+    tied copy's massless shell) has none."""
     V = problem.V
-    particle = node_particles(V, model.assembly.cell_tags.values[: problem.num_cells])
+    particle = node_particles(V, cell_particle)
     X = V.tabulate_dof_coordinates()[: particle.size]
-    radius = model.radii[particle]
-    core = np.linalg.norm(X - model.centres[particle], axis=1) < DRAG_CORE_RADIUS * radius
+    radius = radii[particle]
+    core = np.linalg.norm(X - centres[particle], axis=1) < DRAG_CORE_RADIUS * radius
     volume = problem.lumped_mass(1.0).x.array[: 3 * particle.size : 3]
     # each particle's total and core nodal volume, summed over ranks (a particle may be split)
-    bodies = model.radii.size
+    bodies = radii.size
     totals = np.bincount(particle, weights=volume, minlength=bodies)
     in_core = np.bincount(particle, weights=np.where(core, volume, 0.0), minlength=bodies)
-    totals, in_core = (model.problem.comm.allreduce(a) for a in (totals, in_core))
-    # the shells of tied copies (CLP) carry no material: no volume, no drag (their originals'
-    # drag holds them)
+    totals, in_core = (problem.comm.allreduce(a) for a in (totals, in_core))
     if np.any((totals > 0.0) & (in_core <= 0.0)):
         raise ValueError("core_drag: a particle has no node within its drag core")
     ratio = np.divide(totals, in_core, out=np.zeros(bodies), where=in_core > 0.0)
-    k = factor * problem.params.E / model.contact_length**2 * volume
-    k = np.where(core, k * ratio[particle], 0.0)
-    return np.repeat(k, 3)[: constraint.num_owned]
+    k = np.where(core, stiffness * volume * ratio[particle], 0.0)
+    return np.repeat(k, 3)
 
 
 #: force-carrying contacts from which the implicit drag counts a particle as held by its

@@ -18,6 +18,7 @@ from scipy.spatial.transform import Rotation
 from ..homogenization import hencky_strain
 from ..loading import GradientPath, compaction_gradient
 from ..meshes.packing import simple_cubic_packing
+from ..solvers import solver_kind
 from ..solvers.explicit import ExplicitSettings
 from ..tools import Plane, RigidTool
 from .compaction import CompactionCase, contact_law
@@ -25,8 +26,10 @@ from .tooled import (
     ToolHistory,
     build_tooled,
     flow_between_tools,
+    flow_displacement,
     run_tooled,
     tool_law,
+    tooled_newton,
     tooled_solver,
 )
 
@@ -96,6 +99,9 @@ def between_walls(
     comm=None,
     log=print,
     damping_frame: str = "rest",
+    solver: str = "explicit",
+    steps: int = 100,
+    regularization: float = 5e-4,
 ):
     """The cell's eight spheres in a box of six frictionless rigid planes on its contact planes
     x, y, z = 0 and 4 r (the periodic cell's symmetry planes), die-compacted by the top plane:
@@ -106,6 +112,12 @@ def between_walls(
     motion of every node (``damping_frame="rest"``) or its motion relative to the homogeneous
     flow between the bottom and top planes (``"flow"``, the periodic cell's comoving frame; its
     rows farther from the periodic cell's at 16 000 and 32 000 increments: bench/README.md).
+    ``solver="implicit"``: the static path by Newton in ``steps`` load steps instead
+    (:func:`~.tooled.tooled_newton`; ``increments`` and the damping unused), the pseudo-time drag
+    on the particles' cores at ``regularization`` x E V_p / h^2 whatever their contacts (the
+    die's two axial contacts do not hold a particle laterally; a drag as strong as a free
+    particle's would carry up to 40 % of the forces until the lateral contacts engage) and
+    relative to the homogeneous flow between the bottom and top planes.
 
     Returns the :class:`~.tooled.ToolHistory` with ``rho`` (the spheres' volume over the box's,
     eq. 2.5) and the stresses from the planes' forces (compression > 0, each the mean of the two
@@ -140,6 +152,7 @@ def between_walls(
         ]
     ]
     planes.append(RigidTool("z1", Plane((0, 0, L), (0, 0, -1)), wall, top))
+    static = solver_kind(solver).static
     model = build_tooled(
         packing.centres,
         packing.radii,
@@ -150,17 +163,32 @@ def between_walls(
         resolution=periodic.mesh.resolution,
         exact_volume=False,
         rotation=periodic.mesh.rotation,
+        tangent=static,
     )
-    solver = tooled_solver(
-        model,
-        ExplicitSettings(
-            t_end=duration,
-            target_dt=duration / increments,
-            local_damping=periodic.solver.local_damping,
-        ),
-    )
-    if damping_frame == "flow":  # planes z0 (index 4) at 0 and z1 (5) at L
-        solver.damping_reference = flow_between_tools(
+    if static:
+        # the drag lets the homogeneous flow between the bottom and top planes pass (the
+        # periodic cell's comoving offsets)
+        flow = flow_displacement(model, [(2, 4, 5, 0.0, L)])
+        integrator = tooled_newton(
+            model,
+            duration,
+            steps,
+            h_contact,
+            frame=flow,
+            regularization=regularization,
+            held_regularization=regularization,
+        )
+    else:
+        integrator = tooled_solver(
+            model,
+            ExplicitSettings(
+                t_end=duration,
+                target_dt=duration / increments,
+                local_damping=periodic.solver.local_damping,
+            ),
+        )
+    if damping_frame == "flow" and not static:  # planes z0 (index 4) at 0 and z1 (5) at L
+        integrator.damping_reference = flow_between_tools(
             model, [(2, 4, 5, 0.0, L)], 0.5 * duration / increments
         )
     history = ToolHistory(
@@ -182,7 +210,10 @@ def between_walls(
             sigma_zz_walls=0.5 * (forces[5, 2] - forces[4, 2]) / (L * L),
         )
 
-    log(f"simple cubic cell between walls: {model.num_dofs} dofs, {increments} increments")
-    run_tooled(model, solver, record, outputs=outputs)
+    log(
+        f"simple cubic cell between walls: {model.num_dofs} dofs, "
+        + (f"{steps} load steps (Newton)" if static else f"{increments} increments")
+    )
+    run_tooled(model, integrator, record, outputs=outputs)
     history.write()
     return history

@@ -3,7 +3,9 @@
 The shared stages of the tool-driven workflows (closed die, box of six planes, the simple cubic
 cell between walls): mesh the spheres, build the bulk problem and the contact with the tools,
 integrate with the explicit solver (each particle's rigid motion damped, the force-controlled
-tools moved by their servos after every increment) and record one history row per output:
+tools moved by their servos after every increment) or by Newton (:func:`tooled_newton`: the
+static path of displacement-driven tools, each particle's core held by a pseudo-time drag until
+its contacts hold it) and record one history row per output:
 
 - ``time`` (s); per tool ``<name>_ux/_uy/_uz`` its translation (mm), ``<name>_Fx/_Fy/_Fz`` the
   force the particles exert on it (N), ``<name>_N`` the sum of the normal forces pressing on it
@@ -29,8 +31,10 @@ from ..material import LEAD, ElastoPlastic
 from ..meshes import node_particles, particle_mesh, particle_volumes
 from ..meshes.cubesphere import RESOLUTIONS, unit_ball_hex
 from ..problem import SolidProblem
-from ..solvers import create_solver
+from ..solvers import StepControl, create_solver
 from ..solvers.explicit import ExplicitSettings
+from ..solvers.implicit import STALL_WINDOW
+from .compaction import HELD_CONTACTS, particle_core_drag
 
 #: relative gap between the particles' start spheres (through their surface nodes) and to the
 #: tools: a packing that touches starts touching, without overlap
@@ -82,6 +86,7 @@ class ToolModel:
     bcs: PrescribedDisplacements
     radii: np.ndarray  # meshed radii (mm)
     solid_volume: float  # the particles' finite-element volume at the start (mm^3)
+    centres: np.ndarray  # (n, 3) the particles' centres at the start (mm)
 
     @property
     def num_dofs(self) -> int:
@@ -105,9 +110,11 @@ def build_tooled(
     resolution: str = "chapter2",
     exact_volume: bool = True,
     rotation: np.ndarray | None = None,
+    tangent: bool = False,
 ) -> ToolModel:
     """Mesh spheres (``radii``: the meshed ones, :func:`mesh_radii`), the bulk problem and the
-    contact between the particles and with ``tools`` (:class:`~mpfem_fenicsx.tools.RigidTool`)."""
+    contact between the particles and with ``tools`` (:class:`~mpfem_fenicsx.tools.RigidTool`);
+    ``tangent``: the problem carries the consistent tangent (the implicit solver needs it)."""
     divisions, layers = RESOLUTIONS[resolution]
     radii = np.asarray(radii, dtype=float)
     assembly = particle_mesh(
@@ -119,7 +126,7 @@ def build_tooled(
         exact_volume=exact_volume,
         rotations=None if rotation is None else np.broadcast_to(rotation, (radii.size, 3, 3)),
     )
-    problem = SolidProblem(assembly.mesh, material, tangent=False)
+    problem = SolidProblem(assembly.mesh, material, tangent=tangent)
     contact = ContactModel(
         problem.V,
         assembly.facet_tags,
@@ -131,7 +138,8 @@ def build_tooled(
     bcs = PrescribedDisplacements(problem.V)  # nothing prescribed: the tools move the particles
     bcs.followers.append(contact.tools.move)
     solid = float(particle_volumes(assembly, problem.u).sum())
-    return ToolModel(assembly, problem, contact, bcs, radii, solid)
+    centres = np.asarray(centres, dtype=float).reshape(-1, 3)
+    return ToolModel(assembly, problem, contact, bcs, radii, solid, centres)
 
 
 def tooled_solver(model: ToolModel, settings: ExplicitSettings, damping: str = "node"):
@@ -151,6 +159,88 @@ def tooled_solver(model: ToolModel, settings: ExplicitSettings, damping: str = "
         settings=settings,
         damped_bodies=bodies,
     )
+
+
+def tooled_newton(
+    model: ToolModel,
+    t_end: float,
+    steps: int,
+    contact_length: float,
+    regularization: float = 0.05,
+    held_regularization: float = 5e-4,
+    frame=None,
+):
+    """The implicit solver of a tool-driven volume (``build_tooled(..., tangent=True)``; tools
+    driven by displacement only): Newton over [0, ``t_end``] s in ``steps`` load steps, cut back
+    and grown as the granular volumes' (the compaction's step control), the line search of the
+    compaction. No carrier holds a particle before its contacts do: a pseudo-time drag on its
+    core does (:func:`~.compaction.particle_core_drag`), ``regularization`` x E V_p / h^2
+    (``contact_length`` h, mm) on a particle with fewer than HELD_CONTACTS loaded contacts
+    (particles and tools counted together), ``held_regularization`` x E V_p / h^2 on the others,
+    re-chosen at every converged state; its work is the history's E_damp. ``frame``: the
+    motion the drag lets pass (:func:`flow_displacement`; None: the drag resists every motion,
+    and the particles a tool pushes through their drag carry a share of its force)."""
+    if any(tool.servo is not None for tool in model.tools.tools):
+        raise ValueError("tooled_newton: force-controlled tools need the explicit solver")
+    problem = model.problem
+    cell_particle = model.assembly.cell_tags.values[: problem.num_cells]
+    scale = problem.params.E / contact_length**2
+    n = (model.bcs.constraint or model.bcs.build()).num_owned
+    full, held = (
+        particle_core_drag(problem, cell_particle, model.centres, model.radii, f * scale)[:n]
+        for f in (regularization, held_regularization)
+    )
+    body = np.repeat(node_particles(problem.V, cell_particle), 3)[: full.size]
+
+    def update() -> np.ndarray:
+        pairs = model.contact.pair_forces()
+        loaded = pairs["pairs"][pairs["points"] > 0]
+        contacts = np.bincount(loaded.ravel(), minlength=model.radii.size)
+        contacts = contacts + model.tools.tools_touched(model.radii.size)
+        return np.where(contacts[body] >= HELD_CONTACTS, held, full)
+
+    dt = t_end / steps
+    control = StepControl(
+        t_end=t_end,
+        dt=dt,
+        dt_max=dt,
+        dt_min=dt / 256,
+        easy_iterations=20,
+        settle_steps=2,
+        stall_window=STALL_WINDOW,
+    )
+    return create_solver(
+        "implicit",
+        problem,
+        model.bcs,
+        contact=model.contact,
+        controls=[control],
+        petsc_options={"snes_linesearch_type": "bt"},
+        regularization=full,
+        drag_update=update,
+        drag_frame=frame,
+    )
+
+
+def flow_displacement(model: ToolModel, pairs):
+    """The homogeneous flow between pairs of planes as a displacement field, the implicit
+    drag's frame (:func:`tooled_newton`): ``pairs`` as in :func:`flow_between_tools`; along each
+    axis a node's displacement interpolates the lower and upper tools' translations linearly in
+    its reference coordinate between the planes. Returns t -> displacement (mm, owned dofs)."""
+    V = model.problem.V
+    n = V.dofmap.index_map.size_local
+    X = V.tabulate_dof_coordinates()[:n]
+    tools = model.tools.tools
+
+    def displacement(t: float) -> np.ndarray:
+        u = np.zeros((n, 3))
+        for axis, lo, hi, x_lo, x_hi in pairs:
+            s = np.clip((X[:, axis] - x_lo) / (x_hi - x_lo), 0.0, 1.0)
+            d_lo, d_hi = tools[lo].motion(t)[axis], tools[hi].motion(t)[axis]
+            u[:, axis] = d_lo + (d_hi - d_lo) * s
+        return u.ravel()
+
+    return displacement
 
 
 def flow_between_tools(model: ToolModel, pairs, h: float):
@@ -180,9 +270,12 @@ def flow_between_tools(model: ToolModel, pairs, h: float):
 
 
 def run_tooled(model: ToolModel, solver, on_output, outputs: int = 100) -> None:
-    """Integrate to the end of the solver's time, the servos stepped after every increment."""
+    """Integrate to the end of the solver's time, the servos (if any) stepped after every
+    increment (the explicit solver's; Newton has every increment as an output)."""
     tools = model.tools
-    solver.run_path(on_output, outputs=outputs, on_step=lambda s: tools.servo_step(s.t, s.dt))
+    servos = any(tool.servo is not None for tool in tools.tools)
+    on_step = (lambda s: tools.servo_step(s.t, s.dt)) if servos else None
+    solver.run_path(on_output, outputs=outputs, on_step=on_step)
 
 
 class ToolHistory:
