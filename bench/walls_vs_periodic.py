@@ -2,6 +2,7 @@
 
     python bench/walls_vs_periodic.py --periodic 16000 --walls 16000 32000   # missing runs, table
     python bench/walls_vs_periodic.py --walls 16000 --frame flow      # damped in the flow frame
+    python bench/walls_vs_periodic.py --newton 80     # both realizations by Newton, 80 steps
     python bench/walls_vs_periodic.py --table                                # the kept runs
 
 Two realizations of one die compaction (rho pi / 6 -> 0.95): the thesis' periodic cell (CLP by
@@ -14,6 +15,12 @@ process per run, `MPI.COMM_SELF`; the periodic runs' checkpoints are deleted aft
 The table interpolates every walls run at the periodic
 reference's densities (the slowest periodic run kept) and reports, past 5 % of the final
 stress, the largest relative difference of sigma_zz, sigma_xx, sigma_yy, and the end values.
+
+By Newton (``--newton STEPS``), both realizations follow the static path (no inertia, no
+damping): the periodic cell by images (equal to the copies to 1e-11), the walls by
+`between_walls(solver="implicit")`, both with the pseudo-time drag on the particles' cores at
+5e-4 E V_p / h^2 relative to the homogeneous flow (kept as periodic_newton_s<STEPS> and
+walls_newton_s<STEPS>, compared with each other).
 """
 
 from __future__ import annotations
@@ -49,6 +56,42 @@ def run_periodic(increments: int) -> Path:
     return out / "die"
 
 
+#: the drag of both Newton realizations (E V_p / h^2): weak whatever the contacts, since the
+#: die's two axial contacts do not hold a particle laterally
+NEWTON_DRAG = 5e-4
+
+
+def run_newton(steps: int) -> tuple[Path, Path]:
+    """Both realizations by Newton in ``steps`` load steps (unless kept)."""
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.workflows.compaction import run_compaction
+    from mpfem_fenicsx.workflows.simple_cubic import between_walls, simple_cubic_case
+
+    periodic, walls = KEPT / f"periodic_newton_s{steps}", KEPT / f"walls_newton_s{steps}"
+    if not (periodic / "die" / "history.csv").is_file():
+        case = simple_cubic_case("die", out_dir=str(periodic), visual=False).updated(
+            kind="implicit",
+            steps=steps,
+            images=True,
+            regularization=NEWTON_DRAG,
+            held_regularization=NEWTON_DRAG,
+            checkpoint_every=0,
+            outputs=steps,
+        )
+        run_compaction(case, MPI.COMM_SELF, log=print)
+    if not (walls / "history.csv").is_file():
+        between_walls(
+            out_dir=str(walls),
+            comm=MPI.COMM_SELF,
+            solver="implicit",
+            steps=steps,
+            outputs=steps,
+            regularization=NEWTON_DRAG,
+        )
+    return periodic / "die", walls
+
+
 def run_walls(increments: int, frame: str) -> Path:
     """The cell between walls at ``increments``, damped in ``frame`` (unless kept)."""
     from mpi4py import MPI
@@ -64,7 +107,9 @@ def run_walls(increments: int, frame: str) -> Path:
 
 
 def table() -> str:
-    """The comparison table (Markdown) of the kept walls runs against the slowest periodic."""
+    """The comparison tables (Markdown) of the kept runs: the explicit walls runs against the
+    slowest explicit periodic run, each Newton walls run against the Newton periodic run of
+    its step count."""
     from mpfem_fenicsx.io.history import read_csv
 
     def increments(folder: Path) -> int:
@@ -77,23 +122,44 @@ def table() -> str:
         path = history_path(folder)
         return path.is_file() and read_csv(path)["rho"][-1] >= 0.95 - 1e-6
 
-    periodic = sorted(filter(done, KEPT.glob("periodic_n*")), key=increments)
-    walls = sorted(filter(done, KEPT.glob("walls_*")), key=increments)
-    if not periodic or not walls:
-        return "(no runs kept)"
-    ref = read_csv(history_path(periodic[-1]))
+    explicit = [f for f in KEPT.glob("*_n*") if "newton" not in f.name and done(f)]
+    periodic = sorted((f for f in explicit if f.name.startswith("periodic")), key=increments)
+    walls = sorted((f for f in explicit if f.name.startswith("walls")), key=increments)
+    out = []
+    if periodic and walls:
+        ref = read_csv(history_path(periodic[-1]))
+        out += [
+            f"reference: the periodic cell at {increments(periodic[-1])} increments, end "
+            + " / ".join(f"{ref[c][-1]:.2f}" for _, c in PAIRS)
+            + " MPa (sigma_zz / xx / yy)",
+            "",
+            *_compare(ref, [(f.name, read_csv(history_path(f))) for f in periodic[:-1] + walls]),
+        ]
+    for folder in sorted(KEPT.glob("walls_newton_s*")):
+        ref_folder = KEPT / folder.name.replace("walls", "periodic")
+        if done(folder) and done(ref_folder):
+            ref = read_csv(history_path(ref_folder))
+            out += [
+                "",
+                f"by Newton: reference {ref_folder.name}, end "
+                + " / ".join(f"{ref[c][-1]:.2f}" for _, c in PAIRS)
+                + " MPa (sigma_zz / xx / yy)",
+                "",
+                *_compare(ref, [(folder.name, read_csv(history_path(folder)))]),
+            ]
+    return "\n".join(out) if out else "(no runs kept)"
+
+
+def _compare(ref: dict, runs: list) -> list[str]:
+    """Table lines: each of ``runs`` ((label, history)) against the periodic ``ref`` at its
+    densities past 5 % of its final stresses (a walls run by its wall columns)."""
     lines = [
-        f"reference: the periodic cell at {increments(periodic[-1])} increments, end "
-        + " / ".join(f"{ref[c][-1]:.2f}" for _, c in PAIRS)
-        + " MPa (sigma_zz / xx / yy)",
-        "",
         "| run | end sigma_zz / xx / yy (MPa) | end vs periodic | largest row difference past "
         "5 % of the final stress (zz / xx / yy) | at rho |",
         "|---|---|---|---|---|",
     ]
-    for folder in [*periodic[:-1], *walls]:
-        h = read_csv(history_path(folder))
-        cols = [c for c, _ in PAIRS] if folder.name.startswith("walls") else [c for _, c in PAIRS]
+    for label, h in runs:
+        cols = [c for c, _ in PAIRS] if label.startswith("walls") else [c for _, c in PAIRS]
         ends, worst, where = [], [], []
         for col, (_, ref_col) in zip(cols, PAIRS, strict=True):
             ends.append(h[col][-1])
@@ -106,7 +172,7 @@ def table() -> str:
             where.append(rho[k])
         end_diff = [e / ref[c][-1] - 1.0 for e, (_, c) in zip(ends, PAIRS, strict=True)]
         lines.append(
-            f"| {folder.name} | "
+            f"| {label} | "
             + " / ".join(f"{e:.2f}" for e in ends)
             + " | "
             + " / ".join(f"{100 * d:+.2f} %" for d in end_diff)
@@ -116,7 +182,7 @@ def table() -> str:
             + " / ".join(f"{r:.3f}" for r in where)
             + " |"
         )
-    return "\n".join(lines)
+    return lines
 
 
 def main(argv=None) -> None:
@@ -125,6 +191,7 @@ def main(argv=None) -> None:
     parser.add_argument("--periodic", type=int, nargs="*", default=[], help="increments")
     parser.add_argument("--walls", type=int, nargs="*", default=[], help="increments")
     parser.add_argument("--frame", choices=("rest", "flow"), default="rest", help="damping's")
+    parser.add_argument("--newton", type=int, nargs="*", default=[], help="load steps")
     parser.add_argument("--table", action="store_true", help="only the table of the kept runs")
     args = parser.parse_args(argv)
     if not args.table:
@@ -132,6 +199,8 @@ def main(argv=None) -> None:
             run_periodic(n)
         for n in args.walls:
             run_walls(n, args.frame)
+        for n in args.newton:
+            run_newton(n)
     print(table())
 
 
