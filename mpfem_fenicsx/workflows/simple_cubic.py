@@ -116,7 +116,7 @@ def between_walls(
     (:func:`~.tooled.tooled_newton`; ``increments`` and the damping unused), the pseudo-time drag
     on the particles' cores at ``regularization`` x E V_p / h^2 whatever their contacts (the
     die's two axial contacts do not hold a particle laterally; a drag as strong as a free
-    particle's would carry up to 40 % of the forces until the lateral contacts engage) and
+    particle's carried up to 80 % of the forces before the lateral contacts engage) and
     relative to the homogeneous flow between the bottom and top planes.
 
     Returns the :class:`~.tooled.ToolHistory` with ``rho`` (the spheres' volume over the box's,
