@@ -888,23 +888,26 @@ def implicit_step_controls(
             n = int(solver.segment_steps[k - 1])
         else:
             n = max(1, round(length * solver.steps / duration))
-        dt = length / n
-        # a granular increment takes ~15-20 Newton iterations whatever its length (contact rims
-        # entering, ~100 material points crossing the yield surface per iteration on the
-        # flagship): growing back after a cut-back only below 6 (the default) would keep the cut
-        # increment for the rest of the path
-        controls.append(
-            StepControl(
-                t_end=knots[k + 1],
-                dt=dt,
-                dt_max=dt,
-                dt_min=dt / 256,
-                easy_iterations=20,
-                settle_steps=2,
-                stall_window=STALL_WINDOW,
-            )
-        )
+        controls.append(granular_step_control(knots[k + 1], length / n))
     return controls
+
+
+def granular_step_control(t_end: float, dt: float) -> StepControl:
+    """The step control of a granular volume's segment ending at ``t_end`` (s) at increments of
+    ``dt`` (s): cut back to dt / 256 at the most, grown back to dt after 2 settled increments of
+    up to 20 Newton iterations, Newton's stall test on. A granular increment takes ~15-20
+    iterations whatever its length (contact rims entering, ~100 material points crossing the
+    yield surface per iteration on the flagship): growing back after a cut-back only below 6
+    (the default) would keep the cut increment for the rest of the path."""
+    return StepControl(
+        t_end=t_end,
+        dt=dt,
+        dt_max=dt,
+        dt_min=dt / 256,
+        easy_iterations=20,
+        settle_steps=2,
+        stall_window=STALL_WINDOW,
+    )
 
 
 def _anchor_displacement(bcs: GranularBoundaryConditions, V, u: np.ndarray, t: float) -> np.ndarray:

@@ -31,10 +31,9 @@ from ..material import LEAD, ElastoPlastic
 from ..meshes import node_particles, particle_mesh, particle_volumes
 from ..meshes.cubesphere import RESOLUTIONS, unit_ball_hex
 from ..problem import SolidProblem
-from ..solvers import StepControl, create_solver
+from ..solvers import create_solver
 from ..solvers.explicit import ExplicitSettings
-from ..solvers.implicit import STALL_WINDOW
-from .compaction import HELD_CONTACTS, particle_core_drag
+from .compaction import HELD_CONTACTS, granular_step_control, particle_core_drag
 
 #: relative gap between the particles' start spheres (through their surface nodes) and to the
 #: tools: a packing that touches starts touching, without overlap
@@ -171,10 +170,11 @@ def tooled_newton(
     frame=None,
 ):
     """The implicit solver of a tool-driven volume (``build_tooled(..., tangent=True)``; tools
-    driven by displacement only): Newton over [0, ``t_end``] s in ``steps`` load steps, cut back
-    and grown as the granular volumes' (the compaction's step control), the line search of the
-    compaction. No carrier holds a particle before its contacts do: a pseudo-time drag on its
-    core does (:func:`~.compaction.particle_core_drag`), ``regularization`` x E V_p / h^2
+    driven by displacement only): Newton over [0, ``t_end``] s in ``steps`` load steps, cut
+    back and grown as the granular volumes' (:func:`~.compaction.granular_step_control`), with
+    the compaction's line search. No carrier holds a particle before its contacts do: a
+    pseudo-time drag on its core does (:func:`~.compaction.particle_core_drag`),
+    ``regularization`` x E V_p / h^2
     (``contact_length`` h, mm) on a particle with fewer than HELD_CONTACTS loaded contacts
     (particles and tools counted together), ``held_regularization`` x E V_p / h^2 on the others,
     re-chosen at every converged state; its work is the history's E_damp. ``frame``: the
@@ -199,22 +199,12 @@ def tooled_newton(
         contacts = contacts + model.tools.tools_touched(model.radii.size)
         return np.where(contacts[body] >= HELD_CONTACTS, held, full)
 
-    dt = t_end / steps
-    control = StepControl(
-        t_end=t_end,
-        dt=dt,
-        dt_max=dt,
-        dt_min=dt / 256,
-        easy_iterations=20,
-        settle_steps=2,
-        stall_window=STALL_WINDOW,
-    )
     return create_solver(
         "implicit",
         problem,
         model.bcs,
         contact=model.contact,
-        controls=[control],
+        controls=[granular_step_control(t_end, t_end / steps)],
         petsc_options={"snes_linesearch_type": "bt"},
         regularization=full,
         drag_update=update,
