@@ -40,3 +40,19 @@ def test_off_screen_render_prints_no_x_server_warning(tmp_path, python):
     assert proc.returncode == 0, proc.stderr[-800:]
     assert (tmp_path / "sphere.png").stat().st_size > 1000
     assert "X server" not in proc.stderr and "WARN" not in proc.stderr, proc.stderr[-800:]
+
+
+def test_progress_line_names_steps_past_the_nominal_count():
+    """The progress bar: step / total within the nominal count, and the nominal count named
+    when cut-backs take an implicit run past it (not '260/100')."""
+    import io
+
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.io.progress import Progress
+
+    progress = Progress(MPI.COMM_SELF, stream=io.StringIO())
+    line = progress.update(0.5, 50, 100, rho=0.7, sigma_m=2.0)
+    assert "step 50/100 " in line and "50.0 %" in line
+    line = progress.update(0.8, 260, 100, rho=0.85, sigma_m=9.0)
+    assert "step 260 (100 nominal)" in line and "/100" not in line and "80.0 %" in line

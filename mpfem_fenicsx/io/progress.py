@@ -26,7 +26,9 @@ class Progress:
     """``update(fraction, step, total, **values)`` prints
     ``[#######.............]  35.0 %  step 1400/4000  rho 0.7312  sigma_m 2.114 MPa  ETA 4m10s``.
 
-    The ETA extrapolates the wall time since the first update (restart: since the restart)."""
+    The ETA extrapolates the wall time since the first update (restart: since the restart). A
+    run past its nominal step count (an implicit run's cut-backs) shows
+    ``step 260 (100 nominal)``; the percentage is the fraction of the path either way."""
 
     def __init__(
         self, comm: MPI.Comm = MPI.COMM_WORLD, stream=None, width: int = 24, enabled: bool = True
@@ -50,9 +52,10 @@ class Progress:
         done = fraction - self._fraction0
         eta = (now - self._start) / done * (1.0 - fraction) if done > 1e-12 else float("nan")
         filled = int(round(self.width * fraction))
+        steps = f"{step}/{total}" if step <= total else f"{step} ({total} nominal)"
         line = (
             f"[{'#' * filled}{'.' * (self.width - filled)}] {100 * fraction:5.1f} %  step "
-            f"{step}/{total}  "
+            f"{steps}  "
             f"rho {rho:.4f}  sigma_m {sigma_m:.3f} MPa  "
             f"ETA {format_seconds(eta) if eta == eta else '--'}" + (f"  {extra}" if extra else "")
         )
