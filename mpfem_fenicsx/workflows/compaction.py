@@ -353,7 +353,7 @@ def make_solver(solver: SolverSection, model: CompactionModel, log=print):
             "WARNING: implicit granular runs are experimental: the drag on the particles' cores "
             "holds them until their contacts do, but Newton takes ~13 iterations per load step "
             "once contacts yield and the steps shrink as the particles' plastic zones grow "
-            "(the flagship: over an hour, against minutes explicit); use the "
+            "(the flagship: ~4 h to rho 0.92, against minutes explicit); use the "
             "explicit solver for production runs"
         )
         # backtracking line search: frictional stick / slip switches make full Newton steps cycle
