@@ -3,6 +3,8 @@
     python bench/implicit_vs_explicit.py                 # the table of the kept histories
     python bench/implicit_vs_explicit.py --run explicit  # (re)run one realization, then the table
     python bench/implicit_vs_explicit.py --run implicit --restart CHECKPOINT   # continue one
+    python bench/implicit_vs_explicit.py --run implicit --held-regularization 2.5e-4
+        # a variant of the drag, kept in implicit_held_2.5e-4/ (its table: --held ... alone)
 
 Two realizations of one compaction (`demos/isotropic.py`'s default: 24 lead particles, CLP by
 images, rho 0.59 -> 0.92): central differences with mass scaling and local damping at 6000
@@ -36,21 +38,33 @@ def read(path: Path) -> dict[str, np.ndarray]:
     return {k: np.array([float(r[k]) if r[k] else np.nan for r in rows]) for k in rows[0]}
 
 
-def run(solver: str, restart: str | None) -> None:
-    """One realization through the flagship demo (the case's defaults but the solver)."""
-    out = KEPT / solver
+def implicit_folder(held: float | None) -> str:
+    """The kept implicit run: the default drag's, or that of another ``held`` drag."""
+    if held is None:
+        return "implicit"
+    return "implicit_held_" + np.format_float_scientific(held, trim="-", exp_digits=1)
+
+
+def run(solver: str, restart: str | None, held: float | None = None) -> None:
+    """One realization through the flagship demo (the case's defaults but the solver and, for
+    Newton, the held particles' drag)."""
+    out = KEPT / (implicit_folder(held) if solver == "implicit" else solver)
     cmd = [sys.executable, str(ROOT.parent / "demos" / "isotropic.py"), "--no-visual"]
     cmd += ["--solver", solver, "--out", str(out)]
     if solver == "implicit":
         cmd += ["--checkpoint-every", "5"]
+        if held is not None:
+            cmd += ["--held-regularization", str(held)]
     if restart:
         cmd += ["--restart", restart]
     subprocess.run(cmd, check=True)
 
 
-def table() -> None:
-    """The comparison of the kept histories."""
-    explicit, implicit = (read(KEPT / s / "history.csv") for s in ("explicit", "implicit"))
+def table(held: float | None = None) -> None:
+    """The comparison of the kept histories (the implicit run of the ``held`` drag)."""
+    explicit, implicit = (
+        read(KEPT / s / "history.csv") for s in ("explicit", implicit_folder(held))
+    )
     print("| rho | explicit sigma_m (MPa) | implicit sigma_m (MPa) | implicit / explicit - 1 |")
     print("|---|---|---|---|")
     for rho in DENSITIES:
@@ -80,10 +94,16 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run", choices=("explicit", "implicit"), default=None)
     parser.add_argument("--restart", default=None, help="implicit: continue from a checkpoint")
+    parser.add_argument(
+        "--held-regularization",
+        type=float,
+        default=None,
+        help="implicit: another drag on the held particles than the case's (E V_p / h^2)",
+    )
     args = parser.parse_args(argv)
     if args.run:
-        run(args.run, args.restart)
-    table()
+        run(args.run, args.restart, args.held_regularization)
+    table(args.held_regularization)
 
 
 if __name__ == "__main__":
