@@ -4,7 +4,8 @@
     python bench/implicit_vs_explicit.py --run explicit  # (re)run one realization, then the table
     python bench/implicit_vs_explicit.py --run implicit --restart CHECKPOINT   # continue one
     python bench/implicit_vs_explicit.py --run implicit --held-regularization 2.5e-4
-        # a variant of the drag, kept in implicit_held_2.5e-4/ (its table: --held ... alone)
+        # a variant of the held drag, kept in implicit_held_2.5e-4/ (its table: the same
+        # --held-regularization without --run)
 
 Two realizations of one compaction (`demos/isotropic.py`'s default: 24 lead particles, CLP by
 images, rho 0.59 -> 0.92): central differences with mass scaling and local damping at 6000
