@@ -6,6 +6,8 @@
     python bench/implicit_vs_explicit.py --run implicit --held-regularization 2.5e-4
         # a variant of the held drag, kept in implicit_held_2.5e-4/ (its table: the same
         # --held-regularization without --run)
+    python bench/implicit_vs_explicit.py --case die50 --run implicit --held-regularization 2.5e-4
+        # the 50-particle die CLP to rho 0.95 by Newton (resumes from its newest checkpoint)
 
 Two realizations of one compaction (`demos/isotropic.py`'s default: 24 lead particles, CLP by
 images, rho 0.59 -> 0.92): central differences with mass scaling and local damping at 6000
@@ -15,6 +17,12 @@ implicit run checkpoints every 5 steps there (resumable with ``--restart``). The
 sigma_m of both at the issue's densities (the explicit curve interpolated where the implicit one
 has reached them), the implicit run's progress (rho, Newton iterations per step, cut-backs,
 the drag's work over E_p, the drag's out-of-balance share) and both wall times.
+
+``--case die50``: the validation campaign's 50-particle die CLP (the thesis' particle, seed 1, by
+periodic images, rho 0.61 -> 0.95; its explicit run at 6000 increments is
+validation/runs/die_CLP) by Newton at 100 nominal load steps, kept in
+bench/measured/implicit_die50/; it checkpoints every 5 steps and a new ``--run`` resumes from the
+newest checkpoint there.
 """
 
 from __future__ import annotations
@@ -30,6 +38,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent
 KEPT = ROOT / "measured" / "implicit_flagship"
 DENSITIES = (0.62, 0.65, 0.70, 0.75, 0.80, 0.85, 0.90)
+#: the 50-particle die CLP: its Newton runs, its explicit run (the validation campaign's) and
+#: the densities of its table
+DIE50 = ROOT / "measured" / "implicit_die50"
+DIE50_EXPLICIT = ROOT.parent / "validation" / "runs" / "die_CLP"
+DIE50_DENSITIES = (0.65, 0.70, 0.75, 0.80, 0.85, 0.90, 0.95)
 
 
 def read(path: Path) -> dict[str, np.ndarray]:
@@ -61,14 +74,44 @@ def run(solver: str, restart: str | None, held: float | None = None) -> None:
     subprocess.run(cmd, check=True)
 
 
-def table(held: float | None = None) -> None:
-    """The comparison of the kept histories (the implicit run of the ``held`` drag)."""
-    explicit, implicit = (
-        read(KEPT / s / "history.csv") for s in ("explicit", implicit_folder(held))
-    )
+def run_die50(held: float | None) -> None:
+    """The 50-particle die CLP by Newton: the validation campaign's case with the implicit
+    solver (and the ``held`` drag), resumed from the newest checkpoint of its folder if any."""
+    sys.path.insert(0, str(ROOT.parent))  # the repository: the validation package
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.io.checkpoint import CheckpointError, resolve_checkpoint
+    from mpfem_fenicsx.io.progress import Progress
+    from mpfem_fenicsx.workflows.compaction import run_compaction
+    from validation.cases import die_case
+
+    out = DIE50 / implicit_folder(held)
+    changes = dict(kind="implicit", checkpoint_every=5, visual=False)
+    if held is not None:
+        changes["held_regularization"] = held
+    case = die_case("CLP").compaction_case(str(out)).updated(**changes)
+    try:
+        restart = resolve_checkpoint(out)
+    except CheckpointError:
+        restart = None
+    run_compaction(case, MPI.COMM_WORLD, restart=restart, progress=Progress(MPI.COMM_WORLD))
+
+
+def table(held: float | None = None, die50: bool = False) -> None:
+    """The comparison of the kept histories (the implicit run of the ``held`` drag): the
+    flagship's, or the 50-particle die CLP's."""
+    if die50:
+        explicit = read(DIE50_EXPLICIT / "history.csv")
+        implicit = read(DIE50 / implicit_folder(held) / "history.csv")
+        densities = DIE50_DENSITIES
+    else:
+        explicit, implicit = (
+            read(KEPT / s / "history.csv") for s in ("explicit", implicit_folder(held))
+        )
+        densities = DENSITIES
     print("| rho | explicit sigma_m (MPa) | implicit sigma_m (MPa) | implicit / explicit - 1 |")
     print("|---|---|---|---|")
-    for rho in DENSITIES:
+    for rho in densities:
         if rho > implicit["rho"].max():
             print(
                 f"| {rho:.2f} | {np.interp(rho, explicit['rho'], explicit['sigma_m']):.4g} "
@@ -93,6 +136,12 @@ def table(held: float | None = None) -> None:
 def main(argv=None) -> None:
     """Run what ``--run`` asks, then print the table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--case",
+        choices=("flagship", "die50"),
+        default="flagship",
+        help="the flagship (isotropic, 24 particles) or the 50-particle die CLP to rho 0.95",
+    )
     parser.add_argument("--run", choices=("explicit", "implicit"), default=None)
     parser.add_argument("--restart", default=None, help="implicit: continue from a checkpoint")
     parser.add_argument(
@@ -102,9 +151,14 @@ def main(argv=None) -> None:
         help="implicit: another drag on the held particles than the case's (E V_p / h^2)",
     )
     args = parser.parse_args(argv)
-    if args.run:
+    die50 = args.case == "die50"
+    if die50 and args.run == "explicit":
+        parser.error("--case die50: its explicit run is the validation campaign's (make validate)")
+    if args.run and die50:
+        run_die50(args.held_regularization)
+    elif args.run:
         run(args.run, args.restart, args.held_regularization)
-    table(args.held_regularization)
+    table(args.held_regularization, die50)
 
 
 if __name__ == "__main__":
