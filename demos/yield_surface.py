@@ -54,6 +54,7 @@ def main(argv=None) -> None:
         default=(),
         help="iso-Gamma levels (1/mm; default: 0.25..1 x Gamma after the unload)",
     )
+    add_parameter_option(p, YieldSurfaceCase, "reload_increments")
     add_parameter_option(p, YieldSurfaceCase, "reload_steps")
     add_parameter_option(p, YieldSurfaceCase, "reload_profile")
     p.add_argument(
@@ -83,6 +84,7 @@ def main(argv=None) -> None:
         case = YieldSurfaceCase(
             base=base,
             solver=reload_solver,
+            reload_increments=args.reload_increments,
             reload_steps=args.reload_steps,
             nphi=args.nphi,
             unload_stress_ratio=args.unload_ratio,

@@ -1,0 +1,120 @@
+"""The chapter-4 fan with reloads by Newton against the explicit fans, yield point by yield point.
+
+    python bench/implicit_fan.py                                  # the table of the kept fans
+    python bench/implicit_fan.py --run implicit                   # (re)run or resume one fan
+    python bench/implicit_fan.py --run explicit --reload-increments 3000
+
+Three realizations of `demos/yield_surface.py`'s default fan (24 lead particles, gamma 1e-2
+mJ/mm^2, isotropic loading to rho 0.80 at 4000 increments, the isotropic unload, 16 reloads; the
+loading and the unload are explicit in all three): the reloads by Newton (40 load steps each), and
+by central differences at the default reload rate and at slower ones (``--reload-increments``).
+The fans are kept in bench/measured/implicit_fan/<implicit | explicit | explicit_n<N>>/; a run
+resumes a killed fan (finished reloads are kept). The table gives each direction's yield point
+(E_d = E_0 (1 + 0.3 %)) of every fan and its distance to the reference fan's point (the slowest
+explicit one), relative to that point's distance from the origin of the Rendulic plane
+(sigma_m, sigma~_d); the largest over the directions is the fan's figure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent
+KEPT = ROOT / "measured" / "implicit_fan"
+DEMO = ROOT.parent / "demos" / "yield_surface.py"
+
+
+def folder(solver: str, reload_increments: int) -> Path:
+    """A kept fan: the implicit one, the explicit one at the default reload rate, or an explicit
+    one at ``reload_increments`` per reload."""
+    if solver == "explicit" and reload_increments:
+        return KEPT / f"explicit_n{reload_increments}"
+    return KEPT / solver
+
+
+def run(solver: str, reload_increments: int) -> None:
+    """Run (or resume) one fan through the demo at its defaults."""
+    out = folder(solver, reload_increments)
+    cmd = [sys.executable, str(DEMO), "--solver", solver, "--out", str(out)]
+    if reload_increments:
+        cmd += ["--reload-increments", str(reload_increments)]
+    if (out / "load").exists():
+        cmd.append("--resume")
+    subprocess.run(cmd, check=True)
+
+
+def yield_points(out: Path) -> dict[float, np.ndarray]:
+    """phi (rad) -> the yield point (sigma_m, sigma~_d) (MPa) of a finished fan."""
+    with open(out / "surfaces.csv") as f:
+        rows = [r for r in csv.DictReader(f) if r["kind"] == "yield"]
+    return {
+        round(float(r["phi"]), 9): np.array([float(r["sigma_m"]), float(r["sigma_tilde_d"])])
+        for r in rows
+    }
+
+
+def table() -> None:
+    """Every finished fan's yield points against the slowest explicit fan's."""
+    fans = {p.name: p for p in sorted(KEPT.iterdir()) if (p / "surfaces.csv").exists()}
+    explicit = [n for n in fans if n.startswith("explicit")]
+    if not explicit:
+        print("no finished explicit fan in", KEPT)
+        return
+
+    def increments(name: str) -> int:  # a fan's reload increments (the default's: 0)
+        return int(name.removeprefix("explicit_n")) if "_n" in name else 0
+
+    reference = max(explicit, key=increments)
+    points = {n: yield_points(p) for n, p in fans.items()}
+    ref = points[reference]
+    others = [n for n in fans if n != reference]
+    print(f"reference: {reference}")
+    print("| phi (deg) | " + " | ".join(f"{n} (sigma_m, sigma~_d) / off" for n in fans) + " |")
+    print("|---|" + "---|" * len(fans))
+    worst = dict.fromkeys(others, 0.0)
+    for phi in sorted(ref):
+        cells = []
+        for n in fans:
+            p = points[n].get(phi)
+            if p is None:
+                cells.append("no yield")
+                continue
+            cell = f"({p[0]:.3f}, {p[1]:.3f})"
+            if n != reference:
+                off = np.linalg.norm(p - ref[phi]) / np.linalg.norm(ref[phi])
+                worst[n] = max(worst[n], off)
+                cell += f" / {off:.1%}"
+            cells.append(cell)
+        print(f"| {np.degrees(phi):.1f} | " + " | ".join(cells) + " |")
+    for n in others:
+        missing = sorted(set(ref) - set(points[n]))
+        print(
+            f"{n}: {len(points[n])} yield points, largest distance to {reference}'s "
+            f"{worst[n]:.1%}" + (f", {len(missing)} directions without yield" if missing else "")
+        )
+
+
+def main(argv=None) -> None:
+    """Run what ``--run`` asks, then print the table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--run", choices=("explicit", "implicit"), default=None)
+    parser.add_argument(
+        "--reload-increments",
+        type=int,
+        default=0,
+        help="explicit: increments of a reload (0: the demo's default rate)",
+    )
+    args = parser.parse_args(argv)
+    if args.run:
+        run(args.run, args.reload_increments if args.run == "explicit" else 0)
+    table()
+
+
+if __name__ == "__main__":
+    main()
