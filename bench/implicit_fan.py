@@ -10,10 +10,10 @@ loading and the unload are explicit in all three): the reloads by Newton (40 loa
 by central differences at the default reload rate and at slower ones (``--reload-increments``).
 The fans are kept in bench/measured/implicit_fan/<implicit | explicit | explicit_n<N>>/; a run
 resumes a killed fan (finished reloads are kept), and a slower explicit fan starts from the
-default explicit fan's load and unload when that one has them. The table gives each direction's yield point
-(E_d = E_0 (1 + 0.3 %)) of every fan and its distance to the reference fan's point (the slowest
-explicit one), relative to that point's distance from the origin of the Rendulic plane
-(sigma_m, sigma~_d); the largest over the directions is the fan's figure.
+default explicit fan's load and unload when that one has them. The table gives each direction's
+yield point (E_d = E_0 (1 + 0.3 %)) of every fan and its distance to the reference fan's point
+(the slowest explicit one), relative to that point's distance from the origin of the Rendulic
+plane (sigma_m, sigma~_d); the largest over the directions is the fan's figure.
 """
 
 from __future__ import annotations
