@@ -9,8 +9,9 @@ mJ/mm^2, isotropic loading to rho 0.80 at 4000 increments, the isotropic unload,
 loading and the unload are explicit in all three): the reloads by Newton (40 load steps each), and
 by central differences at the default reload rate and at slower ones (``--reload-increments``).
 The fans are kept in bench/measured/implicit_fan/<implicit | explicit | explicit_n<N>>/; a run
-resumes a killed fan (finished reloads are kept), and a slower explicit fan starts from the
-default explicit fan's load and unload when that one has them. The table gives each direction's
+resumes a killed fan (finished reloads are kept), and the other fans start from the default
+explicit fan's load and unload when that one has them (Newton's reloads from their static
+equilibrium, the implicit settle). The table gives each direction's
 yield point (E_d = E_0 (1 + 0.3 %)) of every fan and its distance to the reference fan's point
 (the slowest explicit one), relative to that point's distance from the origin of the Rendulic
 plane (sigma_m, sigma~_d); the largest over the directions is the fan's figure.
@@ -42,7 +43,7 @@ def folder(solver: str, reload_increments: int) -> Path:
 def run(solver: str, reload_increments: int) -> None:
     """Run (or resume) one fan through the demo at its defaults."""
     out = folder(solver, reload_increments)
-    if solver == "explicit" and reload_increments:
+    if out != folder("explicit", 0):
         sys.path.insert(0, str(ROOT.parent))  # the repository: the validation package
         from validation.run import share_loading
 
