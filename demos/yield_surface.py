@@ -20,6 +20,9 @@ summary.json (E_0, Gamma_l, points per surface, raw W2 sign changes per reload).
 continues a killed fan (finished reloads are not repeated). --solver
 implicit runs the reloads with Newton (the loading and unload stay explicit; the unloaded state
 is first relaxed to static equilibrium): W2 then needs no filter, at ~10x the cost of a reload.
+An explicit reload lasts --reload-increments (default: the compaction's strain rate slowed 4x,
+at least 400): a fan counts once its yield points no longer move when the reloads are slowed
+(bench/implicit_fan.py compares the rates and the reloads by Newton).
 Stresses in MPa, compression > 0.
 """
 
