@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from ..case import SolverSection
 from ..contact import ContactLaw, ContactModel
 from ..io import History
 from ..loading import PrescribedDisplacements
@@ -165,8 +166,8 @@ def tooled_newton(
     t_end: float,
     steps: int,
     contact_length: float,
-    regularization: float = 0.05,
-    held_regularization: float = 5e-4,
+    regularization: float = SolverSection.regularization,
+    held_regularization: float = SolverSection.held_regularization,
     frame=None,
 ):
     """The implicit solver of a tool-driven volume (``build_tooled(..., tangent=True)``; tools
