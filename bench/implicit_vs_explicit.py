@@ -3,10 +3,10 @@
     python bench/implicit_vs_explicit.py                 # the table of the kept histories
     python bench/implicit_vs_explicit.py --run explicit  # (re)run one realization, then the table
     python bench/implicit_vs_explicit.py --run implicit --restart CHECKPOINT   # continue one
-    python bench/implicit_vs_explicit.py --run implicit --held-regularization 2.5e-4
-        # a variant of the held drag, kept in implicit_held_2.5e-4/ (its table: the same
-        # --held-regularization without --run)
-    python bench/implicit_vs_explicit.py --case die50 --run implicit --held-regularization 2.5e-4
+    python bench/implicit_vs_explicit.py --run implicit --held-regularization 5e-4
+        # a variant of the held drag (here the earlier default), kept in implicit_held_5e-4/
+        # (its table: the same --held-regularization without --run)
+    python bench/implicit_vs_explicit.py --case die50 --run implicit
         # the 50-particle die CLP to rho 0.95 by Newton (resumes from its newest checkpoint)
 
 Two realizations of one compaction (`demos/isotropic.py`'s default: 24 lead particles, CLP by
