@@ -8,6 +8,10 @@
         # (its table: the same --held-regularization without --run)
     python bench/implicit_vs_explicit.py --case die50 --run implicit
         # the 50-particle die CLP to rho 0.95 by Newton (resumes from its newest checkpoint)
+    python bench/implicit_vs_explicit.py --case random16 --run explicit --increments 48000
+    python bench/implicit_vs_explicit.py --case random16 --run implicit --held-regularization 1e-3
+        # the heavy test's random volume: one realization of it (explicit at a loading rate,
+        # Newton at a held drag); without --run, the table of all those kept
 
 Two realizations of one compaction (`demos/isotropic.py`'s default: 24 lead particles, CLP by
 images, rho 0.59 -> 0.92): central differences with mass scaling and local damping at 6000
@@ -23,6 +27,12 @@ periodic images, rho 0.61 -> 0.95; its explicit run at 6000 increments is
 validation/runs/die_CLP) by Newton at 100 nominal load steps, kept in
 bench/measured/implicit_die50/; it checkpoints every 5 steps and a new ``--run`` resumes from the
 newest checkpoint there.
+
+``--case random16``: the heavy test's random volume (16 generated lead particles, radii
+0.09-0.11 mm, seed 1, the coarse particle, CLP by images, rho 0.556 -> 0.66) by central
+differences at several loading rates (``--increments``, kept in explicit_n<N>/) and by Newton
+at several held drags (implicit_held_<drag>/), kept in bench/measured/implicit_random16/; the
+table compares every kept run with the slowest explicit one.
 """
 
 from __future__ import annotations
@@ -43,6 +53,9 @@ DENSITIES = (0.62, 0.65, 0.70, 0.75, 0.80, 0.85, 0.90)
 DIE50 = ROOT / "measured" / "implicit_die50"
 DIE50_EXPLICIT = ROOT.parent / "validation" / "runs" / "die_CLP"
 DIE50_DENSITIES = (0.65, 0.70, 0.75, 0.80, 0.85, 0.90, 0.95)
+#: the heavy test's random volume: its runs and the densities of its table
+RANDOM16 = ROOT / "measured" / "implicit_random16"
+RANDOM16_DENSITIES = (0.625, 0.63, 0.635, 0.64, 0.645, 0.65)
 
 
 def read(path: Path) -> dict[str, np.ndarray]:
@@ -97,6 +110,54 @@ def run_die50(held: float | None) -> None:
     run_compaction(case, MPI.COMM_WORLD, restart=restart, progress=Progress(MPI.COMM_WORLD))
 
 
+def run_random16(solver: str, increments: int, held: float | None) -> None:
+    """The heavy test's random volume by ``solver``: explicit at ``increments``, or Newton at
+    30 nominal steps and the ``held`` drag (the solver section's default if None)."""
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.io.progress import Progress
+    from mpfem_fenicsx.workflows.compaction import CompactionCase, run_compaction
+
+    if solver == "explicit":
+        out, count = RANDOM16 / f"explicit_n{increments}", {"increments": increments}
+    else:
+        out, count = RANDOM16 / implicit_folder(held), {"steps": 30}
+        if held is not None:
+            count["held_regularization"] = held
+    case = CompactionCase.build(
+        particles=16, r_min=0.09, r_max=0.11, seed=1, resolution="coarse", exact_volume=False,
+        condition="CLP", images=True, target_density=0.66, outputs=40, visual=False,
+        directory=str(out), kind=solver, **count,
+    )  # fmt: skip
+    run_compaction(case, MPI.COMM_WORLD, progress=Progress(MPI.COMM_WORLD))
+
+
+def table_random16() -> None:
+    """Every kept realization of the random volume against its slowest explicit run: sigma_m
+    at the table's densities (relative difference), the largest difference past the first
+    contacts (Z > 6, rho < 0.652) and past rho 0.638 (the heavy test's rows)."""
+    runs = {p.parent.name: read(p) for p in sorted(RANDOM16.glob("*/history.csv"))}
+    slowest = max((k for k in runs if k.startswith("explicit_n")), key=lambda k: int(k[10:]))
+    ref = runs[slowest]
+    print(f"sigma_m (MPa) and its difference from {slowest}")
+    head = " | ".join(f"{r:.3f}" for r in RANDOM16_DENSITIES)
+    print(f"| run | {head} | max Z>6 | max >0.638 |")
+    print("|---" * (len(RANDOM16_DENSITIES) + 3) + "|")
+    for name, h in runs.items():
+        cells = []
+        for rho in RANDOM16_DENSITIES:
+            e = np.interp(rho, ref["rho"], ref["sigma_m"])
+            v = np.interp(rho, h["rho"], h["sigma_m"])
+            cells.append(f"{v:.3f} ({v / e - 1:+.1%})")
+        rows = (h["Z"] > 6.0) & (h["rho"] < 0.652)
+        d = h["sigma_m"][rows] / np.interp(h["rho"][rows], ref["rho"], ref["sigma_m"]) - 1
+        late = d[h["rho"][rows] > 0.638]
+        print(
+            f"| {name} | " + " | ".join(cells)
+            + f" | {np.abs(d).max():.1%} | {np.abs(late).max() if late.size else np.nan:.1%} |"
+        )  # fmt: skip
+
+
 def table(held: float | None = None, die50: bool = False) -> None:
     """The comparison of the kept histories (the implicit run of the ``held`` drag): the
     flagship's, or the 50-particle die CLP's."""
@@ -138,7 +199,7 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--case",
-        choices=("flagship", "die50"),
+        choices=("flagship", "die50", "random16"),
         default="flagship",
         help="the flagship (isotropic, 24 particles) or the 50-particle die CLP to rho 0.95",
     )
@@ -150,7 +211,15 @@ def main(argv=None) -> None:
         default=None,
         help="implicit: another drag on the held particles than the case's (E V_p / h^2)",
     )
+    parser.add_argument(
+        "--increments", type=int, default=24000, help="random16, explicit: its loading rate"
+    )
     args = parser.parse_args(argv)
+    if args.case == "random16":
+        if args.run:
+            run_random16(args.run, args.increments, args.held_regularization)
+        table_random16()
+        return
     die50 = args.case == "die50"
     if die50 and args.run == "explicit":
         parser.error("--case die50: its explicit run is the validation campaign's (make validate)")

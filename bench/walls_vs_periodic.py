@@ -4,6 +4,7 @@
     python bench/walls_vs_periodic.py --walls 16000 --frame flow      # damped in the flow frame
     python bench/walls_vs_periodic.py --newton 80     # both realizations by Newton, 80 steps
     python bench/walls_vs_periodic.py --table                                # the kept runs
+    python bench/walls_vs_periodic.py --mirrored --newton 80   # mirrored meshes (kept apart)
 
 Two realizations of one die compaction (rho pi / 6 -> 0.95): the thesis' periodic cell (CLP by
 copies, `simple_cubic_case("die")`) and its eight spheres in a box of rigid planes on the cell's
@@ -21,6 +22,10 @@ damping): the periodic cell by images (equal to the copies to 1e-11), the walls 
 `between_walls(solver="implicit")`, both with the pseudo-time drag on the particles' cores at
 5e-4 E V_p / h^2 relative to the homogeneous flow (kept as periodic_newton_s<STEPS> and
 walls_newton_s<STEPS>, compared with each other).
+
+``--mirrored``: the same runs with the particle meshes mirror images of each other across the
+contact planes (`simple_cubic.mirrored_rotations`), so that the walls are symmetry planes of the
+discrete problem too, kept in bench/measured/simple_cubic_walls/mirrored/.
 """
 
 from __future__ import annotations
@@ -33,6 +38,13 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent
 KEPT = ROOT / "measured" / "simple_cubic_walls"
+
+
+def kept(mirrored: bool) -> Path:
+    """The runs' folder: the generic orientation's, or the mirrored meshes' (``--mirrored``)."""
+    return KEPT / "mirrored" if mirrored else KEPT
+
+
 #: walls' history columns and the periodic cell's (Love-Weber, compression > 0)
 PAIRS = (
     ("sigma_zz_walls", "sigma33"),
@@ -41,16 +53,18 @@ PAIRS = (
 )
 
 
-def run_periodic(increments: int) -> Path:
+def run_periodic(increments: int, mirrored: bool = False) -> Path:
     """The periodic cell's die compaction at ``increments`` (unless kept)."""
     from mpi4py import MPI
 
     from mpfem_fenicsx.workflows.compaction import run_compaction
     from mpfem_fenicsx.workflows.simple_cubic import simple_cubic_case
 
-    out = KEPT / f"periodic_n{increments}"
+    out = kept(mirrored) / f"periodic_n{increments}"
     if not (out / "die" / "history.csv").is_file():
-        case = simple_cubic_case("die", increments=increments, out_dir=str(out), visual=False)
+        case = simple_cubic_case(
+            "die", increments=increments, out_dir=str(out), visual=False, mirrored=mirrored
+        )
         run_compaction(case, MPI.COMM_SELF, log=print)
         shutil.rmtree(out / "die" / "checkpoints", ignore_errors=True)  # 14 MB, not kept
     return out / "die"
@@ -61,16 +75,19 @@ def run_periodic(increments: int) -> Path:
 NEWTON_DRAG = 5e-4
 
 
-def run_newton(steps: int) -> tuple[Path, Path]:
+def run_newton(steps: int, mirrored: bool = False) -> tuple[Path, Path]:
     """Both realizations by Newton in ``steps`` load steps (unless kept)."""
     from mpi4py import MPI
 
     from mpfem_fenicsx.workflows.compaction import run_compaction
     from mpfem_fenicsx.workflows.simple_cubic import between_walls, simple_cubic_case
 
-    periodic, walls = KEPT / f"periodic_newton_s{steps}", KEPT / f"walls_newton_s{steps}"
+    root = kept(mirrored)
+    periodic, walls = root / f"periodic_newton_s{steps}", root / f"walls_newton_s{steps}"
     if not (periodic / "die" / "history.csv").is_file():
-        case = simple_cubic_case("die", out_dir=str(periodic), visual=False).updated(
+        case = simple_cubic_case(
+            "die", out_dir=str(periodic), visual=False, mirrored=mirrored
+        ).updated(
             kind="implicit",
             steps=steps,
             images=True,
@@ -88,25 +105,31 @@ def run_newton(steps: int) -> tuple[Path, Path]:
             steps=steps,
             outputs=steps,
             regularization=NEWTON_DRAG,
+            mirrored=mirrored,
         )
     return periodic / "die", walls
 
 
-def run_walls(increments: int, frame: str) -> Path:
+def run_walls(increments: int, frame: str, mirrored: bool = False) -> Path:
     """The cell between walls at ``increments``, damped in ``frame`` (unless kept)."""
     from mpi4py import MPI
 
     from mpfem_fenicsx.workflows.simple_cubic import between_walls
 
-    out = KEPT / (f"walls_n{increments}" if frame == "rest" else f"walls_{frame}_n{increments}")
+    name = f"walls_n{increments}" if frame == "rest" else f"walls_{frame}_n{increments}"
+    out = kept(mirrored) / name
     if not (out / "history.csv").is_file():
         between_walls(
-            increments=increments, out_dir=str(out), comm=MPI.COMM_SELF, damping_frame=frame
+            increments=increments,
+            out_dir=str(out),
+            comm=MPI.COMM_SELF,
+            damping_frame=frame,
+            mirrored=mirrored,
         )
     return out
 
 
-def table() -> str:
+def table(mirrored: bool = False) -> str:
     """The comparison tables (Markdown) of the kept runs: the explicit walls runs against the
     slowest explicit periodic run, each Newton walls run against the Newton periodic run of
     its step count."""
@@ -122,7 +145,8 @@ def table() -> str:
         path = history_path(folder)
         return path.is_file() and read_csv(path)["rho"][-1] >= 0.95 - 1e-6
 
-    explicit = [f for f in KEPT.glob("*_n*") if "newton" not in f.name and done(f)]
+    root = kept(mirrored)
+    explicit = [f for f in root.glob("*_n*") if "newton" not in f.name and done(f)]
     periodic = sorted((f for f in explicit if f.name.startswith("periodic")), key=increments)
     walls = sorted((f for f in explicit if f.name.startswith("walls")), key=increments)
     out = []
@@ -135,8 +159,8 @@ def table() -> str:
             "",
             *_compare(ref, [(f.name, read_csv(history_path(f))) for f in periodic[:-1] + walls]),
         ]
-    for folder in sorted(KEPT.glob("walls_newton_s*")):
-        ref_folder = KEPT / folder.name.replace("walls", "periodic")
+    for folder in sorted(root.glob("walls_newton_s*")):
+        ref_folder = root / folder.name.replace("walls", "periodic")
         if done(folder) and history_path(ref_folder).is_file():
             # the periodic run by Newton may stop short of 0.95 (Newton below its minimum
             # increment): both compared up to its last row
@@ -195,15 +219,18 @@ def main(argv=None) -> None:
     parser.add_argument("--frame", choices=("rest", "flow"), default="rest", help="damping's")
     parser.add_argument("--newton", type=int, nargs="*", default=[], help="load steps")
     parser.add_argument("--table", action="store_true", help="only the table of the kept runs")
+    parser.add_argument(
+        "--mirrored", action="store_true", help="particle meshes mirrored across the contact planes"
+    )
     args = parser.parse_args(argv)
     if not args.table:
         for n in args.periodic:
-            run_periodic(n)
+            run_periodic(n, args.mirrored)
         for n in args.walls:
-            run_walls(n, args.frame)
+            run_walls(n, args.frame, args.mirrored)
         for n in args.newton:
-            run_newton(n)
-    print(table())
+            run_newton(n, args.mirrored)
+    print(table(args.mirrored))
 
 
 if __name__ == "__main__":

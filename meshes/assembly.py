@@ -151,7 +151,9 @@ def particle_mesh(
         tet_size: gmsh target element size relative to the radius.
         tet_refine: local gmsh refinement, see :func:`meshes.tetra.gmsh_spheres`.
         rotations: optional (N, 3, 3) rotation of each hexahedral particle mesh about its centre
-            (random orientations avoid aligned, node-on-node contacts between particles).
+            (random orientations avoid aligned, node-on-node contacts between particles); an
+            orthogonal matrix of determinant -1 mirrors the mesh (its cells re-ordered to keep
+            a positive Jacobian).
         grading: optional (N, 3) vectors g (|g| < 1): particle i's hexahedra are refined towards
             the surface point in direction g/|g| by the conformal map of :func:`mobius_ball`
             (element size x (1 - |g|)/(1 + |g|) there), e.g. at a known contact point.
@@ -185,9 +187,12 @@ def particle_mesh(
                     )
                 unit = np.einsum("pij,pnj->pni", rotations, unit)
             x = (centres[:, None, :] + radii[:, None, None] * unit).reshape(-1, 3)
-            cells = (ball.cells[None] + n_nodes * np.arange(radii.size)[:, None, None]).reshape(
-                -1, 8
-            )
+            cells = ball.cells[None] + n_nodes * np.arange(radii.size)[:, None, None]
+            if rotations is not None:
+                # a mirrored particle: its hexahedra's first reference direction reversed
+                mirrored = np.linalg.det(rotations) < 0
+                cells[mirrored] = cells[mirrored][:, :, [1, 0, 3, 2, 5, 4, 7, 6]]
+            cells = cells.reshape(-1, 8)
         else:
             x = np.zeros((0, 3))
             cells = np.zeros((0, 8), dtype=np.int64)

@@ -131,9 +131,13 @@ class MeshSection:
     #: particle meshes hold their sphere's volume (nodes moved outwards by ~1 %); False: inscribed
     #: in the sphere (e.g. touching spheres of an ordered cell with radius_factor 1)
     exact_volume: bool = True
-    #: (3, 3) rotation of every particle mesh about its centre (None: cube-sphere axes along x, y,
-    #: z). One generic rotation for all keeps identical particles exact translates of each other
-    #: while their contact points fall inside facets, not on nodes (ordered packings)
+    #: orientation of the particle meshes about their centres (None: cube-sphere axes along x, y,
+    #: z): one (3, 3) orthogonal matrix for all, or one per packing particle, (n, 3, 3), a copy
+    #: taking its original's; a matrix of determinant -1 mirrors the mesh. One generic rotation
+    #: for all keeps identical particles exact translates of each other while their contact
+    #: points fall inside facets, not on nodes (ordered packings); an ordered cell's particles
+    #: mirrored across its contact planes make those planes symmetry planes of the discrete
+    #: problem (:func:`~mpfem_fenicsx.workflows.simple_cubic.mirrored_rotations`)
     rotation: np.ndarray | None = field(default=None, compare=False)
 
     def __post_init__(self):
@@ -141,11 +145,13 @@ class MeshSection:
         if self.rotation is not None:
             Q = np.asarray(self.rotation, dtype=float)
             if (
-                Q.shape != (3, 3)
-                or not np.allclose(Q @ Q.T, np.eye(3), atol=1e-12)
-                or np.linalg.det(Q) < 0
+                Q.ndim not in (2, 3)
+                or Q.shape[-2:] != (3, 3)
+                or not np.allclose(Q @ np.swapaxes(Q, -1, -2), np.eye(3), atol=1e-12)
             ):
-                raise ValueError("mesh.rotation must be a (3, 3) proper rotation matrix")
+                raise ValueError(
+                    "mesh.rotation must be a (3, 3) or (n, 3, 3) array of orthogonal matrices"
+                )
 
     @property
     def subdivisions(self) -> tuple[int, int]:

@@ -71,3 +71,73 @@ def test_simple_cubic_homogenization(simple_cubic, loading, tmp_path):
         and h.column("Z")[-1] == 6
         and h.column("rattlers")[-1] == 0
     )
+
+
+def _particle_nodes(model, p):
+    """Reference coordinates of assembly particle ``p``'s mesh nodes, sorted."""
+    import dolfinx
+
+    mesh = model.assembly.mesh
+    cells = model.assembly.cell_tags.find(p)
+    nodes = np.unique(dolfinx.mesh.entities_to_geometry(mesh, 3, cells).ravel())
+    x = mesh.geometry.x[nodes]
+    return x[np.lexsort(np.round(x, 12).T)]
+
+
+def test_mirrored_meshes_are_mirror_images_across_every_contact_plane(simple_cubic):
+    """``mirrored=True``: two touching particle meshes of the cell (copies included) are mirror
+    images across their contact plane, node for node, and every cell keeps a positive volume; the
+    generic orientation's meshes are translates instead, not mirror images (the check can
+    fail)."""
+    from mpfem_fenicsx.workflows.compaction import build_compaction
+
+    def mirror_gap(model):
+        """The largest distance between a mesh mirrored across a contact plane and its
+        neighbour's, over every touching pair of assembly particles."""
+        c, worst, pairs = model.centres, 0.0, 0
+        for p in range(c.shape[0]):
+            for q in range(c.shape[0]):
+                d = c[q] - c[p]
+                axis = int(np.argmax(np.abs(d)))
+                if not (np.isclose(np.abs(d).max(), 0.2) and np.isclose(np.abs(d).sum(), 0.2)):
+                    continue
+                mirrored = _particle_nodes(model, p).copy()
+                plane = 0.5 * (c[p, axis] + c[q, axis])
+                mirrored[:, axis] = 2.0 * plane - mirrored[:, axis]
+                mirrored = mirrored[np.lexsort(np.round(mirrored, 12).T)]
+                worst = max(worst, np.abs(mirrored - _particle_nodes(model, q)).max())
+                pairs += 1
+        return worst, pairs
+
+    quiet = lambda *a: None  # noqa: E731
+    mirrored = build_compaction(
+        simple_cubic.simple_cubic_case("die", visual=False, mirrored=True),
+        MPI.COMM_SELF,
+        quiet,
+    )
+    gap, pairs = mirror_gap(mirrored)
+    assert pairs > 24 and gap < 1e-12, (pairs, gap)  # the cell's 24 contacts and its copies'
+    # every hexahedron positively oriented (its reference axes 0-1, 0-2, 0-4 right-handed)
+    mesh = mirrored.assembly.mesh
+    x = mesh.geometry.x[mesh.geometry.dofmap]
+    a, b, c = (x[:, k] - x[:, 0] for k in (1, 2, 4))
+    assert np.einsum("ij,ij->i", np.cross(a, b), c).min() > 0.0
+    generic = build_compaction(
+        simple_cubic.simple_cubic_case("die", visual=False), MPI.COMM_SELF, quiet
+    )
+    assert mirror_gap(generic)[0] > 1e-3
+
+
+def test_mesh_rotation_per_particle_is_checked():
+    """mesh.rotation: one orthogonal matrix, or one per packing particle; else one line naming
+    the field, before any meshing."""
+    from mpfem_fenicsx.workflows.compaction import CompactionCase, build_compaction
+    from mpfem_fenicsx.workflows.simple_cubic import mirrored_rotations, simple_cubic_case
+
+    with pytest.raises(ValueError, match="mesh.rotation must be"):
+        CompactionCase.build(rotation=np.diag([1.0, 2.0, 1.0]))
+    with pytest.raises(ValueError, match="mesh.rotation must be"):
+        CompactionCase.build(rotation=np.ones((2, 3)))
+    case = simple_cubic_case("die", visual=False).updated(rotation=mirrored_rotations()[:3])
+    with pytest.raises(ValueError, match="mesh.rotation has 3 matrices for a packing of 8"):
+        build_compaction(case, MPI.COMM_SELF, lambda *a: None)

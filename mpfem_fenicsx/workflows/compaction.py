@@ -261,11 +261,14 @@ def build_compaction(
     # surface element edge at a cube-face centre of the smallest particle (equi-angular grid)
     h_contact = float(radii.min()) * np.pi / (2 * divisions * mesh_section.refinement)
     law = contact_law(case.contact, case.material, h_contact)
-    rotations = (
-        None
-        if mesh_section.rotation is None
-        else np.broadcast_to(mesh_section.rotation, (radii.size, 3, 3))
-    )
+    rotations = None
+    if mesh_section.rotation is not None:  # one for all, or one per particle (copies: theirs)
+        Q = np.asarray(mesh_section.rotation, dtype=float)
+        if Q.ndim == 3 and Q.shape[0] != n:
+            raise ValueError(
+                f"mesh.rotation has {Q.shape[0]} matrices for a packing of {n} particles"
+            )
+        rotations = np.broadcast_to(Q, (radii.size, 3, 3)) if Q.ndim == 2 else Q[original]
     assembly = particle_mesh(
         centres,
         radii,

@@ -33,12 +33,31 @@ from .tooled import (
     tooled_solver,
 )
 
-__all__ = ["COMPONENTS", "MESH_ROTATION", "between_walls", "checks", "simple_cubic_case"]
+__all__ = [
+    "COMPONENTS",
+    "MESH_ROTATION",
+    "between_walls",
+    "checks",
+    "mirrored_rotations",
+    "simple_cubic_case",
+]
 
 #: one generic orientation for every particle mesh (0.3 rad about (1, 2, 3)): identical particles
 #: stay exact translates while their contact points are inside facets (no node-on-node contact)
 MESH_ROTATION = Rotation.from_rotvec(0.3 * np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)).as_matrix()
 COMPONENTS = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
+
+
+def mirrored_rotations(radius: float = 0.1, rotation: np.ndarray = MESH_ROTATION) -> np.ndarray:
+    """(8, 3, 3) orientations of the cell's particle meshes mirrored across its contact planes:
+    the sphere at r + 2 r (i, j, k) takes diag((-1)^i, (-1)^j, (-1)^k) ``rotation``. Two touching
+    meshes are then mirror images of each other across their contact plane (in the periodic
+    lattice too: the cell holds two spheres along each axis), so the planes x, y, z = 0, 2 r, 4 r
+    are symmetry planes of the discrete problem, not only of the spheres, and a node meets its
+    neighbour's surface where it meets the plane."""
+    grid = np.rint((simple_cubic_packing(radius).centres - radius) / (2.0 * radius))
+    mirrors = np.where(grid % 2 == 1, -1.0, 1.0)
+    return mirrors[:, :, None] * np.asarray(rotation, dtype=float)[None]
 
 
 def simple_cubic_case(
@@ -50,9 +69,12 @@ def simple_cubic_case(
     visual: bool = True,
     outputs: int = 40,
     face_copies_only: bool = False,
+    mirrored: bool = False,
 ) -> CompactionCase:
     """The thesis §2.6 cell: CLP by copies, radii not shrunk (exact pi / 6; the particle meshes are
-    inscribed in their touching spheres), all copies (or the 12 face copies of the thesis)."""
+    inscribed in their touching spheres), all copies (or the 12 face copies of the thesis); the
+    particle meshes in one generic orientation or, ``mirrored``, mirror images of each other
+    across the contact planes (:func:`mirrored_rotations`)."""
     return CompactionCase.build(
         spheres=simple_cubic_packing(radius),
         path=loading,
@@ -62,7 +84,7 @@ def simple_cubic_case(
         corners=not face_copies_only,
         d_bc=1.0,
         radius_factor=1.0,
-        rotation=MESH_ROTATION,
+        rotation=mirrored_rotations(radius) if mirrored else MESH_ROTATION,
         target_density=target_density,
         increments=increments,
         outputs=outputs,
@@ -102,16 +124,19 @@ def between_walls(
     solver: str = "explicit",
     steps: int = 100,
     regularization: float = 5e-4,
+    mirrored: bool = False,
 ):
     """The cell's eight spheres in a box of six frictionless rigid planes on its contact planes
     x, y, z = 0 and 4 r (the periodic cell's symmetry planes), die-compacted by the top plane:
     its height follows the periodic die path's F0_zz(t) (the same smooth ramps over
     ``duration``), the other planes stay. The same particle meshes as :func:`simple_cubic_case`
-    (inscribed, the generic rotation), the same contact law between the spheres; the planes'
-    penalty is twice it (:func:`~.tooled.tool_law`). The node-wise local damping resists the
-    motion of every node (``damping_frame="rest"``) or its motion relative to the homogeneous
-    flow between the bottom and top planes (``"flow"``, the periodic cell's comoving frame; its
-    rows farther from the periodic cell's at 16 000 and 32 000 increments: bench/README.md).
+    (inscribed, the generic rotation or, ``mirrored``, mirror images across the contact planes:
+    then the planes are symmetry planes of the periodic cell's discrete problem), the same
+    contact law between the spheres; the planes' penalty is twice it (:func:`~.tooled.tool_law`).
+    The node-wise local damping resists the motion of every node (``damping_frame="rest"``) or
+    its motion relative to the homogeneous flow between the bottom and top planes (``"flow"``,
+    the periodic cell's comoving frame; its rows farther from the periodic cell's at 16 000 and
+    32 000 increments: bench/README.md).
     ``solver="implicit"``: the static path by Newton in ``steps`` load steps instead
     (:func:`~.tooled.tooled_newton`; ``increments`` and the damping unused), the pseudo-time drag
     on the particles' cores at ``regularization`` x E V_p / h^2 whatever their contacts (the
@@ -126,7 +151,9 @@ def between_walls(
     if damping_frame not in ("flow", "rest"):
         raise ValueError(f"damping_frame = {damping_frame!r} must be 'flow' or 'rest'")
     comm = comm or MPI.COMM_WORLD
-    periodic = simple_cubic_case("die", radius, target_density, increments, visual=False)
+    periodic = simple_cubic_case(
+        "die", radius, target_density, increments, visual=False, mirrored=mirrored
+    )
     packing, L = simple_cubic_packing(radius), 4.0 * radius
     divisions, _ = periodic.mesh.subdivisions
     h_contact = radius * np.pi / (2 * divisions * periodic.mesh.refinement)
