@@ -171,7 +171,7 @@ def newton_against_slow_explicit(rho, sigma_m, Z):
     return rho[rows], sigma_m[rows] / np.interp(rho[rows], *reference.T) - 1.0
 
 
-@pytest.mark.heavy  # ~20 min on a shared core: pytest -m heavy tests/test_implicit_granular.py
+@pytest.mark.heavy  # ~15 min on a shared core: pytest -m heavy tests/test_implicit_granular.py
 def test_random_volume_by_newton_follows_its_slow_explicit_compaction(tmp_path):
     """A random granular volume (16 generated lead particles, radii 0.09-0.11 mm, the coarse
     particle, CLP by images) compacted from rho 0.556 to 0.66 by Newton (30 nominal steps, the
