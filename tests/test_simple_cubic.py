@@ -6,6 +6,7 @@ import pytest
 from mpi4py import MPI
 
 from mpfem_fenicsx.workflows.compaction import run_compaction
+from test_granular import quiet
 
 #: CI-sized: fewer increments than the demo (4000) where possible; the end state is at rest either
 #: way. The die path needs the demo's: at 1500 / 2500 increments the translation symmetry breaks
@@ -109,7 +110,6 @@ def test_mirrored_meshes_are_mirror_images_across_every_contact_plane(simple_cub
                 pairs += 1
         return worst, pairs
 
-    quiet = lambda *a: None  # noqa: E731
     mirrored = build_compaction(
         simple_cubic.simple_cubic_case("die", visual=False, mirrored=True),
         MPI.COMM_SELF,

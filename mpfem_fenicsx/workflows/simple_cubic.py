@@ -54,7 +54,8 @@ def mirrored_rotations(radius: float = 0.1, rotation: np.ndarray = MESH_ROTATION
     meshes are then mirror images of each other across their contact plane (in the periodic
     lattice too: the cell holds two spheres along each axis), so the planes x, y, z = 0, 2 r, 4 r
     are symmetry planes of the discrete problem, not only of the spheres, and a node meets its
-    neighbour's surface where it meets the plane."""
+    neighbour's surface where it meets the plane. Mirror images meet node on node (each slave
+    node lands on a master vertex): the contact is rougher than with one generic orientation."""
     grid = np.rint((simple_cubic_packing(radius).centres - radius) / (2.0 * radius))
     mirrors = np.where(grid % 2 == 1, -1.0, 1.0)
     return mirrors[:, :, None] * np.asarray(rotation, dtype=float)[None]
