@@ -2,6 +2,7 @@
 and by a force servo; restart with the tools' contact history; the tools' forces against the
 particles' own balance; Newton on a tool-driven volume against the explicit state at rest."""
 
+import shutil
 from dataclasses import replace
 
 import numpy as np
@@ -9,10 +10,13 @@ import pytest
 from mpi4py import MPI
 
 from mpfem_fenicsx.contact import ContactLaw
+from mpfem_fenicsx.io.checkpoint import CheckpointError
 from mpfem_fenicsx.material import LEAD
 from mpfem_fenicsx.solvers.explicit import ExplicitSettings
 from mpfem_fenicsx.tools import CylinderInside, ForceServo, KeyframePath, Plane, RigidTool
 from mpfem_fenicsx.workflows.tooled import (
+    ToolCheckpoints,
+    ToolHistory,
     build_tooled,
     flow_displacement,
     mesh_radii,
@@ -116,6 +120,44 @@ def test_restart_continues_the_tool_contact_history_bit_for_bit():
     assert second.tools.tool_work == pytest.approx(model.tools.tool_work, rel=1e-12)
 
 
+def test_a_killed_tool_run_continues_from_its_checkpoint(tmp_path):
+    """The history and state of a pressed particle written every 4 rows; the run killed after
+    its checkpoint at row 4 (the later ones removed), a new model resumes from it and ends with
+    the uninterrupted run's rows and displacement, bit for bit (explicit)."""
+    path = KeyframePath((0.0, T), ((0, 0, 0), (0, 0, -0.3 * R)))
+
+    def run(folder):
+        model, solver = _pressed(path, increments=300, hold=0.0)
+        history = ToolHistory(model, folder / "history.csv")
+        checkpoints = ToolCheckpoints(folder / "checkpoints", history, every=4, keep=0)
+        resumed = checkpoints.restore(solver)
+
+        def record(s):
+            history.row(s)
+            checkpoints.after_row(s)
+
+        run_tooled(model, solver, record, outputs=12)
+        return model, history, resumed
+
+    whole, history, resumed = run(tmp_path)
+    assert not resumed and len(history.history.rows) == 12
+    steps = sorted((tmp_path / "checkpoints").glob("step*"))
+    assert len(steps) == 3  # rows 4, 8, 12
+    for later in steps[1:]:
+        shutil.rmtree(later)
+    again, continued, resumed = run(tmp_path)
+    assert resumed
+    assert np.array_equal(continued.history.array(), history.history.array())
+    assert np.array_equal(again.problem.u.x.array, whole.problem.u.x.array)
+    # a checkpoint of another model is refused
+    wall = [RigidTool("wall", Plane())]
+    other = build_tooled([[0, 0, R]], [R], wall, ContactLaw(penalty=1e6), LEAD, MPI.COMM_SELF)
+    with pytest.raises(CheckpointError, match="another tool-driven model"):
+        ToolCheckpoints(
+            tmp_path / "checkpoints", ToolHistory(other, tmp_path / "h.csv"), 4
+        ).restore(tooled_solver(other, ExplicitSettings(t_end=T, target_dt=T / 10)))
+
+
 def test_tool_names_and_delta_max_are_checked():
     law = ContactLaw(penalty=1e6, gamma=1e-3, delta_max=1e-3)
     tools = [RigidTool("a", Plane()), RigidTool("a", Plane((0, 0, 1), (0, 0, -1)))]
@@ -126,6 +168,22 @@ def test_tool_names_and_delta_max_are_checked():
 
     with pytest.raises(ValueError, match="delta_max"):
         RigidContact(None, adhesive, search_distance=1e-4)
+
+
+def test_the_particle_resolution_is_checked_and_refined():
+    """``refinement`` multiplies the cube-sphere's subdivisions: the chapter-2 particle has 561
+    nodes, refined twice 3 929 (the mesh section's documented counts)."""
+    law = ContactLaw(penalty=1e6)
+    wall = [RigidTool("wall", Plane())]
+    for refinement, nodes in ((1, 561), (2, 3929)):
+        model = build_tooled(
+            [[0, 0, R]], [R], wall, law, LEAD, MPI.COMM_SELF, refinement=refinement
+        )
+        assert model.num_dofs == 3 * nodes
+    with pytest.raises(ValueError, match=r"refinement = 5 must be an integer in \[1, 4\]"):
+        build_tooled([[0, 0, R]], [R], wall, law, LEAD, MPI.COMM_SELF, refinement=5)
+    with pytest.raises(ValueError, match="resolution = 'fine' must be one of"):
+        build_tooled([[0, 0, R]], [R], wall, law, LEAD, MPI.COMM_SELF, resolution="fine")
 
 
 def test_the_user_guide_example_runs(tmp_path, monkeypatch):

@@ -23,6 +23,7 @@ from ..solvers.explicit import ExplicitSettings
 from ..tools import Plane, RigidTool
 from .compaction import CompactionCase, contact_law
 from .tooled import (
+    ToolCheckpoints,
     ToolHistory,
     build_tooled,
     flow_between_tools,
@@ -71,11 +72,13 @@ def simple_cubic_case(
     outputs: int = 40,
     face_copies_only: bool = False,
     mirrored: bool = False,
+    refinement: int = 1,
 ) -> CompactionCase:
     """The thesis §2.6 cell: CLP by copies, radii not shrunk (exact pi / 6; the particle meshes are
     inscribed in their touching spheres), all copies (or the 12 face copies of the thesis); the
-    particle meshes in one generic orientation or, ``mirrored``, mirror images of each other
-    across the contact planes (:func:`mirrored_rotations`)."""
+    particle meshes (the chapter-2 particle, its subdivisions times ``refinement``) in one
+    generic orientation or, ``mirrored``, mirror images of each other across the contact planes
+    (:func:`mirrored_rotations`)."""
     return CompactionCase.build(
         spheres=simple_cubic_packing(radius),
         path=loading,
@@ -86,6 +89,7 @@ def simple_cubic_case(
         d_bc=1.0,
         radius_factor=1.0,
         rotation=mirrored_rotations(radius) if mirrored else MESH_ROTATION,
+        refinement=refinement,
         target_density=target_density,
         increments=increments,
         outputs=outputs,
@@ -126,13 +130,16 @@ def between_walls(
     steps: int = 100,
     regularization: float = 5e-4,
     mirrored: bool = False,
+    refinement: int = 1,
+    checkpoint_every: int = 0,
 ):
     """The cell's eight spheres in a box of six frictionless rigid planes on its contact planes
     x, y, z = 0 and 4 r (the periodic cell's symmetry planes), die-compacted by the top plane:
     its height follows the periodic die path's F0_zz(t) (the same smooth ramps over
     ``duration``), the other planes stay. The same particle meshes as :func:`simple_cubic_case`
-    (inscribed, the generic rotation or, ``mirrored``, mirror images across the contact planes:
-    then the planes are symmetry planes of the periodic cell's discrete problem), the same
+    (its ``refinement``; inscribed, the generic rotation or, ``mirrored``, mirror images across
+    the contact planes: then the planes are symmetry planes of the periodic cell's discrete
+    problem), the same
     contact law between the spheres; the planes' penalty is twice it (:func:`~.tooled.tool_law`).
     The node-wise local damping resists the motion of every node (``damping_frame="rest"``) or
     its motion relative to the homogeneous flow between the bottom and top planes (``"flow"``,
@@ -145,6 +152,10 @@ def between_walls(
     particle's carried up to 80 % of the forces before the lateral contacts engage) and
     relative to the homogeneous flow between the bottom and top planes.
 
+    ``checkpoint_every``: a checkpoint in ``out_dir``/checkpoints after every that many history
+    rows (0: none); a run that finds one there continues from it (:class:`~.tooled.
+    ToolCheckpoints`).
+
     Returns the :class:`~.tooled.ToolHistory` with ``rho`` (the spheres' volume over the box's,
     eq. 2.5) and the stresses from the planes' forces (compression > 0, each the mean of the two
     opposite planes): ``sigma_zz_walls`` = force / (4 r)^2, ``sigma_xx_walls``,
@@ -153,7 +164,13 @@ def between_walls(
         raise ValueError(f"damping_frame = {damping_frame!r} must be 'flow' or 'rest'")
     comm = comm or MPI.COMM_WORLD
     periodic = simple_cubic_case(
-        "die", radius, target_density, increments, visual=False, mirrored=mirrored
+        "die",
+        radius,
+        target_density,
+        increments,
+        visual=False,
+        mirrored=mirrored,
+        refinement=refinement,
     )
     packing, L = simple_cubic_packing(radius), 4.0 * radius
     divisions, _ = periodic.mesh.subdivisions
@@ -189,6 +206,7 @@ def between_walls(
         periodic.material,
         comm,
         resolution=periodic.mesh.resolution,
+        refinement=periodic.mesh.refinement,
         exact_volume=False,
         rotation=periodic.mesh.rotation,
         tangent=static,
@@ -226,6 +244,8 @@ def between_walls(
     )
 
     spheres = float(np.sum(4.0 / 3.0 * np.pi * packing.radii**3))  # V_p of eq. 2.5
+    checkpoints = ToolCheckpoints(f"{out_dir}/checkpoints", history, checkpoint_every)
+    resumed = checkpoint_every > 0 and checkpoints.restore(integrator)
 
     def record(s):
         height = L * path(s.t)[2, 2]
@@ -237,10 +257,12 @@ def between_walls(
             sigma_yy_walls=0.5 * (forces[3, 1] - forces[2, 1]) / (L * height),
             sigma_zz_walls=0.5 * (forces[5, 2] - forces[4, 2]) / (L * L),
         )
+        checkpoints.after_row(s)
 
     log(
         f"simple cubic cell between walls: {model.num_dofs} dofs, "
         + (f"{steps} load steps (Newton)" if static else f"{increments} increments")
+        + (f"; continued from t = {integrator.t:.6g} s" if resumed else "")
     )
     run_tooled(model, integrator, record, outputs=outputs)
     history.write()

@@ -27,6 +27,14 @@ from mpi4py import MPI
 from ..case import SolverSection
 from ..contact import ContactLaw, ContactModel
 from ..io import History
+from ..io.checkpoint import (
+    CheckpointError,
+    checkpoint_path,
+    load_checkpoint,
+    prune_checkpoints,
+    resolve_checkpoint,
+    save_checkpoint,
+)
 from ..loading import PrescribedDisplacements
 from ..material import LEAD, ElastoPlastic
 from ..meshes import node_particles, particle_mesh, particle_volumes
@@ -108,13 +116,19 @@ def build_tooled(
     comm: MPI.Comm = MPI.COMM_WORLD,
     *,
     resolution: str = "chapter2",
+    refinement: int = 1,
     exact_volume: bool = True,
     rotation: np.ndarray | None = None,
     tangent: bool = False,
 ) -> ToolModel:
     """Mesh spheres (``radii``: the meshed ones, :func:`mesh_radii`), the bulk problem and the
     contact between the particles and with ``tools`` (:class:`~mpfem_fenicsx.tools.RigidTool`);
+    ``resolution`` and ``refinement``: the cube-sphere particle (``[mesh]``'s fields);
     ``tangent``: the problem carries the consistent tangent (the implicit solver needs it)."""
+    if resolution not in RESOLUTIONS:
+        raise ValueError(f"resolution = {resolution!r} must be one of {sorted(RESOLUTIONS)}")
+    if not 1 <= int(refinement) <= 4:
+        raise ValueError(f"refinement = {refinement} must be an integer in [1, 4]")
     divisions, layers = RESOLUTIONS[resolution]
     radii = np.asarray(radii, dtype=float)
     assembly = particle_mesh(
@@ -123,6 +137,7 @@ def build_tooled(
         comm,
         divisions=divisions,
         layers=layers,
+        refinement=int(refinement),
         exact_volume=exact_volume,
         rotations=None if rotation is None else np.broadcast_to(rotation, (radii.size, 3, 3)),
     )
@@ -310,3 +325,57 @@ class ToolHistory:
     def write(self) -> Path:
         """Write the CSV (rank 0)."""
         return self.history.write()
+
+
+class ToolCheckpoints:
+    """Checkpoints of a tool-driven run in ``root`` (e.g. ``<out>/checkpoints``): after every
+    ``every`` history rows, the newest ``keep`` kept; each holds the solver's state (material,
+    particle contact and tool contact histories, the tools' placements) and the history's rows
+    so far. :meth:`restore` continues a killed run from the newest one (the same model on the
+    same number of ranks; explicit: bit for bit)."""
+
+    def __init__(self, root: str | Path, history: ToolHistory, every: int, keep: int = 2):
+        if every < 0 or keep < 0:
+            raise ValueError(f"checkpoints: every = {every} and keep = {keep} must be >= 0")
+        self.root, self.history, self.every, self.keep = Path(root), history, every, keep
+        self.comm = history.model.problem.comm
+
+    def restore(self, solver) -> bool:
+        """Load the newest checkpoint in ``root`` into ``solver`` and the history; False if there
+        is none. Raises CheckpointError for a checkpoint of another model."""
+        try:
+            directory = resolve_checkpoint(self.root)
+        except CheckpointError:
+            return False
+        arrays, meta = load_checkpoint(directory, self.comm)
+        model = self.history.model
+        if meta.get("num_dofs") != model.num_dofs or meta.get("columns") != self.history.columns:
+            raise CheckpointError(
+                f"restart: {directory} was written for another tool-driven model "
+                f"({meta.get('num_dofs')} dofs; this one {model.num_dofs})"
+            )
+        solver.load_state({k[7:]: v for k, v in arrays.items() if k.startswith("solver/")})
+        self.history.history.rows = [list(map(float, row)) for row in meta["history"]]
+        return True
+
+    def after_row(self, solver) -> None:
+        """Write a checkpoint if one is due after the row just recorded (collective)."""
+        rows = len(self.history.history.rows)
+        if not self.every or rows % self.every:
+            return
+        directory = checkpoint_path(self.root, solver.step)
+        save_checkpoint(
+            directory,
+            self.comm,
+            {f"solver/{k}": v for k, v in solver.state_dict().items()},
+            {
+                "step": solver.step,
+                "t": solver.t,
+                "num_dofs": self.history.model.num_dofs,
+                "columns": self.history.columns,
+                "history": self.history.history.rows,
+            },
+        )
+        if self.comm.rank == 0:
+            prune_checkpoints(self.root, self.keep)
+        self.history.history.write()  # the rows so far on disk too
