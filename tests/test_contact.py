@@ -157,3 +157,59 @@ def test_penetration_is_found_for_a_steep_slave_face():
     missing = [int(n) for n in inside if int(n) not in found]
     assert not missing, f"penetrating slab nodes without a contact point: {missing}"
     assert np.allclose([found[int(n)] for n in inside], x[inside, 2], atol=1e-9)
+
+
+def test_the_curved_master_surface_is_the_sphere_the_facets_are_inscribed_in():
+    """Two inscribed particles (surface nodes on their spheres) overlapping by 0.03 r along a
+    generic direction: a slave node's gap to the flat facets exceeds its gap to the master's
+    sphere by up to the facets' sag (h^2 / 8 r = 0.0086 r on the chapter-2 particle); to the curved
+    (Phong) surface it is the sphere's within 5e-4 r, and within 6e-5 r refined once (measured
+    4.2e-4 and 5.0e-5: the patch is the sphere to higher order than the facets)."""
+    from mpfem_fenicsx.workflows.simple_cubic import MESH_ROTATION
+
+    d = np.array([1.0, 0.6, -0.3]) / np.linalg.norm([1.0, 0.6, -0.3])
+    for refinement, bound in ((1, 5e-4), (2, 6e-5)):
+        errors = {}
+        for curved in (False, True):
+            a = particle_mesh(
+                [[0, 0, 0], 1.97 * d],
+                [1.0, 1.0],
+                MPI.COMM_SELF,
+                exact_volume=False,
+                refinement=refinement,
+                rotations=np.broadcast_to(MESH_ROTATION, (2, 3, 3)),
+            )
+            prob = SolidProblem(a.mesh, LEAD, tangent=False)
+            law = ContactLaw(penalty=1e6)
+            model = ContactModel(prob.V, a.facet_tags, 2, law, search_distance=0.2, curved=curved)
+            model.evaluate(prob.u)
+            pts = model.evaluation.points
+            centre = np.where(pts.master_body[:, None] == 0, 0.0, 1.97 * d)
+            sphere_gap = np.linalg.norm(model.surface.X[pts.slave] - centre, axis=1) - 1.0
+            near = sphere_gap < 0.05
+            assert near.sum() >= 8
+            errors[curved] = np.abs(pts.gap - sphere_gap)[near].max()
+        assert errors[True] < bound
+        assert errors[False] > 20 * errors[True]  # the sag the curved surface removes
+
+
+def test_a_flat_master_is_not_lifted():
+    """On a flat facet (its corner normals its own normal) the curved surface is the facet."""
+    from mpfem_fenicsx.contact.search import CURVED, project_point
+
+    x = np.array([[0.0, 0, 0], [1.0, 0, 0], [0.0, 1, 0], [1.0, 1, 0]])
+    tilt = np.array([[1.0, 0, 0.2], [0, 1, 0.1], [0, 0, 1]])  # a tilted, still planar quad
+    x = x @ tilt.T
+    n = np.cross(x[1] - x[0], x[2] - x[0])
+    cn = np.tile(n / np.linalg.norm(n), (4, 1))
+    p = np.array([0.3, 0.7, 0.4])
+    flat, curved = np.empty(8), np.empty(8)
+    project_point(p, x, np.arange(4), 4, cn, flat)
+    project_point(p, x, np.arange(4), 4, cn, curved, CURVED)
+    assert curved[2] == pytest.approx(flat[2], abs=1e-14)
+    # and a bent facet (its corner normals splayed outwards like a sphere's) is lifted
+    splayed = cn + 0.2 * (x - x.mean(axis=0))
+    splayed /= np.linalg.norm(splayed, axis=1, keepdims=True)
+    project_point(p, x, np.arange(4), 4, splayed, flat)
+    project_point(p, x, np.arange(4), 4, splayed, curved, CURVED)
+    assert curved[2] < flat[2] - 1e-3
