@@ -31,10 +31,6 @@ discrete problem too, kept in bench/measured/simple_cubic_walls/mirrored/.
 ``--refinement N``: both realizations on the chapter-2 particle refined N times (its
 subdivisions times N: h / N, the facets' sag inside the sphere / N^2), kept in
 bench/measured/simple_cubic_walls/refined<N>/.
-
-``--curved``: the particles' contacts measure gaps to curved master surfaces (``[contact]
-master_surface = "curved"``: a node meets a neighbour where it meets its sphere, as it meets a
-wall), kept in a ``curved/`` folder of the above.
 """
 
 from __future__ import annotations
@@ -49,13 +45,11 @@ ROOT = Path(__file__).resolve().parent
 KEPT = ROOT / "measured" / "simple_cubic_walls"
 
 
-def kept(mirrored: bool, refinement: int = 1, curved: bool = False) -> Path:
+def kept(mirrored: bool, refinement: int = 1) -> Path:
     """The runs' folder: the generic orientation's, or the mirrored meshes' (``--mirrored``),
-    on the chapter-2 particle or refined (``--refinement``), faceted or curved master
-    surfaces (``--curved``)."""
+    on the chapter-2 particle or refined (``--refinement``)."""
     root = KEPT / "mirrored" if mirrored else KEPT
-    root = root / f"refined{refinement}" if refinement > 1 else root
-    return root / "curved" if curved else root
+    return root / f"refined{refinement}" if refinement > 1 else root
 
 
 #: walls' history columns and the periodic cell's (Love-Weber, compression > 0)
@@ -66,16 +60,14 @@ PAIRS = (
 )
 
 
-def run_periodic(
-    increments: int, mirrored: bool = False, refinement: int = 1, curved: bool = False
-) -> Path:
+def run_periodic(increments: int, mirrored: bool = False, refinement: int = 1) -> Path:
     """The periodic cell's die compaction at ``increments`` (unless kept)."""
     from mpi4py import MPI
 
     from mpfem_fenicsx.workflows.compaction import run_compaction
     from mpfem_fenicsx.workflows.simple_cubic import simple_cubic_case
 
-    out = kept(mirrored, refinement, curved) / f"periodic_n{increments}"
+    out = kept(mirrored, refinement) / f"periodic_n{increments}"
     if not (out / "die" / "history.csv").is_file():
         case = simple_cubic_case(
             "die",
@@ -84,15 +76,10 @@ def run_periodic(
             visual=False,
             mirrored=mirrored,
             refinement=refinement,
-            master_surface=SURFACES[curved],
         )
         run_compaction(case, MPI.COMM_SELF, log=print)
         shutil.rmtree(out / "die" / "checkpoints", ignore_errors=True)  # 14 MB, not kept
     return out / "die"
-
-
-#: the particle contacts' master surface (``[contact] master_surface``) of a run, by ``--curved``
-SURFACES = {False: "faceted", True: "curved"}
 
 
 #: the drag of both Newton realizations (E V_p / h^2): weak whatever the contacts, since the
@@ -116,11 +103,7 @@ def mark_done(folder: Path) -> None:
 
 
 def run_newton(
-    steps: int,
-    mirrored: bool = False,
-    refinement: int = 1,
-    only: str | None = None,
-    curved: bool = False,
+    steps: int, mirrored: bool = False, refinement: int = 1, only: str | None = None
 ) -> tuple[Path, Path]:
     """Both realizations by Newton in ``steps`` load steps (unless kept; ``only``: one of
     them), each checkpointed every 5 steps and continued from its newest checkpoint when
@@ -131,16 +114,11 @@ def run_newton(
     from mpfem_fenicsx.workflows.compaction import RunFailure, run_compaction
     from mpfem_fenicsx.workflows.simple_cubic import between_walls, simple_cubic_case
 
-    root = kept(mirrored, refinement, curved)
+    root = kept(mirrored, refinement)
     periodic, walls = root / f"periodic_newton_s{steps}", root / f"walls_newton_s{steps}"
     if only != "walls" and not finished(periodic / "die"):
         case = simple_cubic_case(
-            "die",
-            out_dir=str(periodic),
-            visual=False,
-            mirrored=mirrored,
-            refinement=refinement,
-            master_surface=SURFACES[curved],
+            "die", out_dir=str(periodic), visual=False, mirrored=mirrored, refinement=refinement
         ).updated(
             kind="implicit",
             steps=steps,
@@ -170,22 +148,19 @@ def run_newton(
             mirrored=mirrored,
             refinement=refinement,
             checkpoint_every=5,
-            master_surface=SURFACES[curved],
         )
         mark_done(walls)
     return periodic / "die", walls
 
 
-def run_walls(
-    increments: int, frame: str, mirrored: bool = False, refinement: int = 1, curved: bool = False
-) -> Path:
+def run_walls(increments: int, frame: str, mirrored: bool = False, refinement: int = 1) -> Path:
     """The cell between walls at ``increments``, damped in ``frame`` (unless kept)."""
     from mpi4py import MPI
 
     from mpfem_fenicsx.workflows.simple_cubic import between_walls
 
     name = f"walls_n{increments}" if frame == "rest" else f"walls_{frame}_n{increments}"
-    out = kept(mirrored, refinement, curved) / name
+    out = kept(mirrored, refinement) / name
     if not (out / "history.csv").is_file():
         between_walls(
             increments=increments,
@@ -194,12 +169,11 @@ def run_walls(
             damping_frame=frame,
             mirrored=mirrored,
             refinement=refinement,
-            master_surface=SURFACES[curved],
         )
     return out
 
 
-def table(mirrored: bool = False, refinement: int = 1, curved: bool = False) -> str:
+def table(mirrored: bool = False, refinement: int = 1) -> str:
     """The comparison tables (Markdown) of the kept runs: the explicit walls runs against the
     slowest explicit periodic run, each Newton walls run against the Newton periodic run of
     its step count."""
@@ -215,7 +189,7 @@ def table(mirrored: bool = False, refinement: int = 1, curved: bool = False) -> 
         path = history_path(folder)
         return path.is_file() and read_csv(path)["rho"][-1] >= 0.95 - 1e-6
 
-    root = kept(mirrored, refinement, curved)
+    root = kept(mirrored, refinement)
     explicit = [f for f in root.glob("*_n*") if "newton" not in f.name and done(f)]
     periodic = sorted((f for f in explicit if f.name.startswith("periodic")), key=increments)
     walls = sorted((f for f in explicit if f.name.startswith("walls")), key=increments)
@@ -243,7 +217,7 @@ def table(mirrored: bool = False, refinement: int = 1, curved: bool = False) -> 
         # past 5 % of the final stress: a partial comparison takes the final stresses of
         # the chapter-2 particle's periodic run by Newton (its ends agree within 1 %)
         final = None
-        if partial and history_path(KEPT / ref_folder.name).is_file():  # faceted, chapter-2
+        if partial and history_path(KEPT / ref_folder.name).is_file():
             coarse = read_csv(history_path(KEPT / ref_folder.name))
             final = {c: coarse[c][-1] for _, c in PAIRS}
         out += [
@@ -316,21 +290,18 @@ def main(argv=None) -> None:
     parser.add_argument(
         "--refinement", type=int, default=1, help="the chapter-2 particle refined (1-4)"
     )
-    parser.add_argument(
-        "--curved", action="store_true", help="curved master surfaces for the particle contacts"
-    )
     args = parser.parse_args(argv)
     if not 1 <= args.refinement <= 4:
         parser.error(f"--refinement {args.refinement} must be in [1, 4]")
-    m, r, c = args.mirrored, args.refinement, args.curved
+    m, r = args.mirrored, args.refinement
     if not args.table:
         for n in args.periodic:
-            run_periodic(n, m, r, c)
+            run_periodic(n, m, r)
         for n in args.walls:
-            run_walls(n, args.frame, m, r, c)
+            run_walls(n, args.frame, m, r)
         for n in args.newton:
-            run_newton(n, m, r, args.only, c)
-    print(table(m, r, c))
+            run_newton(n, m, r, args.only)
+    print(table(m, r))
 
 
 if __name__ == "__main__":

@@ -187,13 +187,6 @@ class ContactSection:
         high=1,
         open_low=True,
     )
-    master_surface: str = parameter(
-        "faceted",
-        "what a node's gap to a particle is measured to: faceted (its mesh's flat facets, the "
-        "thesis') or curved (Phong patches through the facets' corners: a node meets an "
-        "inscribed particle where it meets its sphere, not up to the facets' sag h^2 / 8 r later)",
-        choices=("faceted", "curved"),
-    )
 
     def __post_init__(self):
         check_parameters(self, "contact.")

@@ -84,12 +84,11 @@ def point_forces(
     law_out,
     facet_index,
     N,
-    curvature=0.0,
 ):
     """Nodal forces (on the bodies) of one contact point for node positions ``pos`` (nn, 3):
-    projection of pos[0] on the facet pos[1:] (corner normals ``cn``, the master's ``curvature``
-    as in :func:`~.search.project_point`), gap, normal, slip since pos_n, law."""
-    project_point(pos[0], pos, facet_index, nv, cn, res, curvature)
+    projection of pos[0] on the facet pos[1:] (corner normals ``cn``), gap, normal, slip since
+    pos_n, law."""
+    project_point(pos[0], pos, facet_index, nv, cn, res)
     shape(nv, res[0], res[1], N)
     nx, ny, nz = res[3], res[4], res[5]
     s = np.zeros(3)
@@ -159,7 +158,6 @@ def point_tangents(
     p0,
     alpha_forced,
     K,
-    curvature=0.0,
 ):
     """Consistent tangent of every contact point by central differences of :func:`point_forces`
     over the positions of its nodes: K (n, 3 nn, 3 nn) = d r / d u, r = -forces on the bodies.
@@ -230,7 +228,6 @@ def point_tangents(
                     law_out,
                     facet_index,
                     N,
-                    curvature,
                 )
                 pos[b, j] -= 2.0 * h
                 point_forces(
@@ -258,7 +255,6 @@ def point_tangents(
                     law_out,
                     facet_index,
                     N,
-                    curvature,
                 )
                 pos[b, j] += h
                 for a in range(nn):

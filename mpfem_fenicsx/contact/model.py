@@ -41,7 +41,6 @@ from .kernels import (
 from .laws import ContactLaw, evaluate_law
 from .rigid import RigidContact
 from .search import (
-    CURVED,
     ContactPoints,
     ContactSearch,
     boxes_hold_a_point,
@@ -102,11 +101,7 @@ class ContactModel:
     ``allowed``: (bodies, bodies) pairs that may touch; ``skin`` (mm, > 0): the held facets'
     margin beyond the search distance on each rank (default: the search distance); ``tools``:
     rigid tools (:class:`~mpfem_fenicsx.tools.RigidTool`) whose contact with the surface nodes
-    (:class:`~.rigid.RigidContact`, :attr:`tools`) joins the forces, tangent and history;
-    ``curved``: the gap to a master is measured to the curved (Phong) surface through its facets'
-    corners, not to the flat facets (:func:`~.search.project_point`): a node meets an inscribed
-    faceted particle where it meets its sphere, instead of up to the facets' sag h^2 / 8 r
-    later."""
+    (:class:`~.rigid.RigidContact`, :attr:`tools`) joins the forces, tangent and history."""
 
     def __init__(
         self,
@@ -120,7 +115,6 @@ class ContactModel:
         allowed: np.ndarray | None = None,
         skin: float | None = None,
         tools=None,
-        curved: bool = False,
     ):
         self.law = law
         if skin is not None and not skin > 0:
@@ -131,9 +125,7 @@ class ContactModel:
                 f"contact search distance ({search_distance} mm) must be >= delta_max "
                 f"({law.delta_max} mm) so that adhesive points are tracked"
             )
-        self.search = ContactSearch(
-            self.surface, search_distance, shifts, allowed, curvature=CURVED if curved else 0.0
-        )
+        self.search = ContactSearch(self.surface, search_distance, shifts, allowed)
         #: the contact with rigid tools (None without tools)
         self.tools = RigidContact(self.surface, tools, search_distance) if tools else None
         self.comm = V.mesh.comm
@@ -459,7 +451,6 @@ class ContactModel:
                     scale,
                     *params,
                     K,
-                    self.search.curvature,
                 )
             size = n * 9 * nn * nn
             rows = np.empty(size, PETSc.IntType)

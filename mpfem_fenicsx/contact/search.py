@@ -29,9 +29,6 @@ SEARCH_FACING = 0.0
 #: facets meeting at less than this angle (degrees) share their corner normals (smoothed master
 #: normal); the facets of a particle mesh meet at ~10-30 degrees, a block's edges at 90
 FEATURE_ANGLE = 45.0
-#: the Phong lift factor that puts a patch on the sphere through its corners (to leading order
-#: in the facet size): the curved master surface of :func:`project_point`
-CURVED = 0.5
 
 
 @dataclass
@@ -239,7 +236,7 @@ def _solve3(a00, a01, a02, a10, a11, a12, a20, a21, a22, b0, b1, b2):
 
 
 @numba.njit(cache=True)
-def project_point(p, x, f, nv, cn, res, curvature=0.0):
+def project_point(p, x, f, nv, cn, res):
     """Projection of p on facet f along the facet's smoothed normal field.
 
     The master normal is interpolated from the facet's corner normals ``cn`` (nv, 3) with the
@@ -249,14 +246,6 @@ def project_point(p, x, f, nv, cn, res, curvature=0.0):
     continuous across facet edges (a penetrated node near an edge of a convex master no longer
     jumps between two facets' planes). With equal corner normals (a planar facet, or a sharp
     feature) this is the closest-point projection.
-
-    ``curvature`` > 0: the gap is measured to a curved surface through the facet's corners
-    instead of the flat facet, the point q(xi) raised along the normal n by
-    b(xi) = curvature x sum_i N_i(xi) ((x_i - q) . cn_i) (cn_i . n) (a Phong patch's lift along
-    the normal; zero at the corners, and on a flat facet, whose corner normals are its normal).
-    With curvature 1/2 and the corner normals of a sphere the patch is the sphere to leading
-    order (an edge of chord L at parameter s: b = s (1 - s) L^2 / 2 R, the arc's sag), so that
-    a node meets an inscribed faceted sphere where it meets the sphere (:data:`CURVED`).
 
     res = [xi, eta, gap, nx, ny, nz, distance, inside]: parametric point (clamped to the facet
     when the ray leaves it), normal gap (mm, < 0 = overlap), unit normal m / |m|, distance from
@@ -319,19 +308,6 @@ def project_point(p, x, f, nv, cn, res, curvature=0.0):
     nz = mz / norm
     gap = (p[0] - qx) * nx + (p[1] - qy) * ny + (p[2] - qz) * nz
     dist = np.sqrt((p[0] - qx) ** 2 + (p[1] - qy) ** 2 + (p[2] - qz) ** 2)
-    if curvature != 0.0:
-        lift = 0.0
-        for v in range(nv):
-            if nv == 4:
-                w = (xi if v % 2 == 1 else 1 - xi) * (eta if v >= 2 else 1 - eta)
-            else:
-                w = (1 - xi - eta) if v == 0 else (xi if v == 1 else eta)
-            i = f[v]
-            along = (
-                (x[i, 0] - qx) * cn[v, 0] + (x[i, 1] - qy) * cn[v, 1] + (x[i, 2] - qz) * cn[v, 2]
-            )
-            lift += w * along * (cn[v, 0] * nx + cn[v, 1] * ny + cn[v, 2] * nz)
-        gap -= curvature * lift
     res[0] = xi
     res[1] = eta
     res[2] = gap
@@ -394,7 +370,6 @@ def _narrow_phase(
     pairs,
     pair_shift,
     distance,
-    curvature,
     offsets,
     out_slave,
     out_master,
@@ -438,7 +413,7 @@ def _narrow_phase(
                         facing += facet_normal[f, d] * node_normal[s, d]
                     if facing > -SEARCH_FACING:
                         continue
-                    project_point(p, x, facets[f], nv, corner[f], res, curvature)
+                    project_point(p, x, facets[f], nv, corner[f], res)
                     # prefer projections inside a facet; among them the smallest distance
                     score = res[6] + (0.0 if res[7] > 0.5 else 1e3 * distance + res[6])
                     if score < best_score:
@@ -592,15 +567,10 @@ class ContactSearch:
         distance: float,
         shifts: np.ndarray | None = None,
         allowed: np.ndarray | None = None,
-        curvature: float = 0.0,
     ):
         if not distance > 0:
             raise ValueError(f"contact search distance must be > 0 mm, got {distance}")
-        if not 0.0 <= curvature <= 1.0:
-            raise ValueError(f"contact surface curvature must be in [0, 1], got {curvature}")
         self.surface = surface
-        #: the masters' Phong lift factor (:func:`project_point`; 0: flat facets)
-        self.curvature = float(curvature)
         self.distance = float(distance)
         self.shifts = np.zeros((1, 3)) if shifts is None else np.asarray(shifts, dtype=float)
         self.allowed = allowed
@@ -688,7 +658,6 @@ class ContactSearch:
                 pairs,
                 pair_shift,
                 self.distance,
-                self.curvature,
                 offsets,
                 out_slave,
                 out_master,

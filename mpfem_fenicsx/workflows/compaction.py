@@ -307,7 +307,6 @@ def build_compaction(
         search_distance=max(0.05 * float(radii.min()), 2 * case.contact.delta_max),
         allowed=allowed,
         shifts=periodic_lattice() * packing.cell if boundary.uses_images else None,
-        curved=case.contact.master_surface == "curved",
     )
     bcs = GranularBoundaryConditions(
         V,

@@ -73,13 +73,12 @@ def simple_cubic_case(
     face_copies_only: bool = False,
     mirrored: bool = False,
     refinement: int = 1,
-    master_surface: str = "faceted",
 ) -> CompactionCase:
     """The thesis §2.6 cell: CLP by copies, radii not shrunk (exact pi / 6; the particle meshes are
     inscribed in their touching spheres), all copies (or the 12 face copies of the thesis); the
     particle meshes (the chapter-2 particle, its subdivisions times ``refinement``) in one
     generic orientation or, ``mirrored``, mirror images of each other across the contact planes
-    (:func:`mirrored_rotations`); the particle contacts' ``master_surface`` (``[contact]``)."""
+    (:func:`mirrored_rotations`)."""
     return CompactionCase.build(
         spheres=simple_cubic_packing(radius),
         path=loading,
@@ -91,7 +90,6 @@ def simple_cubic_case(
         radius_factor=1.0,
         rotation=mirrored_rotations(radius) if mirrored else MESH_ROTATION,
         refinement=refinement,
-        master_surface=master_surface,
         target_density=target_density,
         increments=increments,
         outputs=outputs,
@@ -134,7 +132,6 @@ def between_walls(
     mirrored: bool = False,
     refinement: int = 1,
     checkpoint_every: int = 0,
-    master_surface: str = "faceted",
 ):
     """The cell's eight spheres in a box of six frictionless rigid planes on its contact planes
     x, y, z = 0 and 4 r (the periodic cell's symmetry planes), die-compacted by the top plane:
@@ -142,8 +139,8 @@ def between_walls(
     ``duration``), the other planes stay. The same particle meshes as :func:`simple_cubic_case`
     (its ``refinement``; inscribed, the generic rotation or, ``mirrored``, mirror images across
     the contact planes: then the planes are symmetry planes of the periodic cell's discrete
-    problem), the same contact law between the spheres and master surface (``master_surface``:
-    faceted or curved); the planes' penalty is twice the law's (:func:`~.tooled.tool_law`).
+    problem), the same
+    contact law between the spheres; the planes' penalty is twice it (:func:`~.tooled.tool_law`).
     The node-wise local damping resists the motion of every node (``damping_frame="rest"``) or
     its motion relative to the homogeneous flow between the bottom and top planes (``"flow"``,
     the periodic cell's comoving frame; its rows farther from the periodic cell's at 16 000 and
@@ -174,7 +171,6 @@ def between_walls(
         visual=False,
         mirrored=mirrored,
         refinement=refinement,
-        master_surface=master_surface,
     )
     packing, L = simple_cubic_packing(radius), 4.0 * radius
     divisions, _ = periodic.mesh.subdivisions
@@ -211,7 +207,6 @@ def between_walls(
         comm,
         resolution=periodic.mesh.resolution,
         refinement=periodic.mesh.refinement,
-        curved=periodic.contact.master_surface == "curved",
         exact_volume=False,
         rotation=periodic.mesh.rotation,
         tangent=static,

@@ -120,14 +120,11 @@ def build_tooled(
     exact_volume: bool = True,
     rotation: np.ndarray | None = None,
     tangent: bool = False,
-    curved: bool = False,
 ) -> ToolModel:
     """Mesh spheres (``radii``: the meshed ones, :func:`mesh_radii`), the bulk problem and the
     contact between the particles and with ``tools`` (:class:`~mpfem_fenicsx.tools.RigidTool`);
     ``resolution`` and ``refinement``: the cube-sphere particle (``[mesh]``'s fields);
-    ``tangent``: the problem carries the consistent tangent (the implicit solver needs it);
-    ``curved``: the particles' contacts measure gaps to curved master surfaces
-    (:class:`~mpfem_fenicsx.contact.ContactModel`; ``[contact] master_surface = "curved"``)."""
+    ``tangent``: the problem carries the consistent tangent (the implicit solver needs it)."""
     if resolution not in RESOLUTIONS:
         raise ValueError(f"resolution = {resolution!r} must be one of {sorted(RESOLUTIONS)}")
     if not 1 <= int(refinement) <= 4:
@@ -152,7 +149,6 @@ def build_tooled(
         law,
         search_distance=max(0.05 * float(radii.min()), 2 * law.delta_max),
         tools=tools,
-        curved=curved,
     )
     bcs = PrescribedDisplacements(problem.V)  # nothing prescribed: the tools move the particles
     bcs.followers.append(contact.tools.move)
