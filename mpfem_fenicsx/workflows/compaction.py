@@ -72,9 +72,12 @@ from ..solvers.implicit import ITERATIVE_OPTIONS, STALL_WINDOW
 from .history_recorder import (
     COLUMNS,
     QUASI_STATIC_CHECK_COLUMNS,
+    STATIC_CHECK_COLUMNS,
     HistoryRecorder,
     QuasiStaticCheck,
+    StaticCheck,
     quasi_static_check,
+    static_check,
 )
 
 #: partition weight of a CLP copy (tied nodes, no material: only its contact surface works) next
@@ -108,7 +111,7 @@ class CompactionResult:
     solver: object | None = None
     #: explicit runs: the energy balance's and the balance's verdict on the loading rate (also
     #: logged)
-    quasi_static: QuasiStaticCheck | None = None
+    quasi_static: QuasiStaticCheck | StaticCheck | None = None
     case: CompactionCase | None = (
         None  # the case the run ran (with the checkpoint's packing on restart)
     )
@@ -775,11 +778,17 @@ class CompactionRun:
             case=self.case,
         )
 
-    def quasi_static_check(self) -> QuasiStaticCheck | None:
-        """Explicit runs: the quasi-static check of the history so far (:func:`quasi_static_check`;
-        a strain path ends at rest, a stress-controlled one need not), logged in one line."""
-        if solver_kind(self.case.solver.kind).static or not self.history.rows:
+    def quasi_static_check(self) -> QuasiStaticCheck | StaticCheck | None:
+        """The history's check, logged in one line: explicit runs, the quasi-static check
+        (:func:`quasi_static_check`; a strain path ends at rest, a stress-controlled one need
+        not); Newton runs, the static check (:func:`static_check`: the contacts carry the
+        particles' stress, not the pseudo-time drag)."""
+        if not self.history.rows:
             return None
+        if solver_kind(self.case.solver.kind).static:
+            check = static_check({c: self.history.column(c) for c in STATIC_CHECK_COLUMNS})
+            self.log(check.summary())
+            return check
         columns = {c: self.history.column(c) for c in QUASI_STATIC_CHECK_COLUMNS}
         check = quasi_static_check(columns, at_rest=self.case.loading.control is None)
         self.log(check.summary(self.solver.total_steps))

@@ -221,6 +221,66 @@ def quasi_static_check(history, at_rest: bool = True) -> QuasiStaticCheck:
     return QuasiStaticCheck(share, unbalanced)
 
 
+#: the static check's limit: at the end of a Newton run, the share of the particles' mean stress
+#: that their contacts do not carry (the pseudo-time drag's, Newton's tolerance aside); the
+#: default runs end at 0.01-0.6 % (flagship, 16-particle random volume, 50-particle die), a
+#: drag-held state (particles squashed along the drag's frame, contacts unloaded) at 30 %
+DRAG_SHARE_LIMIT = 0.01
+#: the history columns the static check reads
+STATIC_CHECK_COLUMNS = ("sigma_m", "sigma_vol_m", "rho")
+
+
+def drag_share(history) -> np.ndarray:
+    """Per row of a Newton run, |sigma_vol_m - sigma_m| / |sigma_vol_m| (-): how much of the
+    particles' volume-averaged mean stress (eq. C.7) the contact forces' Love-Weber stress
+    (eq. 2.6) does not carry. Without inertia the two differ only by the forces that are not
+    contacts', the pseudo-time drag's (NaN where sigma_vol_m = 0)."""
+    contact, volume = np.asarray(history["sigma_m"]), np.asarray(history["sigma_vol_m"])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.abs(volume - contact) / np.abs(volume)
+
+
+@dataclass(frozen=True)
+class StaticCheck:
+    """The static check of a Newton run (:func:`static_check`)."""
+
+    drag_share: float  # :func:`drag_share` of the last row (-)
+    worst: float  # its largest over the rows past 5 % of the final mean stress (-)
+    worst_rho: float  # where (-)
+
+    @property
+    def passed(self) -> bool:
+        """The end state's stress carried by the contacts within :data:`DRAG_SHARE_LIMIT`."""
+        return bool(self.drag_share <= DRAG_SHARE_LIMIT)
+
+    def summary(self) -> str:
+        """One line for the run's log."""
+        found = (
+            f"the contacts carry the particles' mean stress within "
+            f"{100 * self.drag_share:.2f} % at the end (limit {100 * DRAG_SHARE_LIMIT:g} %), "
+            f"{100 * self.worst:.2f} % at worst (rho {self.worst_rho:.3f})"
+        )
+        if self.passed:
+            return f"static check passed: {found}"
+        return (
+            f"static check FAILED: {found}: the pseudo-time drag holds part of the load; "
+            f"a weaker drag ([solver] regularization, held_regularization) or more load steps"
+        )
+
+
+def static_check(history) -> StaticCheck:
+    """Static check of a Newton compaction from its history (column name -> array with
+    ``sigma_m``, ``sigma_vol_m`` and ``rho``): :func:`drag_share` at the last row and its worst
+    past 5 % of the final |sigma_vol_m|."""
+    share = drag_share(history)
+    volume = np.abs(np.asarray(history["sigma_vol_m"]))
+    if not volume.size or not volume[-1] > 0:
+        return StaticCheck(0.0, 0.0, float("nan"))
+    past = np.flatnonzero(volume >= 0.05 * volume[-1])
+    k = past[int(np.nanargmax(share[past]))]
+    return StaticCheck(float(share[-1]), float(share[k]), float(history["rho"][k]))
+
+
 class HistoryRecorder:
     """Measures one history row of a compaction model from a solver's state (the solver
     interface: ``t``, ``macroscopic_reaction``, ``energy_record``, ``unbalanced_ratio``): the
