@@ -139,8 +139,8 @@ def between_walls(
     ``duration``), the other planes stay. The same particle meshes as :func:`simple_cubic_case`
     (its ``refinement``; inscribed, the generic rotation or, ``mirrored``, mirror images across
     the contact planes: then the planes are symmetry planes of the periodic cell's discrete
-    problem), the same
-    contact law between the spheres; the planes' penalty is twice it (:func:`~.tooled.tool_law`).
+    problem), the same contact law between the spheres; the planes' penalty is twice it
+    (:func:`~.tooled.tool_law`).
     The node-wise local damping resists the motion of every node (``damping_frame="rest"``) or
     its motion relative to the homogeneous flow between the bottom and top planes (``"flow"``,
     the periodic cell's comoving frame; its rows farther from the periodic cell's at 16 000 and
