@@ -5,8 +5,8 @@ gap = 0 for a virgin point: on a soft substrate Newton's iterates cycle between 
 separated, or between open and closed, at the rim of a contact. :class:`AdhesiveGuards` keeps
 what the iterates of one increment did to each contact point (keyed as in
 :class:`~mpfem_fenicsx.contact.model.ContactModel`) and makes those changes irreversible within
-the increment: erased memory, held softening slope, snap-in. It is reset at the start of every
-increment (and after a cut-back).
+the increment: held softening slope, snap-off of a cycling point, snap-in. It is reset at the
+start of every increment (and after a cut-back).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from .kernels import lookup
-from .laws import ADHESIVE_LOADING, OVERLAP, SEPARATED, SOFTENING, normal_branch
+from .laws import ADHESIVE_LOADING, OVERLAP, SOFTENING, normal_branch
 
 
 class AdhesiveGuards:
@@ -25,13 +25,14 @@ class AdhesiveGuards:
 
     def reset(self) -> None:
         """Forget the iterates: a new increment (or a cut-back) starts from the committed state."""
-        #: keys of the points whose adhesive memory an iterate of the current increment erased
-        #: (gap beyond delta_max): the erasure is irreversible within the increment
+        #: keys of the points snapped off in the current increment (their softening cycled):
+        #: their adhesive memory is erased for the rest of the increment
         self.separated = np.zeros(0, np.int64)
-        #: keys of the points that an iterate of this increment moved from softening back to the
-        #: adhesive loading line or into overlap, and the (sorted) keys / branch codes of the
-        #: last evaluation
+        #: keys of the points that iterates of this increment moved from softening back to the
+        #: adhesive loading line or into overlap at least once / at least twice, and the
+        #: (sorted) keys / branch codes of the last evaluation
         self.returned = np.zeros(0, np.int64)
+        self.returned_twice = np.zeros(0, np.int64)
         self.last = (np.zeros(0, np.int64), np.zeros(0, np.int64))
         #: snap-in: keys of virgin points that an iterate of this increment moved out of overlap,
         #: and the keys (sorted) / compressive tractions (MPa) of those armed on re-entering it
@@ -55,25 +56,26 @@ class AdhesiveGuards:
         then peeling; returns the mask of the points whose softening slope the tangent holds at
         zero."""
         self.track_snap_in(keys, branch, smax_n, T1)
-        return self.track_peeling(keys, branch, smax_n)
+        return self.track_peeling(keys, branch)
 
     def remember(self, sorted_keys: np.ndarray, sorted_branch: np.ndarray) -> None:
         """The branch codes of this iterate, for the next one."""
         self.last = (sorted_keys, sorted_branch)
 
-    def track_peeling(self, keys: np.ndarray, branch: np.ndarray, smax_n: np.ndarray) -> np.ndarray:
+    def track_peeling(self, keys: np.ndarray, branch: np.ndarray) -> np.ndarray:
         """Snap bookkeeping of the adhesive points over the iterates of an increment; returns the
         mask of the points whose softening slope the tangent holds at zero."""
         held = np.zeros(keys.size, np.bool_)
-        snapped = (normal_branch(branch) == SEPARATED) & (smax_n > 0)
-        if snapped.any():
-            self.separated = np.union1d(self.separated, keys[snapped])
+        # An iterate that carries an adhered point beyond delta_max erases nothing by itself:
+        # the law gives it zero traction there, and its memory is erased only if the converged
+        # state leaves it there (ContactModel.begin_increment), so an overshooting iterate of a
+        # tensile reload does not tear the adhesion off a whole contact.
         # A point that the last iterate put on the softening branch and this one sends back
         # (gap < delta_1) is cycling: the negative softening slope, steeper than the node's
         # own stiffness on the substrate, made Newton aim back into the contact, and the
         # penalty sends it out again. When it re-enters softening, its tangent is held at zero
         # slope for that update, so that it carries a point past the fold of its adhered
-        # branch beyond delta_max (memory erased, see ContactModel.begin_increment). A second
+        # branch beyond delta_max (memory erased, see ContactModel.begin_increment). A third
         # return (the coupled update of a rim of such points can still cycle) snaps the
         # point: its memory is erased for the rest of the increment, as a dynamic snap-off
         # would. A point whose softening is stable converges on it with the exact slope
@@ -86,7 +88,12 @@ class AdhesiveGuards:
             # not on to separation
             back = keys[was_softening & (normal_branch(branch) <= ADHESIVE_LOADING)]
             if back.size:
-                self.separated = np.union1d(self.separated, back[np.isin(back, self.returned)])
+                self.separated = np.union1d(
+                    self.separated, back[np.isin(back, self.returned_twice)]
+                )
+                self.returned_twice = np.union1d(
+                    self.returned_twice, back[np.isin(back, self.returned)]
+                )
                 self.returned = np.union1d(self.returned, back)
             # held for the one update after it re-enters softening: if it stays there, its
             # softening is stable and the exact slope returns (quadratic, not linear, rate)
