@@ -139,3 +139,29 @@ def test_newton_update_reverses_a_slipping_point_at_most_to_its_cone_centre():
     assert slip_reversal_limit(onward, normal, Tt, trial, branch, kt) == 1.0
     stick = np.array([4 * 1 + 0])
     assert slip_reversal_limit(update, normal, Tt, trial, stick, kt) == 1.0
+
+
+def test_guards_leave_memory_to_the_converged_state_and_snap_a_cycling_point_on_its_third_return():
+    """Within one Newton increment: an iterate that carries an adhered point beyond delta_max
+    (branch SEPARATED) erases nothing, so a later iterate finds it adhered again; a point that
+    leaves softening for the loading line three times is snapped off (memory erased)."""
+    from mpfem_fenicsx.contact.guards import AdhesiveGuards
+    from mpfem_fenicsx.contact.laws import ADHESIVE_LOADING, SEPARATED, SOFTENING
+
+    keys, smax = np.array([7]), np.array([300.0])
+
+    def iterate(guards, code):
+        branch = np.array([code])
+        guards.track(keys, branch, smax, np.zeros(1))
+        guards.remember(keys, branch)
+        alpha_n, smax_n = np.array([0.4]), smax.copy()
+        guards.adjust_history(keys, alpha_n, smax_n)
+        return smax_n[0]
+
+    overshoot = AdhesiveGuards()
+    assert [iterate(overshoot, c) for c in (SOFTENING, SEPARATED, SOFTENING)] == [300.0] * 3
+    cycling = AdhesiveGuards()
+    memory = [iterate(cycling, c) for c in (SOFTENING, ADHESIVE_LOADING) * 3]
+    assert memory == [300.0] * 5 + [0.0]  # erased at the third return only
+    cycling.reset()
+    assert iterate(cycling, SOFTENING) == 300.0  # a new increment starts from the committed state
