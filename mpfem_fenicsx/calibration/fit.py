@@ -1,0 +1,143 @@
+"""Fit a Drucker-Prager Cap surface to the yield points of a fan (thesis chapter 4).
+
+Pure numpy / scipy. The points are (sigma_m, sigma~_d) in MPa, compression > 0, as
+:func:`mpfem_fenicsx.homogenization.surfaces.surface_points` gives them (one per reload
+direction). The fit minimizes, over d, beta, R, p_b (and K when the fan has points on the
+extension side), the relative radial misfit of each point: its distance from the fan's centre
+(the mean of the points) against the surface's distance along the same ray. alpha is fixed
+(Abaqus needs a small one; 0.01 by default): the points do not resolve the transition arc.
+
+Two figures judge the fit:
+
+- ``radial_rms``: rms over the points of (|x - c| - r_surface) / |x - c|;
+- ``deviatoric_rms``: the deviatoric stress at equal mean stress, rms over the points of
+  (sigma~_d(surface at the point's sigma_m, on the point's side) - sigma~_d) divided by the rms
+  of the points' sigma~_d (a point beyond the surface's range of sigma_m counts its whole
+  sigma~_d).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .cap import CapSurface
+
+
+@dataclass(frozen=True)
+class CapFit:
+    """A fitted surface and its figures (see the module)."""
+
+    surface: CapSurface
+    radial_rms: float
+    deviatoric_rms: float
+    #: per point: (|x - c| - r_surface) / |x - c| (> 0: the point lies outside the surface)
+    radial_residuals: np.ndarray
+
+
+def _points(sigma_m, sigma_tilde_d) -> np.ndarray:
+    x = np.column_stack([np.ravel(sigma_m), np.ravel(sigma_tilde_d)]).astype(float)
+    if len(x) < 4 or not np.all(np.isfinite(x)):
+        raise ValueError(
+            f"yield points: need >= 4 finite (sigma_m, sigma_tilde_d) pairs, got {len(x)}"
+        )
+    return x
+
+
+def radial_residuals(surface: CapSurface, x: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """(|x - c| - r_surface) / |x - c| for the points ``x`` (N, 2) seen from ``centre``."""
+    v = x - centre
+    dist = np.linalg.norm(v, axis=1)
+    return (dist - surface.radius(tuple(centre), v / dist[:, None])) / dist
+
+
+def deviatoric_misfit(surface: CapSurface, sigma_m, sigma_tilde_d) -> float:
+    """The rms of sigma~_d(surface) - sigma~_d at the points' mean stresses, over the rms of
+    the points' sigma~_d (see the module)."""
+    s = np.ravel(sigma_tilde_d).astype(float)
+    fitted = np.nan_to_num(surface.sigma_tilde_d(np.ravel(sigma_m), np.sign(s)), nan=0.0)
+    return float(np.sqrt(np.mean((fitted - s) ** 2) / np.mean(s**2)))
+
+
+def _first_guess(x: np.ndarray, fit_K: bool) -> np.ndarray:
+    """d, beta (deg), log R, p_b (, K) from the points' extent."""
+    p, s = x[:, 0], x[:, 1]
+    span = p.max() - p.min()
+    p_b = p.max() + 0.02 * span
+    apex = min(p.min(), 0.0) - 0.05 * span
+    top = np.argmax(s)
+    tan_b = max(s[top], 1e-6 * span) / max(p[top] - apex, 1e-6 * span)
+    beta = min(max(math.degrees(math.atan(tan_b)), 5.0), 80.0)
+    d = -apex * math.tan(math.radians(beta))
+    R = min(max((p_b - p[top]) / max(s[top], 1e-9), 1e-3), 1e2)
+    guess = [d, beta, math.log(R), p_b]
+    if fit_K:
+        ext = s < 0
+        guess.append(min(max(-s[ext].min() / max(s.max(), 1e-9), 0.778), 1.0))
+    return np.array(guess)
+
+
+def fit_cap(sigma_m, sigma_tilde_d, *, alpha: float = 0.01, K: float | None = None) -> CapFit:
+    """The Drucker-Prager Cap surface through the yield points (``sigma_m``, ``sigma_tilde_d``)
+    (MPa, compression > 0); ``K`` fixed when given, else fitted if some points lie on the
+    extension side (sigma~_d < 0), else 1."""
+    x = _points(sigma_m, sigma_tilde_d)
+    fit_K = K is None and bool(np.any(x[:, 1] < 0))
+    fixed_K = 1.0 if K is None else float(K)
+    centre = x.mean(axis=0)
+
+    def surface(v) -> CapSurface:
+        return CapSurface(
+            d=float(v[0]),
+            beta=float(v[1]),
+            R=math.exp(v[2]),
+            p_b=float(v[3]),
+            alpha=alpha,
+            K=float(v[4]) if fit_K else fixed_K,
+        )
+
+    def misfit(v) -> np.ndarray:
+        try:
+            trial = surface(v)
+            if not trial.inside(*centre):
+                return np.full(len(x), 10.0)
+            return radial_residuals(trial, x, centre)
+        except ValueError:  # a trial outside the parameters' ranges
+            return np.full(len(x), 10.0)
+
+    span = np.ptp(x[:, 0])
+    low = [0.0, 0.5, math.log(1e-4), 1e-9 * span]
+    high = [np.inf, 85.0, math.log(1e3), np.inf]
+    if fit_K:
+        low, high = low + [0.778], high + [1.0]
+    guess = np.clip(_first_guess(x, fit_K), low, high)
+    best = least_squares(misfit, guess, bounds=(low, high), x_scale="jac", xtol=1e-12)
+    found = surface(best.x)
+    residuals = radial_residuals(found, x, centre)
+    return CapFit(
+        surface=found,
+        radial_rms=float(np.sqrt(np.mean(residuals**2))),
+        deviatoric_rms=deviatoric_misfit(found, x[:, 0], x[:, 1]),
+        radial_residuals=residuals,
+    )
+
+
+def isotropic_hardening(density, sigma_m, density_0: float, bulk=None):
+    """The hydrostatic yield stress against the plastic volumetric strain from an isotropic
+    compaction curve: p_b = sigma_m (MPa) at each relative density, |eps_v^pl| =
+    ln(rho / rho_0) - sigma_m / bulk (the elastic part removed when the bulk modulus ``bulk``
+    (MPa, scalar or per point) is given). Returns (p_b, |eps_v^pl|) for
+    :func:`~mpfem_fenicsx.calibration.abaqus.hardening_table`."""
+    rho = np.ravel(density).astype(float)
+    p = np.ravel(sigma_m).astype(float)
+    if not 0.0 < density_0 < rho.min():
+        raise ValueError(
+            f"density_0 = {density_0!r} is out of range: must be > 0 and < the curve's densities"
+        )
+    eps = np.log(rho / density_0)
+    if bulk is not None:
+        eps = eps - p / np.asarray(bulk, dtype=float)
+    return p, eps

@@ -1,0 +1,139 @@
+"""The Drucker-Prager Cap model: its surface, its fit to yield points, its Abaqus fragment."""
+
+import math
+
+import numpy as np
+import pytest
+
+from mpfem_fenicsx.calibration import (
+    CalibratedDensity,
+    CapSurface,
+    cap_fragment,
+    elastic_constants,
+    fit_cap,
+    hardening_table,
+    isotropic_hardening,
+    read_keywords,
+    surfaces_from_fragment,
+)
+
+
+def _fan(surface, centre, directions=16, seed=None):
+    """Yield points of a fan: where rays from ``centre`` leave ``surface`` (random directions
+    when ``seed`` is given)."""
+    if seed is None:
+        phi = np.linspace(0.0, 2.0 * np.pi, directions, endpoint=False)
+    else:
+        phi = np.sort(np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, directions))
+    e = np.column_stack([np.cos(phi), np.sin(phi)])
+    x = np.asarray(centre) + surface.radius(centre, e)[:, None] * e
+    return x[:, 0], x[:, 1]
+
+
+def test_surface_is_continuous_and_smooth_through_its_three_pieces():
+    s = CapSurface(d=2.0, beta=40.0, R=0.6, p_b=8.0, alpha=0.05, K=0.85)
+    assert s.t(s.apex) == pytest.approx(0.0, abs=1e-12) and s.t(s.p_b) == pytest.approx(0.0)
+    D = s.d + s.p_a * s.tan_beta
+    p_t = s.p_a - s.alpha * D * math.sin(math.radians(s.beta))  # shear line -> transition
+    for p in (p_t, s.p_a):
+        below, above = s.t(p - 1e-7), s.t(p + 1e-7)
+        assert above == pytest.approx(below, abs=1e-6)  # continuous
+        slope_below = (below - s.t(p - 2e-7)) / 1e-7
+        slope_above = (s.t(p + 2e-7) - above) / 1e-7
+        assert slope_above == pytest.approx(slope_below, abs=1e-3)  # tangent
+    assert np.isnan(s.t(s.p_b + 1e-9)) and np.isnan(s.t(s.apex - 1e-9))
+    # extension side: sigma~_d = -K t
+    assert s.sigma_tilde_d(1.0, -1) == pytest.approx(-s.K * s.t(1.0))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_fit_recovers_known_parameters_from_a_random_fan(seed):
+    rng = np.random.default_rng(seed)
+    true = CapSurface(
+        d=rng.uniform(0.5, 4.0),
+        beta=rng.uniform(20.0, 60.0),
+        R=rng.uniform(0.3, 2.0),
+        p_b=rng.uniform(5.0, 20.0),
+        alpha=0.01,
+        K=rng.uniform(0.8, 1.0),
+    )
+    centre = (0.3 * true.p_b, 0.1 * true.d)
+    fit = fit_cap(*_fan(true, centre, directions=14, seed=seed))
+    for name in ("d", "beta", "R", "p_b", "K"):
+        assert getattr(fit.surface, name) == pytest.approx(getattr(true, name), rel=1e-2), name
+    assert fit.radial_rms < 1e-6 and fit.deviatoric_rms < 1e-6
+
+
+def test_fit_of_a_compression_only_fan_keeps_K_one_and_reports_its_misfit():
+    true = CapSurface(d=1.0, beta=35.0, R=0.8, p_b=10.0, K=1.0)
+    m, s = _fan(true, (4.0, 1.0))
+    up = s > 0
+    fit = fit_cap(m[up], s[up])
+    assert fit.surface.K == 1.0
+    assert fit.surface.p_b == pytest.approx(10.0, rel=1e-2)
+    # a fan off the model: an ellipse is not a cap; the misfit says so
+    phi = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+    ellipse = fit_cap(2.0 + 4.0 * np.cos(phi), 2.5 * np.sin(phi))
+    assert ellipse.radial_rms > 0.02 and ellipse.deviatoric_rms > 0.05
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("beta", 90.0), ("R", 0.0), ("p_b", -1.0), ("K", 0.5), ("d", -0.1), ("alpha", 0.9)],
+)
+def test_bad_parameters_are_refused_naming_the_field(field, value):
+    with pytest.raises(ValueError, match=f"^{field} = "):
+        CapSurface(**{field: value})
+
+
+def test_fit_refuses_too_few_points():
+    with pytest.raises(ValueError, match="yield points"):
+        fit_cap([1.0, 2.0, 3.0], [0.0, 1.0, 0.0])
+
+
+def test_elastic_constants_of_known_moduli():
+    E, nu = 200e3, 0.3
+    bulk, shear = E / (3 * (1 - 2 * nu)), E / (2 * (1 + nu))
+    assert elastic_constants(bulk, shear) == pytest.approx((E, nu))
+
+
+def test_hardening_from_an_isotropic_curve_is_increasing_and_positive():
+    rho = np.array([0.62, 0.65, 0.7, 0.75, 0.8, 0.85])
+    p = np.array([0.0, 0.5, 1.5, 1.4, 3.0, 6.0])  # a zero and a dip: dropped
+    p_b, eps = hardening_table(*isotropic_hardening(rho, p, density_0=0.6))
+    assert np.all(np.diff(p_b) > 0) and np.all(np.diff(eps) > 0) and p_b[0] > 0
+    assert len(p_b) == 4 and eps[0] == pytest.approx(math.log(0.65 / 0.6))
+    with pytest.raises(ValueError, match="density_0"):
+        isotropic_hardening(rho, p, density_0=0.7)
+
+
+def test_abaqus_fragment_reads_back_keywords_dependencies_and_surfaces():
+    rows = [
+        CalibratedDensity(
+            rho, CapSurface(d=0.5 + rho, beta=30 + 10 * rho, R=0.5, p_b=p_b, K=0.9), E, 0.25
+        )
+        for rho, p_b, E in ((0.85, 12.0, 5e3), (0.7, 4.0, 2e3), (0.8, 8.0, 4e3))
+    ]
+    hardening = (np.array([2.0, 4.0, 8.0, 12.0, 20.0]), np.array([0.1, 0.15, 0.25, 0.3, 0.4]))
+    text = cap_fragment(rows, hardening, name="LEAD")
+    blocks = read_keywords(text)
+    assert [b[0] for b in blocks] == ["MATERIAL", "ELASTIC", "CAP PLASTICITY", "CAP HARDENING"]
+    assert blocks[0][1] == {"NAME": "LEAD"}
+    elastic, cap, hard = blocks[1], blocks[2], blocks[3]
+    assert elastic[1] == {"DEPENDENCIES": "1"} and cap[1] == {"DEPENDENCIES": "1"}
+    assert [len(r) for r in elastic[2]] == [4] * 3 and [len(r) for r in cap[2]] == [8] * 3
+    assert [r[3] for r in elastic[2]] == [0.7, 0.8, 0.85]  # field variable 1: density, sorted
+    assert [r[0] for r in elastic[2]] == [2e3, 4e3, 5e3]
+    assert hard[2] == [[p, e] for p, e in zip(*hardening, strict=True)]
+    back = surfaces_from_fragment(text)
+    for r in rows:
+        for name in ("d", "beta", "R", "p_b", "alpha", "K"):
+            got, want = getattr(back[r.density], name), getattr(r.surface, name)
+            assert got == pytest.approx(want, rel=1e-5), (r.density, name)
+
+
+def test_calibrated_density_refuses_bad_moduli():
+    with pytest.raises(ValueError, match="^poisson = "):
+        CalibratedDensity(0.8, CapSurface(), 1e3, 0.5)
+    with pytest.raises(ValueError, match="^density = "):
+        CalibratedDensity(1.2, CapSurface(), 1e3, 0.3)
