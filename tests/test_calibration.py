@@ -137,3 +137,56 @@ def test_calibrated_density_refuses_bad_moduli():
         CalibratedDensity(0.8, CapSurface(), 1e3, 0.5)
     with pytest.raises(ValueError, match="^density = "):
         CalibratedDensity(1.2, CapSurface(), 1e3, 0.3)
+
+
+# -- the material-point driver ------------------------------------------------------------------
+def _model(young, p_b=(0.5, 2.0, 5.0, 15.0, 30.0, 80.0), eps=(0.0, 0.05, 0.1, 0.2, 0.3, 0.5)):
+    from mpfem_fenicsx.calibration.driver import CapModel
+
+    surface = CapSurface(d=1.0, beta=40.0, R=0.8, p_b=1.0, alpha=0.01, K=1.0)
+    row = CalibratedDensity(0.7, surface, young, 0.3)
+    return CapModel((row,), (np.array(p_b), np.array(eps)), density_0=0.6)
+
+
+def test_driver_isotropic_path_follows_the_hardening_table():
+    from mpfem_fenicsx.calibration.driver import drive
+
+    model, young = _model(5e3), 5e3
+    rows, _ = drive(model, [-0.1, -0.1, -0.1], increments=100)
+    bulk = young / (3 * (1 - 2 * 0.3))
+    strain_v = 0.3 * np.arange(1, 101) / 100
+    p_b = np.interp(strain_v - rows["sigma_m"] / bulk, *model.hardening[::-1])
+    assert np.max(np.abs(rows["sigma_m"] / p_b - 1)) < 1e-9  # p = p_b(eps_v - p / K_b)
+    assert np.max(np.abs(rows["sigma_tilde_d"])) < 1e-9
+    assert rows["density"][-1] == pytest.approx(0.6 * math.exp(0.3))
+
+
+def test_driver_die_path_elastic_ratio_and_plastic_flow_normal_to_the_cap():
+    from mpfem_fenicsx.calibration.driver import drive
+
+    # elastic (a cap far away): sigma_r / sigma_a = nu / (1 - nu)
+    rows, _ = drive(_model(5e3, p_b=(100.0, 200.0), eps=(0.0, 0.5)), [0, 0, -1e-3], increments=5)
+    assert rows["sigma_1"][-1] / rows["sigma_3"][-1] == pytest.approx(0.3 / 0.7, rel=1e-9)
+    # plastic, nearly rigid elasticity: the plastic strain is the uniaxial one, so the cap's
+    # normal at the stress has d(eps_q) / d(eps_v) = 2/3 (associated flow on the cap)
+    model = _model(1e6)
+    rows, state = drive(model, [0, 0, -0.3], increments=200)
+    s = model.surface(0.7, state.eps_v_pl)
+    c = 1 + s.alpha - s.alpha / math.cos(math.radians(s.beta))
+    p, t = rows["sigma_m"][-1], rows["sigma_tilde_d"][-1]
+    assert (s.R / c) ** 2 * t / (p - s.p_a) == pytest.approx(2 / 3, rel=1e-3)
+    assert s.t(p) == pytest.approx(t, rel=1e-8)  # on the surface
+
+
+def test_driver_triaxial_path_holds_the_confinement_and_fails_on_the_shear_line():
+    from mpfem_fenicsx.calibration.driver import drive
+
+    model = _model(5e3, p_b=(3.0, 80.0), eps=(0.0, 0.5))
+    rows, state = drive(model, [0, 0, -0.01], stress_held=(0.5, 0.5, None), increments=100)
+    assert np.max(np.abs(rows["sigma_1"] - 0.5)) < 1e-8
+    assert np.max(np.abs(rows["sigma_2"] - 0.5)) < 1e-8
+    s = model.surface(0.7, state.eps_v_pl)
+    # t = sigma_3 - 0.5 = d + p tan(beta), p = 0.5 + t / 3: the line's point at this confinement
+    t = (s.d + 0.5 * s.tan_beta) / (1 - s.tan_beta / 3)
+    assert rows["sigma_3"][-1] == pytest.approx(0.5 + t, rel=1e-8)
+    assert state.eps_v_pl < 0  # the shear potential dilates

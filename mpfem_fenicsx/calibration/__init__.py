@@ -1,5 +1,6 @@
 """From particles to a continuum model: the Drucker-Prager Cap surface in Abaqus' form, its fit
-to the yield points of the computed fans, and the Abaqus fragment of the fitted model. Pure
+to the yield points of the computed fans, the Abaqus fragment of the fitted model and a
+material-point driver that replays the particle model's paths with it. Pure
 numpy / scipy: plain arrays in, plain arrays out. Stresses in MPa, compression > 0."""
 
 from .abaqus import (
@@ -11,19 +12,24 @@ from .abaqus import (
     surfaces_from_fragment,
 )
 from .cap import CapSurface
+from .driver import CapModel, PointState, drive, return_map
 from .fit import CapFit, deviatoric_misfit, fit_cap, isotropic_hardening, radial_residuals
 
 __all__ = [
     "CalibratedDensity",
     "CapFit",
+    "CapModel",
     "CapSurface",
+    "PointState",
     "cap_fragment",
     "deviatoric_misfit",
+    "drive",
     "elastic_constants",
     "fit_cap",
     "hardening_table",
     "isotropic_hardening",
     "radial_residuals",
     "read_keywords",
+    "return_map",
     "surfaces_from_fragment",
 ]
