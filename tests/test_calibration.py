@@ -190,3 +190,77 @@ def test_driver_triaxial_path_holds_the_confinement_and_fails_on_the_shear_line(
     t = (s.d + 0.5 * s.tan_beta) / (1 - s.tan_beta / 3)
     assert rows["sigma_3"][-1] == pytest.approx(0.5 + t, rel=1e-8)
     assert state.eps_v_pl < 0  # the shear potential dilates
+
+
+def test_reload_moduli_of_an_elastic_fan():
+    from mpfem_fenicsx.calibration import reload_moduli
+
+    bulk, shear, A = 5000.0, 1800.0, 1e-3
+    rows = {k: [] for k in ("phi", "h_v", "h_tilde_d", "sigma_m", "sigma_tilde_d")}
+    for phi in np.linspace(0.0, 2 * np.pi, 8, endpoint=False):
+        h = np.linspace(0.0, A, 30)
+        h_v, h_d = -h * np.cos(phi), -h * np.sin(phi)  # compression > 0 along phi
+        for key, value in zip(
+            rows,
+            (np.full(30, phi), h_v, h_d, 0.3 - bulk * h_v, -3 * shear * h_d),
+            strict=True,
+        ):
+            rows[key].append(value)
+    fan = {k: np.concatenate(v) for k, v in rows.items()}
+    assert reload_moduli(fan) == pytest.approx((bulk, shear), rel=1e-9)
+
+
+# -- the workflow, on the validation campaign's 50-particle fans ----------------------------------
+RUNS = __import__("pathlib").Path(__file__).resolve().parents[1] / "validation" / "runs"
+
+
+def test_mpfem_calibrate_writes_the_model_and_replays_the_particle_paths(tmp_path, capsys):
+    from mpfem_fenicsx.cli.main import main
+
+    args = ["calibrate", "--out", str(tmp_path)]
+    for rho in ("0.79", "0.87"):
+        args += ["--fan", rho, str(RUNS / f"fan_isotropic_{rho}")]
+    args += ["--isotropic", str(RUNS / "isotropic_CLP_gamma1e-2" / "history.csv")]
+    args += ["--die", str(RUNS / "die_CLP_gamma1e-2" / "history.csv")]
+    assert main(args) == 0
+    for name in ("cap_model.json", "cap_model.csv", "cap_model.inp", "round_trip.csv"):
+        assert (tmp_path / name).is_file(), name
+    assert (tmp_path / "calibration.png").stat().st_size > 10_000
+    import json
+
+    model = json.loads((tmp_path / "cap_model.json").read_text())
+    back = surfaces_from_fragment((tmp_path / "cap_model.inp").read_text())
+    for row in model["densities"]:
+        assert back[row["density"]].R == pytest.approx(row["R"], rel=1e-5)
+        assert 0 < row["beta"] < 90 and row["R"] > 0 and row["fit_deviatoric_rms"] < 0.15
+    assert np.all(np.diff(model["hardening"]["p_b_MPa"]) > 0)
+    import csv
+
+    with open(tmp_path / "round_trip.csv") as f:
+        trip = list(csv.DictReader(f))
+    iso = [r for r in trip if r["path"] == "isotropic"]
+    die = [r for r in trip if r["path"] == "die" and float(r["density"]) >= 0.75]
+    assert len(iso) == 6 and len(die) == 3
+    # the isotropic path replays the curve the hardening came from; the die path is predicted
+    for r in iso:
+        assert float(r["sigma_m_model"]) == pytest.approx(float(r["sigma_m_particles"]), rel=2e-3)
+    for r in die:
+        assert float(r["sigma_m_model"]) == pytest.approx(float(r["sigma_m_particles"]), rel=0.05)
+    assert "[round trip] die rho 0.85" in capsys.readouterr().out
+
+
+def test_mpfem_calibrate_refuses_bad_input(tmp_path, capsys):
+    from mpfem_fenicsx.cli.main import main
+
+    iso = str(RUNS / "isotropic_CLP_gamma1e-2" / "history.csv")
+    fan = str(RUNS / "fan_isotropic_0.79")
+    cases = [
+        (["--fan", "1.2", fan], "RHO is out of range"),
+        (["--fan", "0.79", str(tmp_path)], "no surfaces.csv"),
+        (["--fan", "0.79", fan, "--die", str(tmp_path / "x.csv")], "--die"),
+    ]
+    for extra, message in cases:
+        code = main(["calibrate", "--out", str(tmp_path / "o"), "--isotropic", iso, *extra])
+        assert code == 2
+        err = capsys.readouterr().err
+        assert message in err and len(err.strip().splitlines()) == 1

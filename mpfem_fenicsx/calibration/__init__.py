@@ -13,7 +13,14 @@ from .abaqus import (
 )
 from .cap import CapSurface
 from .driver import CapModel, PointState, drive, return_map
-from .fit import CapFit, deviatoric_misfit, fit_cap, isotropic_hardening, radial_residuals
+from .fit import (
+    CapFit,
+    deviatoric_misfit,
+    fit_cap,
+    isotropic_hardening,
+    radial_residuals,
+    reload_moduli,
+)
 
 __all__ = [
     "CalibratedDensity",
@@ -30,6 +37,7 @@ __all__ = [
     "isotropic_hardening",
     "radial_residuals",
     "read_keywords",
+    "reload_moduli",
     "return_map",
     "surfaces_from_fragment",
 ]

@@ -141,3 +141,26 @@ def isotropic_hardening(density, sigma_m, density_0: float, bulk=None):
     if bulk is not None:
         eps = eps - p / np.asarray(bulk, dtype=float)
     return p, eps
+
+
+def reload_moduli(fan: dict[str, np.ndarray], share: float = 0.1) -> tuple[float, float]:
+    """(bulk, shear) moduli (MPa) of the unloaded compact from the first ``share`` of the rows
+    of two reloads of a fan (``workflows.yield_surface.fan_rows``: phi, h_v, h_tilde_d,
+    sigma_m, sigma_tilde_d): the isotropic one (phi = 0), bulk = -d sigma_m / d h_v, and the
+    deviatoric one (phi = 90 degrees), shear = -d sigma~_d / (3 d h~_d) (sigma~_d = sigma_a -
+    sigma_r = -2 G (h_a - h_r) = -3 G h~_d for an isotropic elastic solid); slopes by least
+    squares over at least 3 rows."""
+    moduli = []
+    for phi, strain, stress, factor in (
+        (0.0, "h_v", "sigma_m", -1.0),
+        (0.5 * math.pi, "h_tilde_d", "sigma_tilde_d", -1.0 / 3.0),
+    ):
+        rows = np.flatnonzero(np.isclose(fan["phi"], phi))
+        if rows.size < 3:
+            raise ValueError(f"fan: the reload phi = {math.degrees(phi):g} deg has < 3 rows")
+        rows = rows[: max(3, int(share * rows.size))]
+        h, s = fan[strain][rows], fan[stress][rows]
+        moduli.append(factor * float(np.polyfit(h - h[0], s - s[0], 1)[0]))
+    if min(moduli) <= 0:
+        raise ValueError(f"fan: the reloads' first rows give moduli {moduli} (MPa): not > 0")
+    return moduli[0], moduli[1]

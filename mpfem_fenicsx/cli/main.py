@@ -5,6 +5,9 @@
     mpfem plot DIR                                            figures again from a results folder
     mpfem init CASE.toml                                      a commented case file with
                                                               the defaults
+    mpfem calibrate --fan RHO DIR ... --isotropic HISTORY [--die HISTORY] --out DIR
+                                                              a Drucker-Prager Cap model
+                                                              from computed fans
 
 Exit codes: 0 done; 2 bad input (one line naming the field and the allowed range); 3 the run
 diverged or did not converge (history so far and the last good checkpoint are kept).
@@ -128,6 +131,32 @@ def _parser() -> argparse.ArgumentParser:
 
     init = sub.add_parser("init", help="write a commented case file with every default")
     init.add_argument("case", help="file to write (refuses to overwrite)")
+
+    cal = sub.add_parser(
+        "calibrate",
+        help="fit a density-dependent Drucker-Prager Cap model to computed yield fans",
+        description="Fit the Drucker-Prager Cap surface (Abaqus' form) to each fan's yield "
+        "points, take the elastic moduli from its reloads and the hardening from the "
+        "isotropic compaction curve, write the model (cap_model.json / .csv), the Abaqus "
+        "fragment (cap_model.inp: *ELASTIC, *CAP PLASTICITY with field variable 1 = relative "
+        "density, *CAP HARDENING) and calibration.png, and replay the isotropic (and die) path "
+        "with a material-point driver of the model against the particles (round_trip.csv).",
+    )
+    cal.add_argument(
+        "--fan",
+        nargs=2,
+        action="append",
+        required=True,
+        metavar=("RHO", "DIR"),
+        help="a fan's relative density and its results folder (surfaces.csv, fan.csv of "
+        "demos/yield_surface.py); repeat for each density",
+    )
+    cal.add_argument(
+        "--isotropic", required=True, help="history.csv of the isotropic compaction (hardening)"
+    )
+    cal.add_argument("--die", default=None, help="history.csv of a die compaction (round trip)")
+    cal.add_argument("--alpha", type=float, default=0.01, help="transition parameter alpha")
+    cal.add_argument("--out", required=True, help="folder for the model and the figures")
     return p
 
 
@@ -308,13 +337,59 @@ def _init(args, comm) -> None:
     _say(comm)(f"wrote {path}; edit it, then: mpfem run {path}")
 
 
+def _calibrate(args, comm) -> None:
+    from ..workflows.calibration import calibrate
+
+    say = _say(comm)
+    fans = {}
+    for rho, folder in args.fan:
+        try:
+            density = float(rho)
+        except ValueError:
+            raise _Exit(BAD_INPUT, f"--fan {rho} {folder}: RHO must be a number") from None
+        if not 0.0 < density < 1.0:
+            raise _Exit(BAD_INPUT, f"--fan {rho}: RHO is out of range: must be > 0 and < 1")
+        for needed in ("surfaces.csv", "fan.csv"):
+            if not (Path(folder) / needed).is_file():
+                raise _Exit(BAD_INPUT, f"--fan {folder}: no {needed} (not a fan's results folder)")
+        fans[density] = Path(folder)
+    for name in ("isotropic", "die"):
+        path = getattr(args, name)
+        if path is not None and not Path(path).is_file():
+            raise _Exit(BAD_INPUT, f"--{name} {path}: no such history file")
+    if comm.rank != 0:
+        return
+    try:
+        calibrate(
+            fans,
+            Path(args.isotropic),
+            Path(args.out),
+            die=None if args.die is None else Path(args.die),
+            alpha=args.alpha,
+            log=say,
+        )
+    except ValueError as err:
+        raise _Exit(BAD_INPUT, str(err)) from None
+    say(
+        f"outputs in {args.out}/: cap_model.json, cap_model.csv, cap_model.inp, round_trip.csv, "
+        "calibration.png"
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``mpfem`` console script; returns the exit code."""
     comm = MPI.COMM_WORLD
     configure_runtime(comm)  # thread rules before numpy and PETSc load their BLAS
     args = _parser().parse_args(argv)
     try:
-        {"run": _run, "pack": _pack, "plot": _plot, "init": _init}[args.command](args, comm)
+        commands = {
+            "run": _run,
+            "pack": _pack,
+            "plot": _plot,
+            "init": _init,
+            "calibrate": _calibrate,
+        }
+        commands[args.command](args, comm)
     except _Exit as err:
         if comm.rank == 0:
             print(f"mpfem: error: {err}", file=sys.stderr)

@@ -1,0 +1,232 @@
+"""From particles to a continuum model: calibrate the density-dependent Drucker-Prager Cap model
+on computed fans and compaction curves, export it for Abaqus, and replay the particle model's
+paths with it.
+
+Stages (data flow: fans + compaction curves -> fit -> model -> fragment -> round trip):
+
+1. **fit**: at each fan's relative density, the cap surface through its yield points
+   (``surfaces.csv``, kind ``yield``; :func:`~mpfem_fenicsx.calibration.fit_cap`) and the
+   elastic moduli from its reloads' first rows (``fan.csv``;
+   :func:`~mpfem_fenicsx.calibration.reload_moduli`);
+2. **hardening**: p_b against the plastic volumetric strain from the isotropic compaction
+   curve (``history.csv``: rho, sigma_m), its elastic part removed with the fans' bulk moduli;
+3. **export**: ``cap_model.json`` and ``cap_model.csv`` (the parameters by density),
+   ``cap_model.inp`` (the Abaqus fragment, field variable 1 = relative density);
+4. **round trip**: the material-point driver runs the isotropic path (and the die path when a
+   die history is given) to the particle runs' end density; ``round_trip.csv`` lists, at
+   each reported density, sigma_m of the model and of the particles (and the die's radial /
+   axial stress ratio), and ``calibration.png`` shows the points with the fitted surfaces.
+
+Units mm, N, MPa; stresses compression > 0.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..calibration import (
+    CalibratedDensity,
+    CapModel,
+    cap_fragment,
+    drive,
+    elastic_constants,
+    fit_cap,
+    hardening_table,
+    isotropic_hardening,
+    reload_moduli,
+)
+from ..io.history import read_csv
+
+#: the relative densities at which the round trip compares the model with the particles
+REPORT_DENSITIES = (0.7, 0.75, 0.8, 0.85, 0.9, 0.95)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """What :func:`calibrate` found: the model, each density's fit figures and the round
+    trip's rows."""
+
+    model: CapModel
+    fits: dict[float, dict[str, float]]  # density -> radial_rms, deviatoric_rms, points
+    round_trip: list[dict[str, float]]
+
+
+def yield_points(fan_dir: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(sigma_m, sigma~_d) of a fan's yield points (MPa)."""
+    with open(fan_dir / "surfaces.csv") as f:
+        rows = [r for r in csv.DictReader(f) if r["kind"] == "yield"]
+    return (
+        np.array([float(r["sigma_m"]) for r in rows]),
+        np.array([float(r["sigma_tilde_d"]) for r in rows]),
+    )
+
+
+def fit_density(density: float, fan_dir: Path, alpha: float = 0.01):
+    """The calibrated density of one fan and its fit figures."""
+    fit = fit_cap(*yield_points(fan_dir), alpha=alpha)
+    bulk, shear = reload_moduli(read_csv(fan_dir / "fan.csv"))
+    young, poisson = elastic_constants(bulk, shear)
+    row = CalibratedDensity(density, fit.surface, young, poisson)
+    figures = {
+        "radial_rms": fit.radial_rms,
+        "deviatoric_rms": fit.deviatoric_rms,
+        "points": len(fit.radial_residuals),
+        "bulk_MPa": bulk,
+        "shear_MPa": shear,
+    }
+    return row, figures
+
+
+def build_model(rows: list[CalibratedDensity], isotropic: dict[str, np.ndarray]) -> CapModel:
+    """The model of the calibrated ``rows`` with the hardening of the isotropic curve
+    ``isotropic`` (history columns rho, sigma_m); rho_0 is the curve's first density."""
+    rho, p = isotropic["rho"], isotropic["sigma_m"]
+    bulk = np.interp(
+        rho,
+        [r.density for r in rows],
+        [r.young / (3.0 * (1.0 - 2.0 * r.poisson)) for r in rows],
+    )
+    hardening = hardening_table(*isotropic_hardening(rho[1:], p[1:], float(rho[0]), bulk[1:]))
+    return CapModel(tuple(rows), hardening, float(rho[0]))
+
+
+def replay(model: CapModel, history: dict[str, np.ndarray], path: str, increments: int = 400):
+    """The model along the particle run's ``path`` (isotropic or die along axis 3) to its end
+    density; rows at :data:`REPORT_DENSITIES` inside the run's range."""
+    strain_v = math.log(history["rho"][-1] / model.density_0)  # compaction > 0
+    end = -strain_v * (np.full(3, 1.0 / 3.0) if path == "isotropic" else np.array([0, 0, 1.0]))
+    rows, _ = drive(model, end, increments=increments)
+    out = []
+    for rho in REPORT_DENSITIES:
+        if not history["rho"][0] < rho <= history["rho"][-1]:
+            continue
+        row = {"path": path, "density": rho}
+        row["sigma_m_model"] = float(np.interp(rho, rows["density"], rows["sigma_m"]))
+        row["sigma_m_particles"] = float(np.interp(rho, history["rho"], history["sigma_m"]))
+        if path == "die":
+            ratio = rows["sigma_1"] / rows["sigma_3"]
+            row["ratio_model"] = float(np.interp(rho, rows["density"], ratio))
+            lateral = 0.5 * (history["sigma11"] + history["sigma22"])
+            with np.errstate(invalid="ignore", divide="ignore"):
+                ratio_p = lateral / history["sigma33"]
+            row["ratio_particles"] = float(np.interp(rho, history["rho"], ratio_p))
+        out.append(row)
+    return out
+
+
+def calibrate(
+    fans: dict[float, Path],
+    isotropic: Path,
+    out: Path,
+    die: Path | None = None,
+    alpha: float = 0.01,
+    log=print,
+) -> Calibration:
+    """Fit, export and replay (see the module). ``fans``: relative density -> fan directory
+    (``surfaces.csv``, ``fan.csv``); ``isotropic`` / ``die``: the particle runs' history.csv."""
+    if len(fans) < 1:
+        raise ValueError("fans: need >= 1 fan (density -> directory)")
+    out.mkdir(parents=True, exist_ok=True)
+    rows, fits = [], {}
+    for density, fan_dir in sorted(fans.items()):
+        row, figures = fit_density(density, Path(fan_dir), alpha)
+        rows.append(row)
+        fits[density] = figures
+        s = row.surface
+        log(
+            f"[fit] rho {density:.3f}: d {s.d:.3f} MPa, beta {s.beta:.2f} deg, R {s.R:.3f}, "
+            f"p_b {s.p_b:.3f} MPa, K {s.K:.3f}; E {row.young:.0f} MPa, nu {row.poisson:.3f}; "
+            f"misfit radial {100 * figures['radial_rms']:.1f} %, deviatoric "
+            f"{100 * figures['deviatoric_rms']:.1f} % ({figures['points']} points)"
+        )
+    model = build_model(rows, read_csv(isotropic))
+    write_model(model, fits, out)
+    trip = replay(model, read_csv(isotropic), "isotropic")
+    if die is not None:
+        trip += replay(model, read_csv(die), "die")
+    write_round_trip(trip, out / "round_trip.csv", log)
+    plot_fits(model, fans, out / "calibration.png")
+    return Calibration(model, fits, trip)
+
+
+def write_model(model: CapModel, fits: dict, out: Path) -> None:
+    """cap_model.json, cap_model.csv and the Abaqus fragment cap_model.inp."""
+    records = []
+    for row in model.rows:
+        records.append(
+            {
+                "density": row.density,
+                **{k: v for k, v in asdict(row.surface).items()},
+                "young_MPa": row.young,
+                "poisson": row.poisson,
+                **{f"fit_{k}": v for k, v in fits[row.density].items()},
+            }
+        )
+    p_b, eps = model.hardening
+    (out / "cap_model.json").write_text(
+        json.dumps(
+            {
+                "density_0": model.density_0,
+                "densities": records,
+                "hardening": {"p_b_MPa": p_b.tolist(), "eps_v_pl": eps.tolist()},
+            },
+            indent=1,
+        )
+    )
+    with open(out / "cap_model.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(records[0]))
+        writer.writeheader()
+        writer.writerows(records)
+    (out / "cap_model.inp").write_text(cap_fragment(list(model.rows), model.hardening))
+
+
+def write_round_trip(trip: list[dict], path: Path, log=print) -> None:
+    """round_trip.csv and one log line per row."""
+    keys = ["path", "density", "sigma_m_model", "sigma_m_particles"]
+    keys += ["ratio_model", "ratio_particles"]
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=keys)
+        writer.writeheader()
+        writer.writerows(trip)
+    for r in trip:
+        line = (
+            f"[round trip] {r['path']} rho {r['density']:.2f}: sigma_m model "
+            f"{r['sigma_m_model']:.3f} / particles {r['sigma_m_particles']:.3f} MPa "
+            f"({100 * (r['sigma_m_model'] / r['sigma_m_particles'] - 1):+.1f} %)"
+        )
+        if "ratio_model" in r:
+            line += (
+                f"; radial / axial {r['ratio_model']:.3f} / {r['ratio_particles']:.3f} "
+                f"({100 * (r['ratio_model'] / r['ratio_particles'] - 1):+.1f} %)"
+            )
+        log(line)
+
+
+def plot_fits(model: CapModel, fans: dict[float, Path], path: Path) -> None:
+    """The fans' yield points and the fitted surfaces in the Rendulic plane."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 5))
+    colors = plt.cm.viridis(np.linspace(0, 0.85, len(model.rows)))
+    for row, color in zip(model.rows, colors, strict=True):
+        m, s = yield_points(Path(fans[row.density]))
+        ax.plot(m, s, "o", color=color, label=f"particles, rho {row.density:.2f}")
+        bm, bs = row.surface.boundary()
+        ax.plot(bm, bs, "-", color=color, label=f"cap model, rho {row.density:.2f}")
+    ax.axhline(0, color="0.7", lw=0.5)
+    ax.set_xlabel("sigma_m (MPa)")
+    ax.set_ylabel("sigma~_d (MPa)")
+    ax.set_aspect("equal")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
