@@ -264,3 +264,57 @@ def test_mpfem_calibrate_refuses_bad_input(tmp_path, capsys):
         assert code == 2
         err = capsys.readouterr().err
         assert message in err and len(err.strip().splitlines()) == 1
+
+
+# -- the critical-state ellipse --------------------------------------------------------------------
+@pytest.mark.parametrize("seed", [3, 4])
+def test_clay_fit_recovers_known_parameters_from_a_random_fan(seed):
+    from mpfem_fenicsx.calibration import ClaySurface, fit_clay
+
+    rng = np.random.default_rng(seed)
+    true = ClaySurface(
+        M=rng.uniform(0.6, 1.5),
+        beta=rng.uniform(0.6, 1.6),
+        p_c=rng.uniform(4.0, 12.0),
+        p_t=-rng.uniform(0.5, 4.0),
+        K=rng.uniform(0.8, 1.0),
+    )
+    fit = fit_clay(*_fan(true, (0.4 * true.p_c, 0.2), directions=14, seed=seed))
+    for name in ("M", "beta", "p_c", "p_t", "K"):
+        assert getattr(fit.surface, name) == pytest.approx(getattr(true, name), rel=1e-2), name
+    assert fit.radial_rms < 1e-6
+
+
+def test_clay_surface_ends_top_and_refusals():
+    from mpfem_fenicsx.calibration import ClaySurface
+
+    s = ClaySurface(M=1.2, beta=0.7, p_c=10.0, p_t=-2.0)
+    assert s.a == pytest.approx(12.0 / 1.7) and s.p_cs == pytest.approx(-2.0 + 12.0 / 1.7)
+    assert s.t(s.p_cs) == pytest.approx(1.2 * s.a) and s.t(10.0) == pytest.approx(0.0)
+    assert s.t(-2.0) == pytest.approx(0.0) and np.isnan(s.t(10.0 + 1e-9))
+    F, (Fp, Ft) = s.yield_and_flow(s.p_cs, s.t(s.p_cs), None)
+    assert F == pytest.approx(0.0, abs=1e-12) and Fp == pytest.approx(0.0) and Ft > 0
+    for field, value in (("M", 0.0), ("p_t", 1.0), ("K", 1.2), ("p_c", -1.0)):
+        with pytest.raises(ValueError, match=f"^{field} = "):
+            ClaySurface(**{field: value})
+
+
+def test_driver_with_the_ellipse_flows_normal_to_it_under_uniaxial_strain():
+    from mpfem_fenicsx.calibration import ClaySurface
+    from mpfem_fenicsx.calibration.driver import CapModel, drive
+
+    surface = ClaySurface(M=1.0, beta=1.0, p_c=1.0, p_t=-0.2)
+    row = CalibratedDensity(0.7, surface, 1e6, 0.3)
+    table = (np.array([0.5, 2.0, 5.0, 15.0, 30.0, 80.0]), np.array([0, 0.05, 0.1, 0.2, 0.3, 0.5]))
+    model = CapModel((row,), table, density_0=0.6)
+    iso, _ = drive(model, [-0.05] * 3, increments=50)
+    bulk = 1e6 / (3 * (1 - 0.6))
+    p_b = np.interp(0.15 * np.arange(1, 51) / 50 - iso["sigma_m"] / bulk, *table[::-1])
+    assert np.max(np.abs(iso["sigma_m"] / p_b - 1)) < 1e-9
+    rows, state = drive(model, [0, 0, -0.3], increments=200)
+    s = model.surface(0.7, state.eps_v_pl)
+    assert s.p_t == pytest.approx(-0.2 * s.p_c)  # p_t / p_c held
+    p, t = rows["sigma_m"][-1], rows["sigma_tilde_d"][-1]
+    assert s.t(p) == pytest.approx(t, rel=1e-8)  # on the surface
+    slope = (s.t(p + 1e-6) - s.t(p - 1e-6)) / 2e-6  # the normal is (-slope, 1)
+    assert -1.0 / slope == pytest.approx(2 / 3, rel=1e-3)  # uniaxial plastic strain

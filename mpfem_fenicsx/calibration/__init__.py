@@ -12,11 +12,13 @@ from .abaqus import (
     surfaces_from_fragment,
 )
 from .cap import CapSurface
+from .clay import ClaySurface
 from .driver import CapModel, PointState, drive, return_map
 from .fit import (
     CapFit,
     deviatoric_misfit,
     fit_cap,
+    fit_clay,
     isotropic_hardening,
     radial_residuals,
     reload_moduli,
@@ -27,12 +29,14 @@ __all__ = [
     "CapFit",
     "CapModel",
     "CapSurface",
+    "ClaySurface",
     "PointState",
     "cap_fragment",
     "deviatoric_misfit",
     "drive",
     "elastic_constants",
     "fit_cap",
+    "fit_clay",
     "hardening_table",
     "isotropic_hardening",
     "radial_residuals",

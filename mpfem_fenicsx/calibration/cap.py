@@ -23,14 +23,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from ..parameters import check_parameters, parameter
+from .meridian import MeridianSurface
 
 
 @dataclass(frozen=True)
-class CapSurface:
+class CapSurface(MeridianSurface):
     """One Drucker-Prager Cap yield surface (Abaqus' form, see the module). Checked on creation:
     a ``ValueError`` names the field and its allowed range."""
 
@@ -51,6 +53,9 @@ class CapSurface:
     K: float = parameter(
         1.0, "flow stress ratio K, triaxial extension over compression (-)", low=0.778, high=1.0
     )
+
+    #: the parameters interpolated in the density (the size p_b comes from the hardening)
+    SHAPE: ClassVar[tuple[str, ...]] = ("d", "beta", "R", "alpha", "K")
 
     def __post_init__(self) -> None:
         check_parameters(self)
@@ -78,6 +83,21 @@ class CapSurface:
         """The shear line's tensile apex, p = -d / tan(beta) (MPa): the most negative mean
         stress (hydrostatic tension) the surface admits."""
         return -self.d / self.tan_beta
+
+    @property
+    def p_low(self) -> float:
+        """The surface's tensile end on the pressure axis (MPa): the apex."""
+        return self.apex
+
+    @property
+    def p_high(self) -> float:
+        """The surface's compressive end on the pressure axis (MPa): p_b."""
+        return self.p_b
+
+    @property
+    def t_max(self) -> float:
+        """The largest t of the surface (MPa), at the top of the cap."""
+        return self._cap_height
 
     @property
     def _D(self) -> float:
@@ -109,42 +129,41 @@ class CapSurface:
         )
         return out
 
-    def sigma_tilde_d(self, p, side) -> np.ndarray:
-        """sigma~_d (MPa) on the surface at ``p``: ``side`` > 0 the triaxial-compression side
-        (t), < 0 the extension side (-K t); NaN outside [apex, p_b]."""
-        t = self.t(p)
-        return np.where(np.asarray(side) >= 0, t, -self.K * t)
+    # -- the interface of the material-point driver ------------------------------------------
+    @property
+    def size_ratios(self) -> dict[str, float]:
+        """Quantities interpolated in the density that scale with the size: none."""
+        return {}
 
-    def inside(self, sigma_m, sigma_tilde_d) -> np.ndarray:
-        """True where (sigma_m, sigma~_d) lies strictly inside the elastic domain."""
-        s = np.asarray(sigma_tilde_d, dtype=float)
-        t_point = np.where(s >= 0, s, -s / self.K)
-        t_surface = self.t(sigma_m)
-        return np.isfinite(t_surface) & (t_point < t_surface)
+    @classmethod
+    def sized(cls, p_high: float, **shape_and_ratios) -> CapSurface:
+        """The surface of the given shape and hydrostatic yield stress ``p_high`` (p_b)."""
+        return cls(**shape_and_ratios, p_b=p_high)
 
-    def boundary(self, n: int = 361) -> tuple[np.ndarray, np.ndarray]:
-        """The closed surface as a polygon (sigma_m, sigma~_d) of 2 ``n`` - 1 vertices: the
-        compression side from the apex to p_b, then the extension side back to the apex. The
-        points are denser near both ends, where the surface turns."""
-        u = 0.5 - 0.5 * np.cos(np.linspace(0.0, math.pi, n))
-        p = self.apex + u * (self.p_b - self.apex)
-        upper = self.sigma_tilde_d(p, 1)
-        lower = self.sigma_tilde_d(p[::-1][1:], -1)
-        return np.concatenate([p, p[::-1][1:]]), np.concatenate([upper, lower])
+    def regions(self, p_trial: float) -> tuple[str, str]:
+        """The regions a return from a trial at mean stress ``p_trial`` may end in, the likely
+        one first: the cap right of p_a, the shear line (with the transition) left of it."""
+        return ("cap", "shear") if p_trial > self.p_a else ("shear", "cap")
 
-    def radius(self, centre: tuple[float, float], direction) -> np.ndarray:
-        """Distance (MPa) from ``centre`` (sigma_m, sigma~_d), a point inside the surface, to the
-        surface along the unit vectors ``direction`` (N, 2) of the meridian plane (bisection on
-        :meth:`inside`; the elastic domain is convex)."""
-        c = np.asarray(centre, dtype=float)
-        if not self.inside(c[0], c[1]):
-            raise ValueError(f"centre = {tuple(c)} is not inside the surface")
-        e = np.asarray(direction, dtype=float).reshape(-1, 2)
-        lo = np.zeros(len(e))
-        hi = np.full(len(e), 2.0 * (self.p_b - self.apex + self._cap_height) + 1.0)
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            x = c + mid[:, None] * e
-            inner = self.inside(x[:, 0], x[:, 1])
-            lo, hi = np.where(inner, mid, lo), np.where(inner, hi, mid)
-        return 0.5 * (lo + hi)
+    def region_of(self, p: float) -> str:
+        """The region of a stress on the surface at mean stress ``p``."""
+        return "cap" if p > self.p_a else "shear"
+
+    def yield_and_flow(self, p: float, t: float, region: str):
+        """F of the ``region`` (the cap, or the shear line with the transition arc; MPa) and
+        the flow direction (dG/dp, dG/dt) of Abaqus' potentials: associated on the cap,
+        G_c = sqrt((p - p_a)^2 + (R t / c)^2); elsewhere G_s = sqrt(((p_a - p) tan(beta))^2 +
+        (t / c)^2), c = 1 + alpha - alpha / cos(beta)."""
+        b = math.radians(self.beta)
+        c = 1.0 + self.alpha - self.alpha / math.cos(b)
+        p_a, tb, a = self.p_a, self.tan_beta, self.alpha
+        D = self.d + p_a * tb
+        if region == "cap":
+            G = max(math.hypot(p - p_a, self.R * t / c), 1e-300)
+            return G - self.R * D, ((p - p_a) / G, (self.R / c) ** 2 * t / G)
+        if a > 0.0 and p > p_a - a * D * math.sin(b):  # transition arc
+            F = math.hypot(p - p_a, t - (1.0 - a / math.cos(b)) * D) - a * D
+        else:
+            F = t - p * tb - self.d
+        G = max(math.hypot((p_a - p) * tb, t / c), 1e-300)
+        return F, (-(p_a - p) * tb**2 / G, t / c**2 / G)

@@ -1,4 +1,6 @@
-"""A material-point driver of the density-dependent Drucker-Prager Cap model (Abaqus' form).
+"""A material-point driver of the density-dependent continuum models (Abaqus' forms): the
+Drucker-Prager Cap (:class:`~.cap.CapSurface`) or the critical-state ellipse
+(:class:`~.clay.ClaySurface`).
 
 Pure numpy / scipy, one material point, principal (diagonal) stresses and strains: the paths the
 particle model runs (isotropic and die compaction, the triaxial test under a confining
@@ -9,11 +11,11 @@ The model, as Abaqus/Standard integrates it:
 
 - isotropic elasticity of Young's modulus E and Poisson's ratio nu, interpolated in the relative
   density (held beyond the calibrated ones);
-- the yield surface :class:`~.cap.CapSurface` (d, beta, R, alpha, K interpolated in the density;
-  p_b from the hardening table at the plastic volumetric strain eps_v^pl, compaction > 0);
-- flow associated on the cap, G_c = sqrt((p - p_a)^2 + (R t / c)^2) with
-  c = 1 + alpha - alpha / cos(beta); on the shear line and the transition the non-associated
-  potential G_s = sqrt(((p_a - p) tan(beta))^2 + (t / c)^2);
+- the yield surface: its shape (cap: d, beta, R, alpha, K; ellipse: M, beta, K and p_t / p_c)
+  interpolated in the density, its size (p_b, p_c) from the hardening table at the plastic
+  volumetric strain eps_v^pl (compaction > 0);
+- the surface's flow rule (``yield_and_flow``): for the cap, associated on the cap and Abaqus'
+  non-associated potential on the shear line and the transition; for the ellipse, associated;
 - the density rho = rho_0 exp(-tr eps) of the current strain (the field variable).
 
 The return at each increment solves, for (p, t, dlambda), the trial state's p_tr, t_tr
@@ -31,7 +33,6 @@ import numpy as np
 from scipy.optimize import fsolve
 
 from .abaqus import CalibratedDensity, hardening_table
-from .cap import CapSurface
 
 
 @dataclass(frozen=True)
@@ -51,14 +52,17 @@ class CapModel:
         if not 0.0 < self.density_0 < 1.0:
             raise ValueError(f"density_0 = {self.density_0!r} is out of range: > 0 and < 1")
 
-    def _interp(self, density: float, name: str, of_surface: bool) -> float:
-        xs = [r.density for r in self.rows]
-        ys = [getattr(r.surface if of_surface else r, name) for r in self.rows]
-        return float(np.interp(density, xs, ys))
+        kinds = {type(r.surface) for r in self.rows}
+        if len(kinds) != 1:
+            raise ValueError("rows: all the densities need the same kind of surface")
+
+    def _interp(self, density: float, values) -> float:
+        return float(np.interp(density, [r.density for r in self.rows], list(values)))
 
     def elastic(self, density: float) -> tuple[float, float]:
         """(bulk, shear) moduli (MPa) at ``density``."""
-        E, nu = self._interp(density, "young", False), self._interp(density, "poisson", False)
+        E = self._interp(density, (r.young for r in self.rows))
+        nu = self._interp(density, (r.poisson for r in self.rows))
         return E / (3.0 * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
 
     def p_b(self, eps_v_pl: float) -> float:
@@ -67,10 +71,16 @@ class CapModel:
         p, e = self.hardening
         return float(np.interp(eps_v_pl, e, p))
 
-    def surface(self, density: float, eps_v_pl: float) -> CapSurface:
-        """The yield surface at ``density`` and ``eps_v_pl``."""
-        values = {n: self._interp(density, n, True) for n in ("d", "beta", "R", "alpha", "K")}
-        return CapSurface(**values, p_b=self.p_b(eps_v_pl))
+    def surface(self, density: float, eps_v_pl: float):
+        """The yield surface at ``density`` and ``eps_v_pl``: its shape interpolated in the
+        density, its size from the hardening table."""
+        kind = type(self.rows[0].surface)
+        shape = {
+            n: self._interp(density, (getattr(r.surface, n) for r in self.rows)) for n in kind.SHAPE
+        }
+        for n in self.rows[0].surface.size_ratios:
+            shape[n] = self._interp(density, (r.surface.size_ratios[n] for r in self.rows))
+        return kind.sized(self.p_b(eps_v_pl), **shape)
 
 
 def _lode_factor(s: np.ndarray, q: float, K: float) -> float:
@@ -82,23 +92,8 @@ def _lode_factor(s: np.ndarray, q: float, K: float) -> float:
     return 0.5 * (1.0 + 1.0 / K - (1.0 - 1.0 / K) * r_over_q3)
 
 
-def _yield_and_potential(surface: CapSurface, p: float, t: float, cap: bool):
-    """F (the cap's or the shear side's) and (dG/dp, dG/dt) of the matching potential."""
-    b = math.radians(surface.beta)
-    c = 1.0 + surface.alpha - surface.alpha / math.cos(b)
-    p_a, tb, a = surface.p_a, surface.tan_beta, surface.alpha
-    D = surface.d + p_a * tb
-    if cap:
-        F = math.hypot(p - p_a, surface.R * t / c) - surface.R * D
-        G = max(math.hypot(p - p_a, surface.R * t / c), 1e-300)
-        return F, ((p - p_a) / G, (surface.R / c) ** 2 * t / G)
-    p_t = p_a - a * D * math.sin(b)
-    if a > 0.0 and p > p_t:  # transition arc
-        F = math.hypot(p - p_a, t - (1.0 - a / math.cos(b)) * D) - a * D
-    else:
-        F = t - p * tb - surface.d
-    G = max(math.hypot((p_a - p) * tb, t / c), 1e-300)
-    return F, (-(p_a - p) * tb**2 / G, t / c**2 / G)
+class ReturnMappingError(RuntimeError):
+    """The return of a trial stress to the yield surface found no solution."""
 
 
 def return_map(model: CapModel, strain: np.ndarray, sigma_trial: np.ndarray, eps_v_pl: float):
@@ -116,11 +111,11 @@ def return_map(model: CapModel, strain: np.ndarray, sigma_trial: np.ndarray, eps
     if np.isfinite(t_surface) and t_tr <= t_surface:
         return sigma_trial, eps_v_pl, False
 
-    def residual(x, cap):
+    def residual(x, region):
         p, t, dl, e = x
         trial = model.surface(density, e)
-        F, (Gp, Gt) = _yield_and_potential(trial, p, t, cap)
-        scale = max(trial.p_b, 1e-12)
+        F, (Gp, Gt) = trial.yield_and_flow(p, t, region)
+        scale = max(trial.p_high, 1e-12)
         return [
             (p - p_tr + bulk * dl * Gp) / scale,
             (t - t_tr + 3.0 * shear * g * g * dl * Gt) / scale,
@@ -128,26 +123,28 @@ def return_map(model: CapModel, strain: np.ndarray, sigma_trial: np.ndarray, eps
             (e - eps_v_pl - dl * Gp) * bulk / scale,
         ]
 
-    # first guess: the volumetric trial excess all plastic, on the hardened cap
-    e0 = eps_v_pl + max(p_tr - surface.p_b, 0.0) / bulk
+    # first guess: the volumetric trial excess all plastic, on the hardened surface
+    e0 = eps_v_pl + max(p_tr - surface.p_high, 0.0) / bulk
     p0 = min(p_tr, model.p_b(e0))
     t0 = float(np.nan_to_num(model.surface(density, e0).t(p0)))
-    for cap in (p_tr > surface.p_a, p_tr <= surface.p_a):
+    for region in surface.regions(p_tr):
         with warnings.catch_warnings():  # judged by the residual below
             warnings.simplefilter("ignore", RuntimeWarning)
             x = fsolve(
                 residual,
                 [p0, min(t_tr, t0), e0 - eps_v_pl, e0],
-                args=(cap,),
+                args=(region,),
                 xtol=1e-12,
             )
         p, t, dl, e = x
-        solved = np.max(np.abs(residual(x, cap))) < 1e-10
-        if solved and dl >= 0.0 and t >= -1e-9 * surface.p_b:
-            if (p > model.surface(density, e).p_a) == cap:
+        solved = np.max(np.abs(residual(x, region))) < 1e-10
+        if solved and dl >= 0.0 and t >= -1e-9 * surface.p_high:
+            if model.surface(density, e).region_of(p) == region:
                 break
     else:
-        raise RuntimeError(f"return mapping failed at p_tr = {p_tr:.6g}, t_tr = {t_tr:.6g} MPa")
+        raise ReturnMappingError(
+            f"return mapping failed at p_tr = {p_tr:.6g}, t_tr = {t_tr:.6g} MPa"
+        )
     q = max(t, 0.0) / g
     s = s_tr * (q / q_tr) if q_tr > 0 else s_tr
     return s - p, e, True
@@ -163,13 +160,22 @@ class PointState:
     eps_v_pl: float = 0.0
 
 
-def stress_update(model: CapModel, state: PointState, strain: np.ndarray):
-    """The stress and eps_v^pl at the total principal ``strain`` from ``state`` (not changed)."""
+def stress_update(model: CapModel, state: PointState, strain: np.ndarray, depth: int = 0):
+    """The stress and eps_v^pl at the total principal ``strain`` from ``state`` (not changed).
+    A return that fails from a trial far outside the surface is retried in two halves of the
+    increment (down to 1/256 of it)."""
     density = model.density_0 * math.exp(-float(np.sum(strain)))
     bulk, shear = model.elastic(density)
     de = strain - state.strain
     trial = state.stress + (bulk - 2.0 * shear / 3.0) * np.sum(de) + 2.0 * shear * de
-    sigma, eps, _ = return_map(model, strain, trial, state.eps_v_pl)
+    try:
+        sigma, eps, _ = return_map(model, strain, trial, state.eps_v_pl)
+    except ReturnMappingError:
+        if depth >= 8:
+            raise
+        middle = 0.5 * (state.strain + strain)
+        half = PointState(middle, *stress_update(model, state, middle, depth + 1))
+        return stress_update(model, half, strain, depth + 1)
     return sigma, eps
 
 

@@ -25,6 +25,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .cap import CapSurface
+from .clay import ClaySurface
 
 
 @dataclass(frozen=True)
@@ -62,8 +63,8 @@ def deviatoric_misfit(surface: CapSurface, sigma_m, sigma_tilde_d) -> float:
     return float(np.sqrt(np.mean((fitted - s) ** 2) / np.mean(s**2)))
 
 
-def _first_guess(x: np.ndarray, fit_K: bool) -> np.ndarray:
-    """d, beta (deg), log R, p_b (, K) from the points' extent."""
+def _first_guess(x: np.ndarray) -> np.ndarray:
+    """d, beta (deg), log R, p_b of a cap from the points' extent."""
     p, s = x[:, 0], x[:, 1]
     span = p.max() - p.min()
     p_b = p.max() + 0.02 * span
@@ -73,11 +74,38 @@ def _first_guess(x: np.ndarray, fit_K: bool) -> np.ndarray:
     beta = min(max(math.degrees(math.atan(tan_b)), 5.0), 80.0)
     d = -apex * math.tan(math.radians(beta))
     R = min(max((p_b - p[top]) / max(s[top], 1e-9), 1e-3), 1e2)
-    guess = [d, beta, math.log(R), p_b]
-    if fit_K:
-        ext = s < 0
-        guess.append(min(max(-s[ext].min() / max(s.max(), 1e-9), 0.778), 1.0))
-    return np.array(guess)
+    return np.array([d, beta, math.log(R), p_b])
+
+
+def _fit(x: np.ndarray, make, guess, low, high) -> CapFit:
+    """The surface ``make(v)`` whose parameters v (within ``low``, ``high``, from ``guess``)
+    minimize the points' radial misfit seen from their mean."""
+    centre = x.mean(axis=0)
+
+    def misfit(v) -> np.ndarray:
+        try:
+            trial = make(v)
+        except ValueError:  # a trial outside the parameters' ranges
+            return np.full(len(x), 10.0)
+        if not trial.inside(*centre):
+            return np.full(len(x), 10.0)
+        return radial_residuals(trial, x, centre)
+
+    guess = np.clip(guess, low, high)
+    best = least_squares(misfit, guess, bounds=(low, high), x_scale="jac", xtol=1e-12)
+    found = make(best.x)
+    residuals = radial_residuals(found, x, centre)
+    return CapFit(
+        surface=found,
+        radial_rms=float(np.sqrt(np.mean(residuals**2))),
+        deviatoric_rms=deviatoric_misfit(found, x[:, 0], x[:, 1]),
+        radial_residuals=residuals,
+    )
+
+
+def _K_guess(x: np.ndarray) -> float:
+    s = x[:, 1]
+    return min(max(-s[s < 0].min() / max(s.max(), 1e-9), 0.778), 1.0)
 
 
 def fit_cap(sigma_m, sigma_tilde_d, *, alpha: float = 0.01, K: float | None = None) -> CapFit:
@@ -87,9 +115,8 @@ def fit_cap(sigma_m, sigma_tilde_d, *, alpha: float = 0.01, K: float | None = No
     x = _points(sigma_m, sigma_tilde_d)
     fit_K = K is None and bool(np.any(x[:, 1] < 0))
     fixed_K = 1.0 if K is None else float(K)
-    centre = x.mean(axis=0)
 
-    def surface(v) -> CapSurface:
+    def make(v) -> CapSurface:
         return CapSurface(
             d=float(v[0]),
             beta=float(v[1]),
@@ -99,30 +126,41 @@ def fit_cap(sigma_m, sigma_tilde_d, *, alpha: float = 0.01, K: float | None = No
             K=float(v[4]) if fit_K else fixed_K,
         )
 
-    def misfit(v) -> np.ndarray:
-        try:
-            trial = surface(v)
-            if not trial.inside(*centre):
-                return np.full(len(x), 10.0)
-            return radial_residuals(trial, x, centre)
-        except ValueError:  # a trial outside the parameters' ranges
-            return np.full(len(x), 10.0)
-
     span = np.ptp(x[:, 0])
     low = [0.0, 0.5, math.log(1e-4), 1e-9 * span]
     high = [np.inf, 85.0, math.log(1e3), np.inf]
+    guess = list(_first_guess(x))
     if fit_K:
-        low, high = low + [0.778], high + [1.0]
-    guess = np.clip(_first_guess(x, fit_K), low, high)
-    best = least_squares(misfit, guess, bounds=(low, high), x_scale="jac", xtol=1e-12)
-    found = surface(best.x)
-    residuals = radial_residuals(found, x, centre)
-    return CapFit(
-        surface=found,
-        radial_rms=float(np.sqrt(np.mean(residuals**2))),
-        deviatoric_rms=deviatoric_misfit(found, x[:, 0], x[:, 1]),
-        radial_residuals=residuals,
-    )
+        low, high, guess = low + [0.778], high + [1.0], guess + [_K_guess(x)]
+    return _fit(x, make, guess, low, high)
+
+
+def fit_clay(sigma_m, sigma_tilde_d, *, K: float | None = None) -> CapFit:
+    """The critical-state ellipse (:class:`~.clay.ClaySurface`) through the yield points
+    (``sigma_m``, ``sigma_tilde_d``) (MPa, compression > 0): M, beta, p_c, p_t and K (fixed
+    when given, else fitted if some points lie on the extension side, else 1)."""
+    x = _points(sigma_m, sigma_tilde_d)
+    fit_K = K is None and bool(np.any(x[:, 1] < 0))
+    fixed_K = 1.0 if K is None else float(K)
+
+    def make(v) -> ClaySurface:
+        return ClaySurface(
+            M=float(v[0]),
+            beta=float(v[1]),
+            p_c=float(v[2]),
+            p_t=float(v[3]),
+            K=float(v[4]) if fit_K else fixed_K,
+        )
+
+    p, s = x[:, 0], x[:, 1]
+    span = np.ptp(p)
+    p_c, p_t = p.max() + 0.02 * span, min(p.min() - 0.02 * span, 0.0)
+    guess = [max(np.abs(s).max(), 1e-9) / (0.5 * (p_c - p_t)), 1.0, p_c, p_t]
+    low = [1e-3, 0.05, 1e-9 * span, -np.inf]
+    high = [1e2, 20.0, np.inf, 0.0]
+    if fit_K:
+        low, high, guess = low + [0.778], high + [1.0], guess + [_K_guess(x)]
+    return _fit(x, make, guess, low, high)
 
 
 def isotropic_hardening(density, sigma_m, density_0: float, bulk=None):
