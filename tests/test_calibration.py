@@ -141,11 +141,11 @@ def test_calibrated_density_refuses_bad_moduli():
 
 # -- the material-point driver ------------------------------------------------------------------
 def _model(young, p_b=(0.5, 2.0, 5.0, 15.0, 30.0, 80.0), eps=(0.0, 0.05, 0.1, 0.2, 0.3, 0.5)):
-    from mpfem_fenicsx.calibration.driver import CapModel
+    from mpfem_fenicsx.calibration.driver import ContinuumModel
 
     surface = CapSurface(d=1.0, beta=40.0, R=0.8, p_b=1.0, alpha=0.01, K=1.0)
     row = CalibratedDensity(0.7, surface, young, 0.3)
-    return CapModel((row,), (np.array(p_b), np.array(eps)), density_0=0.6)
+    return ContinuumModel((row,), (np.array(p_b), np.array(eps)), density_0=0.6)
 
 
 def test_driver_isotropic_path_follows_the_hardening_table():
@@ -223,30 +223,48 @@ def test_mpfem_calibrate_writes_the_model_and_replays_the_particle_paths(tmp_pat
     args += ["--isotropic", str(RUNS / "isotropic_CLP_gamma1e-2" / "history.csv")]
     args += ["--die", str(RUNS / "die_CLP_gamma1e-2" / "history.csv")]
     assert main(args) == 0
-    for name in ("cap_model.json", "cap_model.csv", "cap_model.inp", "round_trip.csv"):
-        assert (tmp_path / name).is_file(), name
-    assert (tmp_path / "calibration.png").stat().st_size > 10_000
+    import csv
     import json
 
-    model = json.loads((tmp_path / "cap_model.json").read_text())
+    for model in ("cap", "clay"):
+        for ext in ("json", "csv", "inp"):
+            assert (tmp_path / f"{model}_model.{ext}").is_file(), (model, ext)
+    assert (tmp_path / "calibration.png").stat().st_size > 10_000
+    cap = json.loads((tmp_path / "cap_model.json").read_text())
     back = surfaces_from_fragment((tmp_path / "cap_model.inp").read_text())
-    for row in model["densities"]:
+    for row in cap["densities"]:
         assert back[row["density"]].R == pytest.approx(row["R"], rel=1e-5)
         assert 0 < row["beta"] < 90 and row["R"] > 0 and row["fit_deviatoric_rms"] < 0.15
-    assert np.all(np.diff(model["hardening"]["p_b_MPa"]) > 0)
-    import csv
-
+    assert np.all(np.diff(cap["p_high_MPa"]) > 0)
+    clay = json.loads((tmp_path / "clay_model.json").read_text())
+    for row in clay["densities"]:  # the ellipse fits these isotropic fans within 10 %
+        assert row["fit_deviatoric_rms"] < 0.10 and row["p_t"] < 0 < row["M"]
+    blocks = {k: (o, d) for k, o, d in read_keywords((tmp_path / "clay_model.inp").read_text())}
+    assert blocks["CLAY PLASTICITY"][0] == {"HARDENING": "TABULAR", "DEPENDENCIES": "1"}
+    assert [len(r) for r in blocks["CLAY PLASTICITY"][1]] == [7, 7]
+    text = (tmp_path / "clay_model.inp").read_text()
+    tables = text.split("*CLAY HARDENING, TYPE=")[1:]
+    compression, tension = (
+        np.array([[float(v) for v in ln.split(",")] for ln in t.strip().splitlines()[1:]])
+        for t in tables
+    )
+    assert compression[0, 1] == 0.0 and tension[0, 1] == 0.0  # Abaqus: tables from zero
+    assert np.all(np.diff(compression[:, 0]) > 0) and np.all(np.diff(tension[:, 0]) <= 0)
     with open(tmp_path / "round_trip.csv") as f:
         trip = list(csv.DictReader(f))
-    iso = [r for r in trip if r["path"] == "isotropic"]
-    die = [r for r in trip if r["path"] == "die" and float(r["density"]) >= 0.75]
-    assert len(iso) == 6 and len(die) == 3
-    # the isotropic path replays the curve the hardening came from; the die path is predicted
-    for r in iso:
-        assert float(r["sigma_m_model"]) == pytest.approx(float(r["sigma_m_particles"]), rel=2e-3)
-    for r in die:
-        assert float(r["sigma_m_model"]) == pytest.approx(float(r["sigma_m_particles"]), rel=0.05)
-    assert "[round trip] die rho 0.85" in capsys.readouterr().out
+    for model in ("cap", "clay"):
+        iso = [r for r in trip if r["model"] == model and r["path"] == "isotropic"]
+        die = [r for r in trip if r["model"] == model and r["path"] == "die"]
+        die = [r for r in die if float(r["density"]) >= 0.75]
+        assert len(iso) == 6 and len(die) == 3
+        # the isotropic path replays the curve the hardening came from; the die path is
+        # predicted: its mean stress within 5 %, but not its stress ratio
+        for r in iso:
+            assert float(r["sigma_m_model"]) == pytest.approx(float(r["sigma_m_particles"]), 2e-3)
+        for r in die:
+            assert float(r["sigma_m_model"]) == pytest.approx(float(r["sigma_m_particles"]), 0.05)
+            assert float(r["ratio_model"]) > 1.4 * float(r["ratio_particles"])
+    assert "[round trip] clay die rho 0.85" in capsys.readouterr().out
 
 
 def test_mpfem_calibrate_refuses_bad_input(tmp_path, capsys):
@@ -301,12 +319,12 @@ def test_clay_surface_ends_top_and_refusals():
 
 def test_driver_with_the_ellipse_flows_normal_to_it_under_uniaxial_strain():
     from mpfem_fenicsx.calibration import ClaySurface
-    from mpfem_fenicsx.calibration.driver import CapModel, drive
+    from mpfem_fenicsx.calibration.driver import ContinuumModel, drive
 
     surface = ClaySurface(M=1.0, beta=1.0, p_c=1.0, p_t=-0.2)
     row = CalibratedDensity(0.7, surface, 1e6, 0.3)
     table = (np.array([0.5, 2.0, 5.0, 15.0, 30.0, 80.0]), np.array([0, 0.05, 0.1, 0.2, 0.3, 0.5]))
-    model = CapModel((row,), table, density_0=0.6)
+    model = ContinuumModel((row,), table, density_0=0.6)
     iso, _ = drive(model, [-0.05] * 3, increments=50)
     bulk = 1e6 / (3 * (1 - 0.6))
     p_b = np.interp(0.15 * np.arange(1, 51) / 50 - iso["sigma_m"] / bulk, *table[::-1])

@@ -6,6 +6,7 @@ numpy / scipy: plain arrays in, plain arrays out. Stresses in MPa, compression >
 from .abaqus import (
     CalibratedDensity,
     cap_fragment,
+    clay_fragment,
     elastic_constants,
     hardening_table,
     read_keywords,
@@ -13,7 +14,7 @@ from .abaqus import (
 )
 from .cap import CapSurface
 from .clay import ClaySurface
-from .driver import CapModel, PointState, drive, return_map
+from .driver import ContinuumModel, PointState, drive, return_map
 from .fit import (
     CapFit,
     deviatoric_misfit,
@@ -27,11 +28,12 @@ from .fit import (
 __all__ = [
     "CalibratedDensity",
     "CapFit",
-    "CapModel",
+    "ContinuumModel",
     "CapSurface",
     "ClaySurface",
     "PointState",
     "cap_fragment",
+    "clay_fragment",
     "deviatoric_misfit",
     "drive",
     "elastic_constants",

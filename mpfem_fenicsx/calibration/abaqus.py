@@ -1,11 +1,13 @@
-"""An Abaqus material fragment of a density-dependent Drucker-Prager Cap model, and its reader.
+"""Abaqus material fragments of the density-dependent continuum models, and their reader.
 
-The fragment (units mm, N, MPa) defines one material with
+A fragment (units mm, N, MPa) defines one material with ``*ELASTIC, DEPENDENCIES=1`` (Young's
+modulus and Poisson's ratio at each calibrated density) and either
 
-- ``*ELASTIC, DEPENDENCIES=1``: Young's modulus and Poisson's ratio at each calibrated density;
-- ``*CAP PLASTICITY, DEPENDENCIES=1``: d, beta, R, the initial cap position, alpha, K at each
-  calibrated density;
-- ``*CAP HARDENING``: the hydrostatic yield stress p_b against the plastic volumetric strain.
+- the Drucker-Prager Cap: ``*CAP PLASTICITY, DEPENDENCIES=1`` (d, beta, R, the initial cap
+  position, alpha, K at each density) and ``*CAP HARDENING`` (p_b against the plastic
+  volumetric strain); or
+- the critical-state ellipse: ``*CLAY PLASTICITY, HARDENING=TABULAR, DEPENDENCIES=1`` (M, beta,
+  K at each density) and ``*CLAY HARDENING`` in compression (p_c) and in tension (p_t).
 
 Field variable 1 is the relative density (solid fraction): the model that reads the fragment
 must set it, e.g. with a USDFLD subroutine that computes rho = rho_0 exp(|eps_v^pl|) from the
@@ -91,6 +93,49 @@ def cap_fragment(
         lines.append(_line([s.d, s.beta, s.R, eps0, s.alpha, s.K, None, r.density]))
     lines.append("*CAP HARDENING")
     lines += [_line([p, e]) for p, e in zip(p_b, eps, strict=True)]
+    return "\n".join(lines) + "\n"
+
+
+def clay_fragment(
+    rows: list[CalibratedDensity],
+    hardening: tuple[np.ndarray, np.ndarray],
+    density_0: float,
+    name: str = "POWDER",
+) -> str:
+    """The Abaqus fragment of the critical-state ellipse (:class:`~.clay.ClaySurface`) at the
+    calibrated densities ``rows``: ``*ELASTIC`` and ``*CLAY PLASTICITY, HARDENING=TABULAR``
+    (M, beta, K) with field variable 1 = relative density, ``*CLAY HARDENING`` TYPE=COMPRESSION
+    (p_c against |eps_v^pl|, the table of :func:`hardening_table` from a strain of 0) and
+    TYPE=TENSION (p_t = (p_t / p_c)(rho) p_c, rho = ``density_0`` exp(eps_v^pl), the ratio
+    interpolated between the calibrated densities and held beyond them)."""
+    if not rows:
+        raise ValueError("rows: need >= 1 calibrated density")
+    rows = sorted(rows, key=lambda r: r.density)
+    p_c, eps = hardening_table(*hardening)
+    if eps[0] > 0.0:  # Abaqus' tables start at zero plastic strain
+        p_c, eps = np.concatenate([[1e-3 * p_c[0]], p_c]), np.concatenate([[0.0], eps])
+    ratio = np.interp(
+        density_0 * np.exp(eps),
+        [r.density for r in rows],
+        [r.surface.p_t / r.surface.p_c for r in rows],
+    )
+    p_t = np.minimum.accumulate(ratio * p_c)  # must not increase with the strain
+    lines = [
+        "** critical-state (Cam-clay) model fitted to multi-particle yield surfaces "
+        "(mpfem-fenicsx)",
+        "** units: mm, N, MPa; field variable 1: relative density (set it, e.g. by USDFLD)",
+        f"*MATERIAL, NAME={name}",
+        "*ELASTIC, DEPENDENCIES=1",
+    ]
+    lines += [_line([r.young, r.poisson, None, r.density]) for r in rows]
+    lines.append("*CLAY PLASTICITY, HARDENING=TABULAR, DEPENDENCIES=1")
+    for r in rows:
+        s = r.surface
+        lines.append(_line([None, s.M, None, s.beta, s.K, None, r.density]))
+    lines.append("*CLAY HARDENING, TYPE=COMPRESSION")
+    lines += [_line([p, e]) for p, e in zip(p_c, eps, strict=True)]
+    lines.append("*CLAY HARDENING, TYPE=TENSION")
+    lines += [_line([p, e]) for p, e in zip(p_t, eps, strict=True)]
     return "\n".join(lines) + "\n"
 
 

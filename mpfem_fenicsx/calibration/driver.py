@@ -36,7 +36,7 @@ from .abaqus import CalibratedDensity, hardening_table
 
 
 @dataclass(frozen=True)
-class CapModel:
+class ContinuumModel:
     """The calibrated model: surfaces and moduli at several densities, the hardening table
     (p_b against |eps_v^pl|) and the density rho_0 at zero strain."""
 
@@ -96,7 +96,7 @@ class ReturnMappingError(RuntimeError):
     """The return of a trial stress to the yield surface found no solution."""
 
 
-def return_map(model: CapModel, strain: np.ndarray, sigma_trial: np.ndarray, eps_v_pl: float):
+def return_map(model: ContinuumModel, strain: np.ndarray, sigma_trial: np.ndarray, eps_v_pl: float):
     """The stress (principal, tension > 0) and eps_v^pl after the return of ``sigma_trial`` at
     the total principal ``strain``; (sigma, eps_v_pl, plastic?)."""
     density = model.density_0 * math.exp(-float(np.sum(strain)))
@@ -160,7 +160,7 @@ class PointState:
     eps_v_pl: float = 0.0
 
 
-def stress_update(model: CapModel, state: PointState, strain: np.ndarray, depth: int = 0):
+def stress_update(model: ContinuumModel, state: PointState, strain: np.ndarray, depth: int = 0):
     """The stress and eps_v^pl at the total principal ``strain`` from ``state`` (not changed).
     A return that fails from a trial far outside the surface is retried in two halves of the
     increment (down to 1/256 of it)."""
@@ -180,7 +180,7 @@ def stress_update(model: CapModel, state: PointState, strain: np.ndarray, depth:
 
 
 def drive(
-    model: CapModel,
+    model: ContinuumModel,
     strain_end,
     stress_held=(None, None, None),
     increments: int = 200,
@@ -245,7 +245,7 @@ def _hold_stresses(model, state, strain, held, target):
     raise RuntimeError(f"held stresses not reached: {sigma[idx]} against {target[idx]} MPa")
 
 
-def _report(model: CapModel, state: PointState) -> dict[str, float]:
+def _report(model: ContinuumModel, state: PointState) -> dict[str, float]:
     c = -state.stress
     return {
         "density": model.density_0 * math.exp(-float(np.sum(state.strain))),

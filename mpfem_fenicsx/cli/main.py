@@ -6,8 +6,8 @@
     mpfem init CASE.toml                                      a commented case file with
                                                               the defaults
     mpfem calibrate --fan RHO DIR ... --isotropic HISTORY [--die HISTORY] --out DIR
-                                                              a Drucker-Prager Cap model
-                                                              from computed fans
+                                                              continuum models (Drucker-
+                                                              Prager Cap, Cam-clay) from fans
 
 Exit codes: 0 done; 2 bad input (one line naming the field and the allowed range); 3 the run
 diverged or did not converge (history so far and the last good checkpoint are kept).
@@ -134,13 +134,15 @@ def _parser() -> argparse.ArgumentParser:
 
     cal = sub.add_parser(
         "calibrate",
-        help="fit a density-dependent Drucker-Prager Cap model to computed yield fans",
-        description="Fit the Drucker-Prager Cap surface (Abaqus' form) to each fan's yield "
-        "points, take the elastic moduli from its reloads and the hardening from the "
-        "isotropic compaction curve, write the model (cap_model.json / .csv), the Abaqus "
-        "fragment (cap_model.inp: *ELASTIC, *CAP PLASTICITY with field variable 1 = relative "
-        "density, *CAP HARDENING) and calibration.png, and replay the isotropic (and die) path "
-        "with a material-point driver of the model against the particles (round_trip.csv).",
+        help="fit continuum models (Drucker-Prager Cap, Cam-clay) to computed yield fans",
+        description="Fit the Drucker-Prager Cap surface and the critical-state (Cam-clay) "
+        "ellipse (Abaqus' forms) to each fan's yield points, take the elastic moduli from its "
+        "reloads and the hardening from the isotropic compaction curve, write each model "
+        "(cap_model.json / .csv, clay_model.json / .csv), its Abaqus fragment (cap_model.inp: "
+        "*ELASTIC, *CAP PLASTICITY, *CAP HARDENING; clay_model.inp: *ELASTIC, *CLAY PLASTICITY, "
+        "*CLAY HARDENING in compression and tension; field variable 1 = relative density) and "
+        "calibration.png, and replay the isotropic (and die) path with a material-point driver "
+        "of each model against the particles (round_trip.csv).",
     )
     cal.add_argument(
         "--fan",
@@ -371,8 +373,8 @@ def _calibrate(args, comm) -> None:
     except ValueError as err:
         raise _Exit(BAD_INPUT, str(err)) from None
     say(
-        f"outputs in {args.out}/: cap_model.json, cap_model.csv, cap_model.inp, round_trip.csv, "
-        "calibration.png"
+        f"outputs in {args.out}/: cap_model.json / .csv / .inp, clay_model.json / .csv / .inp, "
+        "round_trip.csv, calibration.png"
     )
 
 

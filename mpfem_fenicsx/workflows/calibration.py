@@ -1,21 +1,23 @@
-"""From particles to a continuum model: calibrate the density-dependent Drucker-Prager Cap model
-on computed fans and compaction curves, export it for Abaqus, and replay the particle model's
-paths with it.
+"""From particles to a continuum model: calibrate two density-dependent continuum models, the
+Drucker-Prager Cap and the critical-state (Cam-clay) ellipse, on computed fans and compaction
+curves, export them for Abaqus, and replay the particle model's paths with them.
 
-Stages (data flow: fans + compaction curves -> fit -> model -> fragment -> round trip):
+Stages (data flow: fans + compaction curves -> fit -> models -> fragments -> round trip):
 
-1. **fit**: at each fan's relative density, the cap surface through its yield points
-   (``surfaces.csv``, kind ``yield``; :func:`~mpfem_fenicsx.calibration.fit_cap`) and the
-   elastic moduli from its reloads' first rows (``fan.csv``;
-   :func:`~mpfem_fenicsx.calibration.reload_moduli`);
-2. **hardening**: p_b against the plastic volumetric strain from the isotropic compaction
-   curve (``history.csv``: rho, sigma_m), its elastic part removed with the fans' bulk moduli;
-3. **export**: ``cap_model.json`` and ``cap_model.csv`` (the parameters by density),
-   ``cap_model.inp`` (the Abaqus fragment, field variable 1 = relative density);
-4. **round trip**: the material-point driver runs the isotropic path (and the die path when a
-   die history is given) to the particle runs' end density; ``round_trip.csv`` lists, at
-   each reported density, sigma_m of the model and of the particles (and the die's radial /
-   axial stress ratio), and ``calibration.png`` shows the points with the fitted surfaces.
+1. **fit**: at each fan's relative density, each model's surface through its yield points
+   (``surfaces.csv``, kind ``yield``; :func:`~mpfem_fenicsx.calibration.fit_cap`,
+   :func:`~mpfem_fenicsx.calibration.fit_clay`) and the elastic moduli from its reloads' first
+   rows (``fan.csv``; :func:`~mpfem_fenicsx.calibration.reload_moduli`);
+2. **hardening**: the hydrostatic yield stress against the plastic volumetric strain from the
+   isotropic compaction curve (``history.csv``: rho, sigma_m), its elastic part removed with
+   the fans' bulk moduli;
+3. **export**, per model (``cap``, ``clay``): ``<model>_model.json`` and ``<model>_model.csv``
+   (the parameters by density with each fit's misfit), ``<model>_model.inp`` (the Abaqus
+   fragment, field variable 1 = relative density);
+4. **round trip**: the material-point driver runs each model along the isotropic path (and the
+   die path when a die history is given) to the particle runs' end density; ``round_trip.csv``
+   lists, at each reported density, sigma_m of the model and of the particles (and the die's
+   radial / axial stress ratio), and ``calibration.png`` shows the points with both fits.
 
 Units mm, N, MPa; stresses compression > 0.
 """
@@ -32,29 +34,33 @@ import numpy as np
 
 from ..calibration import (
     CalibratedDensity,
-    CapModel,
+    ContinuumModel,
     cap_fragment,
+    clay_fragment,
     drive,
     elastic_constants,
     fit_cap,
+    fit_clay,
     hardening_table,
     isotropic_hardening,
     reload_moduli,
 )
 from ..io.history import read_csv
 
-#: the relative densities at which the round trip compares the model with the particles
+#: the relative densities at which the round trip compares the models with the particles
 REPORT_DENSITIES = (0.7, 0.75, 0.8, 0.85, 0.9, 0.95)
+#: the models calibrated, by name
+MODELS = ("cap", "clay")
 
 
 @dataclass(frozen=True)
 class Calibration:
-    """What :func:`calibrate` found: the model, each density's fit figures and the round
-    trip's rows."""
+    """What :func:`calibrate` found, by model name: the model, each density's fit figures and
+    the round trip's rows."""
 
-    model: CapModel
-    fits: dict[float, dict[str, float]]  # density -> radial_rms, deviatoric_rms, points
-    round_trip: list[dict[str, float]]
+    models: dict[str, ContinuumModel]
+    fits: dict[str, dict[float, dict[str, float]]]  # model -> density -> figures
+    round_trip: list[dict]
 
 
 def yield_points(fan_dir: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -68,22 +74,24 @@ def yield_points(fan_dir: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def fit_density(density: float, fan_dir: Path, alpha: float = 0.01):
-    """The calibrated density of one fan and its fit figures."""
-    fit = fit_cap(*yield_points(fan_dir), alpha=alpha)
+    """{model: (calibrated density, fit figures)} of one fan."""
+    points = yield_points(fan_dir)
     bulk, shear = reload_moduli(read_csv(fan_dir / "fan.csv"))
     young, poisson = elastic_constants(bulk, shear)
-    row = CalibratedDensity(density, fit.surface, young, poisson)
-    figures = {
-        "radial_rms": fit.radial_rms,
-        "deviatoric_rms": fit.deviatoric_rms,
-        "points": len(fit.radial_residuals),
-        "bulk_MPa": bulk,
-        "shear_MPa": shear,
-    }
-    return row, figures
+    out = {}
+    for name, fit in (("cap", fit_cap(*points, alpha=alpha)), ("clay", fit_clay(*points))):
+        figures = {
+            "radial_rms": fit.radial_rms,
+            "deviatoric_rms": fit.deviatoric_rms,
+            "points": len(fit.radial_residuals),
+            "bulk_MPa": bulk,
+            "shear_MPa": shear,
+        }
+        out[name] = (CalibratedDensity(density, fit.surface, young, poisson), figures)
+    return out
 
 
-def build_model(rows: list[CalibratedDensity], isotropic: dict[str, np.ndarray]) -> CapModel:
+def build_model(rows: list[CalibratedDensity], isotropic: dict[str, np.ndarray]):
     """The model of the calibrated ``rows`` with the hardening of the isotropic curve
     ``isotropic`` (history columns rho, sigma_m); rho_0 is the curve's first density."""
     rho, p = isotropic["rho"], isotropic["sigma_m"]
@@ -93,10 +101,10 @@ def build_model(rows: list[CalibratedDensity], isotropic: dict[str, np.ndarray])
         [r.young / (3.0 * (1.0 - 2.0 * r.poisson)) for r in rows],
     )
     hardening = hardening_table(*isotropic_hardening(rho[1:], p[1:], float(rho[0]), bulk[1:]))
-    return CapModel(tuple(rows), hardening, float(rho[0]))
+    return ContinuumModel(tuple(rows), hardening, float(rho[0]))
 
 
-def replay(model: CapModel, history: dict[str, np.ndarray], path: str, increments: int = 400):
+def replay(model: ContinuumModel, history: dict[str, np.ndarray], path: str, increments=400):
     """The model along the particle run's ``path`` (isotropic or die along axis 3) to its end
     density; rows at :data:`REPORT_DENSITIES` inside the run's range."""
     strain_v = math.log(history["rho"][-1] / model.density_0)  # compaction > 0
@@ -128,67 +136,78 @@ def calibrate(
     alpha: float = 0.01,
     log=print,
 ) -> Calibration:
-    """Fit, export and replay (see the module). ``fans``: relative density -> fan directory
-    (``surfaces.csv``, ``fan.csv``); ``isotropic`` / ``die``: the particle runs' history.csv."""
+    """Fit, export and replay both models (see the module). ``fans``: relative density -> fan
+    directory (``surfaces.csv``, ``fan.csv``); ``isotropic`` / ``die``: the particle runs'
+    history.csv."""
     if len(fans) < 1:
         raise ValueError("fans: need >= 1 fan (density -> directory)")
     out.mkdir(parents=True, exist_ok=True)
-    rows, fits = [], {}
+    rows = {name: [] for name in MODELS}
+    fits = {name: {} for name in MODELS}
     for density, fan_dir in sorted(fans.items()):
-        row, figures = fit_density(density, Path(fan_dir), alpha)
-        rows.append(row)
-        fits[density] = figures
-        s = row.surface
-        log(
-            f"[fit] rho {density:.3f}: d {s.d:.3f} MPa, beta {s.beta:.2f} deg, R {s.R:.3f}, "
-            f"p_b {s.p_b:.3f} MPa, K {s.K:.3f}; E {row.young:.0f} MPa, nu {row.poisson:.3f}; "
-            f"misfit radial {100 * figures['radial_rms']:.1f} %, deviatoric "
-            f"{100 * figures['deviatoric_rms']:.1f} % ({figures['points']} points)"
-        )
-    model = build_model(rows, read_csv(isotropic))
-    write_model(model, fits, out)
-    trip = replay(model, read_csv(isotropic), "isotropic")
+        for name, (row, figures) in fit_density(density, Path(fan_dir), alpha).items():
+            rows[name].append(row)
+            fits[name][density] = figures
+            log(f"[fit] {name} rho {density:.3f}: {_describe(row, figures)}")
+    curves = {"isotropic": read_csv(isotropic)}
     if die is not None:
-        trip += replay(model, read_csv(die), "die")
+        curves["die"] = read_csv(die)
+    models, trip = {}, []
+    for name in MODELS:
+        models[name] = build_model(rows[name], curves["isotropic"])
+        write_model(name, models[name], fits[name], out)
+        for path, history in curves.items():
+            trip += [{"model": name, **r} for r in replay(models[name], history, path)]
     write_round_trip(trip, out / "round_trip.csv", log)
-    plot_fits(model, fans, out / "calibration.png")
-    return Calibration(model, fits, trip)
+    plot_fits(models, fans, out / "calibration.png")
+    return Calibration(models, fits, trip)
 
 
-def write_model(model: CapModel, fits: dict, out: Path) -> None:
-    """cap_model.json, cap_model.csv and the Abaqus fragment cap_model.inp."""
-    records = []
-    for row in model.rows:
-        records.append(
-            {
-                "density": row.density,
-                **{k: v for k, v in asdict(row.surface).items()},
-                "young_MPa": row.young,
-                "poisson": row.poisson,
-                **{f"fit_{k}": v for k, v in fits[row.density].items()},
-            }
-        )
+def _describe(row: CalibratedDensity, figures: dict) -> str:
+    shape = ", ".join(f"{k} {v:.4g}" for k, v in asdict(row.surface).items())
+    return (
+        f"{shape}; E {row.young:.0f} MPa, nu {row.poisson:.3f}; misfit radial "
+        f"{100 * figures['radial_rms']:.1f} %, deviatoric {100 * figures['deviatoric_rms']:.1f} %"
+        f" ({figures['points']} points)"
+    )
+
+
+def write_model(name: str, model: ContinuumModel, fits: dict, out: Path) -> None:
+    """<name>_model.json, <name>_model.csv and the Abaqus fragment <name>_model.inp."""
+    records = [
+        {
+            "density": row.density,
+            **asdict(row.surface),
+            "young_MPa": row.young,
+            "poisson": row.poisson,
+            **{f"fit_{k}": v for k, v in fits[row.density].items()},
+        }
+        for row in model.rows
+    ]
     p_b, eps = model.hardening
-    (out / "cap_model.json").write_text(
+    hardening = {"p_high_MPa": p_b.tolist(), "eps_v_pl": eps.tolist()}
+    (out / f"{name}_model.json").write_text(
         json.dumps(
-            {
-                "density_0": model.density_0,
-                "densities": records,
-                "hardening": {"p_b_MPa": p_b.tolist(), "eps_v_pl": eps.tolist()},
-            },
+            {"model": name, "density_0": model.density_0, "densities": records, **hardening},
             indent=1,
         )
     )
-    with open(out / "cap_model.csv", "w", newline="") as f:
+    with open(out / f"{name}_model.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(records[0]))
         writer.writeheader()
         writer.writerows(records)
-    (out / "cap_model.inp").write_text(cap_fragment(list(model.rows), model.hardening))
+    rows = list(model.rows)
+    fragment = (
+        cap_fragment(rows, model.hardening)
+        if name == "cap"
+        else clay_fragment(rows, model.hardening, model.density_0)
+    )
+    (out / f"{name}_model.inp").write_text(fragment)
 
 
 def write_round_trip(trip: list[dict], path: Path, log=print) -> None:
     """round_trip.csv and one log line per row."""
-    keys = ["path", "density", "sigma_m_model", "sigma_m_particles"]
+    keys = ["model", "path", "density", "sigma_m_model", "sigma_m_particles"]
     keys += ["ratio_model", "ratio_particles"]
     with open(path, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=keys)
@@ -196,7 +215,7 @@ def write_round_trip(trip: list[dict], path: Path, log=print) -> None:
         writer.writerows(trip)
     for r in trip:
         line = (
-            f"[round trip] {r['path']} rho {r['density']:.2f}: sigma_m model "
+            f"[round trip] {r['model']} {r['path']} rho {r['density']:.2f}: sigma_m model "
             f"{r['sigma_m_model']:.3f} / particles {r['sigma_m_particles']:.3f} MPa "
             f"({100 * (r['sigma_m_model'] / r['sigma_m_particles'] - 1):+.1f} %)"
         )
@@ -208,20 +227,25 @@ def write_round_trip(trip: list[dict], path: Path, log=print) -> None:
         log(line)
 
 
-def plot_fits(model: CapModel, fans: dict[float, Path], path: Path) -> None:
-    """The fans' yield points and the fitted surfaces in the Rendulic plane."""
+def plot_fits(models: dict[str, ContinuumModel], fans: dict[float, Path], path: Path) -> None:
+    """The fans' yield points and the fitted surfaces in the Rendulic plane (cap: solid,
+    ellipse: dashed)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6.5, 5))
-    colors = plt.cm.viridis(np.linspace(0, 0.85, len(model.rows)))
-    for row, color in zip(model.rows, colors, strict=True):
-        m, s = yield_points(Path(fans[row.density]))
-        ax.plot(m, s, "o", color=color, label=f"particles, rho {row.density:.2f}")
-        bm, bs = row.surface.boundary()
-        ax.plot(bm, bs, "-", color=color, label=f"cap model, rho {row.density:.2f}")
+    densities = sorted(fans)
+    colors = dict(zip(densities, plt.cm.viridis(np.linspace(0, 0.85, len(densities))), strict=True))
+    for density in densities:
+        m, s = yield_points(Path(fans[density]))
+        ax.plot(m, s, "o", color=colors[density], label=f"particles, rho {density:.2f}")
+    for name, style in (("cap", "-"), ("clay", "--")):
+        for row in models[name].rows:
+            bm, bs = row.surface.boundary()
+            label = f"{name}, rho {row.density:.2f}"
+            ax.plot(bm, bs, style, color=colors[row.density], lw=1, label=label)
     ax.axhline(0, color="0.7", lw=0.5)
     ax.set_xlabel("sigma_m (MPa)")
     ax.set_ylabel("sigma~_d (MPa)")
