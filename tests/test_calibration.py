@@ -226,7 +226,7 @@ def test_mpfem_calibrate_writes_the_model_and_replays_the_particle_paths(tmp_pat
     import csv
     import json
 
-    for model in ("cap", "clay"):
+    for model in ("cap", "clay", "cap_die"):
         for ext in ("json", "csv", "inp"):
             assert (tmp_path / f"{model}_model.{ext}").is_file(), (model, ext)
     assert (tmp_path / "calibration.png").stat().st_size > 10_000
@@ -264,6 +264,14 @@ def test_mpfem_calibrate_writes_the_model_and_replays_the_particle_paths(tmp_pat
         for r in die:
             assert float(r["sigma_m_model"]) == pytest.approx(float(r["sigma_m_particles"]), 0.05)
             assert float(r["ratio_model"]) > 1.4 * float(r["ratio_particles"])
+    # the cap calibrated on the die path replays it (the driver's increments against the
+    # closed-form cap through each die stress), and predicts the isotropic path too high
+    die = [r for r in trip if r["model"] == "cap_die" and r["path"] == "die"]
+    for r in die:
+        assert float(r["sigma_m_model"]) == pytest.approx(float(r["sigma_m_particles"]), 0.01)
+        assert float(r["ratio_model"]) == pytest.approx(float(r["ratio_particles"]), 0.01)
+    iso = [r for r in trip if r["model"] == "cap_die" and r["path"] == "isotropic"]
+    assert all(r["beyond_hardening"] == "True" for r in iso if float(r["density"]) > 0.9)
     assert "[round trip] clay die rho 0.85" in capsys.readouterr().out
 
 
@@ -336,3 +344,16 @@ def test_driver_with_the_ellipse_flows_normal_to_it_under_uniaxial_strain():
     assert s.t(p) == pytest.approx(t, rel=1e-8)  # on the surface
     slope = (s.t(p + 1e-6) - s.t(p - 1e-6)) / 2e-6  # the normal is (-slope, 1)
     assert -1.0 / slope == pytest.approx(2 / 3, rel=1e-3)  # uniaxial plastic strain
+
+
+def test_die_cap_passes_through_the_die_stress_with_a_uniaxial_normal():
+    from mpfem_fenicsx.calibration import die_cap
+
+    shear = CapSurface(d=3.5, beta=51.3, R=1.6, p_b=3.8, alpha=0.01, K=0.95)
+    cap = die_cap(shear, 4.03, 3.57)
+    assert (cap.d, cap.beta, cap.alpha, cap.K) == (shear.d, shear.beta, shear.alpha, shear.K)
+    assert cap.t(4.03) == pytest.approx(3.57, rel=1e-9) and cap.p_a < 4.03
+    slope = (cap.t(4.03 + 1e-6) - cap.t(4.03 - 1e-6)) / 2e-6
+    assert -1.0 / slope == pytest.approx(2 / 3, rel=1e-5)
+    with pytest.raises(ValueError, match="die stress"):
+        die_cap(shear, 4.0, -1.0)

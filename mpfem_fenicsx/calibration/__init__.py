@@ -18,6 +18,7 @@ from .driver import ContinuumModel, PointState, drive, return_map
 from .fit import (
     CapFit,
     deviatoric_misfit,
+    die_cap,
     fit_cap,
     fit_clay,
     isotropic_hardening,
@@ -35,6 +36,7 @@ __all__ = [
     "cap_fragment",
     "clay_fragment",
     "deviatoric_misfit",
+    "die_cap",
     "drive",
     "elastic_constants",
     "fit_cap",

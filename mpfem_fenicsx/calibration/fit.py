@@ -22,7 +22,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import brentq, least_squares
 
 from .cap import CapSurface
 from .clay import ClaySurface
@@ -202,3 +202,34 @@ def reload_moduli(fan: dict[str, np.ndarray], share: float = 0.1) -> tuple[float
     if min(moduli) <= 0:
         raise ValueError(f"fan: the reloads' first rows give moduli {moduli} (MPa): not > 0")
     return moduli[0], moduli[1]
+
+
+def die_cap(shear: CapSurface, sigma_m: float, sigma_tilde_d: float) -> CapSurface:
+    """The cap through a die compaction's stress (``sigma_m``, ``sigma_tilde_d``; MPa,
+    compression > 0, axial the larger) on the shear line of ``shear`` (its d, beta, alpha, K
+    kept): R and p_b such that the stress lies on the cap and the cap's normal gives a
+    uniaxial plastic strain, d eps_q^p / d eps_v^p = 2/3 (the elastic increments neglected), as
+    the die-test calibrations of powders set the cap. Raises ``ValueError`` when no cap does."""
+    p, t = float(sigma_m), float(sigma_tilde_d)
+    if not (p > 0.0 and t > 0.0):
+        raise ValueError(f"die stress ({p:g}, {t:g}) MPa: needs sigma_m > 0 and sigma~_d > 0")
+    b = math.radians(shear.beta)
+    c = 1.0 + shear.alpha - shear.alpha / math.cos(b)
+    tb, m = shear.tan_beta, 2.0 / 3.0
+
+    # with u = R^2: p - p_a = u t / (c^2 m) (the normal), then the point on the cap
+    def on_cap(u):
+        p_a = p - u * t / (c * c * m)
+        return u * t * t / (c**4 * m * m) + t * t / (c * c) - (shear.d + p_a * tb) ** 2
+
+    grid = np.geomspace(1e-8, 1e6, 400)
+    values = np.array([on_cap(u) for u in grid])
+    for k in np.flatnonzero(np.sign(values[:-1]) * np.sign(values[1:]) < 0):
+        u = brentq(on_cap, grid[k], grid[k + 1], xtol=1e-14, rtol=1e-14)
+        R, p_a = math.sqrt(u), p - u * t / (c * c * m)
+        D = shear.d + p_a * tb
+        if D > 0.0 and 1e-4 <= R <= 1e3:
+            return CapSurface(
+                d=shear.d, beta=shear.beta, R=R, p_b=p_a + R * D, alpha=shear.alpha, K=shear.K
+            )
+    raise ValueError(f"die stress ({p:g}, {t:g}) MPa: no cap on this shear line passes there")

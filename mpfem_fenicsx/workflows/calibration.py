@@ -11,10 +11,13 @@ Stages (data flow: fans + compaction curves -> fit -> models -> fragments -> rou
 2. **hardening**: the hydrostatic yield stress against the plastic volumetric strain from the
    isotropic compaction curve (``history.csv``: rho, sigma_m), its elastic part removed with
    the fans' bulk moduli;
-3. **export**, per model (``cap``, ``clay``): ``<model>_model.json`` and ``<model>_model.csv``
-   (the parameters by density with each fit's misfit), ``<model>_model.inp`` (the Abaqus
-   fragment, field variable 1 = relative density);
-4. **round trip**: the material-point driver runs each model along the isotropic path (and the
+3. **die-calibrated cap** (when a die history is given): the cap model ``cap_die`` whose cap
+   and hardening follow the die path (:func:`die_calibrated_cap`), the way die tests calibrate
+   powders' caps; its surfaces' misfit to the fans is reported;
+4. **export**, per model (``cap``, ``clay``, ``cap_die``): ``<model>_model.json`` and
+   ``<model>_model.csv`` (the parameters by density with each fit's misfit),
+   ``<model>_model.inp`` (the Abaqus fragment, field variable 1 = relative density);
+5. **round trip**: the material-point driver runs each model along the isotropic path (and the
    die path when a die history is given) to the particle runs' end density; ``round_trip.csv``
    lists, at each reported density, sigma_m of the model and of the particles (and the die's
    radial / axial stress ratio), and ``calibration.png`` shows the points with both fits.
@@ -37,6 +40,8 @@ from ..calibration import (
     ContinuumModel,
     cap_fragment,
     clay_fragment,
+    deviatoric_misfit,
+    die_cap,
     drive,
     elastic_constants,
     fit_cap,
@@ -117,6 +122,8 @@ def replay(model: ContinuumModel, history: dict[str, np.ndarray], path: str, inc
         row = {"path": path, "density": rho}
         row["sigma_m_model"] = float(np.interp(rho, rows["density"], rows["sigma_m"]))
         row["sigma_m_particles"] = float(np.interp(rho, history["rho"], history["sigma_m"]))
+        eps_v_pl = float(np.interp(rho, rows["density"], rows["eps_v_pl"]))
+        row["beyond_hardening"] = bool(eps_v_pl > model.hardening[1][-1])
         if path == "die":
             ratio = rows["sigma_1"] / rows["sigma_3"]
             row["ratio_model"] = float(np.interp(rho, rows["density"], ratio))
@@ -126,6 +133,54 @@ def replay(model: ContinuumModel, history: dict[str, np.ndarray], path: str, inc
             row["ratio_particles"] = float(np.interp(rho, history["rho"], ratio_p))
         out.append(row)
     return out
+
+
+def die_calibrated_cap(
+    fan_rows: list[CalibratedDensity], die: dict[str, np.ndarray], fans: dict[float, Path]
+):
+    """The cap model whose cap follows the die path (:func:`~mpfem_fenicsx.calibration.die_cap`
+    at every 0.01 of relative density where the die's sigma_m exceeds 5 % of its end value):
+    the shear line, K and the moduli of the fans' cap fits (interpolated in the density, held
+    beyond them), R and p_b from the die's stress, the hardening p_b against the die's plastic
+    volumetric strain ln(rho / rho_0) - sigma_m / bulk. Returns the model and, by density, the
+    die stress and, at the fans' densities, the surface's misfit to the fan."""
+    rho0 = float(die["rho"][0])
+    start = die["rho"][np.argmax(die["sigma_m"] > 0.05 * die["sigma_m"][-1])]
+    densities = np.arange(math.ceil(start * 100) / 100, die["rho"][-1], 0.01)
+    densities = np.union1d(densities, [r.density for r in fan_rows])
+    densities = densities[(densities >= start) & (densities <= die["rho"][-1])]
+    xs = [r.density for r in fan_rows]
+
+    def at(rho, values):
+        return float(np.interp(rho, xs, list(values)))
+
+    rows, figures, p_b, eps = [], {}, [], []
+    for rho in densities:
+        shear = fan_rows[0].surface.sized(
+            1.0,
+            **{
+                n: at(rho, (getattr(r.surface, n) for r in fan_rows))
+                for n in ("d", "beta", "R", "alpha", "K")
+            },
+        )
+        sigma_m = float(np.interp(rho, die["rho"], die["sigma_m"]))
+        s_d = float(np.interp(rho, die["rho"], die["sigma_tilde_d"]))
+        surface = die_cap(shear, sigma_m, s_d)
+        young, poisson = (
+            at(rho, (r.young for r in fan_rows)),
+            at(rho, (r.poisson for r in fan_rows)),
+        )
+        rows.append(CalibratedDensity(float(rho), surface, young, poisson))
+        bulk = young / (3.0 * (1.0 - 2.0 * poisson))
+        p_b.append(surface.p_b)
+        eps.append(math.log(rho / rho0) - sigma_m / bulk)
+        figures[float(rho)] = {"die_sigma_m": sigma_m, "die_sigma_tilde_d": s_d}
+        if float(rho) in fans:
+            figures[float(rho)]["fan_deviatoric_rms"] = deviatoric_misfit(
+                surface, *yield_points(Path(fans[float(rho)]))
+            )
+    model = ContinuumModel(tuple(rows), hardening_table(np.array(p_b), np.array(eps)), rho0)
+    return model, figures
 
 
 def calibrate(
@@ -152,12 +207,20 @@ def calibrate(
     curves = {"isotropic": read_csv(isotropic)}
     if die is not None:
         curves["die"] = read_csv(die)
-    models, trip = {}, []
-    for name in MODELS:
-        models[name] = build_model(rows[name], curves["isotropic"])
-        write_model(name, models[name], fits[name], out)
+    models = {name: build_model(rows[name], curves["isotropic"]) for name in MODELS}
+    if die is not None:
+        models["cap_die"], fits["cap_die"] = die_calibrated_cap(rows["cap"], curves["die"], fans)
+        for density, figures in sorted(fits["cap_die"].items()):
+            if "fan_deviatoric_rms" in figures:
+                log(
+                    f"[fit] cap_die rho {density:.3f}: the cap through the die path misses the "
+                    f"fan by {100 * figures['fan_deviatoric_rms']:.1f} % (deviatoric)"
+                )
+    trip = []
+    for name, model in models.items():
+        write_model(name, model, fits[name], out)
         for path, history in curves.items():
-            trip += [{"model": name, **r} for r in replay(models[name], history, path)]
+            trip += [{"model": name, **r} for r in replay(model, history, path)]
     write_round_trip(trip, out / "round_trip.csv", log)
     plot_fits(models, fans, out / "calibration.png")
     return Calibration(models, fits, trip)
@@ -193,14 +256,15 @@ def write_model(name: str, model: ContinuumModel, fits: dict, out: Path) -> None
         )
     )
     with open(out / f"{name}_model.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(records[0]))
+        keys = list(dict.fromkeys(k for r in records for k in r))
+        writer = csv.DictWriter(f, fieldnames=keys)
         writer.writeheader()
         writer.writerows(records)
     rows = list(model.rows)
     fragment = (
-        cap_fragment(rows, model.hardening)
-        if name == "cap"
-        else clay_fragment(rows, model.hardening, model.density_0)
+        clay_fragment(rows, model.hardening, model.density_0)
+        if name == "clay"
+        else cap_fragment(rows, model.hardening)
     )
     (out / f"{name}_model.inp").write_text(fragment)
 
@@ -208,7 +272,7 @@ def write_model(name: str, model: ContinuumModel, fits: dict, out: Path) -> None
 def write_round_trip(trip: list[dict], path: Path, log=print) -> None:
     """round_trip.csv and one log line per row."""
     keys = ["model", "path", "density", "sigma_m_model", "sigma_m_particles"]
-    keys += ["ratio_model", "ratio_particles"]
+    keys += ["ratio_model", "ratio_particles", "beyond_hardening"]
     with open(path, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=keys)
         writer.writeheader()
@@ -224,6 +288,8 @@ def write_round_trip(trip: list[dict], path: Path, log=print) -> None:
                 f"; radial / axial {r['ratio_model']:.3f} / {r['ratio_particles']:.3f} "
                 f"({100 * (r['ratio_model'] / r['ratio_particles'] - 1):+.1f} %)"
             )
+        if r["beyond_hardening"]:
+            line += " (beyond the calibrated hardening: p_b held)"
         log(line)
 
 
