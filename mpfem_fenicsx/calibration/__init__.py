@@ -16,7 +16,7 @@ from .cap import CapSurface
 from .clay import ClaySurface
 from .driver import ContinuumModel, PointState, drive, return_map
 from .fit import (
-    CapFit,
+    SurfaceFit,
     deviatoric_misfit,
     die_cap,
     fit_cap,
@@ -28,7 +28,7 @@ from .fit import (
 
 __all__ = [
     "CalibratedDensity",
-    "CapFit",
+    "SurfaceFit",
     "ContinuumModel",
     "CapSurface",
     "ClaySurface",

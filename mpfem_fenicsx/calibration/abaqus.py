@@ -67,6 +67,17 @@ def _line(values) -> str:
     return ", ".join("" if v is None else f"{v:.6g}" for v in values)
 
 
+def _material(model: str, name: str, rows: list[CalibratedDensity]) -> list[str]:
+    """The fragment's header, ``*MATERIAL`` and its ``*ELASTIC`` lines by density."""
+    lines = [
+        f"** {model} model fitted to multi-particle yield surfaces (mpfem-fenicsx)",
+        "** units: mm, N, MPa; field variable 1: relative density (set it, e.g. by USDFLD)",
+        f"*MATERIAL, NAME={name}",
+        "*ELASTIC, DEPENDENCIES=1",
+    ]
+    return lines + [_line([r.young, r.poisson, None, r.density]) for r in rows]
+
+
 def cap_fragment(
     rows: list[CalibratedDensity],
     hardening: tuple[np.ndarray, np.ndarray],
@@ -79,13 +90,7 @@ def cap_fragment(
         raise ValueError("rows: need >= 1 calibrated density")
     rows = sorted(rows, key=lambda r: r.density)
     p_b, eps = hardening_table(*hardening)
-    lines = [
-        "** Drucker-Prager Cap model fitted to multi-particle yield surfaces (mpfem-fenicsx)",
-        "** units: mm, N, MPa; field variable 1: relative density (set it, e.g. by USDFLD)",
-        f"*MATERIAL, NAME={name}",
-        "*ELASTIC, DEPENDENCIES=1",
-    ]
-    lines += [_line([r.young, r.poisson, None, r.density]) for r in rows]
+    lines = _material("Drucker-Prager Cap", name, rows)
     lines.append("*CAP PLASTICITY, DEPENDENCIES=1")
     for r in rows:
         s = r.surface
@@ -120,14 +125,7 @@ def clay_fragment(
         [r.surface.p_t / r.surface.p_c for r in rows],
     )
     p_t = np.minimum.accumulate(ratio * p_c)  # must not increase with the strain
-    lines = [
-        "** critical-state (Cam-clay) model fitted to multi-particle yield surfaces "
-        "(mpfem-fenicsx)",
-        "** units: mm, N, MPa; field variable 1: relative density (set it, e.g. by USDFLD)",
-        f"*MATERIAL, NAME={name}",
-        "*ELASTIC, DEPENDENCIES=1",
-    ]
-    lines += [_line([r.young, r.poisson, None, r.density]) for r in rows]
+    lines = _material("critical-state (Cam-clay)", name, rows)
     lines.append("*CLAY PLASTICITY, HARDENING=TABULAR, DEPENDENCIES=1")
     for r in rows:
         s = r.surface

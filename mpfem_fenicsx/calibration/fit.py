@@ -29,7 +29,7 @@ from .clay import ClaySurface
 
 
 @dataclass(frozen=True)
-class CapFit:
+class SurfaceFit:
     """A fitted surface and its figures (see the module)."""
 
     surface: CapSurface
@@ -77,10 +77,20 @@ def _first_guess(x: np.ndarray) -> np.ndarray:
     return np.array([d, beta, math.log(R), p_b])
 
 
-def _fit(x: np.ndarray, make, guess, low, high) -> CapFit:
-    """The surface ``make(v)`` whose parameters v (within ``low``, ``high``, from ``guess``)
-    minimize the points' radial misfit seen from their mean."""
+def _fit(x: np.ndarray, build, guess, low, high, K: float | None) -> SurfaceFit:
+    """The surface ``build(v, K)`` whose parameters v (within ``low``, ``high``, from
+    ``guess``) minimize the points' radial misfit seen from their mean; K fixed when given,
+    else fitted (its last parameter) if some points lie on the extension side, else 1."""
     centre = x.mean(axis=0)
+    if K is None and np.any(x[:, 1] < 0):
+        low, high, guess = [*low, 0.778], [*high, 1.0], [*guess, _K_guess(x)]
+
+        def make(v):
+            return build(v[:-1], float(v[-1]))
+    else:
+
+        def make(v):
+            return build(v, 1.0 if K is None else float(K))
 
     def misfit(v) -> np.ndarray:
         try:
@@ -95,7 +105,7 @@ def _fit(x: np.ndarray, make, guess, low, high) -> CapFit:
     best = least_squares(misfit, guess, bounds=(low, high), x_scale="jac", xtol=1e-12)
     found = make(best.x)
     residuals = radial_residuals(found, x, centre)
-    return CapFit(
+    return SurfaceFit(
         surface=found,
         radial_rms=float(np.sqrt(np.mean(residuals**2))),
         deviatoric_rms=deviatoric_misfit(found, x[:, 0], x[:, 1]),
@@ -108,49 +118,31 @@ def _K_guess(x: np.ndarray) -> float:
     return min(max(-s[s < 0].min() / max(s.max(), 1e-9), 0.778), 1.0)
 
 
-def fit_cap(sigma_m, sigma_tilde_d, *, alpha: float = 0.01, K: float | None = None) -> CapFit:
+def fit_cap(sigma_m, sigma_tilde_d, *, alpha: float = 0.01, K: float | None = None) -> SurfaceFit:
     """The Drucker-Prager Cap surface through the yield points (``sigma_m``, ``sigma_tilde_d``)
     (MPa, compression > 0); ``K`` fixed when given, else fitted if some points lie on the
     extension side (sigma~_d < 0), else 1."""
     x = _points(sigma_m, sigma_tilde_d)
-    fit_K = K is None and bool(np.any(x[:, 1] < 0))
-    fixed_K = 1.0 if K is None else float(K)
 
-    def make(v) -> CapSurface:
-        return CapSurface(
-            d=float(v[0]),
-            beta=float(v[1]),
-            R=math.exp(v[2]),
-            p_b=float(v[3]),
-            alpha=alpha,
-            K=float(v[4]) if fit_K else fixed_K,
-        )
+    def build(v, K_value) -> CapSurface:
+        d, beta, log_R, p_b = (float(c) for c in v)
+        return CapSurface(d=d, beta=beta, R=math.exp(log_R), p_b=p_b, alpha=alpha, K=K_value)
 
     span = np.ptp(x[:, 0])
     low = [0.0, 0.5, math.log(1e-4), 1e-9 * span]
     high = [np.inf, 85.0, math.log(1e3), np.inf]
-    guess = list(_first_guess(x))
-    if fit_K:
-        low, high, guess = low + [0.778], high + [1.0], guess + [_K_guess(x)]
-    return _fit(x, make, guess, low, high)
+    return _fit(x, build, list(_first_guess(x)), low, high, K)
 
 
-def fit_clay(sigma_m, sigma_tilde_d, *, K: float | None = None) -> CapFit:
+def fit_clay(sigma_m, sigma_tilde_d, *, K: float | None = None) -> SurfaceFit:
     """The critical-state ellipse (:class:`~.clay.ClaySurface`) through the yield points
     (``sigma_m``, ``sigma_tilde_d``) (MPa, compression > 0): M, beta, p_c, p_t and K (fixed
     when given, else fitted if some points lie on the extension side, else 1)."""
     x = _points(sigma_m, sigma_tilde_d)
-    fit_K = K is None and bool(np.any(x[:, 1] < 0))
-    fixed_K = 1.0 if K is None else float(K)
 
-    def make(v) -> ClaySurface:
-        return ClaySurface(
-            M=float(v[0]),
-            beta=float(v[1]),
-            p_c=float(v[2]),
-            p_t=float(v[3]),
-            K=float(v[4]) if fit_K else fixed_K,
-        )
+    def build(v, K_value) -> ClaySurface:
+        M, beta, p_c, p_t = (float(c) for c in v)
+        return ClaySurface(M=M, beta=beta, p_c=p_c, p_t=p_t, K=K_value)
 
     p, s = x[:, 0], x[:, 1]
     span = np.ptp(p)
@@ -158,9 +150,7 @@ def fit_clay(sigma_m, sigma_tilde_d, *, K: float | None = None) -> CapFit:
     guess = [max(np.abs(s).max(), 1e-9) / (0.5 * (p_c - p_t)), 1.0, p_c, p_t]
     low = [1e-3, 0.05, 1e-9 * span, -np.inf]
     high = [1e2, 20.0, np.inf, 0.0]
-    if fit_K:
-        low, high, guess = low + [0.778], high + [1.0], guess + [_K_guess(x)]
-    return _fit(x, make, guess, low, high)
+    return _fit(x, build, guess, low, high, K)
 
 
 def isotropic_hardening(density, sigma_m, density_0: float, bulk=None):
