@@ -17,7 +17,8 @@ h_tilde_d, E_d, Gamma, W2 per reload output), surfaces.csv (kind, phi, sigma_m, 
 kind = yield | gamma_<value> | w2), uniaxial.csv (uniaxial compressive / tensile strength of
 each closed surface), yield_surface.png, and load/, unload/, reload_<k>/ with their histories.
 summary.json (E_0, Gamma_l, points per surface, raw W2 sign changes per reload). --resume
-continues a killed fan (finished reloads are not repeated). --solver
+continues a killed fan (finished reloads are not repeated; a Newton reload on its way continues
+from its checkpoint, written every 5 steps). --solver
 implicit runs the reloads with Newton (the loading and unload stay explicit; the unloaded state
 is first relaxed to static equilibrium): W2 then needs no filter, at ~10x the cost of a reload.
 An explicit reload lasts --reload-increments (default: the compaction's strain rate slowed 4x,
@@ -64,7 +65,7 @@ def main(argv=None) -> None:
         "--resume",
         action="store_true",
         help="continue a killed fan in --out (same options): "
-        "the loading from its newest checkpoint, "
+        "the loading and a Newton reload from their newest checkpoints, "
         "finished stages and reloads not repeated",
     )
     p.add_argument(

@@ -534,3 +534,40 @@ def test_implicit_fan_needs_no_w2_filter(fan, tmp_path):
     assert pi.shape == pe.shape == (case.nphi, 3)
     size = np.hypot(pe[:, 1], pe[:, 2]).max()
     assert np.hypot(*(pi[:, 1:] - pe[:, 1:]).T).max() < 0.25 * size
+
+
+# ~3-6 min: one implicit reload of 20 Newton steps, then its second half again
+@pytest.mark.heavy
+def test_killed_implicit_reload_continues_from_its_checkpoint(fan, tmp_path):
+    """A Newton reload checkpoints every few steps; a fan resumed after a kill continues a
+    reload on its way from its newest checkpoint and ends where the uninterrupted one did."""
+    import shutil
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.io import read_csv
+    from mpfem_fenicsx.workflows.yield_surface import RELOAD_CHECKPOINT_EVERY, run_yield_surface
+    from validation.run import share_loading
+
+    case, _ = fan
+    share_loading(Path(case.out_dir), tmp_path, lambda *a: None)
+    for k in range(case.nphi - 1):  # the last reload alone runs by Newton
+        shutil.copytree(Path(case.out_dir) / f"reload_{k:03d}", tmp_path / f"reload_{k:03d}")
+        (tmp_path / f"reload_{k:03d}" / "done").write_text("1\n")
+    implicit = replace(case, solver="implicit", reload_steps=20, out_dir=str(tmp_path))
+    run_yield_surface(implicit, MPI.COMM_SELF, log=lambda *a: None, resume=True)
+    last = tmp_path / f"reload_{case.nphi - 1:03d}"
+    whole = read_csv(last / "history.csv")
+    # the kill: no done marker, and only an earlier checkpoint of the reload
+    (last / "done").unlink()
+    steps = sorted((last / "checkpoints").glob("step*[0-9]"))
+    assert len(steps) >= 2 and RELOAD_CHECKPOINT_EVERY > 0
+    for later in steps[1:]:
+        shutil.rmtree(later)
+    messages = []
+    run_yield_surface(implicit, MPI.COMM_SELF, log=messages.append, resume=True)
+    assert any("continues from" in m and steps[0].name in m for m in messages)
+    again = read_csv(last / "history.csv")
+    assert len(again["time"]) == len(whole["time"])
+    np.testing.assert_allclose(again["sigma_m"], whole["sigma_m"], rtol=1e-9, atol=1e-12)

@@ -451,6 +451,10 @@ def settle(
     ), held.model
 
 
+#: a Newton reload checkpoints every so many of its steps (its history rows)
+RELOAD_CHECKPOINT_EVERY = 5
+
+
 def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> CompactionCase:
     """The compaction case of reload ``k`` (direction phi_k), to restart from the unload
     checkpoint."""
@@ -459,16 +463,18 @@ def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> Compactio
         *unloaded.segments,
         (duration, reload_gradient(float(case.phis[k]), _reload_amplitude(case, unloaded))),
     )
+    static = solver_kind(case.solver).static
     reload = case.base.updated(
         spheres=unloaded.packing,
         directory=str(Path(case.out_dir) / f"reload_{k:03d}"),
-        checkpoint_every=0,
+        # a Newton reload (an hour on a granular volume) can be continued after a kill
+        checkpoint_every=RELOAD_CHECKPOINT_EVERY if static else 0,
         visual=False,
         segments_after=segments,
         segment_profiles=(*("smooth-step" for _ in unloaded.segments), case.reload_profile),
         every=max(1, n_r // case.rows_per_reload),
     )
-    if solver_kind(case.solver).static:  # every step a history row
+    if static:  # every step a history row
         reload = reload.updated(
             kind=case.solver, segment_steps=(1,) * (len(segments) - 1) + (case.reload_steps,)
         )
@@ -546,9 +552,16 @@ def run_yield_surface(
                 "before"
             )
             continue
+        restart = unloaded.checkpoint
+        if resume and (Path(reload.output.directory) / "checkpoints").is_dir():
+            try:  # a reload killed on its way continues from its newest checkpoint
+                restart = str(resolve_checkpoint(Path(reload.output.directory)))
+                log(f"[reload {k + 1}/{case.nphi}] continues from {restart}")
+            except CheckpointError:
+                pass
         if model is None:  # one model per rank, reused by all its reloads
             model = build_compaction(reload, alone, quiet)
-        run_compaction(reload, alone, quiet, restart=unloaded.checkpoint, model=model)
+        run_compaction(reload, alone, quiet, restart=restart, model=model)
         finished.write_text(f"{time.perf_counter() - t0:.0f}\n")
         log(
             f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg on rank "
