@@ -135,43 +135,27 @@ def replay(model: ContinuumModel, history: dict[str, np.ndarray], path: str, inc
     return out
 
 
-def die_calibrated_cap(
-    fan_rows: list[CalibratedDensity], die: dict[str, np.ndarray], fans: dict[float, Path]
-):
+def die_calibrated_cap(fitted: ContinuumModel, die: dict[str, np.ndarray], fans: dict[float, Path]):
     """The cap model whose cap follows the die path (:func:`~mpfem_fenicsx.calibration.die_cap`
     at every 0.01 of relative density where the die's sigma_m exceeds 5 % of its end value):
-    the shear line, K and the moduli of the fans' cap fits (interpolated in the density, held
-    beyond them), R and p_b from the die's stress, the hardening p_b against the die's plastic
-    volumetric strain ln(rho / rho_0) - sigma_m / bulk. Returns the model and, by density, the
-    die stress and, at the fans' densities, the surface's misfit to the fan."""
+    the shear line, K and the moduli of the cap model ``fitted`` to the fans (interpolated in
+    the density, held beyond them), R and p_b from the die's stress, the hardening p_b against
+    the die's plastic volumetric strain ln(rho / rho_0) - sigma_m / bulk. Returns the model
+    and, by density, the die stress and, at the fans' densities, the surface's misfit to the
+    fan."""
     rho0 = float(die["rho"][0])
     start = die["rho"][np.argmax(die["sigma_m"] > 0.05 * die["sigma_m"][-1])]
     densities = np.arange(math.ceil(start * 100) / 100, die["rho"][-1], 0.01)
-    densities = np.union1d(densities, [r.density for r in fan_rows])
+    densities = np.union1d(densities, [r.density for r in fitted.rows])
     densities = densities[(densities >= start) & (densities <= die["rho"][-1])]
-    xs = [r.density for r in fan_rows]
-
-    def at(rho, values):
-        return float(np.interp(rho, xs, list(values)))
-
     rows, figures, p_b, eps = [], {}, [], []
     for rho in densities:
-        shear = fan_rows[0].surface.sized(
-            1.0,
-            **{
-                n: at(rho, (getattr(r.surface, n) for r in fan_rows))
-                for n in ("d", "beta", "R", "alpha", "K")
-            },
-        )
         sigma_m = float(np.interp(rho, die["rho"], die["sigma_m"]))
         s_d = float(np.interp(rho, die["rho"], die["sigma_tilde_d"]))
-        surface = die_cap(shear, sigma_m, s_d)
-        young, poisson = (
-            at(rho, (r.young for r in fan_rows)),
-            at(rho, (r.poisson for r in fan_rows)),
-        )
-        rows.append(CalibratedDensity(float(rho), surface, young, poisson))
-        bulk = young / (3.0 * (1.0 - 2.0 * poisson))
+        # the fitted shear line at this density (its cap's size is replaced by die_cap)
+        surface = die_cap(fitted.surface(float(rho), 0.0), sigma_m, s_d)
+        bulk, shear = fitted.elastic(float(rho))
+        rows.append(CalibratedDensity(float(rho), surface, *elastic_constants(bulk, shear)))
         p_b.append(surface.p_b)
         eps.append(math.log(rho / rho0) - sigma_m / bulk)
         figures[float(rho)] = {"die_sigma_m": sigma_m, "die_sigma_tilde_d": s_d}
@@ -209,7 +193,7 @@ def calibrate(
         curves["die"] = read_csv(die)
     models = {name: build_model(rows[name], curves["isotropic"]) for name in MODELS}
     if die is not None:
-        models["cap_die"], fits["cap_die"] = die_calibrated_cap(rows["cap"], curves["die"], fans)
+        models["cap_die"], fits["cap_die"] = die_calibrated_cap(models["cap"], curves["die"], fans)
         for density, figures in sorted(fits["cap_die"].items()):
             if "fan_deviatoric_rms" in figures:
                 log(
