@@ -17,7 +17,10 @@ import time
 import numpy as np
 from mpfem_fenicsx.meshes import particle_mesh
 from mpi4py import MPI
+from petsc4py import PETSc
 from timing import median_time
+
+import dolfinx.fem.petsc
 
 import mpfem_fenicsx  # noqa: F401
 from mpfem_fenicsx.material import LEAD
@@ -51,6 +54,14 @@ def main():
     problem.assemble_residual(b)
     problem.assemble_jacobian(K)
 
+    def compiled_jacobian():
+        """The Jacobian by FFCx's compiled forms alone (the deviatoric loop's reference)."""
+        K.zeroEntries()
+        for form in problem.jacobian_forms:
+            dolfinx.fem.petsc.assemble_matrix(K, form)
+            K.assemble(PETSc.Mat.AssemblyType.FLUSH)
+        K.assemble()
+
     phases = {
         "deformation_gradient_expression": lambda: problem._F_expr.eval(
             problem.mesh, problem.material_cells
@@ -60,6 +71,7 @@ def main():
         "material_update_stress_tangent": lambda: problem.update_material(tangent=True),
         "residual_assembly": lambda: problem.assemble_residual(b),
         "jacobian_assembly": lambda: problem.assemble_jacobian(K),
+        "jacobian_assembly_compiled_forms": compiled_jacobian,
     }
     qp_global = comm.allreduce(problem.material.num_points, op=MPI.SUM)
     result = {

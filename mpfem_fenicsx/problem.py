@@ -25,7 +25,12 @@ import dolfinx.fem.petsc
 import ufl
 
 from . import forms
-from .forms.kinematics import DeformationGradients, DeviatoricForces, VolumetricForces
+from .forms.kinematics import (
+    DeformationGradients,
+    DeviatoricForces,
+    DeviatoricTangent,
+    VolumetricForces,
+)
 from .material import ElastoPlastic, HenckyJ2
 
 #: the Q1 hexahedron's vertices in dolfinx's lexicographic order (x fastest) on the unit cube
@@ -254,6 +259,16 @@ class SolidProblem:
             [(self.u, 1.0)],
         )
         self._jacobian_key = self._packed_key(self.jacobian_forms[0], 81) if tangent else None
+        # the deviatoric tangent likewise (2.5-3.5x less time than the FFCx assembly on hexahedra)
+        self._deviatoric_tangent = None
+        if tangent:
+            self._deviatoric_tangent = DeviatoricTangent(
+                self.V, self.points, self.material_cells, self.point_volumes
+            )
+            if not self._deviatoric_tangent.matches(
+                self.jacobian_forms[0], self.A_dev, self.material.A_dev
+            ):
+                self._deviatoric_tangent = None
         # per-cell integrals of the Kirchhoff stress, on the residual's own quadrature rules
         self._cell_tensors = dolfinx.fem.functionspace(mesh, ("DG", 0, (3, 3)))
         w = ufl.TestFunction(self._cell_tensors)
@@ -313,6 +328,10 @@ class SolidProblem:
         """K = consistent tangent stiffness (N/mm) at the current material state."""
         K.zeroEntries()
         for k, form in enumerate(self.jacobian_forms):
+            if k == 0 and self._deviatoric_tangent is not None:
+                self._deviatoric_tangent.add_to(self.material.A_dev, K)
+                K.assemble(PETSc.Mat.AssemblyType.FLUSH)
+                continue
             coeffs = (
                 self._material_coefficients(self._jacobian_key, self.material.A_dev)
                 if k == 0

@@ -297,19 +297,20 @@ def test_deformation_gradient_kernel_matches_compiled_expression(kind):
     assert np.array_equal(packed, prob.material.P_dev.reshape(cells.size, -1))
 
 
-def _plastic_problem(kind, subset, seed):
+def _plastic_problem(kind, subset, seed, tangent=False):
     """A problem on ``_mesh_of_kind(kind)`` (material on every third cell if ``subset``) after
-    plastic flow at a random displacement (no cell inverted), and the random generator."""
+    plastic flow at a random displacement (no cell inverted, with the consistent tangent if
+    ``tangent``), and the random generator."""
     import warnings
 
     mesh, degree = _mesh_of_kind(kind)
     cells = np.arange(0, mesh.topology.index_map(3).size_local, 3) if subset else None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        prob = SolidProblem(mesh, LEAD, degree=degree, active_cells=cells, tangent=False)
+        prob = SolidProblem(mesh, LEAD, degree=degree, active_cells=cells, tangent=tangent)
     rng = np.random.default_rng(seed)
     prob.u.x.array[:] = 0.01 * rng.standard_normal(prob.u.x.array.size)
-    prob.update_material()
+    prob.update_material(tangent=tangent)
     return prob, rng
 
 
@@ -332,6 +333,39 @@ def test_deviatoric_force_loop_equals_the_compiled_form(kind, subset):
     prob._deviatoric_forces = None  # the compiled form
     reference = _internal_force(prob)
     assert np.abs(ours - reference).max() <= 1e-13 * np.abs(reference).max()
+
+
+@pytest.mark.parametrize("kind", ["cube-sphere Q1", "tetrahedra P2"])
+@pytest.mark.parametrize("subset", [False, True], ids=["all cells", "a third of the cells"])
+def test_deviatoric_tangent_loop_equals_the_compiled_form(kind, subset):
+    """The Jacobian's deviatoric part by the numba loop (forms.kinematics.DeviatoricTangent,
+    element matrices inserted block by block) and by FFCx's compiled form, at the consistent
+    tangent after plastic flow at a random displacement: the same matrix to round-off, on curved
+    hexahedra and P2 tetrahedra, and not the same for the tangent of another state."""
+    from petsc4py import PETSc
+
+    prob, rng = _plastic_problem(kind, subset, seed=5, tangent=True)
+    assert prob._deviatoric_tangent is not None
+    assert (prob.material.eps_p_trial > 0).mean() > 0.5
+
+    def jacobian():
+        K = prob.create_matrix()
+        prob.assemble_jacobian(K)
+        return K
+
+    ours = jacobian()
+    prob._deviatoric_tangent, kernel = None, prob._deviatoric_tangent  # the compiled form
+    reference = jacobian()
+    scale = reference.norm(PETSc.NormType.FROBENIUS)
+    ours.axpy(-1.0, reference)
+    assert ours.norm(PETSc.NormType.FROBENIUS) <= 1e-13 * scale
+    # a measure that can disagree: the loop's matrix at another state is not the compiled one's
+    prob._deviatoric_tangent = kernel
+    prob.u.x.array[:] += 0.002 * rng.standard_normal(prob.u.x.array.size)
+    prob.update_material(tangent=True)
+    other = jacobian()
+    other.axpy(-1.0, reference)
+    assert other.norm(PETSc.NormType.FROBENIUS) > 1e-3 * scale
 
 
 @pytest.mark.parametrize("kind", ["cube-sphere Q1", "tetrahedra P2"])
