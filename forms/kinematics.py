@@ -14,9 +14,9 @@ The residual's deviatoric part int P_dev : Grad v dX (:class:`DeviatoricForces`)
 same way, with the inverse Jacobians J^-1 and the points' reference volumes stored once: 35-40 %
 less time than the FFCx-compiled form on Q1 hexahedra (bench/README.md), checked against it once;
 :class:`VolumetricForces` does the same at the volumetric (SRI) points for the residual's
-volumetric part K ln(J) F^-T and the explicit solver's bulk viscosity. The Jacobian's deviatoric
-part int (A_dev : Grad du) : Grad v dX (:class:`DeviatoricTangent`) has its element matrices
-computed by a threaded loop and inserted into the PETSc matrix block by block.
+volumetric part K ln(J) F^-T and the explicit solver's bulk viscosity. The Jacobian's two parts
+(:class:`TangentStiffness`) have their element matrices computed by threaded loops and inserted
+into the PETSc matrix block by block.
 """
 
 from __future__ import annotations
@@ -452,50 +452,110 @@ def _deviatoric_tangents(first, dphi, Kinv, volumes, A, out):
                                 )
 
 
-class DeviatoricTangent:
-    """The deviatoric tangent stiffness int (A_dev : Grad du) : Grad v dX (N/mm), added into a
-    PETSc matrix: the Jacobian's first form (``bulk.internal_work_tangent``) with the kernel's
-    consistent tangent A_dev = dP_dev/dF at its points. Element matrices by a threaded numba loop
-    (J^-1 and the points' reference volumes stored once: total Lagrangian), inserted block by
-    block with the matrix's local-to-global map; 2.5-3.5x less time than the FFCx-compiled form
-    on Q1 hexahedra (bench/README.md). Same assumptions as :class:`DeformationGradients`;
-    :meth:`matches` checks it once against the compiled form, and the caller falls back to the
-    form otherwise."""
+@numba.njit(parallel=True, cache=True)
+def _add_volumetric_tangents(first, cells, dofs, dphi, Kinv, volumes, u, bulk, out):
+    """out[c] += the element matrices of the linearized volumetric work
+    int K (F^-T : Grad du F^-T - ln J F^-T Grad du^T F^-T) : Grad v dX at the volumetric points of
+    the material cells first, first + 1, ...: with g_ai = sum_j dphi_a/dX_j (F^-1)_ji (the spatial
+    gradients), K dV (g_ai g_bk - ln J g_ak g_bi) at row 3a + i, column 3b + k."""
+    npts = dphi.shape[0]
+    nd = dphi.shape[1]
+    ncells = out.shape[0]
+    nchunks = (ncells + _CHUNK - 1) // _CHUNK
+    for chunk in numba.prange(nchunks):
+        d = np.empty((nd, 3))
+        g = np.empty((nd, 3))
+        F = np.empty((3, 3))
+        Finv = np.empty((3, 3))
+        for c in range(chunk * _CHUNK, min(ncells, (chunk + 1) * _CHUNK)):
+            cell = cells[first + c]
+            Ke = out[c]
+            for q in range(npts):
+                row = (first + c) * npts + q
+                J = _deformation_at(cell, q, dofs, dphi, Kinv[row], u, d, F, Finv)
+                s = bulk * volumes[row]
+                log_J = np.log(J)
+                for a in range(nd):
+                    for i in range(3):
+                        g[a, i] = d[a, 0] * Finv[0, i] + d[a, 1] * Finv[1, i] + d[a, 2] * Finv[2, i]
+                for a in range(nd):
+                    for i in range(3):
+                        for b in range(nd):
+                            for k in range(3):
+                                Ke[3 * a + i, 3 * b + k] += s * (
+                                    g[a, i] * g[b, k] - log_J * g[a, k] * g[b, i]
+                                )
 
-    def __init__(self, V, points: np.ndarray, cells: np.ndarray, point_volumes: np.ndarray):
+
+class TangentStiffness:
+    """The tangent stiffness of the internal work (N/mm), added into a PETSc matrix: the
+    Jacobian's two forms (``bulk.internal_work_tangent``), the deviatoric part
+    int (A_dev : Grad du) : Grad v dX with the kernel's consistent tangent A_dev = dP_dev/dF at its
+    points, and the volumetric part (the exact linearization of K ln(J) F^-T at the volumetric
+    points, from the displacement). Element matrices by threaded numba loops (J^-1 and the
+    points' reference volumes stored once: total Lagrangian), inserted block by block with the
+    matrix's local-to-global map: half the time of the FFCx-compiled forms on Q1 hexahedra
+    (bench/README.md). Same assumptions as :class:`DeformationGradients`; :meth:`matches` checks
+    it once against the compiled forms, and the caller falls back to them otherwise."""
+
+    def __init__(
+        self,
+        V,
+        points: np.ndarray,
+        cells: np.ndarray,
+        point_volumes: np.ndarray,
+        volumetric: VolumetricForces,
+    ):
         self.cells = np.asarray(cells, dtype=np.int32)
         self.blocks = np.ascontiguousarray(V.dofmap.list[self.cells], dtype=np.int32)
         self.dphi, self.Kinv, _ = _point_geometry(V, points, self.cells)
         self.volumes = np.ascontiguousarray(point_volumes)
+        self.volumetric = volumetric
         n = 3 * self.dphi.shape[1]
         self._scratch = np.empty((min(_TANGENT_BLOCK, self.cells.size), n, n))
 
-    def add_to(self, A_dev: np.ndarray, K) -> None:
-        """K += the deviatoric tangent of the material tangents ``A_dev`` ((cell, point) order,
-        (n, 3, 3, 3, 3), MPa) of the cells; ``K`` a PETSc matrix on V x V with block size 3 and
-        its local-to-global map (DOLFINx's), assembled by the caller afterwards."""
+    def add_to(self, A_dev: np.ndarray, u, bulk: float, K) -> None:
+        """K += the tangent stiffness at the material tangents ``A_dev`` ((cell, point) order,
+        (n, 3, 3, 3, 3), MPa) and the displacement Function ``u`` (mm), bulk modulus ``bulk``
+        (MPa); ``K`` a PETSc matrix on V x V with block size 3 and its local-to-global map
+        (DOLFINx's), assembled by the caller afterwards."""
         from petsc4py import PETSc
 
+        vol = self.volumetric
         for first in range(0, self.cells.size, _TANGENT_BLOCK):
             count = min(_TANGENT_BLOCK, self.cells.size - first)
             out = self._scratch[:count]
             _deviatoric_tangents(first, self.dphi, self.Kinv, self.volumes, A_dev, out)
+            _add_volumetric_tangents(
+                first,
+                vol.cells,
+                vol.dofs,
+                vol.dphi,
+                vol.Kinv,
+                vol.volumes,
+                u.x.array,
+                float(bulk),
+                out,
+            )
             rows = self.blocks[first : first + count]
             K.setValuesBlockedLocalRCV(
                 rows, rows, out.reshape(count, -1), addv=PETSc.InsertMode.ADD_VALUES
             )
 
-    def matches(self, form, A_function, material_A: np.ndarray, rtol: float = 1e-12) -> bool:
-        """Whether :meth:`add_to` reproduces the assembled ``form`` (int (A : Grad du) : Grad v, A
-        the quadrature Function ``A_function`` that the form reads) for random tangents written
-        into ``material_A`` (the material points' array, restored afterwards)."""
+    def matches(
+        self, forms, A_function, material_A: np.ndarray, u, bulk: float, rtol: float = 1e-12
+    ) -> bool:
+        """Whether :meth:`add_to` reproduces the sum of the assembled ``forms`` (the Jacobian's two,
+        reading the quadrature Function ``A_function`` and ``u``) for random tangents written into
+        ``material_A`` (the material points' array) and a smooth non-affine ``u`` (both restored
+        afterwards)."""
         from petsc4py import PETSc
 
         import dolfinx.fem.petsc
 
         if not self.cells.size:
             return True
-        saved_A, saved_fn = material_A.copy(), A_function.x.array.copy()
+        saved_A, saved_fn, saved_u = material_A.copy(), A_function.x.array.copy(), u.x.array.copy()
         rng = np.random.default_rng(0)
         material_A[:] = rng.uniform(-1.0, 1.0, material_A.shape)
         if A_function.x.array.size and not np.shares_memory(material_A, A_function.x.array):
@@ -503,17 +563,29 @@ class DeviatoricTangent:
             A_function.x.array.reshape(-1, width)[self.cells] = material_A.reshape(
                 self.cells.size, width
             )
-        reference = dolfinx.fem.petsc.assemble_matrix(form)
+        u.interpolate(
+            lambda x: np.stack(
+                [
+                    0.01 * np.sin(x[1] + 2 * x[2]),
+                    0.02 * np.cos(x[0] * x[2]),
+                    0.015 * np.sin(x[0] - x[1]) * x[2],
+                ]
+            )
+        )
+        reference = dolfinx.fem.petsc.assemble_matrix(forms[0])
+        reference.assemble(PETSc.Mat.AssemblyType.FLUSH)
+        dolfinx.fem.petsc.assemble_matrix(reference, forms[1])
         reference.assemble()
         ours = reference.duplicate(copy=False)
         ours.zeroEntries()
-        self.add_to(material_A, ours)
+        self.add_to(material_A, u, bulk, ours)
         ours.assemble()
         scale = max(reference.norm(PETSc.NormType.FROBENIUS), 1e-300)
         ours.axpy(-1.0, reference, PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         error = ours.norm(PETSc.NormType.FROBENIUS)
         material_A[:] = saved_A
         A_function.x.array[:] = saved_fn
+        u.x.array[:] = saved_u
         for mat in (reference, ours):
             mat.destroy()
         return bool(error <= rtol * scale)

@@ -337,15 +337,15 @@ def test_deviatoric_force_loop_equals_the_compiled_form(kind, subset):
 
 @pytest.mark.parametrize("kind", ["cube-sphere Q1", "tetrahedra P2"])
 @pytest.mark.parametrize("subset", [False, True], ids=["all cells", "a third of the cells"])
-def test_deviatoric_tangent_loop_equals_the_compiled_form(kind, subset):
-    """The Jacobian's deviatoric part by the numba loop (forms.kinematics.DeviatoricTangent,
-    element matrices inserted block by block) and by FFCx's compiled form, at the consistent
-    tangent after plastic flow at a random displacement: the same matrix to round-off, on curved
-    hexahedra and P2 tetrahedra, and not the same for the tangent of another state."""
+def test_tangent_loop_equals_the_compiled_forms(kind, subset):
+    """The Jacobian by the numba loops (forms.kinematics.TangentStiffness, deviatoric and
+    volumetric element matrices inserted block by block) and by FFCx's two compiled forms, at the
+    consistent tangent after plastic flow at a random displacement: the same matrix to round-off,
+    on curved hexahedra and P2 tetrahedra, and not the same for the tangent of another state."""
     from petsc4py import PETSc
 
     prob, rng = _plastic_problem(kind, subset, seed=5, tangent=True)
-    assert prob._deviatoric_tangent is not None
+    assert prob._tangent_loop is not None
     assert (prob.material.eps_p_trial > 0).mean() > 0.5
 
     def jacobian():
@@ -354,13 +354,13 @@ def test_deviatoric_tangent_loop_equals_the_compiled_form(kind, subset):
         return K
 
     ours = jacobian()
-    prob._deviatoric_tangent, kernel = None, prob._deviatoric_tangent  # the compiled form
+    prob._tangent_loop, kernel = None, prob._tangent_loop  # the compiled forms
     reference = jacobian()
     scale = reference.norm(PETSc.NormType.FROBENIUS)
     ours.axpy(-1.0, reference)
     assert ours.norm(PETSc.NormType.FROBENIUS) <= 1e-13 * scale
     # a measure that can disagree: the loop's matrix at another state is not the compiled one's
-    prob._deviatoric_tangent = kernel
+    prob._tangent_loop = kernel
     prob.u.x.array[:] += 0.002 * rng.standard_normal(prob.u.x.array.size)
     prob.update_material(tangent=True)
     other = jacobian()
