@@ -119,7 +119,7 @@ def test_mirrored_meshes_are_mirror_images_across_every_contact_plane(simple_cub
     assert pairs > 24 and gap < 1e-12, (pairs, gap)  # the cell's 24 contacts and its copies'
     # every hexahedron positively oriented (its reference axes 0-1, 0-2, 0-4 right-handed)
     mesh = mirrored.assembly.mesh
-    x = mesh.geometry.x[mesh.geometry.dofmap]
+    x = mesh.geometry.x[mesh.geometry.dofmaps[0]]
     a, b, c = (x[:, k] - x[:, 0] for k in (1, 2, 4))
     assert np.einsum("ij,ij->i", np.cross(a, b), c).min() > 0.0
     generic = build_compaction(
