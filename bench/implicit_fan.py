@@ -14,7 +14,8 @@ explicit fan's load and unload when that one has them (Newton's reloads from the
 equilibrium, the implicit settle). The table gives each direction's
 yield point (E_d = E_0 (1 + 0.3 %)) of every fan and its distance to the reference fan's point
 (the slowest explicit one), relative to that point's distance from the origin of the Rendulic
-plane (sigma_m, sigma~_d); the largest over the directions is the fan's figure.
+plane (sigma_m, sigma~_d); the largest over the directions is the fan's figure. A second table
+gives Newton's work per reload (steps, iterations, cut-backs, wall time, contacts at the end).
 """
 
 from __future__ import annotations
@@ -130,6 +131,51 @@ def table() -> None:
         )
 
 
+def reload_rows(history: Path, t_unloaded: float) -> dict[str, np.ndarray]:
+    """The reload rows (from the end of the unload on) of a reload's history.csv, by column."""
+    with open(history) as f:
+        rows = [r for r in csv.DictReader(f) if float(r["time"]) > t_unloaded * (1 + 1e-9)]
+    return {k: np.array([float(r[k] or "nan") for r in rows]) for k in (rows[0] if rows else {})}
+
+
+def newton_effort() -> None:
+    """Newton's work per reload of the implicit fan: converged steps, iterations per step,
+    cut-backs, wall time (s, the histories' clock: pauses included), and the contacts at the
+    reload's end against the slowest explicit fan's."""
+    from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase, read_unloaded
+
+    out = folder("implicit", 0)
+    if not (out / "unloaded.json").exists():
+        return
+    explicit = sorted(
+        KEPT.glob("explicit_n*"), key=lambda p: int(p.name.removeprefix("explicit_n"))
+    )
+    t_unloaded = read_unloaded(out).t_unloaded
+    print(
+        "\n| phi (deg) | state | steps | iterations per step (median / max) | cut-backs "
+        "| wall (s) | contacts at the end (explicit) |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for k, phi in enumerate(YieldSurfaceCase().phis):
+        history = out / f"reload_{k:03d}" / "history.csv"
+        if not history.exists():
+            continue
+        rows = reload_rows(history, t_unloaded)
+        if "newton_iterations" not in rows:
+            continue
+        its = rows["newton_iterations"]
+        state = "done" if (history.parent / "done").exists() else "under way"
+        contacts = f"{rows['n_contacts'][-1]:.0f}"
+        if explicit and (explicit[-1] / history.relative_to(out)).exists():
+            ref = reload_rows(explicit[-1] / history.relative_to(out), t_unloaded)
+            contacts += f" ({ref['n_contacts'][-1]:.0f})"
+        print(
+            f"| {np.degrees(phi):.1f} | {state} | {its.size} | {np.median(its):.0f} / "
+            f"{its.max():.0f} | {rows['cutbacks'][-1]:.0f} | "
+            f"{rows['wall_time'][-1] - rows['wall_time'][0]:.0f} | {contacts} |"
+        )
+
+
 def main(argv=None) -> None:
     """Run what ``--run`` asks, then print the table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -144,6 +190,7 @@ def main(argv=None) -> None:
     if args.run:
         run(args.run, args.reload_increments if args.run == "explicit" else 0)
     table()
+    newton_effort()
 
 
 if __name__ == "__main__":
