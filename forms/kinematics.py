@@ -415,76 +415,74 @@ class VolumetricForces:
 _TANGENT_BLOCK = 4096
 
 
+@numba.njit(cache=True, inline="always")
+def _add_deviatoric_tangent(Ke, q, row, dphi, Kinv, volumes, A, d, T):
+    """Ke += dV dphi_a/dX_j A_ijkm dphi_b/dX_m at row 3a + i, column 3b + k: point q (material
+    point ``row``) of int (A : Grad du) : Grad v dX, A_ijkm = dP_ij/dF_km."""
+    nd = d.shape[0]
+    _spatial_derivatives(q, dphi, Kinv[row], 1.0, d)
+    s = volumes[row]
+    a4 = A[row]
+    for i in range(3):
+        for k in range(3):
+            for a in range(nd):  # T_am = dV sum_j dphi_a/dX_j A_ijkm
+                for m in range(3):
+                    T[a, m] = s * (
+                        d[a, 0] * a4[i, 0, k, m]
+                        + d[a, 1] * a4[i, 1, k, m]
+                        + d[a, 2] * a4[i, 2, k, m]
+                    )
+            for a in range(nd):
+                for b in range(nd):
+                    Ke[3 * a + i, 3 * b + k] += (
+                        T[a, 0] * d[b, 0] + T[a, 1] * d[b, 1] + T[a, 2] * d[b, 2]
+                    )
+
+
+@numba.njit(cache=True, inline="always")
+def _add_volumetric_tangent(Ke, cell, q, row, dofs, dphi, Kinv, volumes, u, bulk, d, g, F, Finv):
+    """Ke += the linearization of int K ln(J) F^-T : Grad v dX at volumetric point q (``row``):
+    K dV (g_ai g_bk - ln J g_ak g_bi) at row 3a + i, column 3b + k, g_ai = dphi_a/dX_j (F^-1)_ji
+    (the spatial gradients)."""
+    nd = d.shape[0]
+    J = _deformation_at(cell, q, dofs, dphi, Kinv[row], u, d, F, Finv)
+    s = bulk * volumes[row]
+    log_J = np.log(J)
+    for a in range(nd):
+        for i in range(3):
+            g[a, i] = d[a, 0] * Finv[0, i] + d[a, 1] * Finv[1, i] + d[a, 2] * Finv[2, i]
+    for a in range(nd):
+        for i in range(3):
+            for b in range(nd):
+                for k in range(3):
+                    Ke[3 * a + i, 3 * b + k] += s * (g[a, i] * g[b, k] - log_J * g[a, k] * g[b, i])
+
+
 @numba.njit(parallel=True, cache=True)
-def _deviatoric_tangents(first, dphi, Kinv, volumes, A, out):
-    """out[c] = sum_q dV_q dphi_a/dX_j A_ijkm dphi_b/dX_m at row 3a + i, column 3b + k: the
-    element matrices of int (A : Grad du) : Grad v dX for the material cells first, first + 1,
-    ..., first + len(out) - 1 (A: (n_points, 3, 3, 3, 3) in (cell, point) order,
-    A_ijkm = dP_ij/dF_km)."""
-    npts = dphi.shape[0]
-    nd = dphi.shape[1]
+def _tangents(first, dphi, Kinv, volumes, A, cells, dofs, vdphi, vKinv, vvolumes, u, bulk, out):
+    """out[c] = the element matrix of the internal work's tangent for material cell first + c:
+    the deviatoric part at its points (dphi, Kinv, volumes; A (n_points, 3, 3, 3, 3) in (cell,
+    point) order) and the volumetric part at the volumetric points (vdphi, vKinv, vvolumes; from
+    the displacement array ``u`` and the bulk modulus)."""
+    npts, vpts, nd = dphi.shape[0], vdphi.shape[0], dphi.shape[1]
     ncells = out.shape[0]
     nchunks = (ncells + _CHUNK - 1) // _CHUNK
     for chunk in numba.prange(nchunks):
         d = np.empty((nd, 3))
         T = np.empty((nd, 3))
+        F = np.empty((3, 3))
+        Finv = np.empty((3, 3))
         for c in range(chunk * _CHUNK, min(ncells, (chunk + 1) * _CHUNK)):
             Ke = out[c]
             Ke[:] = 0.0
             for q in range(npts):
-                row = (first + c) * npts + q
-                _spatial_derivatives(q, dphi, Kinv[row], 1.0, d)
-                s = volumes[row]
-                a4 = A[row]
-                for i in range(3):
-                    for k in range(3):
-                        for a in range(nd):  # T_am = dV sum_j dphi_a/dX_j A_ijkm
-                            for m in range(3):
-                                T[a, m] = s * (
-                                    d[a, 0] * a4[i, 0, k, m]
-                                    + d[a, 1] * a4[i, 1, k, m]
-                                    + d[a, 2] * a4[i, 2, k, m]
-                                )
-                        for a in range(nd):
-                            for b in range(nd):
-                                Ke[3 * a + i, 3 * b + k] += (
-                                    T[a, 0] * d[b, 0] + T[a, 1] * d[b, 1] + T[a, 2] * d[b, 2]
-                                )
-
-
-@numba.njit(parallel=True, cache=True)
-def _add_volumetric_tangents(first, cells, dofs, dphi, Kinv, volumes, u, bulk, out):
-    """out[c] += the element matrices of the linearized volumetric work
-    int K (F^-T : Grad du F^-T - ln J F^-T Grad du^T F^-T) : Grad v dX at the volumetric points of
-    the material cells first, first + 1, ...: with g_ai = sum_j dphi_a/dX_j (F^-1)_ji (the spatial
-    gradients), K dV (g_ai g_bk - ln J g_ak g_bi) at row 3a + i, column 3b + k."""
-    npts = dphi.shape[0]
-    nd = dphi.shape[1]
-    ncells = out.shape[0]
-    nchunks = (ncells + _CHUNK - 1) // _CHUNK
-    for chunk in numba.prange(nchunks):
-        d = np.empty((nd, 3))
-        g = np.empty((nd, 3))
-        F = np.empty((3, 3))
-        Finv = np.empty((3, 3))
-        for c in range(chunk * _CHUNK, min(ncells, (chunk + 1) * _CHUNK)):
+                _add_deviatoric_tangent(Ke, q, (first + c) * npts + q, dphi, Kinv, volumes, A, d, T)
             cell = cells[first + c]
-            Ke = out[c]
-            for q in range(npts):
-                row = (first + c) * npts + q
-                J = _deformation_at(cell, q, dofs, dphi, Kinv[row], u, d, F, Finv)
-                s = bulk * volumes[row]
-                log_J = np.log(J)
-                for a in range(nd):
-                    for i in range(3):
-                        g[a, i] = d[a, 0] * Finv[0, i] + d[a, 1] * Finv[1, i] + d[a, 2] * Finv[2, i]
-                for a in range(nd):
-                    for i in range(3):
-                        for b in range(nd):
-                            for k in range(3):
-                                Ke[3 * a + i, 3 * b + k] += s * (
-                                    g[a, i] * g[b, k] - log_J * g[a, k] * g[b, i]
-                                )
+            for q in range(vpts):
+                row = (first + c) * vpts + q
+                _add_volumetric_tangent(
+                    Ke, cell, q, row, dofs, vdphi, vKinv, vvolumes, u, bulk, d, T, F, Finv
+                )
 
 
 class TangentStiffness:
@@ -525,9 +523,12 @@ class TangentStiffness:
         for first in range(0, self.cells.size, _TANGENT_BLOCK):
             count = min(_TANGENT_BLOCK, self.cells.size - first)
             out = self._scratch[:count]
-            _deviatoric_tangents(first, self.dphi, self.Kinv, self.volumes, A_dev, out)
-            _add_volumetric_tangents(
+            _tangents(
                 first,
+                self.dphi,
+                self.Kinv,
+                self.volumes,
+                A_dev,
                 vol.cells,
                 vol.dofs,
                 vol.dphi,
