@@ -214,6 +214,16 @@ def _add_deviatoric_forces(cells, dofs, dphi, Kinv, volumes, P, out):
                     out[3 * dof + i] += p[i, 0] * g[b, 0] + p[i, 1] * g[b, 1] + p[i, 2] * g[b, 2]
 
 
+def _write_random(cells: np.ndarray, material: np.ndarray, function) -> None:
+    """Random values in [-1, 1] in a material points' array and in the quadrature Function that
+    a compiled form reads (unless they share memory), for a check against the form."""
+    rng = np.random.default_rng(0)
+    material[:] = rng.uniform(-1.0, 1.0, material.shape)
+    if function.x.array.size and not np.shares_memory(material, function.x.array):
+        width = material[0].size * (material.shape[0] // cells.size)
+        function.x.array.reshape(-1, width)[cells] = material.reshape(cells.size, width)
+
+
 class DeviatoricForces:
     """The deviatoric internal force int P_dev : Grad v dX (N), added into a local (ghosted) vector
     array: the residual's first form (``bulk.internal_work``) at the kernel's points, with the
@@ -243,13 +253,7 @@ class DeviatoricForces:
         if not self.cells.size:
             return True
         saved_P, saved_fn = material_P.copy(), P_function.x.array.copy()
-        rng = np.random.default_rng(0)
-        material_P[:] = rng.uniform(-1.0, 1.0, material_P.shape)
-        if P_function.x.array.size and not np.shares_memory(material_P, P_function.x.array):
-            width = material_P[0].size * (material_P.shape[0] // self.cells.size)
-            P_function.x.array.reshape(-1, width)[self.cells] = material_P.reshape(
-                self.cells.size, width
-            )
+        _write_random(self.cells, material_P, P_function)
         reference = dolfinx.fem.assemble_vector(form)  # local array, ghosts not summed
         ours = np.zeros_like(reference.array)
         self.add_to(material_P, ours)
@@ -557,13 +561,7 @@ class TangentStiffness:
         if not self.cells.size:
             return True
         saved_A, saved_fn, saved_u = material_A.copy(), A_function.x.array.copy(), u.x.array.copy()
-        rng = np.random.default_rng(0)
-        material_A[:] = rng.uniform(-1.0, 1.0, material_A.shape)
-        if A_function.x.array.size and not np.shares_memory(material_A, A_function.x.array):
-            width = material_A[0].size * (material_A.shape[0] // self.cells.size)
-            A_function.x.array.reshape(-1, width)[self.cells] = material_A.reshape(
-                self.cells.size, width
-            )
+        _write_random(self.cells, material_A, A_function)
         u.interpolate(
             lambda x: np.stack(
                 [
