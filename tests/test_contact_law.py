@@ -144,7 +144,8 @@ def test_newton_update_reverses_a_slipping_point_at_most_to_its_cone_centre():
 def test_guards_leave_memory_to_the_converged_state_and_snap_a_cycling_point_on_its_third_return():
     """Within one Newton increment: an iterate that carries an adhered point beyond delta_max
     (branch SEPARATED) erases nothing, so a later iterate finds it adhered again; a point that
-    leaves softening for the loading line three times is snapped off (memory erased)."""
+    leaves softening for the loading line three times is snapped off (memory erased), or, the
+    snap not allowed, keeps its memory and is recorded as refused."""
     from mpfem_fenicsx.contact.guards import AdhesiveGuards
     from mpfem_fenicsx.contact.laws import ADHESIVE_LOADING, SEPARATED, SOFTENING
 
@@ -165,3 +166,11 @@ def test_guards_leave_memory_to_the_converged_state_and_snap_a_cycling_point_on_
     assert memory == [300.0] * 5 + [0.0]  # erased at the third return only
     cycling.reset()
     assert iterate(cycling, SOFTENING) == 300.0  # a new increment starts from the committed state
+    # snap-off not allowed (a Newton increment longer than SNAP_INCREMENT of the nominal one):
+    # the third return keeps the memory and is recorded for the solver to cut the increment back
+    refused = AdhesiveGuards()
+    refused.snap_allowed = False
+    memory = [iterate(refused, c) for c in (SOFTENING, ADHESIVE_LOADING) * 3]
+    assert memory == [300.0] * 6 and refused.refused.tolist() == [7]
+    refused.reset()
+    assert refused.refused.size == 0 and not refused.snap_allowed  # the solver's choice stays

@@ -21,6 +21,10 @@ class AdhesiveGuards:
     """The adhesive points' bookkeeping over the iterates of an increment (arrays of keys)."""
 
     def __init__(self) -> None:
+        #: whether a point cycling a third time snaps off (True) or is only recorded in
+        #: :attr:`refused` (False: the caller cuts the increment back instead; a Newton solver
+        #: allows the snap on short increments only)
+        self.snap_allowed = True
         self.reset()
 
     def reset(self) -> None:
@@ -28,6 +32,8 @@ class AdhesiveGuards:
         #: keys of the points snapped off in the current increment (their softening cycled):
         #: their adhesive memory is erased for the rest of the increment
         self.separated = np.zeros(0, np.int64)
+        #: keys of the points that cycled a third time while :attr:`snap_allowed` was False
+        self.refused = np.zeros(0, np.int64)
         #: keys of the points that iterates of this increment moved from softening back to the
         #: adhesive loading line or into overlap at least once / at least twice, and the
         #: (sorted) keys / branch codes of the last evaluation
@@ -77,8 +83,9 @@ class AdhesiveGuards:
         # slope for that update, so that it carries a point past the fold of its adhered
         # branch beyond delta_max (memory erased, see ContactModel.begin_increment). A third
         # return (the coupled update of a rim of such points can still cycle) snaps the
-        # point: its memory is erased for the rest of the increment, as a dynamic snap-off
-        # would. A point whose softening is stable converges on it with the exact slope
+        # point if snap_allowed: its memory is erased for the rest of the increment, as a
+        # dynamic snap-off would; otherwise it is recorded (refused) and the caller cuts the
+        # increment back. A point whose softening is stable converges on it with the exact slope
         # (quadratic); after a kink overshoot it is held for one update only.
         last_keys, last_branch = self.last
         if last_keys.size:
@@ -88,9 +95,11 @@ class AdhesiveGuards:
             # not on to separation
             back = keys[was_softening & (normal_branch(branch) <= ADHESIVE_LOADING)]
             if back.size:
-                self.separated = np.union1d(
-                    self.separated, back[np.isin(back, self.returned_twice)]
-                )
+                third = back[np.isin(back, self.returned_twice)]
+                if self.snap_allowed:
+                    self.separated = np.union1d(self.separated, third)
+                else:
+                    self.refused = np.union1d(self.refused, third)
                 self.returned_twice = np.union1d(
                     self.returned_twice, back[np.isin(back, self.returned)]
                 )

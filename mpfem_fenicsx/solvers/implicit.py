@@ -46,10 +46,18 @@ class StepControl:
     stall_window: int | None = None
     #: times that increments land on exactly (e.g. the end of loading before unloading)
     breakpoints: tuple[float, ...] = ()
+    #: an adhesive point cycling a third time snaps off only on increments of at most this
+    #: fraction of ``dt``; on a longer one the attempt ends and the increment is cut back
+    #: (1: on any increment; granular volumes: SNAP_INCREMENT)
+    snap_increment: float = 1.0
 
     def __post_init__(self):
         if not 0 < self.dt_min <= self.dt <= self.t_end:
             raise ValueError(f"step control needs 0 < dt_min <= dt <= t_end, got {self}")
+        if not 0 < self.snap_increment <= 1:
+            raise ValueError(
+                f"step control snap_increment must lie in (0, 1], got {self.snap_increment}"
+            )
         if any(not 0 < b < self.t_end for b in self.breakpoints):
             raise ValueError(
                 f"step control breakpoints must lie in (0, t_end = {self.t_end}), "
@@ -104,6 +112,13 @@ FAILURES = {
 #: has not fallen below STALL_RATIO x its value ``stall_window`` iterations before
 STALL_WINDOW = 8
 STALL_RATIO = 0.5
+
+#: the granular volumes' StepControl.snap_increment: an adhesive point cycling a third time
+#: between softening and the adhesive loading line
+#: (:class:`~mpfem_fenicsx.contact.guards.AdhesiveGuards`) snaps off only on increments of at most
+#: 1/16 of the nominal one; on a longer increment the attempt ends and the increment is cut back
+#: (a cycle that shorter increments resolve is Newton's, not a snap)
+SNAP_INCREMENT = 1.0 / 16.0
 
 
 def rigid_body_modes(constraint, positions: np.ndarray) -> list[PETSc.Vec]:
@@ -215,6 +230,7 @@ class ImplicitSolver:
         self.cutbacks = 0  # failed attempts (increments retried shorter) since the start
         self._since_cutback = np.inf  # converged increments since the last cut-back
         self._stall_window = None  # the running step control's (None: no stall test)
+        self._snap_refused = False  # the last attempt ended on a refused snap-off
         self._unbalanced = float("nan")
         #: plastic dissipation of the converged increments (mJ), accumulated before each commit
         #: (after it the material's trial increment is the converged state's: zero)
@@ -282,6 +298,11 @@ class ImplicitSolver:
             return reason.CONVERGED_FNORM_RELATIVE
         if its >= max_it:
             return reason.DIVERGED_MAX_IT
+        if self.contact is not None and self.comm.allreduce(
+            self.contact.guards.refused.size, op=MPI.SUM
+        ):
+            self._snap_refused = True
+            return reason.DIVERGED_DTOL
         window = self._stall_window
         if (
             window is not None
@@ -713,6 +734,10 @@ class ImplicitSolver:
             # land on the stop instead of leaving a sliver of an increment before it
             t_new = stop if self.t + dt > stop - 1e-9 * control.t_end else self.t + dt
             dt = t_new - self.t
+            if self.contact is not None:
+                allowed = control.snap_increment * control.dt * (1 + 1e-9)
+                self.contact.guards.snap_allowed = dt <= allowed
+            self._snap_refused = False
             ok, its = self.solve_increment(t_new)
             self.iterations_total += its
             if not ok:
@@ -724,8 +749,13 @@ class ImplicitSolver:
                 dt *= 0.5
                 if log:
                     why = self.snes.getConvergedReason()
+                    what = (
+                        "met an adhesive point cycling (no snap-off on this increment)"
+                        if self._snap_refused
+                        else FAILURES.get(why, why)
+                    )
                     log(
-                        f"  cut-back at t={self.t:.4g}: Newton {FAILURES.get(why, why)} after "
+                        f"  cut-back at t={self.t:.4g}: Newton {what} after "
                         f"{its} iterations, dt -> {dt:.3g}"
                     )
                 if dt < control.dt_min:
