@@ -86,6 +86,18 @@ def reference_derivatives(V, points: np.ndarray) -> tuple[np.ndarray, np.ndarray
     )
 
 
+def smooth_field(x: np.ndarray, k: int = 0, scale: float = 1.0) -> np.ndarray:
+    """A smooth non-affine vector field (mm) at points x (3, n), the k-th of a family: what the
+    kernels' checks against the compiled forms interpolate."""
+    return scale * np.stack(
+        [
+            0.01 * np.sin(x[1] + 2 * x[2] + k),
+            0.02 * np.cos(x[0] * x[2] - k),
+            0.015 * np.sin(x[0] - x[1] + 2 * k) * x[2],
+        ]
+    )
+
+
 class DeformationGradients:
     """F at the quadrature ``points`` (reference cell coordinates) of ``cells``, (n, 3, 3)."""
 
@@ -120,15 +132,7 @@ class DeformationGradients:
         if not self.cells.size:
             return True
         w = dolfinx.fem.Function(self.u.function_space)
-        w.interpolate(
-            lambda x: np.stack(
-                [
-                    0.01 * np.sin(x[1] + 2 * x[2]),
-                    0.02 * np.cos(x[0] * x[2]),
-                    0.015 * np.sin(x[0] - x[1]) * x[2],
-                ]
-            )
-        )
+        w.interpolate(smooth_field)
         expression = dolfinx.fem.Expression(deformation_gradient(w), self.points)
         F_ref = expression.eval(self.u.function_space.mesh, self.cells).reshape(-1, 3, 3)
         return bool(np.abs(self(w) - F_ref).max() <= rtol * max(1.0, np.abs(F_ref).max()))
@@ -393,18 +397,7 @@ class VolumetricForces:
 
         saved = [f.x.array.copy() for f, _ in fields]
         for k, (f, scale) in enumerate(fields):
-            f.interpolate(
-                lambda x, k=k, s=scale: (
-                    s
-                    * np.stack(
-                        [
-                            0.01 * np.sin(x[1] + 2 * x[2] + k),
-                            0.02 * np.cos(x[0] * x[2] - k),
-                            0.015 * np.sin(x[0] - x[1] + 2 * k) * x[2],
-                        ]
-                    )
-                )
-            )
+            f.interpolate(lambda x, k=k, s=scale: smooth_field(x, k, s))
         reference = dolfinx.fem.assemble_vector(form)  # local array, ghosts not summed
         ours = np.zeros_like(reference.array)
         add(ours)
@@ -562,15 +555,7 @@ class TangentStiffness:
             return True
         saved_A, saved_fn, saved_u = material_A.copy(), A_function.x.array.copy(), u.x.array.copy()
         _write_random(self.cells, material_A, A_function)
-        u.interpolate(
-            lambda x: np.stack(
-                [
-                    0.01 * np.sin(x[1] + 2 * x[2]),
-                    0.02 * np.cos(x[0] * x[2]),
-                    0.015 * np.sin(x[0] - x[1]) * x[2],
-                ]
-            )
-        )
+        u.interpolate(smooth_field)
         reference = dolfinx.fem.petsc.assemble_matrix(forms[0])
         reference.assemble(PETSc.Mat.AssemblyType.FLUSH)
         dolfinx.fem.petsc.assemble_matrix(reference, forms[1])
