@@ -15,7 +15,8 @@ equilibrium, the implicit settle). The table gives each direction's
 yield point (E_d = E_0 (1 + 0.3 %)) of every fan and its distance to the reference fan's point
 (the slowest explicit one), relative to that point's distance from the origin of the Rendulic
 plane (sigma_m, sigma~_d); the largest over the directions is the fan's figure. A second table
-gives Newton's work per reload (steps, iterations, cut-backs, wall time, contacts at the end).
+gives Newton's work per reload (steps, iterations, cut-backs, wall time, contacts at the end) and
+how far its last row lies from the slowest explicit reload at equal strain.
 """
 
 from __future__ import annotations
@@ -138,10 +139,36 @@ def reload_rows(history: Path, t_unloaded: float) -> dict[str, np.ndarray]:
     return {k: np.array([float(r[k] or "nan") for r in rows]) for k in (rows[0] if rows else {})}
 
 
+def along_explicit(rows: dict[str, np.ndarray], ref: dict[str, np.ndarray]) -> float:
+    """How far a Newton reload's last row (sigma_m, sigma~_d) within the explicit reload's
+    strains lies from the explicit reload at equal strain, relative to the explicit point's
+    distance from the origin of the Rendulic plane. Strain: the distance travelled from the
+    explicit reload's first row in the plane (h_v, h~_d) (the reloads are straight there; the
+    mixed control makes time no common axis), the explicit curve interpolated at it. NaN
+    without a common strain."""
+
+    def travelled(r: dict[str, np.ndarray]) -> np.ndarray:
+        return np.hypot(r["h_v"] - ref["h_v"][0], r["h_tilde_d"] - ref["h_tilde_d"][0])
+
+    x, along = travelled(ref), travelled(rows)
+    inside = np.flatnonzero(along <= x.max())
+    if not inside.size:
+        return float("nan")
+    last, at = inside[-1], along[inside[-1]]
+    order = np.argsort(x)
+    explicit = np.array(
+        [np.interp(at, x[order], ref[c][order]) for c in ("sigma_m", "sigma_tilde_d")]
+    )
+    newton = np.array([rows[c][last] for c in ("sigma_m", "sigma_tilde_d")])
+    return float(np.linalg.norm(newton - explicit) / np.linalg.norm(explicit))
+
+
 def newton_effort() -> None:
     """Newton's work per reload of the implicit fan: converged steps, iterations per step,
-    cut-backs, wall time (s, the histories' clock: pauses included), and the contacts at the
-    reload's end against the slowest explicit fan's."""
+    cut-backs, wall time (s, the histories' clock: pauses included), the contacts at the
+    reload's end against the slowest explicit fan's, and the distance of its last row (within
+    the explicit strains) from that fan's reload at equal strain (:func:`along_explicit`: a
+    reload under way is checked before its yield point)."""
     from mpfem_fenicsx.workflows.yield_surface import YieldSurfaceCase, read_unloaded
 
     out = folder("implicit", 0)
@@ -153,9 +180,9 @@ def newton_effort() -> None:
     t_unloaded = read_unloaded(out).t_unloaded
     print(
         "\n| phi (deg) | state | steps | iterations per step (median / max) | cut-backs "
-        "| wall (s) | contacts at the end (explicit) |"
+        "| wall (s) | contacts at the end (explicit) | last row off explicit at equal strain |"
     )
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     for k, phi in enumerate(YieldSurfaceCase().phis):
         history = out / f"reload_{k:03d}" / "history.csv"
         if not history.exists():
@@ -165,14 +192,15 @@ def newton_effort() -> None:
             continue
         its = rows["newton_iterations"]
         state = "done" if (history.parent / "done").exists() else "under way"
-        contacts = f"{rows['n_contacts'][-1]:.0f}"
+        contacts, off = f"{rows['n_contacts'][-1]:.0f}", "-"
         if explicit and (explicit[-1] / history.relative_to(out)).exists():
             ref = reload_rows(explicit[-1] / history.relative_to(out), t_unloaded)
             contacts += f" ({ref['n_contacts'][-1]:.0f})"
+            off = f"{along_explicit(rows, ref):.1%}".replace("nan%", "-")
         print(
             f"| {np.degrees(phi):.1f} | {state} | {its.size} | {np.median(its):.0f} / "
             f"{its.max():.0f} | {rows['cutbacks'][-1]:.0f} | "
-            f"{rows['wall_time'][-1] - rows['wall_time'][0]:.0f} | {contacts} |"
+            f"{rows['wall_time'][-1] - rows['wall_time'][0]:.0f} | {contacts} | {off} |"
         )
 
 
