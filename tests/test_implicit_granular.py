@@ -13,7 +13,8 @@ from mpfem_fenicsx.case import CompactionCase
 from mpfem_fenicsx.constraints.affine import AffineConstraint
 from mpfem_fenicsx.material import ElastoPlastic
 from mpfem_fenicsx.problem import SolidProblem
-from mpfem_fenicsx.solvers.implicit import DEFAULT_OPTIONS, rigid_body_modes
+from mpfem_fenicsx.solvers.implicit import DEFAULT_OPTIONS, FORCE_RTOL, rigid_body_modes
+from mpfem_fenicsx.workflows import compaction
 from mpfem_fenicsx.workflows.compaction import (
     DRAG_CORE_RADIUS,
     build_compaction,
@@ -34,9 +35,10 @@ def first_contacts_case(path, **kw):
 
 def tight_newton(patch: pytest.MonkeyPatch) -> None:
     """Newton to the absolute residual tolerance (1e-9 N) rather than 1e-9 of the first residual
-    (~3e-8 N): two linear solvers then give one solution to round-off, not to Newton's
-    tolerance."""
+    (~3e-8 N) or the granular volumes' tolerance on the forces (FORCE_RTOL): two linear solvers
+    then give one solution to round-off, not to Newton's tolerance."""
     patch.setitem(DEFAULT_OPTIONS, "snes_rtol", 1e-12)
+    patch.setattr(compaction, "FORCE_RTOL", 0.0)
 
 
 @pytest.fixture(scope="module")
@@ -137,6 +139,26 @@ def test_iterative_linear_solver_gives_the_direct_solution(tmp_path, first_conta
     assert sigma["direct"][-1] > 0.01  # MPa: the cell was compacted
     linear = runs["iterative"].history.column("linear_iterations")
     assert np.all(linear > runs["iterative"].history.column("newton_iterations"))
+
+
+def test_newton_stops_at_the_force_tolerance(tmp_path, first_contacts):
+    """The granular volumes' step control ends Newton once its residual is at most FORCE_RTOL of
+    the internal forces' norm: the simple cubic cell's first contacts in fewer iterations than
+    to the absolute tolerance (the fixture's run), at a residual between 1e-9 N and that bound,
+    and the same state to that accuracy (displacements within 1e-4 of their size, sigma_m
+    within 1e-4)."""
+    case = first_contacts_case(tmp_path, linear_solver="direct")
+    result = run_compaction(case, MPI.COMM_SELF, log=quiet)
+    solver = result.solver
+    bound = FORCE_RTOL * solver._internal_force_norm()
+    norms = solver.residual_norms
+    assert 1e-9 < norms[-1] <= bound, (norms, bound)
+    its = result.history.column("newton_iterations")[-1]
+    assert its < first_contacts.history.column("newton_iterations")[-1]
+    u, u_tight = result.model.problem.u.x.array, first_contacts.model.problem.u.x.array
+    assert np.abs(u - u_tight).max() < 1e-4 * np.abs(u_tight).max()
+    sigma = result.history.column("sigma_m")[-1]
+    assert sigma == pytest.approx(first_contacts.history.column("sigma_m")[-1], rel=1e-4)
 
 
 def test_newton_converges_superlinearly_through_the_first_contacts(first_contacts):

@@ -50,6 +50,10 @@ class StepControl:
     #: fraction of ``dt``; on a longer one the attempt ends and the increment is cut back
     #: (1: on any increment; granular volumes: SNAP_INCREMENT)
     snap_increment: float = 1.0
+    #: Newton also converges when its residual is at most this fraction of the internal forces'
+    #: norm ||P^T f_int|| at the last converged state (0: the absolute and relative PETSc
+    #: tolerances only; granular volumes: FORCE_RTOL)
+    force_rtol: float = 0.0
 
     def __post_init__(self):
         if not 0 < self.dt_min <= self.dt <= self.t_end:
@@ -58,6 +62,8 @@ class StepControl:
             raise ValueError(
                 f"step control snap_increment must lie in (0, 1], got {self.snap_increment}"
             )
+        if not 0 <= self.force_rtol < 1:
+            raise ValueError(f"step control force_rtol must lie in [0, 1), got {self.force_rtol}")
         if any(not 0 < b < self.t_end for b in self.breakpoints):
             raise ValueError(
                 f"step control breakpoints must lie in (0, t_end = {self.t_end}), "
@@ -119,6 +125,12 @@ STALL_RATIO = 0.5
 #: 1/16 of the nominal one; on a longer increment the attempt ends and the increment is cut back
 #: (a cycle that shorter increments resolve is Newton's, not a snap)
 SNAP_INCREMENT = 1.0 / 16.0
+
+#: the granular volumes' StepControl.force_rtol: Newton has converged once its residual is at
+#: most 1e-4 of the internal forces' norm (an out-of-balance ratio 500 times below the explicit
+#: runs' quasi-static check), also where a kink of the adhesive law stalls it above PETSc's
+#: absolute tolerance of 1e-9 N
+FORCE_RTOL = 1e-4
 
 
 def rigid_body_modes(constraint, positions: np.ndarray) -> list[PETSc.Vec]:
@@ -230,6 +242,8 @@ class ImplicitSolver:
         self.cutbacks = 0  # failed attempts (increments retried shorter) since the start
         self._since_cutback = np.inf  # converged increments since the last cut-back
         self._stall_window = None  # the running step control's (None: no stall test)
+        self._force_rtol = 0.0  # the running step control's force_rtol
+        self._force_scale = 0.0  # ||P^T f_int|| at the last converged state (N)
         self._snap_refused = False  # the last attempt ended on a refused snap-off
         self._unbalanced = float("nan")
         #: plastic dissipation of the converged increments (mJ), accumulated before each commit
@@ -279,7 +293,9 @@ class ImplicitSolver:
 
     def _converged(self, snes, its: int, norms) -> int:
         """Newton's convergence test: PETSc's absolute and relative residual tests and iteration
-        limit, and (the step control's ``stall_window`` set) a stall test: after that many
+        limit, the step control's ``force_rtol`` (a residual at most that fraction of
+        ||P^T f_int|| at the last converged state), and (the step control's ``stall_window``
+        set) a stall test: after that many
         iterations or more, a residual that has not fallen below ``STALL_RATIO`` x its value that
         many iterations before ends the attempt (DIVERGED_DTOL; contact or stick / slip states
         cycling: a shorter increment is the remedy, and each further iteration wastes a
@@ -292,7 +308,7 @@ class ImplicitSolver:
         reason = PETSc.SNES.ConvergedReason
         if not np.isfinite(fnorm):
             return reason.DIVERGED_FUNCTION_NANORINF
-        if fnorm <= atol:
+        if fnorm <= atol or fnorm <= self._force_rtol * self._force_scale:
             return reason.CONVERGED_FNORM_ABS
         if its > 0 and fnorm <= rtol * self._fnorms[0]:
             return reason.CONVERGED_FNORM_RELATIVE
@@ -500,24 +516,33 @@ class ImplicitSolver:
             cutbacks=float(self.cutbacks),
         )
 
+    def _internal_force_norm(self) -> float:
+        """||P^T f_int|| (N) at the current displacement: the medium's internal forces on the
+        reduced unknowns (no drag, no contact). Collective."""
+        force = self.problem.create_vector()
+        self.problem.assemble_residual(force)
+        reduced = self.x.duplicate()
+        self.constraint.restrict(force, reduced)
+        norm = reduced.norm()
+        force.destroy()
+        reduced.destroy()
+        return norm
+
     def _out_of_balance(self) -> float:
         """:meth:`unbalanced_ratio` at the converged trial state, before its commit (the drag
         towards the last converged state vanishes at the commit). Collective."""
         if self.regularization is None:
             return 0.0
         n = self.constraint.num_owned
-        force = self.problem.create_vector()
-        self.problem.assemble_residual(force)
-        drag = force.duplicate()
+        scale = self._internal_force_norm()
+        drag = self.problem.create_vector()
         drag.array_w[:n] = (
             self.drag_scale * self.regularization.array_r * (self._peculiar() - self._w_converged)
         )
         reduced = self.x.duplicate()
-        self.constraint.restrict(force, reduced)
-        scale = reduced.norm()
         self.constraint.restrict(drag, reduced)
         ratio = reduced.norm() / scale if scale > 0.0 else float("nan")
-        for vec in (force, drag, reduced):
+        for vec in (drag, reduced):
             vec.destroy()
         return ratio
 
@@ -564,6 +589,7 @@ class ImplicitSolver:
         of the current contacts only, not the union of every pattern met so far, which would
         change MUMPS' pivoting and round-off), whether the run was interrupted or not."""
         self._residual(None, self.x, self.r_red)
+        self._force_scale = self._internal_force_norm()  # the scale of Newton's force_rtol
         self._update_drag()  # of the committed state (its contact forces just evaluated)
         self._assemble_tangent()
         if self._J_contact is not None:
@@ -724,6 +750,7 @@ class ImplicitSolver:
         (a restarted solver continues with the increment it would have tried next)."""
         dt = control.dt if self.dt_next is None else min(self.dt_next, control.dt_max)
         self._stall_window = control.stall_window
+        self._force_rtol = control.force_rtol
         steps = 0
         self.x.copy(self.x_old)
         while self.t < control.t_end * (1 - 1e-12):

@@ -68,7 +68,7 @@ from ..meshes.packing import (
 from ..problem import SolidProblem
 from ..solvers import NonConvergence, StepControl, create_solver, solver_kind
 from ..solvers.explicit import ExplicitSettings
-from ..solvers.implicit import ITERATIVE_OPTIONS, SNAP_INCREMENT, STALL_WINDOW
+from ..solvers.implicit import FORCE_RTOL, ITERATIVE_OPTIONS, SNAP_INCREMENT, STALL_WINDOW
 from .history_recorder import (
     COLUMNS,
     QUASI_STATIC_CHECK_COLUMNS,
@@ -908,7 +908,8 @@ def granular_step_control(t_end: float, dt: float) -> StepControl:
     """The step control of a granular volume's segment ending at ``t_end`` (s) at increments of
     ``dt`` (s): cut back to dt / 256 at the most, grown back to dt after 2 settled increments of
     up to 20 Newton iterations, Newton's stall test on, an adhesive point's snap-off on
-    increments of dt / 16 or less. A granular increment takes ~15-20
+    increments of dt / 16 or less, Newton converged at a residual of FORCE_RTOL x the internal
+    forces. A granular increment takes ~15-20
     iterations whatever its length (contact rims entering, ~100 material points crossing the
     yield surface per iteration on the flagship): growing back after a cut-back only below 6
     (the default) would keep the cut increment for the rest of the path."""
@@ -921,6 +922,7 @@ def granular_step_control(t_end: float, dt: float) -> StepControl:
         settle_steps=2,
         stall_window=STALL_WINDOW,
         snap_increment=SNAP_INCREMENT,
+        force_rtol=FORCE_RTOL,
     )
 
 
