@@ -571,3 +571,55 @@ def test_killed_implicit_reload_continues_from_its_checkpoint(fan, tmp_path):
     again = read_csv(last / "history.csv")
     assert len(again["time"]) == len(whole["time"])
     np.testing.assert_allclose(again["sigma_m"], whole["sigma_m"], rtol=1e-9, atol=1e-12)
+
+
+# ~2 min: one Newton reload of 4 steps and its extension of 4
+def test_newton_reload_ending_below_yield_goes_on_along_its_direction(fan, tmp_path):
+    """A Newton reload that ends below the yield threshold (an amplitude of 0.3 |h_v^d|: an
+    elastic reload) goes on from its last checkpoint by ``reload_extension`` x its amplitude
+    along the same direction: its imposed strain goes on to 1 + f times the reload's, in the
+    extension's steps, once (a resumed fan does not extend it again)."""
+    import shutil
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    from mpfem_fenicsx.io import read_csv
+    from mpfem_fenicsx.workflows.yield_surface import read_unloaded, run_yield_surface, yielded
+    from validation.run import share_loading
+
+    case, _ = fan
+    share_loading(Path(case.out_dir), tmp_path, lambda *a: None)
+    for k in range(1, case.nphi):  # the first reload alone runs by Newton
+        shutil.copytree(Path(case.out_dir) / f"reload_{k:03d}", tmp_path / f"reload_{k:03d}")
+        (tmp_path / f"reload_{k:03d}" / "done").write_text("1\n")
+    implicit = replace(
+        case,
+        solver="implicit",
+        amplitude_factor=0.3,
+        reload_steps=4,
+        reload_extension=0.5,
+        out_dir=str(tmp_path),
+    )
+    messages = []
+    run_yield_surface(implicit, MPI.COMM_SELF, log=messages.append, resume=True)
+    assert sum("extended by 0.5" in m for m in messages) == 1
+    folder = tmp_path / "reload_000"
+    assert (folder / "done").exists() and (folder / "extended").exists()
+    u = read_unloaded(tmp_path)
+    h = read_csv(folder / "history.csv")
+    assert not yielded(folder / "history.csv", u.E_0, case.dissipation_threshold)
+    reload = h["time"] > u.t_unloaded * (1 + 1e-9)
+    t = h["time"][reload]
+    duration = t[-1] - u.t_unloaded
+    # the imposed volumetric strain from the unloaded state (phi = 0: isotropic compression):
+    # at the reload's end (2/3 of the time) and at the extension's, 1.5 x as large
+    dv = np.log(h["rho_imposed"][reload] / h["rho_imposed"][~reload][-1])
+    end = np.flatnonzero(np.isclose(t, u.t_unloaded + duration / 1.5, rtol=1e-12))
+    assert end.size == 1 and np.count_nonzero(t > t[end[0]]) == 4  # the extension's steps
+    assert dv[end[0]] > 0 and dv[-1] == pytest.approx(1.5 * dv[end[0]], rel=1e-9)
+    assert np.all(np.diff(dv) > 0)
+    messages.clear()
+    run_yield_surface(implicit, MPI.COMM_SELF, log=messages.append, resume=True)
+    assert not any("extended by" in m for m in messages)
+    assert len(read_csv(folder / "history.csv")["time"]) == len(h["time"])

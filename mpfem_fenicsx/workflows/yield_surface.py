@@ -159,6 +159,16 @@ class YieldSurfaceCase:
     reload_steps: int = parameter(
         40, "implicit: load steps of a reload (each one a history row)", low=4, high=10000
     )
+    #: a Newton reload is rate-free: going on along its direction is the same path as a larger
+    #: amplitude, so a direction whose yield lies just beyond the fan's amplitude still closes
+    #: the surface (the explicit reloads' amplitude is part of their loading rate: not extended)
+    reload_extension: float = parameter(
+        0.25,
+        "implicit: a reload that ends below the yield threshold goes on along its direction by "
+        "this fraction of its amplitude, once (0: never) (-)",
+        low=0,
+        high=4,
+    )
     out_dir: str = "results/yield_surface"
 
     def __post_init__(self):
@@ -455,14 +465,21 @@ def settle(
 RELOAD_CHECKPOINT_EVERY = 5
 
 
-def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> CompactionCase:
+def reload_case(
+    case: YieldSurfaceCase, unloaded: Unloaded, k: int, extended: bool = False
+) -> CompactionCase:
     """The compaction case of reload ``k`` (direction phi_k), to restart from the unload
-    checkpoint."""
+    checkpoint; ``extended``: with its extension (a further segment along the same direction,
+    ``reload_extension`` x the amplitude in as large a share of the reload's time and steps),
+    to restart from the reload's last checkpoint."""
     duration, n_r = _reload_duration(case, unloaded)
-    segments = (
-        *unloaded.segments,
-        (duration, reload_gradient(float(case.phis[k]), _reload_amplitude(case, unloaded))),
-    )
+    phi, A = float(case.phis[k]), _reload_amplitude(case, unloaded)
+    segments = (*unloaded.segments, (duration, reload_gradient(phi, A)))
+    steps = (case.reload_steps,)
+    if extended:
+        f = case.reload_extension
+        segments += ((f * duration, reload_gradient(phi, f * A)),)
+        steps += (max(4, math.ceil(f * case.reload_steps)),)
     static = solver_kind(case.solver).static
     reload = case.base.updated(
         spheres=unloaded.packing,
@@ -471,14 +488,21 @@ def reload_case(case: YieldSurfaceCase, unloaded: Unloaded, k: int) -> Compactio
         checkpoint_every=RELOAD_CHECKPOINT_EVERY if static else 0,
         visual=False,
         segments_after=segments,
-        segment_profiles=(*("smooth-step" for _ in unloaded.segments), case.reload_profile),
+        segment_profiles=(*("smooth-step" for _ in unloaded.segments), case.reload_profile)
+        + ("smooth-step",) * extended,
         every=max(1, n_r // case.rows_per_reload),
     )
     if static:  # every step a history row
         reload = reload.updated(
-            kind=case.solver, segment_steps=(1,) * (len(segments) - 1) + (case.reload_steps,)
+            kind=case.solver, segment_steps=(1,) * len(unloaded.segments) + steps
         )
     return reload
+
+
+def yielded(history_csv: str | Path, E_0: float, threshold: float) -> bool:
+    """Whether a reload's dissipated energy E_d has reached the yield threshold
+    E_0 (1 + ``threshold``) (thesis §4.2.2)."""
+    return bool(np.nanmax(read_csv(history_csv)["E_d"]) >= E_0 * (1.0 + threshold))
 
 
 def fan_rows(
@@ -551,23 +575,25 @@ def run_yield_surface(
                 f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg: done "
                 "before"
             )
-            continue
-        restart = unloaded.checkpoint
-        if resume and (Path(reload.output.directory) / "checkpoints").is_dir():
-            try:  # a reload killed on its way continues from its newest checkpoint
-                restart = str(resolve_checkpoint(Path(reload.output.directory)))
-                log(f"[reload {k + 1}/{case.nphi}] continues from {restart}")
-            except CheckpointError:
-                pass
-        if model is None:  # one model per rank, reused by all its reloads
-            model = build_compaction(reload, alone, quiet)
-        run_compaction(reload, alone, quiet, restart=restart, model=model)
-        finished.write_text(f"{time.perf_counter() - t0:.0f}\n")
-        log(
-            f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg on rank "
-            f"{comm.rank}: "
-            f"{time.perf_counter() - t0:.0f} s"
-        )
+        else:
+            restart = unloaded.checkpoint
+            if resume and (Path(reload.output.directory) / "checkpoints").is_dir():
+                try:  # a reload killed on its way continues from its newest checkpoint
+                    restart = str(resolve_checkpoint(Path(reload.output.directory)))
+                    log(f"[reload {k + 1}/{case.nphi}] continues from {restart}")
+                except CheckpointError:
+                    pass
+            if model is None:  # one model per rank, reused by all its reloads
+                model = build_compaction(reload, alone, quiet)
+            (Path(reload.output.directory) / "extended").unlink(missing_ok=True)
+            run_compaction(reload, alone, quiet, restart=restart, model=model)
+            finished.write_text(f"{time.perf_counter() - t0:.0f}\n")
+            log(
+                f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg on rank "
+                f"{comm.rank}: "
+                f"{time.perf_counter() - t0:.0f} s"
+            )
+        model = _extend(case, unloaded, k, alone, model, log, quiet)
     _sleeping_barrier(comm)
     reload_wall = time.perf_counter() - t_fan
     result = None
@@ -582,6 +608,30 @@ def run_yield_surface(
         )
     alone.Free()
     return comm.bcast(result, root=0)
+
+
+def _extend(case, unloaded, k, comm, model, log, quiet):
+    """Reload ``k``'s extension (Newton reloads with ``reload_extension``): run once, from the
+    reload's last checkpoint, if the reload ended below the yield threshold; returns the model
+    (built if None)."""
+    if not (solver_kind(case.solver).static and case.reload_extension > 0):
+        return model
+    folder = Path(case.out_dir) / f"reload_{k:03d}"
+    marker = folder / "extended"
+    threshold = case.dissipation_threshold
+    if marker.exists() or yielded(folder / "history.csv", unloaded.E_0, threshold):
+        return model
+    t0 = time.perf_counter()
+    reload = reload_case(case, unloaded, k, extended=True)
+    if model is None:
+        model = build_compaction(reload, comm, quiet)
+    log(
+        f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg ended below "
+        f"the yield threshold: extended by {case.reload_extension:g} x its amplitude"
+    )
+    run_compaction(reload, comm, quiet, restart=resolve_checkpoint(folder), model=model)
+    marker.write_text(f"{time.perf_counter() - t0:.0f}\n")
+    return model
 
 
 def surfaces(case: YieldSurfaceCase, unloaded: Unloaded | None = None, log=print) -> dict:
