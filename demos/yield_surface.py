@@ -60,6 +60,7 @@ def main(argv=None) -> None:
     )
     add_parameter_option(p, YieldSurfaceCase, "reload_increments")
     add_parameter_option(p, YieldSurfaceCase, "reload_steps")
+    add_parameter_option(p, YieldSurfaceCase, "reload_extension")
     add_parameter_option(p, YieldSurfaceCase, "reload_profile")
     p.add_argument(
         "--resume",
@@ -90,6 +91,7 @@ def main(argv=None) -> None:
             solver=reload_solver,
             reload_increments=args.reload_increments,
             reload_steps=args.reload_steps,
+            reload_extension=args.reload_extension,
             nphi=args.nphi,
             unload_stress_ratio=args.unload_ratio,
             amplitude_factor=args.amplitude_factor,
