@@ -1,6 +1,8 @@
 """Granular volumes: GDH / GDF / CLPS / CLP constraints, rigid motions, CLP by copies
 vs CLP by periodic images, on small simple-cubic cells (8 equal spheres, thesis §2.6)."""
 
+import json
+
 import numpy as np
 import pytest
 from mpfem_fenicsx.meshes import node_particles
@@ -543,3 +545,19 @@ def test_start_overlap_of_coarse_volume_exact_particle_refused(tmp_path):
     build_compaction(
         small_case(tmp_path, exact_volume=True, radius_factor=0.99), MPI.COMM_SELF, log=quiet
     )
+
+
+def test_run_ends_at_the_first_row_meeting_until(tmp_path):
+    """``until``: a compaction ends at the first history row that meets it, with its final
+    checkpoint and history written, as at the end of its path."""
+    from mpfem_fenicsx.io import read_csv
+    from mpfem_fenicsx.io.checkpoint import resolve_checkpoint
+
+    case = small_case(tmp_path, outputs=10, checkpoint_every=100)
+    res = run_compaction(
+        case, MPI.COMM_SELF, log=quiet, until=lambda row: row["rho_imposed"] >= 0.53
+    )
+    rho = read_csv(tmp_path / "history.csv")["rho_imposed"]
+    assert rho[-1] >= 0.53 > rho[-2] and rho[-1] < 0.56 - 1e-3
+    assert res.history.column("rho_imposed")[-1] == rho[-1]
+    assert json.loads((resolve_checkpoint(tmp_path) / "meta.json").read_text())["step"] > 0

@@ -15,6 +15,7 @@ section) -> :func:`make_solver` (the solver section) -> :class:`CompactionRun` (
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -83,6 +84,10 @@ from .history_recorder import (
 #: partition weight of a CLP copy (tied nodes, no material: only its contact surface works) next
 #: to a particle's 1
 TIED_COPY_WORK = 0.3
+
+
+class _Reached(Exception):
+    """Raised by :meth:`CompactionRun.record` when the run's ``until`` holds."""
 
 
 class RunFailure(RuntimeError):
@@ -641,7 +646,10 @@ class CompactionRun:
     uninterrupted one (explicit: bit for bit); a case without packing takes the checkpoint's.
     ``model``: a model built earlier for the same packing, mesh and contact settings on ``comm``
     (a fan of reloads restarts one checkpoint many times; only the path of ``case`` and its
-    outputs may differ), whose state the restart overwrites. The case is not modified."""
+    outputs may differ), whose state the restart overwrites. The case is not modified.
+    ``until``: row -> bool (the history row's columns; the same on every rank): the run ends at
+    the first history row for which it holds, as at the end of its path (final checkpoint and
+    outputs)."""
 
     def __init__(
         self,
@@ -652,8 +660,10 @@ class CompactionRun:
         restart: str | Path | None = None,
         progress: Progress | None = None,
         model: CompactionModel | None = None,
+        until: Callable[[dict], bool] | None = None,
     ):
         self.start = time.perf_counter()
+        self.until = until
         self.comm, self.log = comm, log
         arrays = meta = None
         if restart is not None:
@@ -734,6 +744,8 @@ class CompactionRun:
         )
         if self.checkpoints.due(len(self.history.rows)):
             self.write_checkpoint()
+        if self.until is not None and self.until(row):
+            raise _Reached
 
     def servo(self, solver) -> None:
         """Mixed control, every ``control.every`` increments: the measured Cauchy stress
@@ -757,6 +769,9 @@ class CompactionRun:
                 on_step=self.servo if control is not None else None,
                 log=self.log,
             )
+        except _Reached:
+            total = solver.step
+            self.log(f"stopped at t = {solver.t:.6g} s: the run's end condition holds")
         except (FloatingPointError, NonConvergence) as err:
             self._fail(err)
         self.progress.close()
@@ -853,10 +868,14 @@ def run_compaction(
     restart: str | Path | None = None,
     progress: Progress | None = None,
     model: CompactionModel | None = None,
+    until: Callable[[dict], bool] | None = None,
 ) -> CompactionResult:
-    """Compact the volume to ``case.loading.target_density`` (or along its path):
-    ``CompactionRun(...).run()``; the columns of the history: :mod:`.history_recorder`."""
-    return CompactionRun(case, comm, log, restart=restart, progress=progress, model=model).run()
+    """Compact the volume to ``case.loading.target_density`` (or along its path, or ``until``
+    a history row meets it): ``CompactionRun(...).run()``; the columns of the history:
+    :mod:`.history_recorder`."""
+    return CompactionRun(
+        case, comm, log, restart=restart, progress=progress, model=model, until=until
+    ).run()
 
 
 #: columns added since the first checkpoints (which do not list theirs): filled with NaN on restart

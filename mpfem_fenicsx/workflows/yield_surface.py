@@ -165,7 +165,7 @@ class YieldSurfaceCase:
     reload_extension: float = parameter(
         0.25,
         "implicit: a reload that ends below the yield threshold goes on along its direction by "
-        "this fraction of its amplitude, once (0: never) (-)",
+        "up to this fraction of its amplitude, once, until it yields (0: never) (-)",
         low=0,
         high=4,
     )
@@ -612,8 +612,8 @@ def run_yield_surface(
 
 def _extend(case, unloaded, k, comm, model, log, quiet):
     """Reload ``k``'s extension (Newton reloads with ``reload_extension``): run once, from the
-    reload's last checkpoint, if the reload ended below the yield threshold; returns the model
-    (built if None)."""
+    reload's last checkpoint, if the reload ended below the yield threshold, and stopped at the
+    first row past it; returns the model (built if None)."""
     if not (solver_kind(case.solver).static and case.reload_extension > 0):
         return model
     folder = Path(case.out_dir) / f"reload_{k:03d}"
@@ -629,7 +629,15 @@ def _extend(case, unloaded, k, comm, model, log, quiet):
         f"[reload {k + 1}/{case.nphi}] phi = {np.degrees(case.phis[k]):.1f} deg ended below "
         f"the yield threshold: extended by {case.reload_extension:g} x its amplitude"
     )
-    run_compaction(reload, comm, quiet, restart=resolve_checkpoint(folder), model=model)
+    limit = unloaded.E_0 * (1.0 + threshold)
+    run_compaction(
+        reload,
+        comm,
+        quiet,
+        restart=resolve_checkpoint(folder),
+        model=model,
+        until=lambda row: row["E_d"] >= limit,  # the yield point is reached: enough
+    )
     marker.write_text(f"{time.perf_counter() - t0:.0f}\n")
     return model
 
