@@ -430,7 +430,8 @@ def test_the_yade_fixture_is_its_recipe():
         atol=1e-12,
     )
     assert read.max_overlap() == pytest.approx(0.0012, rel=1e-6)
-    assert unit_ball_hex(6, 1).radius_scale == NODE_SCALE
+    # a fresh installation may move the particle mesh by a rounding
+    assert unit_ball_hex(6, 1).radius_scale == pytest.approx(NODE_SCALE, rel=1e-13)
 
 
 def test_admission_lowers_the_default_reduction_for_a_dem_export_and_says_so():
