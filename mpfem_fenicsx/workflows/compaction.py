@@ -760,6 +760,7 @@ class CompactionRun:
         run raises :class:`RunFailure` after writing its history so far; the last good
         checkpoint stays."""
         output, control, solver = self.case.output, self.case.loading.control, self.solver
+        first = solver.step
         try:
             total = solver.run_path(
                 self.record,
@@ -770,7 +771,7 @@ class CompactionRun:
                 log=self.log,
             )
         except _Reached:
-            total = solver.step
+            total = solver.step - first  # the increments of this call, as run_path counts them
             self.log(f"stopped at t = {solver.t:.6g} s: the run's end condition holds")
         except (FloatingPointError, NonConvergence) as err:
             self._fail(err)
