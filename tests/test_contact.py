@@ -157,3 +157,20 @@ def test_penetration_is_found_for_a_steep_slave_face():
     missing = [int(n) for n in inside if int(n) not in found]
     assert not missing, f"penetrating slab nodes without a contact point: {missing}"
     assert np.allclose([found[int(n)] for n in inside], x[inside, 2], atol=1e-9)
+
+
+def test_contact_tangent_matrix_is_the_same_every_time():
+    """The contact tangent of one evaluation, built twice: the same matrix (PETSc sorts the COO
+    indices it is given in place; handing it the model's own arrays paired the second build's
+    values with sorted indices, a silently wrong tangent for any second caller)."""
+    a = particle_mesh([[0, 0, 0], [1.9, 0.3, -0.2]], [1.0, 1.0], MPI.COMM_SELF)
+    prob = SolidProblem(a.mesh, LEAD, tangent=True)
+    law = ContactLaw(penalty=1e6, friction=0.3)
+    model = ContactModel(prob.V, a.facet_tags, 2, law, search_distance=0.1)
+    model.evaluate(prob.u, tangent=True)
+    template = prob.create_matrix()
+    first, second = model.tangent_matrix(template), model.tangent_matrix(template)
+    assert first.norm() > 0
+    difference = first.copy()
+    difference.axpy(-1.0, second)
+    assert difference.norm() == 0.0

@@ -564,12 +564,14 @@ class ContactModel:
         return rows, cols
 
     def tangent_matrix(self, template: PETSc.Mat) -> PETSc.Mat:
-        """Contact tangent as a new AIJ matrix with the layout of ``template``."""
+        """Contact tangent as a new AIJ matrix with the layout of ``template`` (any number of
+        times per evaluation: PETSc sorts the COO indices it is given in place, so it gets
+        copies and the entries stay paired with their values)."""
         rows, cols, vals = self._coo
         K = PETSc.Mat().create(comm=self.comm)
         K.setSizes(template.getSizes())
         K.setType(PETSc.Mat.Type.AIJ)
-        K.setPreallocationCOO(rows, cols)
+        K.setPreallocationCOO(rows.copy(), cols.copy())
         K.setValuesCOO(vals, addv=PETSc.InsertMode.ADD_VALUES)
         K.assemble()
         return K
