@@ -22,6 +22,36 @@ def test_history_round_trip_with_undefined_values(tmp_path):
         h.append(time=2.0, sigma_m=1.0)
 
 
+def test_history_interrupted_while_writing_keeps_the_last_complete_file(tmp_path, monkeypatch):
+    """A run killed while its history is being rewritten (every row) must leave the file of the
+    row before, not a truncated one: the write stops half-way here (an exception from the CSV
+    writer after a few rows) and the CSV on disk is still the complete earlier one."""
+    h = History(tmp_path / "h.csv", ["a", "b"], MPI.COMM_SELF, flush_every_row=True)
+    for k in range(50):
+        h.append(a=k, b=2.0 * k)
+    import csv
+
+    real = csv.writer
+
+    class Dying:
+        def __init__(self, fh):
+            self.inner, self.count = real(fh), 0
+
+        def writerow(self, row):
+            self.count += 1
+            if self.count > 10:
+                raise KeyboardInterrupt("killed while writing")
+            self.inner.writerow(row)
+
+    monkeypatch.setattr(csv, "writer", Dying)
+    with pytest.raises(KeyboardInterrupt):
+        h.append(a=50, b=100.0)
+    monkeypatch.undo()
+    data = read_csv(tmp_path / "h.csv")
+    assert data["a"].size == 50
+    assert np.array_equal(data["b"], 2.0 * np.arange(50))
+
+
 def test_off_screen_render_prints_no_x_server_warning(tmp_path, python):
     """Every off-screen picture printed VTK's "bad X server connection" warning."""
     import subprocess

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import os
 from pathlib import Path
 
 import numpy as np
@@ -74,15 +75,19 @@ class History:
         return tensor_from_columns(self, prefix)
 
     def write(self) -> Path:
-        """Write the CSV (rank 0; NaN as an empty field) and return its path."""
+        """Write the CSV (rank 0; NaN as an empty field) and return its path. The rows go to a
+        temporary file that then replaces the CSV: a run killed while writing leaves the last
+        complete file, not a truncated one."""
         if self.comm.rank == 0:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            with open(self.path, "w", newline="") as fh:
+            partial = self.path.with_name(self.path.name + ".partial")
+            with open(partial, "w", newline="") as fh:
                 writer = csv.writer(fh)
                 writer.writerow(self.columns)
                 for row in self.rows:
                     # NaN: not defined
                     writer.writerow(["" if np.isnan(v) else repr(v) for v in row])
+            os.replace(partial, self.path)
         return self.path
 
 
