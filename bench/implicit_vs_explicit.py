@@ -176,18 +176,26 @@ def table(held: float | None = None, die50: bool = False) -> None:
             read(KEPT / s / "history.csv") for s in ("explicit", implicit_folder(held))
         )
         densities = DENSITIES
-    print("| rho | explicit sigma_m (MPa) | implicit sigma_m (MPa) | implicit / explicit - 1 |")
-    print("|---|---|---|---|")
+    # the work that each run's regularization dissipates, over E_p: the explicit run's damping
+    # (local and bulk viscous), the implicit run's drag
+    print(
+        "| rho | explicit sigma_m (MPa) | implicit sigma_m (MPa) | implicit / explicit - 1 "
+        "| explicit (E_damp + E_visc) / E_p | implicit E_drag / E_p |"
+    )
+    print("|---|---|---|---|---|---|")
+
+    def at(h, rho, *keys):
+        return sum(np.interp(rho, h["rho"], np.nan_to_num(h[k])) for k in keys)
+
     for rho in densities:
+        e = at(explicit, rho, "sigma_m")
+        damping = at(explicit, rho, "E_damp", "E_visc") / at(explicit, rho, "E_p")
         if rho > implicit["rho"].max():
-            print(
-                f"| {rho:.2f} | {np.interp(rho, explicit['rho'], explicit['sigma_m']):.4g} "
-                "| not reached | |"
-            )
+            print(f"| {rho:.2f} | {e:.4g} | not reached | | {damping:.2%} | |")
             continue
-        e = np.interp(rho, explicit["rho"], explicit["sigma_m"])
-        i = np.interp(rho, implicit["rho"], implicit["sigma_m"])
-        print(f"| {rho:.2f} | {e:.4g} | {i:.4g} | {i / e - 1:+.2%} |")
+        i = at(implicit, rho, "sigma_m")
+        drag = at(implicit, rho, "E_damp") / at(implicit, rho, "E_p")
+        print(f"| {rho:.2f} | {e:.4g} | {i:.4g} | {i / e - 1:+.2%} | {damping:.2%} | {drag:.2%} |")
     its = implicit["newton_iterations"]
     end = -1
     print(
