@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from mpfem_fenicsx.meshes import particle_mesh
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from mpfem_fenicsx.contact import ContactLaw, ContactModel
 from mpfem_fenicsx.material import LEAD
@@ -174,3 +175,71 @@ def test_contact_tangent_matrix_is_the_same_every_time():
     difference = first.copy()
     difference.axpy(-1.0, second)
     assert difference.norm() == 0.0
+
+
+def _residual(model, prob, u_values) -> np.ndarray:
+    """Contact residual r = -forces on the bodies (N, every dof) at the displacement values."""
+    prob.u.x.array[:] = u_values
+    model.evaluate(prob.u)
+    dofs, values = model.nodal_forces()
+    r = np.zeros(prob.u.x.array.size)
+    np.add.at(r, dofs, -values)
+    return r
+
+
+def test_contact_tangent_is_the_derivative_of_the_contact_residual():
+    """The contact tangent against central differences of the contact residual along a random
+    motion of every node, at a deformed state with friction: the same to 1e-6. A point's force
+    is its traction times its slave node's tributary area on the last converged configuration
+    (held, like the masters' normals), so the point tangent, which differentiates the point's
+    own nodes only, is the whole derivative (the area on the current configuration depends on
+    the slave's neighbours: 2 % of the product off, Newton linear)."""
+    a = particle_mesh([[0, 0, 0], [1.92, 0.31, -0.17]], [1.0, 1.0], MPI.COMM_SELF)
+    prob = SolidProblem(a.mesh, LEAD, tangent=True)
+    model = ContactModel(
+        prob.V, a.facet_tags, 2, ContactLaw(penalty=1e6, friction=0.3), search_distance=0.1
+    )
+    X = prob.V.tabulate_dof_coordinates()
+    u = (1e-3 * np.sin(7.0 * X[:, [1, 2, 0]])).ravel()  # mm: a non-affine deformed state
+    _residual(model, prob, u)
+    prob.u.x.array[:] = u
+    model.evaluate(prob.u, tangent=True)
+    assert model.count() >= 4
+    K = model.tangent_matrix(prob.create_matrix())
+    y = np.random.default_rng(3).standard_normal(u.size) * 1e-4  # mm
+    Ky = K.createVecLeft()
+    K.mult(PETSc.Vec().createWithArray(y.copy(), comm=MPI.COMM_SELF), Ky)
+    h = 1e-3
+    fd = (_residual(model, prob, u + h * y) - _residual(model, prob, u - h * y)) / (2 * h)
+    assert np.linalg.norm(Ky.array) > 0
+    assert np.linalg.norm(fd - Ky.array) < 1e-6 * np.linalg.norm(Ky.array)
+
+
+def test_image_motion_is_the_linearized_change_of_the_contact_residual():
+    """A particle pressed on the image of another: moving the images (a deformed cell) changes
+    the contact residual by add_image_motion to first order (central differences over the
+    shift: the same to 1e-6), the images' part of an implicit predictor."""
+    cell = 4.0
+    a = particle_mesh([[0, 0, 0], [1.93 - cell, 0.07, 0.03]], [1.0, 1.0], MPI.COMM_SELF)
+    prob = SolidProblem(a.mesh, LEAD, tangent=True)
+    lattice = np.array([[0, 0, 0], [1, 0, 0], [-1, 0, 0]], dtype=float)
+    model = ContactModel(
+        prob.V, a.facet_tags, 2, ContactLaw(penalty=1e6, friction=0.3), search_distance=0.1,
+        shifts=lattice * cell,
+    )  # fmt: skip
+    vectors = cell * np.eye(3)
+    model.evaluate(prob.u, tangent=True)
+    assert model.count() >= 4
+    r0 = _residual(model, prob, prob.u.x.array.copy())
+    model.evaluate(prob.u, tangent=True)  # the tangent at the images' first position
+    h = 1e-6
+    dF = np.array([[-1.0, 0.2, 0.0], [0.0, 0.3, 0.0], [0.1, 0.0, -0.4]])  # the cell's motion
+    model.set_periodic_images(lattice, vectors @ (np.eye(3) + h * dF).T)
+    linear = prob.create_vector()
+    model.add_image_motion(linear)
+    plus = _residual(model, prob, prob.u.x.array.copy())
+    model.set_periodic_images(lattice, vectors @ (np.eye(3) - h * dF).T)
+    minus = _residual(model, prob, prob.u.x.array.copy())
+    change = 0.5 * (plus - minus)
+    assert np.linalg.norm(change) > 1e-6 * np.linalg.norm(r0)  # the images' motion matters
+    assert np.linalg.norm(linear.array - change) < 1e-6 * np.linalg.norm(change)

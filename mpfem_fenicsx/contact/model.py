@@ -145,9 +145,11 @@ class ContactModel:
         self.U_committed = np.zeros((self.surface.num_nodes, 3))
         #: the last :meth:`evaluate` (empty before the first)
         self.evaluation = ContactEvaluation.empty()
-        self._corner: np.ndarray | None = None
+        self._geometry: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.guards = AdhesiveGuards()  # the adhesive law's iterates within an increment
         self._coo = (np.zeros(0, PETSc.IntType), np.zeros(0, PETSc.IntType), np.zeros(0))
+        #: the last tangent evaluation's point tangents, nodes, image indices and shifts (mm)
+        self._point_tangents: tuple | None = None
         self.frictional_work = 0.0  # committed, summed over ranks, mJ
         self.search_time = 0.0  # accumulated wall time of the search (s), for benchmarks
         self.halo_time = 0.0  # accumulated wall time of the halo builds after the first (s)
@@ -323,7 +325,7 @@ class ContactModel:
         owned_now.reshape(-1, 3)[s.owned_local_blocks] = U[s.owned_nodes]
         self._build_halo(owned_now)
         self.U_committed = s.gather_owned_array(self._owned_committed)
-        self._corner = None
+        self._geometry = None
         U = s.gather_owned_array(owned_now)
         self.halo_time += time.perf_counter() - start
         return U
@@ -365,8 +367,7 @@ class ContactModel:
         point_weights(s.facets, s.vertices_per_facet, pts.slave, pts.facet, pts.xi, nodes, weights)
         jump = relative_motion(nodes, weights, U - self.U_committed)
         jump -= pts.shift - shift_n  # relative motion includes the image's displacement
-        facet_normal, _ = surface_normals(x, s.facets, s.vertices_per_facet)
-        facet_area = facet_areas(x, s.facets, s.vertices_per_facet)
+        _, facet_normal, facet_area = self.committed_geometry()
         area = np.empty(n)
         if n:
             contact_areas(
@@ -458,6 +459,7 @@ class ContactModel:
             vals = np.empty(size)
             k = coo_entries(nodes[:, :nn], s.blocks, K, rows, cols, vals) if n else 0
             self._coo = (rows[:k], cols[:k], vals[:k])
+            self._point_tangents = (K, nodes[:, :nn], shift_id, pts.shift)
             if self.tools is not None:
                 self._coo = tuple(
                     np.concatenate([a, b]) for a, b in zip(self._coo, self.tools.coo, strict=True)
@@ -555,6 +557,26 @@ class ContactModel:
         r.assemblyBegin()
         r.assemblyEnd()
 
+    def add_image_motion(self, r: PETSc.Vec) -> None:
+        """r += the linearized change of the contact residual as the periodic images move from
+        the shifts of the last evaluation with tangent to the current ones
+        (:meth:`set_periodic_images`): a point whose master is an image shifted further by dS
+        sees its slave moved by -dS, so dr = -K_p[:, slave] dS on the point's nodes (K_p its
+        point tangent). It is the images' part of a load increment's linearization (tied copies
+        carry it in their offsets); zero without images. Collective."""
+        dofs, values = np.zeros(0, PETSc.IntType), np.zeros(0)
+        if self._point_tangents is not None and self._point_tangents[0].shape[0]:
+            K, nodes, shift_id, shift = self._point_tangents
+            dS = self.search.shifts[shift_id] - shift  # (n, 3) mm
+            moved = np.flatnonzero(np.any(dS != 0.0, axis=1))
+            dr = -np.einsum("pij,pj->pi", K[moved][:, :, :3], dS[moved])  # (m, 3 nn)
+            blocks = self.surface.blocks[nodes[moved]]  # (m, nn)
+            dofs = (blocks[:, :, None] * 3 + np.arange(3)).ravel().astype(PETSc.IntType)
+            values = dr.ravel()
+        r.setValues(dofs, values, addv=PETSc.InsertMode.ADD_VALUES)
+        r.assemblyBegin()
+        r.assemblyEnd()
+
     @property
     def tangent_pattern(self) -> tuple[np.ndarray, np.ndarray]:
         """Rows and columns (local dof indices, COO) of the last :meth:`evaluate` with ``tangent``:
@@ -576,13 +598,26 @@ class ContactModel:
         K.assemble()
         return K
 
+    def committed_geometry(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The surface at the last converged configuration, held over an increment: the
+        masters' corner normals (:func:`~mpfem_fenicsx.contact.search.corner_normals`), the
+        facets' normals and areas. A point's force is its traction times its slave node's
+        tributary area on that configuration, so that the residual is a function of the
+        point's own nodes only and the point tangent (:func:`~.kernels.point_tangents`) is its
+        exact derivative (quadratic Newton); the area lags the current one by an increment's
+        surface strain."""
+        if self._geometry is None:
+            s = self.surface
+            x_n = s.X + self.U_committed
+            normals, _ = surface_normals(x_n, s.facets, s.vertices_per_facet)
+            areas = facet_areas(x_n, s.facets, s.vertices_per_facet)
+            self._geometry = (corner_normals(x_n, s), normals, areas)
+        return self._geometry
+
     def corner_normals(self) -> np.ndarray:
-        """Masters' corner normals (:func:`~mpfem_fenicsx.contact.search.corner_normals`) at the
-        last converged configuration: the smoothed normal field is held over an increment so that
-        the residual is a function of the current positions only (quadratic Newton)."""
-        if self._corner is None:
-            self._corner = corner_normals(self.surface.X + self.U_committed, self.surface)
-        return self._corner
+        """Masters' corner normals at the last converged configuration
+        (:meth:`committed_geometry`)."""
+        return self.committed_geometry()[0]
 
     # -- history -------------------------------------------------------------------------------
     def begin_increment(self) -> None:
@@ -604,7 +639,7 @@ class ContactModel:
         self.begin_increment()
         self._owned_committed = u.x.array[: self._owned_committed.size].copy()
         self.U_committed = self.surface.gather(u)
-        self._corner = None
+        self._geometry = None
         self.shifts_committed = self.search.shifts.copy()
         self.frictional_work += self.comm.allreduce(self.evaluation.dissipation, op=MPI.SUM)
         if self.tools is not None:
@@ -650,7 +685,7 @@ class ContactModel:
         self._owned_committed.reshape(-1, 3)[s.owned_local_blocks] = data["surface_displacement"]
         self._build_halo(self._owned_committed)
         self.U_committed = s.gather_owned_array(self._owned_committed)
-        self._corner = None
+        self._geometry = None
         self.frictional_work = float(data["total_frictional_work"])
         if self.tools is not None:
             self.tools.load_state({k[6:]: v for k, v in data.items() if k.startswith("tools/")})

@@ -210,8 +210,10 @@ class RigidContact:
         tangent: bool = False,
     ) -> RigidEvaluation:
         """Points, law and forces at the surface positions ``x`` (held nodes, mm) with the
-        displacement since the last commit ``dU`` (held nodes, mm) and the surface's current
-        facet normals and areas; with ``tangent`` also the 3 x 3 tangents (:meth:`coo`)."""
+        displacement since the last commit ``dU`` (held nodes, mm) and the surface's facet
+        normals and areas on the last converged configuration (held over an increment, so that
+        the 3 x 3 tangents are the forces' whole derivative); with ``tangent`` also those
+        tangents (:meth:`coo`)."""
         s = self.surface
         owned = s.owned_nodes
         found = [self._query(i, x[owned], self.distance) for i in range(len(self.tools))]

@@ -610,8 +610,9 @@ class ImplicitSolver:
     def solve_increment(self, t_new: float) -> tuple[bool, int]:
         """Newton at time t_new, starting from the tangent predictor.
 
-        Predictor: x = x_n - J_red^-1 P^T K (g(t_new) - g(t_n)), i.e. the boundary motion is
-        spread through the body by the last tangent instead of distorting the boundary layer
+        Predictor: x = x_n - J_red^-1 P^T (K (g(t_new) - g(t_n)) + dr_images), i.e. the
+        boundary motion (the offsets' and the periodic images', ContactModel.add_image_motion)
+        is spread through the body by the last tangent instead of distorting the boundary layer
         (the same role as DOLFINx's lifting of incremental Dirichlet values).
         """
         if not self._tangent_valid:
@@ -625,6 +626,8 @@ class ImplicitSolver:
         dg.axpy(-1.0, g_old)
         force = self.K_total.createVecLeft()
         self.K_total.mult(dg, force)
+        if self.contact is not None:  # the periodic images' motion (not in the offsets g)
+            self.contact.add_image_motion(force)
         rhs = self.x.duplicate()
         self.constraint.restrict(force, rhs)
         rhs.scale(-1.0)
