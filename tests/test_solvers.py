@@ -280,3 +280,36 @@ def test_both_solvers_are_the_solver_interface():
                 line = next(i for i, text in enumerate(lines) if text.startswith(f"    {name}: "))
                 documented = lines[line - 1].lstrip().startswith("#: ")
                 assert documented, f"{protocol.__name__}.{name} has no contract"
+
+
+def test_a_failed_line_search_is_retried_once_with_the_full_update():
+    """An attempt whose backtracking line search fails (at a kink of the contact or adhesive
+    law the Newton update need not decrease ||r||) is tried once more at the same increment
+    with the full update, before any cut-back; the line search is then restored. (The first
+    attempt is made to fail here; the retry is a real Newton solve of a stretched cube.)"""
+    from mpfem_fenicsx.solvers import create_solver
+
+    mesh = dolfinx.mesh.create_box(
+        MPI.COMM_SELF, [[0, 0, 0], [1, 1, 1]], [1] * 3, dolfinx.mesh.CellType.hexahedron
+    )
+    prob = SolidProblem(mesh, LEAD, tangent=True)
+    fixed = component_dofs(prob.V, lambda x: np.isclose(x[0], 0), 0)
+    pulled = component_dofs(prob.V, lambda x: np.isclose(x[0], 1), 0)
+    bcs = PrescribedDisplacements(prob.V).add(fixed).add(pulled, lambda t: 1e-4 * t)
+    control = StepControl(t_end=1.0, dt=1.0, dt_max=1.0)
+    solver = create_solver(
+        "implicit", prob, bcs, controls=[control], petsc_options={"snes_linesearch_type": "bt"}
+    )
+    kinds, real = [], solver.solve_increment
+
+    def attempt(t_new):
+        kinds.append(solver.snes.getLineSearch().getType())
+        return (False, 3) if len(kinds) == 1 else real(t_new)
+
+    solver.solve_increment = attempt
+    solver._line_search_failed = lambda: len(kinds) == 1
+    solver.run(control)
+    assert kinds == ["bt", "basic"]
+    assert solver.full_step_retries == 1 and solver.cutbacks == 0 and solver.t == 1.0
+    assert solver.snes.getLineSearch().getType() == "bt"
+    assert prob.u.x.array[pulled].max() == pytest.approx(1e-4)

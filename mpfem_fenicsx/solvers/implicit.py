@@ -113,6 +113,10 @@ FAILURES = {
     PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_NANORINF: "residual not finite",
 }
 
+#: a failed backtracking line search: the attempt is retried once with the full update
+#: (:meth:`ImplicitSolver._retry_full_step`)
+LINE_SEARCH_FAILED = PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH
+
 #: Newton's stall test (:meth:`ImplicitSolver._converged`, on when a step control sets its
 #: ``stall_window``, e.g. the granular volumes' STALL_WINDOW): an attempt ends when its residual
 #: has not fallen below STALL_RATIO x its value ``stall_window`` iterations before
@@ -240,6 +244,7 @@ class ImplicitSolver:
         self.last_iterations = 0  # Newton iterations of the last converged increment
         self.last_linear_iterations = 0  # its linear solver iterations (predictor included)
         self.cutbacks = 0  # failed attempts (increments retried shorter) since the start
+        self.full_step_retries = 0  # attempts retried with the full update (line search failed)
         self._since_cutback = np.inf  # converged increments since the last cut-back
         self._stall_window = None  # the running step control's (None: no stall test)
         self._force_rtol = 0.0  # the running step control's force_rtol
@@ -655,6 +660,39 @@ class ImplicitSolver:
             self._tangent_valid = False
         return reason > 0, its
 
+    def _retry_full_step(self, t_new: float, its: int, log) -> tuple[bool, int]:
+        """The failed attempt at ``t_new`` once more from the last converged state with Newton's
+        full update (no line search; the contact pre-check still applies): at a kink of the
+        contact or adhesive law the update need not decrease ||r||, and the backtracking line
+        search then fails even on short increments where the full update lands. Returns
+        (converged, both attempts' iterations)."""
+        line_search = self.snes.getLineSearch()
+        kind = line_search.getType()
+        if kind == "basic":
+            return False, its
+        self.x_old.copy(self.x)
+        self.bcs.apply(self.t)
+        self._frame = self._frame_at(self.t)
+        self.full_step_retries += 1
+        if log:
+            log(f"  line search failed at t={t_new:.6g}: the attempt again with the full update")
+        try:
+            self._set_line_search("basic")
+            ok, more = self.solve_increment(t_new)
+        finally:
+            self._set_line_search(kind)
+        return ok, its + more
+
+    def _line_search_failed(self) -> bool:
+        """The last attempt ended with a failed line search."""
+        return self.snes.getConvergedReason() == LINE_SEARCH_FAILED
+
+    def _set_line_search(self, kind: str) -> None:
+        """Newton's line search type, with the contact pre-check set again."""
+        self.snes.getLineSearch().setType(kind)
+        if self.contact is not None:
+            self.snes.setLineSearchPreCheck(self._limit_contact_step)
+
     # -- checkpoints --------------------------------------------------------------------------
     def state_dict(self) -> dict[str, np.ndarray]:
         """This rank's converged state (for checkpoints): time, next increment, reduced and full
@@ -769,6 +807,8 @@ class ImplicitSolver:
                 self.contact.guards.snap_allowed = dt <= allowed
             self._snap_refused = False
             ok, its = self.solve_increment(t_new)
+            if not ok and self._line_search_failed():
+                ok, its = self._retry_full_step(t_new, its, log)
             self.iterations_total += its
             if not ok:
                 self.cutbacks += 1
