@@ -670,9 +670,7 @@ class ImplicitSolver:
         kind = line_search.getType()
         if kind == "basic":
             return False, its
-        self.x_old.copy(self.x)
-        self.bcs.apply(self.t)
-        self._frame = self._frame_at(self.t)
+        self._restore_converged()
         self.full_step_retries += 1
         if log:
             log(f"  line search failed at t={t_new:.6g}: the attempt again with the full update")
@@ -682,6 +680,13 @@ class ImplicitSolver:
         finally:
             self._set_line_search(kind)
         return ok, its + more
+
+    def _restore_converged(self) -> None:
+        """Back to the last converged state after a failed attempt: unknowns, boundary values
+        and the drag's frame at the current time."""
+        self.x_old.copy(self.x)
+        self.bcs.apply(self.t)
+        self._frame = self._frame_at(self.t)
 
     def _line_search_failed(self) -> bool:
         """The last attempt ended with a failed line search."""
@@ -813,9 +818,7 @@ class ImplicitSolver:
             if not ok:
                 self.cutbacks += 1
                 self._since_cutback = 0
-                self.x_old.copy(self.x)  # restore the last converged state
-                self.bcs.apply(self.t)
-                self._frame = self._frame_at(self.t)
+                self._restore_converged()
                 dt *= 0.5
                 if log:
                     why = self.snes.getConvergedReason()
