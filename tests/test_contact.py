@@ -217,7 +217,7 @@ def test_contact_tangent_is_the_derivative_of_the_contact_residual():
 
 def test_image_motion_is_the_linearized_change_of_the_contact_residual():
     """A particle pressed on the image of another: moving the images (a deformed cell) changes
-    the contact residual by add_image_motion to first order (central differences over the
+    the contact residual by add_master_motion to first order (central differences over the
     shift: the same to 1e-6), the images' part of an implicit predictor."""
     cell = 4.0
     a = particle_mesh([[0, 0, 0], [1.93 - cell, 0.07, 0.03]], [1.0, 1.0], MPI.COMM_SELF)
@@ -236,10 +236,40 @@ def test_image_motion_is_the_linearized_change_of_the_contact_residual():
     dF = np.array([[-1.0, 0.2, 0.0], [0.0, 0.3, 0.0], [0.1, 0.0, -0.4]])  # the cell's motion
     model.set_periodic_images(lattice, vectors @ (np.eye(3) + h * dF).T)
     linear = prob.create_vector()
-    model.add_image_motion(linear)
+    model.add_master_motion(linear)
     plus = _residual(model, prob, prob.u.x.array.copy())
     model.set_periodic_images(lattice, vectors @ (np.eye(3) - h * dF).T)
     minus = _residual(model, prob, prob.u.x.array.copy())
     change = 0.5 * (plus - minus)
     assert np.linalg.norm(change) > 1e-6 * np.linalg.norm(r0)  # the images' motion matters
     assert np.linalg.norm(linear.array - change) < 1e-6 * np.linalg.norm(change)
+
+
+def test_tool_motion_is_the_linearized_change_of_the_contact_residual():
+    """A particle pressed on a rigid plane with friction and sliding on it: moving the plane
+    changes the contact residual by add_master_motion to first order (central differences
+    over the translation: the same to 1e-5, the point tangents being central differences
+    themselves), the tools' part of an implicit predictor."""
+    from mpfem_fenicsx.tools import Plane, RigidTool
+
+    a = particle_mesh([[0, 0, 0]], [1.0], MPI.COMM_SELF)
+    prob = SolidProblem(a.mesh, LEAD, tangent=True)
+    law = ContactLaw(penalty=1e6, friction=0.3)
+    plane = RigidTool("floor", Plane((0, 0, -0.97), (0, 0, 1)), law)
+    model = ContactModel(prob.V, a.facet_tags, 1, law, search_distance=0.1, tools=[plane])
+    X = prob.V.tabulate_dof_coordinates()
+    u = (1e-3 * np.sin(7.0 * X[:, [1, 2, 0]])).ravel()  # mm: slides the contact patch
+    _residual(model, prob, u)
+    assert model.tools.evaluation.size >= 4
+    model.evaluate(prob.u, tangent=True)  # the tangent at the plane's first place
+    h = 1e-6
+    dc = np.array([0.3, -0.2, 1.0])  # mm: the plane's motion (into the particle, sideways)
+    model.tools.translation[0] = h * dc
+    linear = prob.create_vector()
+    model.add_master_motion(linear)
+    plus = _residual(model, prob, u)
+    model.tools.translation[0] = -h * dc
+    minus = _residual(model, prob, u)
+    change = 0.5 * (plus - minus)
+    assert np.linalg.norm(change) > 0
+    assert np.linalg.norm(linear.array - change) < 1e-5 * np.linalg.norm(change)

@@ -557,13 +557,15 @@ class ContactModel:
         r.assemblyBegin()
         r.assemblyEnd()
 
-    def add_image_motion(self, r: PETSc.Vec) -> None:
-        """r += the linearized change of the contact residual as the periodic images move from
-        the shifts of the last evaluation with tangent to the current ones
-        (:meth:`set_periodic_images`): a point whose master is an image shifted further by dS
-        sees its slave moved by -dS, so dr = -K_p[:, slave] dS on the point's nodes (K_p its
-        point tangent). It is the images' part of a load increment's linearization (tied copies
-        carry it in their offsets); zero without images. Collective."""
+    def add_master_motion(self, r: PETSc.Vec) -> None:
+        """r += the linearized change of the contact residual as the masters that the
+        prescribed offsets do not carry move from their place at the last evaluation with
+        tangent to the current one: the periodic images (:meth:`set_periodic_images`; a point
+        whose master is an image shifted further by dS sees its slave moved by -dS, so
+        dr = -K_p[:, slave] dS on the point's nodes, K_p its point tangent) and the rigid tools
+        (:meth:`~.rigid.RigidContact.motion_residual`). It is their part of a load increment's
+        linearization (tied copies carry it in their offsets); zero without images and tools.
+        Collective."""
         dofs, values = np.zeros(0, PETSc.IntType), np.zeros(0)
         if self._point_tangents is not None and self._point_tangents[0].shape[0]:
             K, nodes, shift_id, shift = self._point_tangents
@@ -573,6 +575,10 @@ class ContactModel:
             blocks = self.surface.blocks[nodes[moved]]  # (m, nn)
             dofs = (blocks[:, :, None] * 3 + np.arange(3)).ravel().astype(PETSc.IntType)
             values = dr.ravel()
+        if self.tools is not None:
+            tool_dofs, tool_values = self.tools.motion_residual()
+            dofs = np.concatenate([dofs, tool_dofs]).astype(PETSc.IntType)
+            values = np.concatenate([values, tool_values])
         r.setValues(dofs, values, addv=PETSc.InsertMode.ADD_VALUES)
         r.assemblyBegin()
         r.assemblyEnd()

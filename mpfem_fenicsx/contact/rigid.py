@@ -146,6 +146,8 @@ class RigidContact:
         self.frictional_work = 0.0
         self._force_committed = np.zeros((nt, 3))
         self._coo = (np.zeros(0, PETSc.IntType), np.zeros(0, PETSc.IntType), np.zeros(0))
+        #: the last tangent's point tangents (n, 3, 3), dofs (n, 3), tools and translations
+        self._point_tangents = (np.zeros((0, 3, 3)), np.zeros((0, 3), np.int64), [], None)
 
     # -- motion --------------------------------------------------------------------------------
     def move(self, t: float) -> None:
@@ -253,7 +255,21 @@ class RigidContact:
             rows = np.repeat(dofs, 3, axis=1).ravel()
             cols = np.tile(dofs, (1, 3)).ravel()
             self._coo = (rows.astype(PETSc.IntType), cols.astype(PETSc.IntType), K.ravel())
+            self._point_tangents = (K, dofs, tool, self.translation.copy())
         return self.evaluation
+
+    def motion_residual(self) -> tuple[np.ndarray, np.ndarray]:
+        """Global dof indices and values of the linearized change of the tool contacts' residual
+        as the tools move from their translations at the last tangent to the current ones:
+        a point's tool moved by dc sees its slave moved by -dc, so dr = -K_p dc (K_p the point's
+        3 x 3 tangent). A Newton predictor adds it to the prescribed motion's load, as the
+        periodic images' motion (the tools are not in the prescribed displacements)."""
+        K, dofs, tool, translation = self._point_tangents
+        if translation is None or not K.shape[0]:
+            return np.zeros(0, PETSc.IntType), np.zeros(0)
+        dc = (self.translation - translation)[tool]  # (n, 3) mm
+        dr = -np.einsum("pij,pj->pi", K, dc)
+        return dofs.ravel().astype(PETSc.IntType), dr.ravel()
 
     def _projected_areas(self, slave, normal, facet_area, facet_normal) -> np.ndarray:
         """Tributary area of each point's slave node projected on the tool's tangent plane

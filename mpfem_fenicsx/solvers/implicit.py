@@ -210,8 +210,9 @@ class ImplicitSolver:
         ``drag_frame``: t -> a reference displacement (mm, owned dofs) whose motion the drag lets
         pass, for models without moving offsets (tool-driven volumes: the homogeneous flow
         between the tools, the role the comoving offsets play in a periodic volume): the drag
-        acts on w = u - g - frame(t), and each increment's predictor adds the frame's increment
-        to the free unknowns (a model without couplings: a reduced unknown is its free dof)."""
+        acts on w = u - g - frame(t), and each increment's predictor takes the frame's increment
+        as a load through the drag (a particle its drag holds follows the frame, one its
+        contacts hold follows the tools' motion)."""
         if problem.jacobian_forms is None:
             raise ValueError("the implicit solver needs SolidProblem(..., tangent=True)")
         configure_runtime(problem.comm)
@@ -615,10 +616,11 @@ class ImplicitSolver:
     def solve_increment(self, t_new: float) -> tuple[bool, int]:
         """Newton at time t_new, starting from the tangent predictor.
 
-        Predictor: x = x_n - J_red^-1 P^T (K (g(t_new) - g(t_n)) + dr_images), i.e. the
-        boundary motion (the offsets' and the periodic images', ContactModel.add_image_motion)
-        is spread through the body by the last tangent instead of distorting the boundary layer
-        (the same role as DOLFINx's lifting of incremental Dirichlet values).
+        Predictor: x = x_n - J_red^-1 P^T (K (g(t_new) - g(t_n)) + dr_masters - C df), i.e. the
+        boundary motion (the offsets', the periodic images' and the rigid tools',
+        ContactModel.add_master_motion, and the drag frame's df under the drag C) is spread
+        through the body by the last tangent instead of distorting the boundary layer (the same
+        role as DOLFINx's lifting of incremental Dirichlet values).
         """
         if not self._tangent_valid:
             self._refresh_tangent()
@@ -631,8 +633,12 @@ class ImplicitSolver:
         dg.axpy(-1.0, g_old)
         force = self.K_total.createVecLeft()
         self.K_total.mult(dg, force)
-        if self.contact is not None:  # the periodic images' motion (not in the offsets g)
-            self.contact.add_image_motion(force)
+        if self.contact is not None:  # the images' and tools' motion (not in the offsets g)
+            self.contact.add_master_motion(force)
+        if self.drag_frame is not None and self.regularization is not None:  # towards the frame
+            n = self.constraint.num_owned
+            drag = self.drag_scale * self.regularization.array_r
+            force.array_w[:n] -= drag * (self._frame - frame_old)
         rhs = self.x.duplicate()
         self.constraint.restrict(force, rhs)
         rhs.scale(-1.0)
@@ -641,8 +647,6 @@ class ImplicitSolver:
         dx = self.x.duplicate()
         ksp.solve(rhs, dx)
         self.x.axpy(1.0, dx)
-        if self.drag_frame is not None:  # the frame's motion spread on the free unknowns
-            self.x.array_w[:] += (self._frame - frame_old)[self.constraint.free]
         for vec in (g_old, dg, force, rhs, dx):
             vec.destroy()
         predictor_its = ksp.getIterationNumber()
