@@ -238,6 +238,7 @@ class ImplicitSolver:
         #: factor of the drag's stiffness in the increment being solved: dt0 / dt on a cut
         #: increment, 1 on a full one (and in the tangent kept between increments)
         self.drag_scale = 1.0
+        self._tangent_drag_scale = 1.0  # drag_scale when K_total was last assembled
         self.drag_update = drag_update
         self.drag_frame = drag_frame
         self._frame = self._frame_at(0.0)
@@ -427,6 +428,7 @@ class ImplicitSolver:
     def _assemble_tangent(self) -> bool:
         """Assemble K (and K_total = K + K_contact); True when the sparsity pattern changed."""
         self.problem.assemble_jacobian(self.K)
+        self._tangent_drag_scale = self.drag_scale  # the drag's factor in this tangent
         if self.regularization is not None:
             self.K.axpy(
                 self.drag_scale,
@@ -616,9 +618,10 @@ class ImplicitSolver:
     def solve_increment(self, t_new: float) -> tuple[bool, int]:
         """Newton at time t_new, starting from the tangent predictor.
 
-        Predictor: x = x_n - J_red^-1 P^T (K (g(t_new) - g(t_n)) + dr_masters - C df), i.e. the
-        boundary motion (the offsets', the periodic images' and the rigid tools',
-        ContactModel.add_master_motion, and the drag frame's df under the drag C) is spread
+        Predictor: x = x_n - J_red^-1 P^T ((K - C) dg + dr_masters - C df), i.e. the boundary
+        motion (the offsets' dg = g(t_new) - g(t_n), the periodic images' and the rigid tools',
+        ContactModel.add_master_motion, and the drag frame's df; the drag C acts on
+        u - g - frame, so that the offsets and the frame carry its anchor) is spread
         through the body by the last tangent instead of distorting the boundary layer (the same
         role as DOLFINx's lifting of incremental Dirichlet values).
         """
@@ -635,10 +638,12 @@ class ImplicitSolver:
         self.K_total.mult(dg, force)
         if self.contact is not None:  # the images' and tools' motion (not in the offsets g)
             self.contact.add_master_motion(force)
-        if self.drag_frame is not None and self.regularization is not None:  # towards the frame
+        if self.regularization is not None:
+            # the drag acts on u - g - frame: the offsets' and the frame's motion load it by
+            # -C (dg + df), which also takes back the C dg that K_total's drag put in
             n = self.constraint.num_owned
-            drag = self.drag_scale * self.regularization.array_r
-            force.array_w[:n] -= drag * (self._frame - frame_old)
+            drag = self._tangent_drag_scale * self.regularization.array_r
+            force.array_w[:n] -= drag * (dg.array_r[:n] + (self._frame - frame_old))
         rhs = self.x.duplicate()
         self.constraint.restrict(force, rhs)
         rhs.scale(-1.0)
