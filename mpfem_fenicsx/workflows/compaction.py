@@ -362,10 +362,9 @@ def make_solver(solver: SolverSection, model: CompactionModel, log=print):
     if solver_kind(solver.kind).static:
         log(
             "WARNING: implicit granular runs are experimental: the drag on the particles' cores "
-            "holds them until their contacts do, but Newton takes ~13 iterations per load step "
-            "once contacts yield and the steps shrink as the particles' plastic zones grow "
-            "(the flagship: ~4 h to rho 0.92, against minutes explicit); use the "
-            "explicit solver for production runs"
+            "holds them until their contacts do, and Newton takes ~7 iterations per load step "
+            "once contacts yield (the flagship: ~40 min to rho 0.92, against minutes explicit; "
+            "die paths much longer); use the explicit solver for production runs"
         )
         # backtracking line search: frictional stick / slip switches make full Newton steps cycle
         # (an explicit state relaxed to rest stalled at 1e-1 of its residual without it)
