@@ -176,6 +176,9 @@ class ImplicitSolver:
     counts converged increments, :meth:`run_path` runs the ``controls`` of the path, one per
     segment)."""
 
+    #: drag_scale when K_total was last assembled (the predictor's drag load uses it)
+    _tangent_drag_scale = 1.0
+
     name = "implicit"
 
     def __init__(
@@ -238,7 +241,6 @@ class ImplicitSolver:
         #: factor of the drag's stiffness in the increment being solved: dt0 / dt on a cut
         #: increment, 1 on a full one (and in the tangent kept between increments)
         self.drag_scale = 1.0
-        self._tangent_drag_scale = 1.0  # drag_scale when K_total was last assembled
         self.drag_update = drag_update
         self.drag_frame = drag_frame
         self._frame = self._frame_at(0.0)
