@@ -146,8 +146,9 @@ class RigidContact:
         self.frictional_work = 0.0
         self._force_committed = np.zeros((nt, 3))
         self._coo = (np.zeros(0, PETSc.IntType), np.zeros(0, PETSc.IntType), np.zeros(0))
-        #: the last tangent's point tangents (n, 3, 3), dofs (n, 3), tools and translations
-        self._point_tangents = (np.zeros((0, 3, 3)), np.zeros((0, 3), np.int64), [], None)
+        #: the last tangent's point tangents (n, 3, 3), dofs (n, 3), tools (n,) and translations
+        none = np.zeros(0, np.int64)
+        self._point_tangents = (np.zeros((0, 3, 3)), none.reshape(0, 3), none, np.zeros((nt, 3)))
 
     # -- motion --------------------------------------------------------------------------------
     def move(self, t: float) -> None:
@@ -265,7 +266,7 @@ class RigidContact:
         3 x 3 tangent). A Newton predictor adds it to the prescribed motion's load, as the
         periodic images' motion (the tools are not in the prescribed displacements)."""
         K, dofs, tool, translation = self._point_tangents
-        if translation is None or not K.shape[0]:
+        if not K.shape[0]:
             return np.zeros(0, PETSc.IntType), np.zeros(0)
         dc = (self.translation - translation)[tool]  # (n, 3) mm
         dr = -np.einsum("pij,pj->pi", K, dc)
