@@ -36,6 +36,20 @@ def test_reload_gradient_axis_and_unload():
         reload_gradient(0.0, -1.0)
 
 
+def test_reloads_go_to_whichever_rank_is_free(tmp_path):
+    """Two ranks share a fan's 6 reloads through their claims: each reload is run once, and
+    while rank 0 is busy with a long first reload rank 1 takes every other one."""
+    from mpfem_fenicsx.workflows.yield_surface import claimed_reloads
+
+    rank0 = claimed_reloads(tmp_path / "claims", 6, first=0)
+    rank1 = claimed_reloads(tmp_path / "claims", 6, first=1)
+    assert next(rank0) == 0  # long: rank 0 asks again only once rank 1 is through
+    assert list(rank1) == [1, 2, 3, 4, 5]
+    assert list(rank0) == []
+    # a second fan in the same folder (another claims folder) runs them all again
+    assert list(claimed_reloads(tmp_path / "claims.2", 6, first=1)) == [1, 2, 3, 4, 5, 0]
+
+
 def test_last_crossing_of_non_monotonic_indicator():
     """Gamma decreasing through a level and rising back: first and last crossings differ."""
     g = np.array([5.0, 4.0, 2.0, 1.0, 2.0, 4.0, 6.0])

@@ -16,8 +16,9 @@ Stages (data flow: compaction -> unload -> checkpoint -> fan of reloads -> surfa
    (alpha, sigma_max, stick anchors, W_f: unlike Abaqus in the thesis, no spurious dissipation
    at the restart), each following ``reload_profile`` in time (the thesis' smooth step, or a
    constant strain rate between smooth ramps). Reloads are independent: under ``mpirun -n P``
-   each rank runs every P-th direction on its own communicator (the load and unload run on
-   rank 0 alone, since a checkpoint restarts on the number of ranks that wrote it);
+   each rank takes the next unclaimed direction whenever it is free (:func:`claimed_reloads`) and
+   runs it on its own communicator (the load and unload run on rank 0 alone, since a checkpoint
+   restarts on the number of ranks that wrote it);
 4. **surfaces** (rank 0): yield where E_d first reaches E_0 (1 + ``dissipation_threshold``)
    (iso-dissipation, §4.2.2); iso-Gamma points where the specific contact surface crosses each
    threshold for the last time (§4.3, "le seuil le plus tardif"); Hill's rupture where the
@@ -45,6 +46,8 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
+import shutil
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -548,6 +551,8 @@ def run_yield_surface(
     alone = comm.Split(color=comm.rank, key=0)  # each rank on its own communicator
     unloaded, model = None, None
     if comm.rank == 0:  # the other ranks sleep meanwhile: rank 0 may use every core of the node
+        for stale in out.glob("claims.*"):  # a killed fan's claims
+            shutil.rmtree(stale, ignore_errors=True)
         threads = numba.get_num_threads()
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
         try:
@@ -566,7 +571,8 @@ def run_yield_surface(
     unloaded = comm.bcast(unloaded, root=0)
     t_fan = time.perf_counter()
     quiet = _quiet(log)
-    for k in range(comm.rank, case.nphi, comm.size):
+    claims = out / f"claims.{comm.bcast(time.time_ns() if comm.rank == 0 else None, root=0)}"
+    for k in claimed_reloads(claims, case.nphi, first=comm.rank):
         t0 = time.perf_counter()
         reload = reload_case(case, unloaded, k)
         finished = Path(reload.output.directory) / "done"
@@ -598,6 +604,7 @@ def run_yield_surface(
     reload_wall = time.perf_counter() - t_fan
     result = None
     if comm.rank == 0:
+        shutil.rmtree(claims, ignore_errors=True)
         result = surfaces(case, unloaded, log)
         result.update(
             unloaded=unloaded, reload_wall=reload_wall, wall_time=time.perf_counter() - start
@@ -608,6 +615,23 @@ def run_yield_surface(
         )
     alone.Free()
     return comm.bcast(result, root=0)
+
+
+def claimed_reloads(claims: Path, count: int, first: int = 0):
+    """The reload indices in [0, ``count``) this process claims, one at a time as it asks for
+    the next: each index goes to exactly one of the processes sharing the folder ``claims`` (a
+    file created exclusively per index), so a rank whose reloads are short takes more of them
+    than a rank whose reloads are long. The scan starts at ``first`` (the rank: the first claims
+    go round the ranks) and wraps round."""
+    claims.mkdir(parents=True, exist_ok=True)
+    for i in range(count):
+        k = (first + i) % count
+        try:
+            fd = os.open(claims / f"{k:03d}", os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            continue  # another process has it
+        os.close(fd)
+        yield k
 
 
 def _extend(case, unloaded, k, comm, model, log, quiet):
