@@ -6,6 +6,7 @@
     python bench/walls_vs_periodic.py --table                                # the kept runs
     python bench/walls_vs_periodic.py --mirrored --newton 80   # mirrored meshes (kept apart)
     python bench/walls_vs_periodic.py --refinement 2 --newton 80   # the refined particle
+    python bench/walls_vs_periodic.py --newton 80 --drag 5e-5      # a weaker drag, both
 
 Two realizations of one die compaction (rho pi / 6 -> 0.95): the thesis' periodic cell (CLP by
 copies, `simple_cubic_case("die")`) and its eight spheres in a box of rigid planes on the cell's
@@ -31,6 +32,10 @@ discrete problem too, kept in bench/measured/simple_cubic_walls/mirrored/.
 ``--refinement N``: both realizations on the chapter-2 particle refined N times (its
 subdivisions times N: h / N, the facets' sag inside the sphere / N^2), kept in
 bench/measured/simple_cubic_walls/refined<N>/.
+
+``--drag D``: both Newton realizations with the drag D E V_p / h^2 instead of 5e-4 (kept as
+periodic_newton_s<STEPS>_drag<D>, walls_newton_s<STEPS>_drag<D>): the drag carries a share of
+the load, which a static comparison should see vanish with it.
 """
 
 from __future__ import annotations
@@ -103,11 +108,15 @@ def mark_done(folder: Path) -> None:
 
 
 def run_newton(
-    steps: int, mirrored: bool = False, refinement: int = 1, only: str | None = None
+    steps: int,
+    mirrored: bool = False,
+    refinement: int = 1,
+    only: str | None = None,
+    drag: float = NEWTON_DRAG,
 ) -> tuple[Path, Path]:
-    """Both realizations by Newton in ``steps`` load steps (unless kept; ``only``: one of
-    them), each checkpointed every 5 steps and continued from its newest checkpoint when
-    killed."""
+    """Both realizations by Newton in ``steps`` load steps at the core ``drag`` (unless kept;
+    ``only``: one of them), each checkpointed every 5 steps and continued from its newest
+    checkpoint when killed."""
     from mpi4py import MPI
 
     from mpfem_fenicsx.io.checkpoint import CheckpointError, resolve_checkpoint
@@ -115,7 +124,8 @@ def run_newton(
     from mpfem_fenicsx.workflows.simple_cubic import between_walls, simple_cubic_case
 
     root = kept(mirrored, refinement)
-    periodic, walls = root / f"periodic_newton_s{steps}", root / f"walls_newton_s{steps}"
+    label = f"newton_s{steps}" + ("" if drag == NEWTON_DRAG else f"_drag{drag:g}")
+    periodic, walls = root / f"periodic_{label}", root / f"walls_{label}"
     if only != "walls" and not finished(periodic / "die"):
         case = simple_cubic_case(
             "die", out_dir=str(periodic), visual=False, mirrored=mirrored, refinement=refinement
@@ -123,8 +133,8 @@ def run_newton(
             kind="implicit",
             steps=steps,
             images=True,
-            regularization=NEWTON_DRAG,
-            held_regularization=NEWTON_DRAG,
+            regularization=drag,
+            held_regularization=drag,
             checkpoint_every=5,
             outputs=steps,
         )
@@ -144,7 +154,7 @@ def run_newton(
             solver="implicit",
             steps=steps,
             outputs=steps,
-            regularization=NEWTON_DRAG,
+            regularization=drag,
             mirrored=mirrored,
             refinement=refinement,
             checkpoint_every=5,
@@ -283,6 +293,9 @@ def main(argv=None) -> None:
         default=None,
         help="--newton: run only this realization (the two side by side in two processes)",
     )
+    parser.add_argument(
+        "--drag", type=float, default=NEWTON_DRAG, help="--newton: the core drag (E V_p / h^2)"
+    )
     parser.add_argument("--table", action="store_true", help="only the table of the kept runs")
     parser.add_argument(
         "--mirrored", action="store_true", help="particle meshes mirrored across the contact planes"
@@ -293,6 +306,8 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     if not 1 <= args.refinement <= 4:
         parser.error(f"--refinement {args.refinement} must be in [1, 4]")
+    if not 0 < args.drag <= 1:
+        parser.error(f"--drag {args.drag} must be in (0, 1]")
     m, r = args.mirrored, args.refinement
     if not args.table:
         for n in args.periodic:
@@ -300,7 +315,7 @@ def main(argv=None) -> None:
         for n in args.walls:
             run_walls(n, args.frame, m, r)
         for n in args.newton:
-            run_newton(n, m, r, args.only)
+            run_newton(n, m, r, args.only, args.drag)
     print(table(m, r))
 
 
