@@ -35,7 +35,7 @@ bench/measured/simple_cubic_walls/refined<N>/.
 
 ``--drag D``: both Newton realizations with the drag D E V_p / h^2 instead of 5e-4 (kept as
 periodic_newton_s<STEPS>_drag<D>, walls_newton_s<STEPS>_drag<D>): the drag carries a share of
-the load, which a static comparison should see vanish with it.
+the load and regularizes the static path, so two drags show how far each path depends on it.
 """
 
 from __future__ import annotations
