@@ -122,7 +122,9 @@ class FanClock:
 def share_loading(source: Path, run_dir: Path, say) -> None:
     """Start a fan from the finished load and unload of ``source`` (the same path, other reloads):
     its packing, unload checkpoint and ``unloaded.json`` are copied (the fan then resumes at its
-    reloads). Nothing is copied if ``source`` has no unloaded state or ``run_dir`` has its own."""
+    reloads). Nothing is copied if ``source`` has no unloaded state, its checkpoint is gone (a
+    fresh clone keeps the fans' summaries only), or ``run_dir`` has its own: the fan then loads
+    and unloads itself."""
     import json
     import shutil
 
@@ -130,6 +132,9 @@ def share_loading(source: Path, run_dir: Path, say) -> None:
         return
     state = json.loads((source / "unloaded.json").read_text())
     checkpoint = Path(state["checkpoint"])
+    if not checkpoint.exists() or not (source / "load" / "packing.txt").exists():
+        say(f"{run_dir.name}: {source.name}'s unload checkpoint is gone, loading afresh")
+        return
     stage = checkpoint.parent.parent.name  # <fan>/<stage>/checkpoints/stepN: unload (or settle)
     (run_dir / "load").mkdir(parents=True, exist_ok=True)
     shutil.copy2(source / "load" / "packing.txt", run_dir / "load" / "packing.txt")
