@@ -192,6 +192,39 @@ def test_driver_triaxial_path_holds_the_confinement_and_fails_on_the_shear_line(
     assert state.eps_v_pl < 0  # the shear potential dilates
 
 
+def test_triaxial_round_trip_reads_the_run_and_replays_the_shear_line():
+    from mpfem_fenicsx.workflows.calibration import replay_triaxial
+
+    # a synthetic triaxial run: isotropic consolidation to 0.5 MPa, held, then 10 % axial
+    # compression from t = 1.3e-3 s with the lateral stresses at 0.5 MPa and the axial stress
+    # on the shear line's value from 1 % on (an elastic ramp before)
+    model = _model(5e3, p_b=(3.0, 80.0), eps=(0.0, 0.5))
+    s = model.surface(0.7, 0.0)
+    line = 0.5 + (s.d + 0.5 * s.tan_beta) / (1 - s.tan_beta / 3)
+    t_c = np.linspace(0.0, 1.3e-3, 27)[:-1]
+    e = np.linspace(0.0, 0.1, 101)
+    f_c = np.exp(-0.01 * t_c / 1.3e-3)
+    history = {
+        "time": np.concatenate([t_c, 1.3e-3 + 1e-5 * np.arange(101)]),
+        "F33": np.concatenate([f_c, 0.99 * np.exp(-e)]),
+        "sigma11": np.concatenate([0.5 * t_c / 1.3e-3, np.full(101, 0.5)]),
+        "sigma33": np.concatenate([0.5 * t_c / 1.3e-3, np.interp(e, [0, 0.01], [0.5, line])]),
+    }
+    history["sigma22"] = history["sigma11"]
+    history["rho"] = 0.61 / np.concatenate([f_c, 0.99 * np.exp(-e)]) ** 3
+    rows = replay_triaxial(model, history, axial_start=1.3e-3)
+    assert [r["axial_strain"] for r in rows] == [0.01, 0.02, 0.04, 0.06, 0.08, 0.10]
+    for r in rows:
+        assert r["confining"] == pytest.approx(0.5)
+        # the model: perfectly plastic on the shear line at this confinement (the analytic
+        # point), the particles' value read at the same axial strain
+        assert r["sigma_axial_model"] == pytest.approx(line, rel=1e-6)
+        assert r["sigma_axial_particles"] == pytest.approx(line, rel=1e-9)
+        assert r["density"] == pytest.approx(0.61 / (0.99 * math.exp(-r["axial_strain"])) ** 3)
+    with pytest.raises(ValueError, match="axial start"):
+        replay_triaxial(model, history, axial_start=3e-3)
+
+
 def test_reload_moduli_of_an_elastic_fan():
     from mpfem_fenicsx.calibration import reload_moduli
 

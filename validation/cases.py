@@ -223,6 +223,34 @@ def chapter4_case() -> Case:
     return Case(f"{base.name}_chapter4", {**base.options, "resolution": "chapter4"})
 
 
+#: the calibration's triaxial test: confining pressure (MPa, near the isotropic sigma_m at rho
+#: 0.79, the first fan's density) and axial strain
+TRIAXIAL_CONFINING = 3.5
+TRIAXIAL_AXIAL_STRAIN = 0.10
+
+
+def triaxial_case(confining: float = TRIAXIAL_CONFINING) -> Case:
+    """The adhesive periodic volume of the fans (CLP, gamma 1e-2) consolidated isotropically to
+    ``confining`` MPa, then compressed along z by ``TRIAXIAL_AXIAL_STRAIN`` with the lateral
+    stresses held (``StressPath`` "triaxial", the servo of ``demos/triaxial.py``): the path the
+    calibrated continuum models replay beside the isotropic and die curves."""
+    from mpfem_fenicsx.case import LoadingSection
+    from mpfem_fenicsx.loading.stress_paths import StressPath
+    from mpfem_fenicsx.parameters import parameter_default
+
+    path = StressPath(
+        path="triaxial",
+        pressure=confining,
+        axial_strain=TRIAXIAL_AXIAL_STRAIN,
+        band_fraction=0.15,
+    )
+    control = path.control(parameter_default(LoadingSection, "duration"))
+    return Case(
+        f"triaxial_CLP_gamma1e-2_{confining:g}MPa",
+        dict(condition="CLP", gamma=1e-2, control=control, outputs=120),
+    )
+
+
 def hardening_case(n: float) -> Case:
     """Die CLP compaction with the hardening exponent of the thesis' input file (0.36; table 2.1
     and the library: 0.35)."""
@@ -422,6 +450,7 @@ STAGES = {
         fan_case(
             "isotropic", 0.79, min_reload_increments=3600, reference="fan_isotropic_0.79_n1200"
         ),
+        triaxial_case(),
     ],
 }
 #: every case of every stage by name

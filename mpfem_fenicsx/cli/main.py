@@ -141,8 +141,8 @@ def _parser() -> argparse.ArgumentParser:
         "(cap_model.json / .csv, clay_model.json / .csv), its Abaqus fragment (cap_model.inp: "
         "*ELASTIC, *CAP PLASTICITY, *CAP HARDENING; clay_model.inp: *ELASTIC, *CLAY PLASTICITY, "
         "*CLAY HARDENING in compression and tension; field variable 1 = relative density) and "
-        "calibration.png, and replay the isotropic (and die) path with a material-point driver "
-        "of each model against the particles (round_trip.csv).",
+        "calibration.png, and replay the isotropic (and die, triaxial) paths with a "
+        "material-point driver of each model against the particles (round_trip.csv).",
     )
     cal.add_argument(
         "--fan",
@@ -157,6 +157,18 @@ def _parser() -> argparse.ArgumentParser:
         "--isotropic", required=True, help="history.csv of the isotropic compaction (hardening)"
     )
     cal.add_argument("--die", default=None, help="history.csv of a die compaction (round trip)")
+    cal.add_argument(
+        "--triaxial",
+        default=None,
+        help="history.csv of a triaxial test (demos/triaxial.py; round trip of its axial stress)",
+    )
+    cal.add_argument(
+        "--axial-start",
+        type=float,
+        default=None,
+        help="time (s) at which the triaxial test's axial compression starts (default: after "
+        "the default consolidation ramp and hold, 1.3e-3 s)",
+    )
     cal.add_argument("--alpha", type=float, default=0.01, help="transition parameter alpha")
     cal.add_argument("--out", required=True, help="folder for the model and the figures")
     return p
@@ -355,7 +367,9 @@ def _calibrate(args, comm) -> None:
             if not (Path(folder) / needed).is_file():
                 raise _Exit(BAD_INPUT, f"--fan {folder}: no {needed} (not a fan's results folder)")
         fans[density] = Path(folder)
-    for name in ("isotropic", "die"):
+    if args.axial_start is not None and not args.axial_start > 0.0:
+        raise _Exit(BAD_INPUT, f"--axial-start {args.axial_start:g}: must be > 0 (s)")
+    for name in ("isotropic", "die", "triaxial"):
         path = getattr(args, name)
         if path is not None and not Path(path).is_file():
             raise _Exit(BAD_INPUT, f"--{name} {path}: no such history file")
@@ -369,6 +383,8 @@ def _calibrate(args, comm) -> None:
             die=None if args.die is None else Path(args.die),
             alpha=args.alpha,
             log=say,
+            triaxial=None if args.triaxial is None else Path(args.triaxial),
+            axial_start=args.axial_start,
         )
     except ValueError as err:
         raise _Exit(BAD_INPUT, str(err)) from None

@@ -18,9 +18,12 @@ Stages (data flow: fans + compaction curves -> fit -> models -> fragments -> rou
    ``<model>_model.csv`` (the parameters by density with each fit's misfit),
    ``<model>_model.inp`` (the Abaqus fragment, field variable 1 = relative density);
 5. **round trip**: the material-point driver runs each model along the isotropic path (and the
-   die path when a die history is given) to the particle runs' end density; ``round_trip.csv``
-   lists, at each reported density, sigma_m of the model and of the particles (and the die's
-   radial / axial stress ratio), and ``calibration.png`` shows the points with both fits.
+   die path when a die history is given) to the particle runs' end density, and along the
+   triaxial test when its history is given (consolidated to its confining pressure, then
+   compressed axially with the lateral stresses held); ``round_trip.csv`` lists, at each
+   reported density, sigma_m of the model and of the particles (and the die's radial / axial
+   stress ratio), at each reported axial strain the triaxial test's axial stress, and
+   ``calibration.png`` shows the points with both fits.
 
 Units mm, N, MPa; stresses compression > 0.
 """
@@ -135,6 +138,64 @@ def replay(model: ContinuumModel, history: dict[str, np.ndarray], path: str, inc
     return out
 
 
+#: the axial strains (compression > 0) at which the triaxial round trip compares the stresses
+TRIAXIAL_STRAINS = (0.01, 0.02, 0.04, 0.06, 0.08, 0.10)
+
+
+def axial_phase(history: dict[str, np.ndarray], axial_start: float) -> tuple[int, float]:
+    """The row that starts a triaxial run's axial compression (its first row at time >=
+    ``axial_start``, s) and the confining pressure: the lateral stresses' median over that
+    phase (MPa, compression > 0)."""
+    rows = np.flatnonzero(history["time"] >= axial_start * (1.0 - 1e-9))
+    if len(rows) < 3:
+        raise ValueError(
+            f"triaxial: {len(rows)} rows at time >= axial start {axial_start:g} s: need >= 3 "
+            "(not a triaxial run, or its axial phase unfinished)"
+        )
+    lateral = 0.5 * (history["sigma11"][rows] + history["sigma22"][rows])
+    return int(rows[0]), float(np.median(lateral))
+
+
+def replay_triaxial(model, history: dict[str, np.ndarray], axial_start: float, increments=400):
+    """The model along a triaxial test: consolidated isotropically to the particle run's
+    confining pressure, then compressed axially to the run's end axial strain -ln(F33 /
+    F33_start) with the lateral stresses held at that pressure. Rows at
+    :data:`TRIAXIAL_STRAINS` within the run: the axial stress sigma_33 of the model and of the
+    particles (MPa, compression > 0) and the densities."""
+    start, confining = axial_phase(history, axial_start)
+    axial = -np.log(history["F33"][start:] / history["F33"][start])  # compression > 0
+    # consolidation: the isotropic strain at which the model's sigma_m reaches the pressure
+    reach = math.log(max(history["rho"][-1], history["rho"][start]) / model.density_0) + 0.1
+    probe, _ = drive(model, -reach * np.full(3, 1.0 / 3.0), increments=increments)
+    if probe["sigma_m"][-1] < confining:
+        raise ValueError(f"triaxial: the model does not reach the confining {confining:g} MPa")
+    density = float(np.interp(confining, probe["sigma_m"], probe["density"]))
+    strain_v = math.log(density / model.density_0)
+    _, state = drive(model, -strain_v * np.full(3, 1.0 / 3.0), increments=increments)
+    end = state.strain + np.array([0.0, 0.0, -float(axial[-1])])
+    rows, _ = drive(model, end, (confining, confining, None), increments, state)
+    model_axial = float(axial[-1]) * np.arange(1, increments + 1) / increments
+    out = []
+    for e in TRIAXIAL_STRAINS:
+        if not 0.0 < e <= axial[-1] * (1.0 + 1e-9):
+            continue
+        out.append(
+            {
+                "path": "triaxial",
+                "density": float(np.interp(e, axial, history["rho"][start:])),
+                "axial_strain": e,
+                "confining": confining,
+                "sigma_axial_model": float(np.interp(e, model_axial, rows["sigma_3"])),
+                "sigma_axial_particles": float(np.interp(e, axial, history["sigma33"][start:])),
+                "density_model": float(np.interp(e, model_axial, rows["density"])),
+                "beyond_hardening": bool(
+                    np.interp(e, model_axial, rows["eps_v_pl"]) > model.hardening[1][-1]
+                ),
+            }
+        )
+    return out
+
+
 def die_calibrated_cap(fitted: ContinuumModel, die: dict[str, np.ndarray], fans: dict[float, Path]):
     """The cap model whose cap follows the die path (:func:`~mpfem_fenicsx.calibration.die_cap`
     at every 0.01 of relative density where the die's sigma_m exceeds 5 % of its end value):
@@ -174,10 +235,15 @@ def calibrate(
     die: Path | None = None,
     alpha: float = 0.01,
     log=print,
+    triaxial: Path | None = None,
+    axial_start: float | None = None,
 ) -> Calibration:
     """Fit, export and replay both models (see the module). ``fans``: relative density -> fan
-    directory (``surfaces.csv``, ``fan.csv``); ``isotropic`` / ``die``: the particle runs'
-    history.csv."""
+    directory (``surfaces.csv``, ``fan.csv``); ``isotropic`` / ``die`` / ``triaxial``: the
+    particle runs' history.csv; ``axial_start``: the time (s) at which the triaxial run's axial
+    compression starts (default: after the ramp and hold of ``StressPath``'s defaults)."""
+    if triaxial is not None and axial_start is None:
+        axial_start = default_axial_start()
     if len(fans) < 1:
         raise ValueError("fans: need >= 1 fan (density -> directory)")
     out.mkdir(parents=True, exist_ok=True)
@@ -205,9 +271,24 @@ def calibrate(
         write_model(name, model, fits[name], out)
         for path, history in curves.items():
             trip += [{"model": name, **r} for r in replay(model, history, path)]
+        if triaxial is not None:
+            rows = replay_triaxial(model, read_csv(triaxial), axial_start)
+            trip += [{"model": name, **r} for r in rows]
     write_round_trip(trip, out / "round_trip.csv", log)
     plot_fits(models, fans, out / "calibration.png")
     return Calibration(models, fits, trip)
+
+
+def default_axial_start() -> float:
+    """The time (s) at which a triaxial ``StressPath`` with its default ramp and hold starts its
+    axial compression, for the default loading duration."""
+    from ..case import LoadingSection
+    from ..loading.stress_paths import StressPath
+    from ..parameters import parameter_default
+
+    duration = parameter_default(LoadingSection, "duration")
+    ramp, hold = (parameter_default(StressPath, name) for name in ("ramp", "hold"))
+    return (ramp + hold) * duration
 
 
 def _describe(row: CalibratedDensity, figures: dict) -> str:
@@ -256,12 +337,22 @@ def write_model(name: str, model: ContinuumModel, fits: dict, out: Path) -> None
 def write_round_trip(trip: list[dict], path: Path, log=print) -> None:
     """round_trip.csv and one log line per row."""
     keys = ["model", "path", "density", "sigma_m_model", "sigma_m_particles"]
-    keys += ["ratio_model", "ratio_particles", "beyond_hardening"]
+    keys += ["ratio_model", "ratio_particles", "axial_strain", "confining"]
+    keys += ["sigma_axial_model", "sigma_axial_particles", "density_model", "beyond_hardening"]
     with open(path, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=keys)
         writer.writeheader()
         writer.writerows(trip)
     for r in trip:
+        if r["path"] == "triaxial":
+            log(
+                f"[round trip] {r['model']} triaxial ({r['confining']:.2f} MPa) axial strain "
+                f"{r['axial_strain']:.2f}: sigma_33 model {r['sigma_axial_model']:.3f} / "
+                f"particles {r['sigma_axial_particles']:.3f} MPa "
+                f"({100 * (r['sigma_axial_model'] / r['sigma_axial_particles'] - 1):+.1f} %)"
+                + (" (beyond the calibrated hardening: p_b held)" if r["beyond_hardening"] else "")
+            )
+            continue
         line = (
             f"[round trip] {r['model']} {r['path']} rho {r['density']:.2f}: sigma_m model "
             f"{r['sigma_m_model']:.3f} / particles {r['sigma_m_particles']:.3f} MPa "
