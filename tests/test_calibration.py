@@ -225,6 +225,48 @@ def test_triaxial_round_trip_reads_the_run_and_replays_the_shear_line():
         replay_triaxial(model, history, axial_start=3e-3)
 
 
+def test_die_point_is_where_the_driver_loads_the_cap_under_uniaxial_strain():
+    from mpfem_fenicsx.calibration import die_point
+    from mpfem_fenicsx.calibration.driver import drive
+
+    # the driver's return mapping (nearly rigid elasticity) against the root of the normal
+    model = _model(1e6)
+    rows, state = drive(model, [0, 0, -0.3], increments=200)
+    p, t = die_point(model.surface(0.7, state.eps_v_pl))
+    assert rows["sigma_m"][-1] == pytest.approx(p, rel=1e-3)
+    assert rows["sigma_tilde_d"][-1] == pytest.approx(t, rel=1e-3)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_paths_cap_recovers_a_cap_consistent_with_both_curves(seed):
+    from mpfem_fenicsx.calibration import die_point, paths_cap
+
+    rng = np.random.default_rng(seed)
+    true = CapSurface(
+        d=rng.uniform(1.0, 4.0),
+        beta=rng.uniform(30.0, 55.0),
+        R=rng.uniform(0.6, 1.8),
+        p_b=rng.uniform(3.0, 10.0),
+        alpha=0.01,
+    )
+    p, t = die_point(true)
+    shear = CapSurface(d=true.d, beta=true.beta, R=0.3, p_b=1.0, alpha=0.01)
+    surface, errors = paths_cap(shear, true.p_b, p, t)
+    assert surface.R == pytest.approx(true.R, rel=1e-4)
+    assert surface.p_b == pytest.approx(true.p_b, rel=1e-4)
+    assert max(abs(e) for e in errors.values()) < 1e-5
+    # curves no cap honours at once: the misfit shared, no error beyond the die cap's worst
+    surface, errors = paths_cap(shear, 0.85 * true.p_b, p, t)
+    p_model, t_model = die_point(surface)  # the three errors, read off the surface
+    ratio = (p - t / 3) / (p + 2 * t / 3)
+    ratio_model = (p_model - t_model / 3) / (p_model + 2 * t_model / 3)
+    own = [surface.p_b / (0.85 * true.p_b) - 1, p_model / p - 1, ratio_model / ratio - 1]
+    assert list(errors.values()) == pytest.approx(own, abs=1e-9)
+    worst = max(abs(e) for e in own)
+    assert 0.0 < worst < abs(true.p_b / (0.85 * true.p_b) - 1.0)
+    assert all(abs(e) == pytest.approx(worst, rel=1e-3) for e in own)
+
+
 def test_reload_moduli_of_an_elastic_fan():
     from mpfem_fenicsx.calibration import reload_moduli
 
@@ -259,7 +301,7 @@ def test_mpfem_calibrate_writes_the_model_and_replays_the_particle_paths(tmp_pat
     import csv
     import json
 
-    for model in ("cap", "clay", "cap_die"):
+    for model in ("cap", "clay", "cap_die", "cap_paths"):
         for ext in ("json", "csv", "inp"):
             assert (tmp_path / f"{model}_model.{ext}").is_file(), (model, ext)
     assert (tmp_path / "calibration.png").stat().st_size > 10_000
@@ -305,6 +347,12 @@ def test_mpfem_calibrate_writes_the_model_and_replays_the_particle_paths(tmp_pat
         assert float(r["ratio_model"]) == pytest.approx(float(r["ratio_particles"]), 0.01)
     iso = [r for r in trip if r["model"] == "cap_die" and r["path"] == "isotropic"]
     assert all(r["beyond_hardening"] == "True" for r in iso if float(r["density"]) > 0.9)
+    # the cap calibrated on both curves: within 10 % of both where the fans' shear line holds
+    for r in trip:
+        if r["model"] == "cap_paths" and 0.75 <= float(r["density"]) <= 0.85:
+            assert float(r["sigma_m_model"]) == pytest.approx(float(r["sigma_m_particles"]), 0.1)
+            if r["path"] == "die":
+                assert float(r["ratio_model"]) == pytest.approx(float(r["ratio_particles"]), 0.1)
     assert "[round trip] clay die rho 0.85" in capsys.readouterr().out
 
 

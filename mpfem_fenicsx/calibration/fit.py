@@ -22,7 +22,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq, least_squares
+from scipy.optimize import brentq, least_squares, minimize
 
 from .cap import CapSurface
 from .clay import ClaySurface
@@ -223,3 +223,75 @@ def die_cap(shear: CapSurface, sigma_m: float, sigma_tilde_d: float) -> CapSurfa
                 d=shear.d, beta=shear.beta, R=R, p_b=p_a + R * D, alpha=shear.alpha, K=shear.K
             )
     raise ValueError(f"die stress ({p:g}, {t:g}) MPa: no cap on this shear line passes there")
+
+
+def die_point(surface: CapSurface) -> tuple[float, float]:
+    """The stress (sigma_m, sigma~_d; MPa) on the cap of ``surface`` whose normal gives a
+    uniaxial plastic strain, d eps_q^p / d eps_v^p = 2/3: where a die compaction loads the cap
+    when the elastic increments are neglected. Raises ``ValueError`` when the cap has none."""
+    c = 1.0 + surface.alpha - surface.alpha / math.cos(math.radians(surface.beta))
+    p_a, p_b, k = surface.p_a, surface.p_b, (surface.R / c) ** 2
+
+    def flow(p):  # d eps_q / d eps_v - 2/3 along the cap: from +inf at p_a to -2/3 at p_b
+        return k * float(surface.t(p)) / (p - p_a) - 2.0 / 3.0
+
+    span = p_b - p_a
+    low, high = p_a + 1e-12 * span, p_b - 1e-12 * span
+    if not (span > 0.0 and flow(low) > 0.0 > flow(high)):
+        raise ValueError(f"the cap of {surface} has no point of uniaxial plastic strain")
+    p = brentq(flow, low, high, xtol=1e-14 * span, rtol=1e-14)
+    return p, float(surface.t(p))
+
+
+def die_ratio(sigma_m, sigma_tilde_d):
+    """Radial / axial stress of a die compaction from its (sigma_m, sigma~_d), axial the larger:
+    (sigma_m - sigma~_d / 3) / (sigma_m + 2 sigma~_d / 3)."""
+    return (sigma_m - sigma_tilde_d / 3.0) / (sigma_m + 2.0 * sigma_tilde_d / 3.0)
+
+
+def paths_cap(shear: CapSurface, p_iso: float, sigma_m: float, sigma_tilde_d: float):
+    """The cap on the shear line of ``shear`` (d, beta, alpha, K kept) calibrated on the two
+    compaction curves at one density: its hydrostatic yield p_b against the isotropic curve's
+    sigma_m ``p_iso``, and its die stress (:func:`die_point`) against the die curve's
+    (``sigma_m``, ``sigma_tilde_d``) in mean stress and in radial / axial ratio. R and p_b
+    minimize the largest of these three relative errors (elastic increments neglected).
+    Returns the surface and the errors {"isotropic", "die_sigma_m", "die_ratio"} (model /
+    particles - 1)."""
+    if not (p_iso > 0.0 and sigma_m > 0.0 and sigma_tilde_d > 0.0):
+        raise ValueError(
+            f"paths_cap: p_iso = {p_iso:g}, die ({sigma_m:g}, {sigma_tilde_d:g}) MPa: "
+            "all must be > 0"
+        )
+    ratio = die_ratio(sigma_m, sigma_tilde_d)
+
+    def errors(x):
+        surface = CapSurface(
+            d=shear.d,
+            beta=shear.beta,
+            R=math.exp(x[0]),
+            p_b=p_iso * math.exp(x[1]),
+            alpha=shear.alpha,
+            K=shear.K,
+        )
+        p, t = die_point(surface)
+        return surface, {
+            "isotropic": surface.p_b / p_iso - 1.0,
+            "die_sigma_m": p / sigma_m - 1.0,
+            "die_ratio": die_ratio(p, t) / ratio - 1.0,
+        }
+
+    def worst(x):
+        try:
+            return max(abs(e) for e in errors(x)[1].values())
+        except ValueError:  # no cap (R, p_b) of that size on this shear line
+            return 1e3
+
+    start = die_cap(shear, sigma_m, sigma_tilde_d)  # the die exact, the isotropic curve not
+    # the minimax over (ln R, ln p_b): a grid in R (each R's best p_b scale by bisection on the
+    # balance of the isotropic and die errors is not monotone enough), then the simplex
+    best = min(
+        ([math.log(r), s] for r in start.R * np.geomspace(0.5, 3.0, 25) for s in (0.0, 0.05, 0.1)),
+        key=worst,
+    )
+    result = minimize(worst, best, method="Nelder-Mead", options={"xatol": 1e-8, "fatol": 1e-10})
+    return errors(result.x)

@@ -51,6 +51,7 @@ from ..calibration import (
     fit_clay,
     hardening_table,
     isotropic_hardening,
+    paths_cap,
     reload_moduli,
 )
 from ..io.history import read_csv
@@ -204,6 +205,53 @@ def die_calibrated_cap(fitted: ContinuumModel, die: dict[str, np.ndarray], fans:
     the die's plastic volumetric strain ln(rho / rho_0) - sigma_m / bulk. Returns the model
     and, by density, the die stress and, at the fans' densities, the surface's misfit to the
     fan."""
+
+    def cap_at(rho, shear, sigma_m, s_d):
+        return die_cap(shear, sigma_m, s_d), {}, sigma_m
+
+    return _cap_along_die(fitted, die, fans, cap_at)
+
+
+def paths_calibrated_cap(
+    fitted: ContinuumModel,
+    die: dict[str, np.ndarray],
+    fans: dict[float, Path],
+    isotropic: dict[str, np.ndarray],
+):
+    """The cap model calibrated on both compaction curves
+    (:func:`~mpfem_fenicsx.calibration.paths_cap` at the densities of
+    :func:`die_calibrated_cap` inside the isotropic curve's range): the shear line, K and the
+    moduli of ``fitted``; R and p_b sharing the misfit equally among the isotropic curve's
+    sigma_m and the die's sigma_m and radial / axial ratio; the hardening p_b against the
+    plastic volumetric strain ln(rho / rho_0) - p_b / bulk of the isotropic path. Returns the
+    model and, by density, the die stress, the three errors and, at the fans' densities, the
+    surface's misfit to the fan."""
+    inside = die["rho"] <= isotropic["rho"][-1]
+    die = {k: v[inside] for k, v in die.items()}
+
+    def cap_at(rho, shear, sigma_m, s_d):
+        p_iso = float(np.interp(rho, isotropic["rho"], isotropic["sigma_m"]))
+        surface, errors = paths_cap(shear, p_iso, sigma_m, s_d)
+        return surface, {f"error_{k}": v for k, v in errors.items()}, surface.p_b
+
+    model, figures = _cap_along_die(fitted, die, fans, cap_at)
+    # beyond the die curve's end, the hardening follows the isotropic curve at the last
+    # density's ratio p_b / sigma_m (its shape held)
+    last = model.rows[-1]
+    scale = 1.0 + figures[last.density]["error_isotropic"]
+    beyond = np.arange(last.density + 0.01, isotropic["rho"][-1] + 1e-9, 0.01)
+    p_b = scale * np.interp(beyond, isotropic["rho"], isotropic["sigma_m"])
+    bulk = np.array([fitted.elastic(float(rho))[0] for rho in beyond])
+    eps = np.log(beyond / model.density_0) - p_b / bulk
+    extended = zip(model.hardening, (p_b, eps), strict=True)
+    hardening = tuple(np.concatenate([h, x]) for h, x in extended)
+    return ContinuumModel(model.rows, hardening, model.density_0), figures
+
+
+def _cap_along_die(fitted, die, fans, cap_at):
+    """The cap model of ``cap_at(rho, shear, die sigma_m, die sigma~_d)`` -> (surface, figures,
+    the mean stress whose elastic part leaves the plastic volumetric strain) at every 0.01 of
+    the die's density where its sigma_m exceeds 5 % of its end value, and at the fans'."""
     rho0 = float(die["rho"][0])
     start = die["rho"][np.argmax(die["sigma_m"] > 0.05 * die["sigma_m"][-1])]
     densities = np.arange(math.ceil(start * 100) / 100, die["rho"][-1], 0.01)
@@ -213,13 +261,13 @@ def die_calibrated_cap(fitted: ContinuumModel, die: dict[str, np.ndarray], fans:
     for rho in densities:
         sigma_m = float(np.interp(rho, die["rho"], die["sigma_m"]))
         s_d = float(np.interp(rho, die["rho"], die["sigma_tilde_d"]))
-        # the fitted shear line at this density (its cap's size is replaced by die_cap)
-        surface = die_cap(fitted.surface(float(rho), 0.0), sigma_m, s_d)
+        # the fitted shear line at this density (its cap is replaced)
+        surface, more, p_elastic = cap_at(float(rho), fitted.surface(float(rho), 0.0), sigma_m, s_d)
         bulk, shear = fitted.elastic(float(rho))
         rows.append(CalibratedDensity(float(rho), surface, *elastic_constants(bulk, shear)))
         p_b.append(surface.p_b)
-        eps.append(math.log(rho / rho0) - sigma_m / bulk)
-        figures[float(rho)] = {"die_sigma_m": sigma_m, "die_sigma_tilde_d": s_d}
+        eps.append(math.log(rho / rho0) - p_elastic / bulk)
+        figures[float(rho)] = {"die_sigma_m": sigma_m, "die_sigma_tilde_d": s_d, **more}
         if float(rho) in fans:
             figures[float(rho)]["fan_deviatoric_rms"] = deviatoric_misfit(
                 surface, *yield_points(Path(fans[float(rho)]))
@@ -260,12 +308,16 @@ def calibrate(
     models = {name: build_model(rows[name], curves["isotropic"]) for name in MODELS}
     if die is not None:
         models["cap_die"], fits["cap_die"] = die_calibrated_cap(models["cap"], curves["die"], fans)
-        for density, figures in sorted(fits["cap_die"].items()):
-            if "fan_deviatoric_rms" in figures:
-                log(
-                    f"[fit] cap_die rho {density:.3f}: the cap through the die path misses the "
-                    f"fan by {100 * figures['fan_deviatoric_rms']:.1f} % (deviatoric)"
-                )
+        models["cap_paths"], fits["cap_paths"] = paths_calibrated_cap(
+            models["cap"], curves["die"], fans, curves["isotropic"]
+        )
+        for name, what in (("cap_die", "through the die path"), ("cap_paths", "of both paths")):
+            for density, figures in sorted(fits[name].items()):
+                if "fan_deviatoric_rms" in figures:
+                    log(
+                        f"[fit] {name} rho {density:.3f}: the cap {what} misses the fan by "
+                        f"{100 * figures['fan_deviatoric_rms']:.1f} % (deviatoric)"
+                    )
     trip = []
     for name, model in models.items():
         write_model(name, model, fits[name], out)
