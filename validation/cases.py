@@ -91,8 +91,16 @@ class Case:
 
     @property
     def increments(self) -> int:
-        """Explicit increments of the run."""
-        return self.options.get("increments", CHAPTER2_SETUP["increments"])
+        """Explicit increments of the run (a stress-controlled run's ``increments`` are per
+        loading duration: its control lasts longer)."""
+        n = self.options.get("increments", CHAPTER2_SETUP["increments"])
+        control = self.options.get("control")
+        if control is None:
+            return n
+        from mpfem_fenicsx.case import LoadingSection
+        from mpfem_fenicsx.parameters import parameter_default
+
+        return round(n * control.duration / parameter_default(LoadingSection, "duration"))
 
     def compaction_case(self, out_dir: str):
         """The ``CompactionCase``: the chapter-2 set-up with this case's options, in ``out_dir``."""
@@ -383,6 +391,36 @@ def fan_case(
     )
 
 
+#: the campaign's densities after each loading (rows of thesis table 4.2) and the reload
+#: increments of its two rates at A = 1.5 h_v^d (the die fans, at 3 h_v^d, twice these)
+CALIBRATION_DENSITIES = {"isotropic": (0.70, 0.79, 0.87), "die": (0.75, 0.82, 0.89)}
+CALIBRATION_INCREMENTS = (1200, 3600)
+CALIBRATION_ISO_079 = "fan_isotropic_0.79_n1200"  # the fans stage's, its faster rate
+
+
+def calibration_fans() -> list[FanCase]:
+    """The campaign's fans but the 0.79 isotropic ones (in the fans stage, and listed first in
+    the calibration stage): each density at both rates, the slower compared with the faster."""
+    fans = []
+    for loading, densities in CALIBRATION_DENSITIES.items():
+        factor = 1.0 if loading == "isotropic" else 2.0
+        for rho in densities:
+            if loading == "isotropic" and rho == 0.79:
+                continue
+            fast, slow = (int(factor * n) for n in CALIBRATION_INCREMENTS)
+            amplitude = 1.5 * factor
+            first = fan_case(loading, rho, amplitude_factor=amplitude, min_reload_increments=fast)
+            second = fan_case(
+                loading,
+                rho,
+                amplitude_factor=amplitude,
+                min_reload_increments=slow,
+                reference=first.name,
+            )
+            fans += [first, second]
+    return fans
+
+
 #: stage -> cases; `python validation/run.py STAGE` runs them, each stage on its own
 STAGES = {
     "die": [die_case(bc) for bc in ("CLP", "CLPS", "GDF", "GDH")] + [exact_volume_die_case()],
@@ -444,13 +482,16 @@ STAGES = {
             reference="fan_isotropic_0.79_ramps",
         ),
     ],
-    #: the continuum model's yield points converged in the reload rate: 3x slower again than
-    #: the 1200-increment fan (the 24-particle fan: 1200 within 3.0 % of 3600)
+    #: the continuum model's campaign (``mpfem calibrate``): fans at three densities of table
+    #: 4.2 after isotropic and after die loading, each at two reload rates 3x apart (the
+    #: 24-particle fan: 1200 increments within 3.0 % of 3600; the 50-particle one at 400 moves
+    #: by 16 % from 1200), and the triaxial test the models replay. The die fans reload to
+    #: 3 h_v^d (at 1.5 their surface is open) with twice the increments, at the isotropic fans'
+    #: strain rates. About 80 core-hours on 2 cores in all, the slow die fans the longest.
     "calibration": [
-        fan_case(
-            "isotropic", 0.79, min_reload_increments=3600, reference="fan_isotropic_0.79_n1200"
-        ),
+        fan_case("isotropic", 0.79, min_reload_increments=3600, reference=CALIBRATION_ISO_079),
         triaxial_case(),
+        *calibration_fans(),
     ],
 }
 #: every case of every stage by name
