@@ -422,7 +422,7 @@ def write_round_trip(trip: list[dict], path: Path, log=print) -> None:
 
 def plot_fits(models: dict[str, ContinuumModel], fans: dict[float, Path], path: Path) -> None:
     """The fans' yield points and the fitted surfaces in the Rendulic plane (cap: solid,
-    ellipse: dashed)."""
+    ellipse: dashed, the cap of both compaction curves when calibrated: dotted)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -434,8 +434,9 @@ def plot_fits(models: dict[str, ContinuumModel], fans: dict[float, Path], path: 
     for density in densities:
         m, s = yield_points(Path(fans[density]))
         ax.plot(m, s, "o", color=colors[density], label=f"particles, rho {density:.2f}")
-    for name, style in (("cap", "-"), ("clay", "--")):
-        for row in models[name].rows:
+    for name, style in (("cap", "-"), ("clay", "--"), ("cap_paths", ":")):
+        rows = models[name].rows if name in models else ()
+        for row in (r for r in rows if r.density in colors):
             bm, bs = row.surface.boundary()
             label = f"{name}, rho {row.density:.2f}"
             ax.plot(bm, bs, style, color=colors[row.density], lw=1, label=label)
