@@ -140,29 +140,31 @@ def replay(model: ContinuumModel, history: dict[str, np.ndarray], path: str, inc
 
 
 #: the axial strains (compression > 0) at which the triaxial round trip compares the stresses
+#: (and the run's last)
 TRIAXIAL_STRAINS = (0.01, 0.02, 0.04, 0.06, 0.08, 0.10)
 
 
 def axial_phase(history: dict[str, np.ndarray], axial_start: float) -> tuple[int, float]:
-    """The row that starts a triaxial run's axial compression (its first row at time >=
-    ``axial_start``, s) and the confining pressure: the lateral stresses' median over that
-    phase (MPa, compression > 0)."""
-    rows = np.flatnonzero(history["time"] >= axial_start * (1.0 - 1e-9))
-    if len(rows) < 3:
+    """The row from which a triaxial run's axial compression is measured (its last row at
+    time <= ``axial_start``, s: the end of the consolidation) and the confining pressure: the
+    lateral stresses' median over the axial phase (MPa, compression > 0)."""
+    rows = np.flatnonzero(history["time"] > axial_start * (1.0 + 1e-9))
+    if len(rows) < 3 or rows[0] == 0:
         raise ValueError(
-            f"triaxial: {len(rows)} rows at time >= axial start {axial_start:g} s: need >= 3 "
-            "(not a triaxial run, or its axial phase unfinished)"
+            f"triaxial: {len(rows)} rows after the axial start {axial_start:g} s of "
+            f"{len(history['time'])}: need >= 3 and a consolidation before (not a triaxial "
+            "run, or its axial phase unfinished)"
         )
     lateral = 0.5 * (history["sigma11"][rows] + history["sigma22"][rows])
-    return int(rows[0]), float(np.median(lateral))
+    return int(rows[0] - 1), float(np.median(lateral))
 
 
 def replay_triaxial(model, history: dict[str, np.ndarray], axial_start: float, increments=400):
     """The model along a triaxial test: consolidated isotropically to the particle run's
     confining pressure, then compressed axially to the run's end axial strain -ln(F33 /
     F33_start) with the lateral stresses held at that pressure. Rows at
-    :data:`TRIAXIAL_STRAINS` within the run: the axial stress sigma_33 of the model and of the
-    particles (MPa, compression > 0) and the densities."""
+    :data:`TRIAXIAL_STRAINS` within the run and at its end: the axial stress sigma_33 of the
+    model and of the particles (MPa, compression > 0) and the densities."""
     start, confining = axial_phase(history, axial_start)
     axial = -np.log(history["F33"][start:] / history["F33"][start])  # compression > 0
     # consolidation: the isotropic strain at which the model's sigma_m reaches the pressure
@@ -177,9 +179,7 @@ def replay_triaxial(model, history: dict[str, np.ndarray], axial_start: float, i
     rows, _ = drive(model, end, (confining, confining, None), increments, state)
     model_axial = float(axial[-1]) * np.arange(1, increments + 1) / increments
     out = []
-    for e in TRIAXIAL_STRAINS:
-        if not 0.0 < e <= axial[-1] * (1.0 + 1e-9):
-            continue
+    for e in [e for e in TRIAXIAL_STRAINS if e < axial[-1] * (1.0 - 1e-6)] + [float(axial[-1])]:
         out.append(
             {
                 "path": "triaxial",
