@@ -18,6 +18,12 @@ from mpfem_fenicsx.calibration import (
 )
 
 
+def _random_cap(rng, K=None, **ranges) -> CapSurface:
+    """A cap with d, beta, R, p_b (and K) drawn uniformly from their ``ranges``, alpha 0.01."""
+    shape = {name: rng.uniform(*ranges[name]) for name in ("d", "beta", "R", "p_b")}
+    return CapSurface(**shape, alpha=0.01, K=1.0 if K is None else rng.uniform(*K))
+
+
 def _fan(surface, centre, directions=16, seed=None):
     """Yield points of a fan: where rays from ``centre`` leave ``surface`` (random directions
     when ``seed`` is given)."""
@@ -49,13 +55,8 @@ def test_surface_is_continuous_and_smooth_through_its_three_pieces():
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_fit_recovers_known_parameters_from_a_random_fan(seed):
     rng = np.random.default_rng(seed)
-    true = CapSurface(
-        d=rng.uniform(0.5, 4.0),
-        beta=rng.uniform(20.0, 60.0),
-        R=rng.uniform(0.3, 2.0),
-        p_b=rng.uniform(5.0, 20.0),
-        alpha=0.01,
-        K=rng.uniform(0.8, 1.0),
+    true = _random_cap(
+        rng, d=(0.5, 4.0), beta=(20.0, 60.0), R=(0.3, 2.0), p_b=(5.0, 20.0), K=(0.8, 1.0)
     )
     centre = (0.3 * true.p_b, 0.1 * true.d)
     fit = fit_cap(*_fan(true, centre, directions=14, seed=seed))
@@ -242,13 +243,7 @@ def test_paths_cap_recovers_a_cap_consistent_with_both_curves(seed):
     from mpfem_fenicsx.calibration import die_point, paths_cap
 
     rng = np.random.default_rng(seed)
-    true = CapSurface(
-        d=rng.uniform(1.0, 4.0),
-        beta=rng.uniform(30.0, 55.0),
-        R=rng.uniform(0.6, 1.8),
-        p_b=rng.uniform(3.0, 10.0),
-        alpha=0.01,
-    )
+    true = _random_cap(rng, d=(1.0, 4.0), beta=(30.0, 55.0), R=(0.6, 1.8), p_b=(3.0, 10.0))
     p, t = die_point(true)
     shear = CapSurface(d=true.d, beta=true.beta, R=0.3, p_b=1.0, alpha=0.01)
     surface, errors = paths_cap(shear, true.p_b, p, t)
