@@ -358,6 +358,13 @@ def test_mpfem_calibrate_writes_the_model_and_replays_the_particle_paths(tmp_pat
     triaxial = [r for r in trip if r["path"] == "triaxial" and r["model"] == "cap"]
     assert len(triaxial) == 6 and float(triaxial[-1]["axial_strain"]) == pytest.approx(0.099, 0.01)
     assert float(triaxial[0]["confining"]) == pytest.approx(3.5, rel=0.02)
+    with open(tmp_path / "summary.csv") as f:
+        summary = {r["model"]: r for r in csv.DictReader(f)}
+    assert sorted(summary) == ["cap", "cap_die", "cap_paths", "clay"]
+    assert float(summary["clay"]["fan_misfit"]) < 0.10 < float(summary["cap"]["fan_misfit"])
+    assert abs(float(summary["cap_die"]["die_ratio"])) < 0.01  # its own calibration path
+    assert float(summary["cap"]["triaxial_sigma_33"]) < -0.15  # the worst is at the test's end
+    assert float(summary["cap"]["triaxial_sigma_33_at"]) == pytest.approx(0.099, rel=0.01)
     assert "[round trip] clay die rho 0.85" in capsys.readouterr().out
 
 

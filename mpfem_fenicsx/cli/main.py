@@ -390,7 +390,7 @@ def _calibrate(args, comm) -> None:
         raise _Exit(BAD_INPUT, str(err)) from None
     say(
         f"outputs in {args.out}/: cap_model.json / .csv / .inp, clay_model.json / .csv / .inp, "
-        "round_trip.csv, calibration.png"
+        "round_trip.csv, summary.csv, calibration.png"
     )
 
 

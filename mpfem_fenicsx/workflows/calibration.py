@@ -22,8 +22,9 @@ Stages (data flow: fans + compaction curves -> fit -> models -> fragments -> rou
    triaxial test when its history is given (consolidated to its confining pressure, then
    compressed axially with the lateral stresses held); ``round_trip.csv`` lists, at each
    reported density, sigma_m of the model and of the particles (and the die's radial / axial
-   stress ratio), at each reported axial strain the triaxial test's axial stress, and
-   ``calibration.png`` shows the points with both fits.
+   stress ratio), at each reported axial strain the triaxial test's axial stress;
+   ``summary.csv`` gives each model's largest misfits (to the fans and along each path), and
+   ``calibration.png`` shows the points with the fits.
 
 Units mm, N, MPa; stresses compression > 0.
 """
@@ -327,8 +328,64 @@ def calibrate(
             rows = replay_triaxial(model, read_csv(triaxial), axial_start)
             trip += [{"model": name, **r} for r in rows]
     write_round_trip(trip, out / "round_trip.csv", log)
+    write_summary(fits, trip, out / "summary.csv", log)
     plot_fits(models, fans, out / "calibration.png")
     return Calibration(models, fits, trip)
+
+
+def model_summary(fits: dict, trip: list[dict]) -> list[dict]:
+    """Per model, the figures a user chooses by: the largest deviatoric misfit to the fans,
+    and the largest round-trip error (model / particles - 1, signed) of each compared quantity
+    within the calibrated hardening, with the density or axial strain where it occurs."""
+    quantities = {
+        "isotropic_sigma_m": ("isotropic", "sigma_m_model", "sigma_m_particles", "density"),
+        "die_sigma_m": ("die", "sigma_m_model", "sigma_m_particles", "density"),
+        "die_ratio": ("die", "ratio_model", "ratio_particles", "density"),
+        "triaxial_sigma_33": (
+            "triaxial",
+            "sigma_axial_model",
+            "sigma_axial_particles",
+            "axial_strain",
+        ),
+    }
+    out = []
+    for name, by_density in fits.items():
+        misfits = [
+            f.get("fan_deviatoric_rms", f.get("deviatoric_rms")) for f in by_density.values()
+        ]
+        row = {
+            "model": name,
+            "fan_misfit": max((m for m in misfits if m is not None), default=None),
+        }
+        for key, (path, model, particles, where) in quantities.items():
+            rows = [
+                r
+                for r in trip
+                if r["model"] == name and r["path"] == path and not r["beyond_hardening"]
+            ]
+            if rows:
+                worst = max(rows, key=lambda r: abs(r[model] / r[particles] - 1.0))
+                row[key] = worst[model] / worst[particles] - 1.0
+                row[f"{key}_at"] = worst[where]
+        out.append(row)
+    return out
+
+
+def write_summary(fits: dict, trip: list[dict], path: Path, log=print) -> None:
+    """summary.csv (:func:`model_summary`) and one log line per model."""
+    rows = model_summary(fits, trip)
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=keys)
+        writer.writeheader()
+        writer.writerows(rows)
+    for r in rows:
+        parts = [] if r["fan_misfit"] is None else [f"fans {100 * r['fan_misfit']:.1f} %"]
+        for key in ("isotropic_sigma_m", "die_sigma_m", "die_ratio", "triaxial_sigma_33"):
+            if key in r:
+                at = "strain" if key.startswith("triaxial") else "rho"
+                parts.append(f"{key} {100 * r[key]:+.1f} % ({at} {r[key + '_at']:.2f})")
+        log(f"[summary] {r['model']}, the largest misfits: " + "; ".join(parts))
 
 
 def default_axial_start() -> float:
