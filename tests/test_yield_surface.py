@@ -637,3 +637,30 @@ def test_newton_reload_ending_below_yield_goes_on_along_its_direction(fan, tmp_p
     run_yield_surface(implicit, MPI.COMM_SELF, log=messages.append, resume=True)
     assert not any("extended by" in m for m in messages)
     assert len(read_csv(folder / "history.csv")["time"]) == len(h["time"])
+
+
+def test_a_moved_fan_finds_its_unload_checkpoint_in_its_folder(tmp_path):
+    """A fan resumed from another folder or machine (a committed fan continued on a fresh
+    clone): the checkpoint's absolute path in unloaded.json is gone, its copy under the fan's
+    folder is taken (seen failing without the fallback: the old path came back)."""
+    from mpfem_fenicsx.workflows.yield_surface import Unloaded, read_unloaded, write_unloaded
+
+    state = dict(
+        segments=((1e-4, np.eye(3)),),
+        h_v_unload=0.01,
+        E_0=0.1,
+        sigma_m_loaded=3.5,
+        sigma_m_unloaded=0.3,
+        Gamma_unloaded=2.1,
+        t_unloaded=5e-4,
+        increments=100,
+        increments_per_strain=1e4,
+        dt=1e-7,
+        packing=None,
+    )
+    elsewhere = "/nowhere/fan_x/unload/checkpoints/step0000012"
+    write_unloaded(tmp_path, Unloaded(checkpoint=elsewhere, **state))
+    assert read_unloaded(tmp_path).checkpoint == elsewhere  # no copy here: left as written
+    (tmp_path / "unload" / "checkpoints" / "step0000012").mkdir(parents=True)
+    back = read_unloaded(tmp_path)
+    assert back.checkpoint == str(tmp_path / "unload" / "checkpoints" / "step0000012")

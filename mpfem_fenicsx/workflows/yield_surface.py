@@ -232,9 +232,14 @@ def _imposed_expansion(h: dict, rho_imposed_ref: float) -> np.ndarray:
 
 def read_unloaded(out_dir: str | Path, with_packing: bool = False) -> Unloaded:
     """The unloaded state a finished stage 2 left in ``out_dir/unloaded.json`` (``with_packing``:
-    and the loaded volume's packing, ``load/packing.txt``, which the reloads rebuild)."""
+    and the loaded volume's packing, ``load/packing.txt``, which the reloads rebuild). A fan
+    moved to another folder or machine finds its checkpoint in ``out_dir`` again
+    (``<stage>/checkpoints/<step>``)."""
     out = Path(out_dir)
     state = json.loads((out / "unloaded.json").read_text())
+    checkpoint = Path(state["checkpoint"])
+    if not checkpoint.exists() and out.joinpath(*checkpoint.parts[-3:]).exists():
+        state["checkpoint"] = str(out.joinpath(*checkpoint.parts[-3:]))
     packing = read_packing(out / "load" / "packing.txt", validate=False) if with_packing else None
     return Unloaded(
         **{
