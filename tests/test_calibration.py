@@ -358,6 +358,9 @@ def test_mpfem_calibrate_writes_the_model_and_replays_the_particle_paths(tmp_pat
     triaxial = [r for r in trip if r["path"] == "triaxial" and r["model"] == "cap"]
     assert len(triaxial) == 6 and float(triaxial[-1]["axial_strain"]) == pytest.approx(0.099, 0.01)
     assert float(triaxial[0]["confining"]) == pytest.approx(3.5, rel=0.02)
+    for model in ("cap_die", "cap_paths"):  # each density once (seen repeated beside 0.79)
+        rows = json.loads((tmp_path / f"{model}_model.json").read_text())["densities"]
+        assert np.min(np.diff([r["density"] for r in rows])) > 0.005
     with open(tmp_path / "summary.csv") as f:
         summary = {r["model"]: r for r in csv.DictReader(f)}
     assert sorted(summary) == ["cap", "cap_die", "cap_paths", "clay"]

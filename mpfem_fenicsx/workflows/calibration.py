@@ -255,7 +255,8 @@ def _cap_along_die(fitted, die, fans, cap_at):
     the die's density where its sigma_m exceeds 5 % of its end value, and at the fans'."""
     rho0 = float(die["rho"][0])
     start = die["rho"][np.argmax(die["sigma_m"] > 0.05 * die["sigma_m"][-1])]
-    densities = np.arange(math.ceil(start * 100) / 100, die["rho"][-1], 0.01)
+    # a 0.01 grid rounded to its decimals, so that a fan's density is not repeated beside it
+    densities = np.round(np.arange(math.ceil(start * 100) / 100, die["rho"][-1], 0.01), 6)
     densities = np.union1d(densities, [r.density for r in fitted.rows])
     densities = densities[(densities >= start) & (densities <= die["rho"][-1])]
     rows, figures, p_b, eps = [], {}, [], []
