@@ -481,6 +481,20 @@ def test_surface_axis_of_a_rotated_ellipse():
         assert report.surface_axis_deg(pts) == pytest.approx(angle, abs=1.0)
 
 
+def test_fan_ellipses_recover_a_turned_ellipse_and_tell_it_from_one_on_the_axis():
+    from validation.cases import FanCase
+    from validation.fan_ellipses import fit_ellipse
+
+    case = FanCase("f", "die", 0.82)
+    pts = _ellipse_fan(case, (0.6, 0.3), 5.0, 2.5, 48.0)["surfaces"]["yield"][:, 1:]
+    rms, centre, axes, angle = fit_ellipse(pts, shifted=True, rotated=True)
+    assert rms < 1e-6 and angle == pytest.approx(48.0, abs=1e-3)
+    assert centre == pytest.approx([0.6, 0.3], abs=1e-5) and axes == pytest.approx([5.0, 2.5])
+    # the same points against an ellipse centred on the hydrostatic axis, axes along it
+    rms, centre, _, angle = fit_ellipse(pts, shifted=False, rotated=False)
+    assert rms > 0.1 and centre[1] == 0.0 and abs(angle) % 90.0 == pytest.approx(0.0, abs=1e-9)
+
+
 def test_fan_rows_and_trends_on_synthetic_fans():
     """Gamma_l rows against table 4.2 and the four trends, shown on fans built to show them and
     not shown on fans built not to."""
