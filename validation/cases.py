@@ -400,8 +400,9 @@ CALIBRATION_ISO_079 = "fan_isotropic_0.79_n1200"  # the fans stage's, its faster
 
 def calibration_fans() -> list[FanCase]:
     """The campaign's fans but the 0.79 isotropic ones (in the fans stage, and listed first in
-    the calibration stage): each density at both rates, the slower compared with the faster."""
-    fans = []
+    the calibration stage): each density at both rates, the slower compared with the faster;
+    the faster ones first (the fit's input), then their checks."""
+    fast_fans, slow_fans = [], []
     for loading, densities in CALIBRATION_DENSITIES.items():
         factor = 1.0 if loading == "isotropic" else 2.0
         for rho in densities:
@@ -417,8 +418,9 @@ def calibration_fans() -> list[FanCase]:
                 min_reload_increments=slow,
                 reference=first.name,
             )
-            fans += [first, second]
-    return fans
+            fast_fans.append(first)
+            slow_fans.append(second)
+    return fast_fans + slow_fans
 
 
 #: stage -> cases; `python validation/run.py STAGE` runs them, each stage on its own
