@@ -790,3 +790,30 @@ def test_list_tells_where_a_killed_run_resumes(tmp_path, monkeypatch):
     assert run.run_state(CASES["die_CLP"]) == "done"
     assert run.run_state(CASES["die_GDF"]) == "to run"
     assert run.run_state(CASES["die_CLPS_n12000"]) == "resumes at step 600 of 12000"
+
+
+def test_a_fan_shares_a_loading_only_where_its_checkpoint_is(tmp_path):
+    """A variant fan copies its thesis fan's load and unload only when they are there: a fresh
+    clone keeps the fans' summaries (unloaded.json) but not their checkpoints (seen failing
+    before: FileNotFoundError on the packing), so the variant then loads afresh."""
+    import json
+
+    from validation import run
+
+    source, target = tmp_path / "fan", tmp_path / "fan_n3600"
+    source.mkdir()
+    checkpoint = source / "unload" / "checkpoints" / "step0000007"
+    (source / "unloaded.json").write_text(json.dumps({"checkpoint": str(checkpoint)}))
+    said = []
+    run.share_loading(source, target, said.append)
+    assert not target.exists() and "loading afresh" in said[-1]
+    # with the checkpoint and the packing: copied, the state pointing at the copy
+    checkpoint.mkdir(parents=True)
+    (checkpoint / "meta.json").write_text("{}")
+    (source / "load").mkdir()
+    (source / "load" / "packing.txt").write_text("packing\n")
+    run.share_loading(source, target, said.append)
+    state = json.loads((target / "unloaded.json").read_text())
+    assert state["checkpoint"] == str(target / "unload" / "checkpoints" / "step0000007")
+    assert (target / "unload" / "checkpoints" / "step0000007" / "meta.json").exists()
+    assert (target / "load" / "packing.txt").read_text() == "packing\n"
