@@ -1,13 +1,21 @@
 """The validation report machinery (validation/report.py) on synthetic histories: the
 comparison rows, the interpolation at a density, the generated README blocks."""
 
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from validation import report
-from validation.cases import STAGE_CONSTRAINT_MASS, STAGES, THESIS_DIE_SIGMA_M
+from validation.cases import (
+    CASES,
+    STAGE_CONSTRAINT_MASS,
+    STAGES,
+    THESIS_DIE_SIGMA_M,
+    FanCase,
+    fan_case,
+)
 
 
 def test_at_density_interpolates_the_loading_branch():
@@ -473,7 +481,6 @@ def _ellipse_fan(case, centre, a, b, angle_deg, nphi=12, compressive=3.0, tensil
 
 
 def test_surface_axis_of_a_rotated_ellipse():
-    from validation.cases import FanCase
 
     case = FanCase("f", "die", 0.82)
     for angle in (0.0, 30.0, -60.0, 89.0):
@@ -482,7 +489,7 @@ def test_surface_axis_of_a_rotated_ellipse():
 
 
 def test_fan_ellipses_recover_a_turned_ellipse_and_tell_it_from_one_on_the_axis():
-    from validation.cases import FanCase
+
     from validation.fan_ellipses import fit_ellipse
 
     case = FanCase("f", "die", 0.82)
@@ -776,7 +783,6 @@ def test_list_tells_where_a_killed_run_resumes(tmp_path, monkeypatch):
     import json
 
     from validation import run
-    from validation.cases import CASES
 
     monkeypatch.setattr(run, "RUNS", tmp_path)
     (tmp_path / "die_CLP").mkdir()
@@ -817,3 +823,85 @@ def test_a_fan_shares_a_loading_only_where_its_checkpoint_is(tmp_path):
     assert state["checkpoint"] == str(target / "unload" / "checkpoints" / "step0000007")
     assert (target / "unload" / "checkpoints" / "step0000007" / "meta.json").exists()
     assert (target / "load" / "packing.txt").read_text() == "packing\n"
+
+
+def test_the_two_rates_of_a_calibration_density_reload_from_one_unload():
+    """At each calibration density the slower fan loads and unloads itself and the faster one
+    reloads from that unload (its name tells which: _u<increments>), so that the pair differs in
+    the reload rate only; the slower is compared with the faster."""
+    from validation.cases import CALIBRATION_INCREMENTS, calibration_fans
+
+    fans = {c.name: c for c in STAGES["calibration"] if isinstance(c, FanCase)}
+    sharers = [c for c in fans.values() if c.shares]
+    assert len(sharers) == len(fans) / 2 == 6 and len(calibration_fans()) == len(fans)
+    for sharer in sharers:
+        source = fans[sharer.shares]
+        assert source.shares == "" and source.shares_loading_with is None
+        assert sharer.shares_loading_with == source.name == fans[source.reference].shares
+        assert sharer.name.endswith(f"_u{source.min_reload_increments}")
+        assert source.min_reload_increments == 3 * sharer.min_reload_increments
+        assert (
+            sharer.min_reload_increments // (1 if sharer.loading == "isotropic" else 2)
+            == (CALIBRATION_INCREMENTS[0])
+        )
+        same = ("loading", "rho_f", "gamma", "amplitude_factor", "reload_profile")
+        assert all(getattr(sharer, k) == getattr(source, k) for k in same)
+    # the fans stage's variants still share their thesis fan's loading by default
+    assert CASES["fan_isotropic_0.79_n1200"].shares_loading_with == "fan_isotropic_0.79"
+    with pytest.raises(ValueError, match="shares must be a fan of the same path"):
+        fan_case("isotropic", 0.87, shares=fans["fan_isotropic_0.79_n3600"])
+
+
+def test_a_fan_that_names_its_source_refuses_to_load_afresh(tmp_path):
+    """A fan that names the fan it reloads from never loads afresh (its rate comparison would
+    then mix two unloads): without that fan's unload it stops with a message naming the fan to
+    run first; a source whose runs have moved is found under its own directory."""
+    import json
+
+    from validation import run
+
+    source, target = tmp_path / "fan_n3600", tmp_path / "fan_n1200_u3600"
+    said = []
+    with pytest.raises(RuntimeError, match="run fan_n3600 first"):
+        run.share_loading(source, target, said.append, required=True)
+    source.mkdir()
+    (source / "unloaded.json").write_text(
+        json.dumps({"checkpoint": "/elsewhere/fan_n3600/unload/checkpoints/step0000007"})
+    )
+    (source / "load").mkdir()
+    (source / "load" / "packing.txt").write_text("packing\n")
+    with pytest.raises(RuntimeError, match="run fan_n3600 first"):
+        run.share_loading(source, target, said.append, required=True)
+    (source / "unload" / "checkpoints" / "step0000007").mkdir(parents=True)
+    run.share_loading(source, target, said.append, required=True)
+    state = json.loads((target / "unloaded.json").read_text())
+    assert state["checkpoint"] == str(target / "unload" / "checkpoints" / "step0000007")
+    assert said == ["fan_n1200_u3600: load and unload shared with fan_n3600"]
+
+
+def test_parallel_runs_start_a_sharing_fan_after_its_source_has_unloaded(tmp_path, monkeypatch):
+    """`run.py --jobs 2` on a stage listing a sharing fan first: its source still starts first,
+    and the sharing fan's process starts only once the source has written its unloaded state."""
+    from validation import run
+
+    monkeypatch.setattr(run, "RUNS", tmp_path)
+    source = fan_case("isotropic", 0.7, min_reload_increments=3600, loads_itself=True)
+    sharer = fan_case("isotropic", 0.7, min_reload_increments=1200, shares=source)
+    assert run.in_sharing_order([sharer, source]) == [source, sharer]
+    seen = {}
+
+    def fake_call(command, stdout, stderr, env):
+        name = command[-1]
+        seen[name] = (tmp_path / source.name / "unloaded.json").exists()
+        if name == source.name:
+            time.sleep(0.5)
+            (tmp_path / source.name / "unloaded.json").write_text("{}")
+            time.sleep(0.5)
+        return 0
+
+    monkeypatch.setattr(run.subprocess, "call", fake_call)
+    monkeypatch.setattr(run, "POLL_S", 0.05)
+    said = []
+    run.run_in_parallel([sharer, source], 2, said.append)
+    assert seen == {source.name: False, sharer.name: True}
+    assert f"{sharer.name}: waiting for {source.name}'s unload" in said

@@ -297,6 +297,11 @@ class FanCase:
     #: the fan of the stage (sharing this one's loading) whose reloads differ from this one's in
     #: one respect, for the reload study; None: the thesis fan
     reference: str | None = None
+    #: the fan whose load and unload this one reloads from (so that two fans differ in their
+    #: reloads only): None for the thesis fan of the same path (a variant's default, loading
+    #: afresh where that fan's state is gone), "" to load and unload itself; a fan named here
+    #: must have unloaded first (``validation/run.py`` refuses otherwise)
+    shares: str | None = None
 
     @property
     def is_thesis_fan(self) -> bool:
@@ -310,7 +315,10 @@ class FanCase:
 
     @property
     def shares_loading_with(self) -> str | None:
-        """The thesis fan whose load and unload this variant reuses (same path), or None."""
+        """The fan whose load and unload this one reuses (same path), or None: ``shares`` if
+        given, else the thesis fan of the same path for a variant."""
+        if self.shares is not None:
+            return self.shares or None
         return None if self.is_thesis_fan else fan_case(self.loading, self.rho_f, self.gamma).name
 
     @property
@@ -370,14 +378,28 @@ def fan_case(
     min_reload_increments: int = 400,
     reload_profile: str = "smooth-step",
     reference: str | None = None,
+    shares: FanCase | None = None,
+    loads_itself: bool = False,
 ) -> FanCase:
-    """The fan after a ``loading`` compaction to ``rho_f`` (a row of table 4.2 with gamma 1e-2)."""
+    """The fan after a ``loading`` compaction to ``rho_f`` (a row of table 4.2 with gamma 1e-2);
+    ``shares``: the fan of the same path whose load and unload it reloads from (its name then
+    ends in ``_u<that fan's reload increments>``: its unload ran at that rate); ``loads_itself``:
+    load and unload afresh, never from the thesis fan's state."""
+    if shares is not None and (shares.loading, shares.rho_f, shares.gamma) != (
+        loading,
+        rho_f,
+        gamma,
+    ):
+        raise ValueError(f"shares must be a fan of the same path, got {shares.name}")
+    if shares is not None and loads_itself:
+        raise ValueError("a fan either shares another's loading or loads itself, not both")
     name = (
         f"fan_{loading}_{rho_f:g}"
         + ("" if gamma == 1e-2 else f"_gamma{gamma:g}")
         + ("" if amplitude_factor == 1.5 else f"_A{amplitude_factor:g}")
         + ("" if min_reload_increments == 400 else f"_n{min_reload_increments}")
         + ("" if reload_profile == "smooth-step" else f"_{reload_profile.removeprefix('smooth-')}")
+        + ("" if shares is None else f"_u{shares.min_reload_increments}")
     )
     return FanCase(
         name,
@@ -388,6 +410,7 @@ def fan_case(
         min_reload_increments=min_reload_increments,
         reload_profile=reload_profile,
         reference=reference,
+        shares="" if loads_itself else (shares.name if shares is not None else None),
     )
 
 
@@ -395,32 +418,25 @@ def fan_case(
 #: increments of its two rates at A = 1.5 h_v^d (the die fans, at 3 h_v^d, twice these)
 CALIBRATION_DENSITIES = {"isotropic": (0.70, 0.79, 0.87), "die": (0.75, 0.82, 0.89)}
 CALIBRATION_INCREMENTS = (1200, 3600)
-CALIBRATION_ISO_079 = "fan_isotropic_0.79_n1200"  # the fans stage's, its faster rate
 
 
 def calibration_fans() -> list[FanCase]:
-    """The campaign's fans but the 0.79 isotropic ones (in the fans stage, and listed first in
-    the calibration stage): each density at both rates, the slower compared with the faster;
-    the faster ones first (the fit's input), then their checks."""
-    fast_fans, slow_fans = [], []
+    """The campaign's fans: at each density, the slower rate loads and unloads (the unload runs
+    at the reloads' increments: the slower, the nearer rest) and reloads; the faster reloads
+    from that same unload, so that the two differ in their reload rate only, and is compared
+    with the slower. The slower ones first: each faster one waits for its unload."""
+    sources, sharers = [], []
     for loading, densities in CALIBRATION_DENSITIES.items():
         factor = 1.0 if loading == "isotropic" else 2.0
+        fast, slow = (int(factor * n) for n in CALIBRATION_INCREMENTS)
+        amplitude = 1.5 * factor
         for rho in densities:
-            if loading == "isotropic" and rho == 0.79:
-                continue
-            fast, slow = (int(factor * n) for n in CALIBRATION_INCREMENTS)
-            amplitude = 1.5 * factor
-            first = fan_case(loading, rho, amplitude_factor=amplitude, min_reload_increments=fast)
-            second = fan_case(
-                loading,
-                rho,
-                amplitude_factor=amplitude,
-                min_reload_increments=slow,
-                reference=first.name,
-            )
-            fast_fans.append(first)
-            slow_fans.append(second)
-    return fast_fans + slow_fans
+            options = dict(loading=loading, rho_f=rho, amplitude_factor=amplitude)
+            source = fan_case(**options, min_reload_increments=slow, loads_itself=True)
+            sharer = fan_case(**options, min_reload_increments=fast, shares=source)
+            sources.append(replace(source, reference=sharer.name))
+            sharers.append(sharer)
+    return sources + sharers
 
 
 #: stage -> cases; `python validation/run.py STAGE` runs them, each stage on its own
@@ -485,16 +501,13 @@ STAGES = {
         ),
     ],
     #: the continuum model's campaign (``mpfem calibrate``): fans at three densities of table
-    #: 4.2 after isotropic and after die loading, each at two reload rates 3x apart (the
-    #: 24-particle fan: 1200 increments within 3.0 % of 3600; the 50-particle one at 400 moves
-    #: by 16 % from 1200), and the triaxial test the models replay. The die fans reload to
-    #: 3 h_v^d (at 1.5 their surface is open) with twice the increments, at the isotropic fans'
-    #: strain rates. About 14 core-hours in all (a 3600-increment reload: 6 min on one core).
-    "calibration": [
-        fan_case("isotropic", 0.79, min_reload_increments=3600, reference=CALIBRATION_ISO_079),
-        triaxial_case(),
-        *calibration_fans(),
-    ],
+    #: 4.2 after isotropic and after die loading, each at two reload rates 3x apart from one
+    #: unload (the 24-particle fan: 1200 increments within 3.0 % of 3600; the 50-particle one
+    #: at 400 moves by 16 % from 1200), and the triaxial test the models replay. The die fans
+    #: reload to 3 h_v^d (at 1.5 their surface is open) with twice the increments, at the
+    #: isotropic fans' strain rates. About 16 core-hours in all (a 3600-increment reload or
+    #: unload: 6 min on one core).
+    "calibration": [*calibration_fans(), triaxial_case()],
 }
 #: every case of every stage by name
 CASES = {case.name: case for cases in STAGES.values() for case in cases}

@@ -22,6 +22,7 @@ import argparse
 import os
 import subprocess
 import sys
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -34,6 +35,7 @@ from mpi4py import MPI  # noqa: E402
 from validation.cases import CASES, STAGES, FanCase  # noqa: E402
 
 RUNS = HERE / "runs"
+POLL_S = 30.0  # how often a fan waiting for another's unload looks for it (s)
 
 
 def run_case(case, comm, say) -> None:
@@ -50,7 +52,7 @@ def run_case(case, comm, say) -> None:
 
         say(f"{case.name}: running -> {run_dir}")
         if comm.rank == 0 and case.shares_loading_with:
-            share_loading(RUNS / case.shares_loading_with, run_dir, say)
+            share_loading(RUNS / case.shares_loading_with, run_dir, say, required=bool(case.shares))
         comm.barrier()
         clock = FanClock(run_dir, writes=comm.rank == 0)
         run_yield_surface(
@@ -119,21 +121,34 @@ class FanClock:
         return timed
 
 
-def share_loading(source: Path, run_dir: Path, say) -> None:
+def share_loading(source: Path, run_dir: Path, say, required: bool = False) -> None:
     """Start a fan from the finished load and unload of ``source`` (the same path, other reloads):
     its packing, unload checkpoint and ``unloaded.json`` are copied (the fan then resumes at its
-    reloads). Nothing is copied if ``source`` has no unloaded state, its checkpoint is gone (a
-    fresh clone keeps the fans' summaries only), or ``run_dir`` has its own: the fan then loads
-    and unloads itself."""
+    reloads). Nothing is copied if ``run_dir`` has its own unloaded state. If ``source`` has
+    none, or its checkpoint is gone (a fresh clone keeps most fans' summaries only), the fan
+    loads and unloads itself, unless the sharing is ``required`` (a fan that names the one it
+    shares): then a ``RuntimeError`` says which fan to run first."""
     import json
     import shutil
 
-    if not (source / "unloaded.json").exists() or (run_dir / "unloaded.json").exists():
+    if (run_dir / "unloaded.json").exists():
         return
-    state = json.loads((source / "unloaded.json").read_text())
-    checkpoint = Path(state["checkpoint"])
-    if not checkpoint.exists() or not (source / "load" / "packing.txt").exists():
-        say(f"{run_dir.name}: {source.name}'s unload checkpoint is gone, loading afresh")
+    checkpoint = None
+    if (source / "unloaded.json").exists():
+        state = json.loads((source / "unloaded.json").read_text())
+        checkpoint = Path(state["checkpoint"])
+        # <fan>/<stage>/checkpoints/stepN: found under ``source`` if the runs have moved
+        moved = source / checkpoint.parent.parent.name / "checkpoints" / checkpoint.name
+        checkpoint = checkpoint if checkpoint.exists() else moved
+    there = checkpoint is not None and checkpoint.exists()
+    if not there or not (source / "load" / "packing.txt").exists():
+        if required:
+            raise RuntimeError(
+                f"{run_dir.name} reloads from {source.name}'s unload, which is not in "
+                f"{source}: run {source.name} first"
+            )
+        if checkpoint is not None:
+            say(f"{run_dir.name}: {source.name}'s unload checkpoint is gone, loading afresh")
         return
     stage = checkpoint.parent.parent.name  # <fan>/<stage>/checkpoints/stepN: unload (or settle)
     (run_dir / "load").mkdir(parents=True, exist_ok=True)
@@ -152,7 +167,11 @@ def share_loading(source: Path, run_dir: Path, say) -> None:
 def run_in_parallel(cases, jobs: int, say) -> None:
     """Run ``cases`` as ``jobs`` separate processes of this script, one numba / BLAS thread each
     (a 50-particle case keeps one core busy; two threads on one core only contend), each writing
-    its progress to RUNS/<case>/log.txt. A failed case is reported and the others go on."""
+    its progress to RUNS/<case>/log.txt. A failed case is reported and the others go on. A fan
+    that reloads from another's unload (``FanCase.shares``) starts after it and waits for that
+    unload while its fan runs."""
+    cases = in_sharing_order(cases)
+    running = {case.name: threading.Event() for case in cases}  # set when its process ends
     env = {
         **os.environ,
         "NUMBA_NUM_THREADS": "1",
@@ -161,9 +180,21 @@ def run_in_parallel(cases, jobs: int, say) -> None:
     }
 
     def one(case) -> int:
+        try:
+            return launch(case)
+        finally:
+            running[case.name].set()
+
+    def launch(case) -> int:
         if (RUNS / case.name / "done").exists():
             say(f"{case.name}: done")
             return 0
+        source = getattr(case, "shares", None)
+        unloaded = RUNS / str(source) / "unloaded.json"
+        if source in running and not unloaded.exists():
+            say(f"{case.name}: waiting for {source}'s unload")
+            while not running[source].wait(POLL_S) and not unloaded.exists():
+                pass
         (RUNS / case.name).mkdir(parents=True, exist_ok=True)
         say(f"{case.name}: started (log: {RUNS / case.name / 'log.txt'})")
         with open(RUNS / case.name / "log.txt", "a") as log:
@@ -180,6 +211,18 @@ def run_in_parallel(cases, jobs: int, say) -> None:
         codes = list(pool.map(one, cases))
     if any(codes):
         say(f"{sum(c != 0 for c in codes)} of {len(cases)} cases failed")
+
+
+def in_sharing_order(cases: list) -> list:
+    """``cases`` with every fan that reloads from another's unload (``FanCase.shares``) after
+    all the others (kept in their order otherwise), so that a worker never waits on a fan that
+    no worker has started."""
+    names = {case.name for case in cases}
+
+    def waits(case) -> bool:
+        return getattr(case, "shares", None) in names
+
+    return [c for c in cases if not waits(c)] + [c for c in cases if waits(c)]
 
 
 def main(argv=None) -> None:
@@ -224,7 +267,7 @@ def main(argv=None) -> None:
         if args.jobs > 1:
             run_in_parallel(cases, args.jobs, say)
         else:
-            for case in cases:
+            for case in in_sharing_order(cases):
                 run_case(case, comm, say)
     if comm.rank == 0 and not args.no_report:
         from validation.report import write_report
