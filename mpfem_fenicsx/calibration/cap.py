@@ -104,9 +104,15 @@ class CapSurface(MeridianSurface):
         return self.d + self.p_a * self.tan_beta
 
     @property
+    def cap_factor(self) -> float:
+        """c = 1 + alpha - alpha / cos(beta) (-): the cap's height over the shear line's t at
+        p_a, the factor of t in the cap and shear flow potentials."""
+        return 1.0 + self.alpha - self.alpha / math.cos(math.radians(self.beta))
+
+    @property
     def _cap_height(self) -> float:
-        """t at the top of the cap (p = p_a): (1 + alpha - alpha / cos(beta)) D."""
-        return (1.0 + self.alpha - self.alpha / math.cos(math.radians(self.beta))) * self._D
+        """t at the top of the cap (p = p_a): c D (``cap_factor``)."""
+        return self.cap_factor * self._D
 
     # -- the surface in the meridian plane ----------------------------------------------------
     def t(self, p) -> np.ndarray:
@@ -154,8 +160,7 @@ class CapSurface(MeridianSurface):
         the flow direction (dG/dp, dG/dt) of Abaqus' potentials: associated on the cap,
         G_c = sqrt((p - p_a)^2 + (R t / c)^2); elsewhere G_s = sqrt(((p_a - p) tan(beta))^2 +
         (t / c)^2), c = 1 + alpha - alpha / cos(beta)."""
-        b = math.radians(self.beta)
-        c = 1.0 + self.alpha - self.alpha / math.cos(b)
+        b, c = math.radians(self.beta), self.cap_factor
         p_a, tb, a = self.p_a, self.tan_beta, self.alpha
         D = self.d + p_a * tb
         if region == "cap":

@@ -203,9 +203,7 @@ def die_cap(shear: CapSurface, sigma_m: float, sigma_tilde_d: float) -> CapSurfa
     p, t = float(sigma_m), float(sigma_tilde_d)
     if not (p > 0.0 and t > 0.0):
         raise ValueError(f"die stress ({p:g}, {t:g}) MPa: needs sigma_m > 0 and sigma~_d > 0")
-    b = math.radians(shear.beta)
-    c = 1.0 + shear.alpha - shear.alpha / math.cos(b)
-    tb, m = shear.tan_beta, 2.0 / 3.0
+    c, tb, m = shear.cap_factor, shear.tan_beta, 2.0 / 3.0
 
     # with u = R^2: p - p_a = u t / (c^2 m) (the normal), then the point on the cap
     def on_cap(u):
@@ -229,7 +227,7 @@ def die_point(surface: CapSurface) -> tuple[float, float]:
     """The stress (sigma_m, sigma~_d; MPa) on the cap of ``surface`` whose normal gives a
     uniaxial plastic strain, d eps_q^p / d eps_v^p = 2/3: where a die compaction loads the cap
     when the elastic increments are neglected. Raises ``ValueError`` when the cap has none."""
-    c = 1.0 + surface.alpha - surface.alpha / math.cos(math.radians(surface.beta))
+    c = surface.cap_factor
     p_a, p_b, k = surface.p_a, surface.p_b, (surface.R / c) ** 2
 
     def flow(p):  # d eps_q / d eps_v - 2/3 along the cap: from +inf at p_a to -2/3 at p_b
