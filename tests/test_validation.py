@@ -905,3 +905,33 @@ def test_parallel_runs_start_a_sharing_fan_after_its_source_has_unloaded(tmp_pat
     run.run_in_parallel([sharer, source], 2, said.append)
     assert seen == {source.name: False, sharer.name: True}
     assert f"{sharer.name}: waiting for {source.name}'s unload" in said
+
+
+def test_calibration_table_reads_each_density_s_rate_convergence():
+    """The calibration table: per density, the slower fan against the faster from its unload;
+    yield points 2 % apart read as converged in the rate (3 %), 5 % apart as not, the direction
+    of the largest shift named; a pair not finished as not run yet."""
+    fans = {c.name: c for c in STAGES["calibration"] if isinstance(c, FanCase)}
+    slow = fans["fan_isotropic_0.79_n3600"]
+    fast = fans[slow.reference]
+    done = {fast.name: _ellipse_fan(fast, (0.25, 0.0), 2.0, 1.5, 0.0)}
+    done[slow.name] = _ellipse_fan(slow, (0.25, 0.0), 2.04, 1.53, 0.0)
+    done[slow.name]["surfaces"]["yield"][3, 1:] = [0.25, 0.0] + 1.05 * (
+        done[fast.name]["surfaces"]["yield"][3, 1:] - [0.25, 0.0]
+    )  # one direction 5 % further out
+    for f, n in ((done[slow.name], 3600), (done[fast.name], 1200)):
+        f["summary"]["reload"] = {"steps": n}
+    rows, lines = report.calibration_rate_lines(done)
+    line = next(x for x in lines if f"| {slow.name} |" in x)
+    phi = done[fast.name]["surfaces"]["yield"][3, 0]
+    assert f"| 3600 / 1200 | 12 / 12 of 12 | 5.0 % (12) | {phi:g} | not shown |" in line
+    done[slow.name] = _ellipse_fan(slow, (0.25, 0.0), 2.04, 1.53, 0.0)
+    done[slow.name]["summary"]["reload"] = {"steps": 3600}
+    line = next(x for x in report.calibration_rate_lines(done)[1] if f"| {slow.name} |" in x)
+    assert "| 2.0 % (12) |" in line and line.endswith("| shown |")
+    assert rows == [] and len(lines) == 2 + 6
+    assert sum("not run yet" in x for x in lines) == 5
+    assert all(x.count("|") == lines[0].count("|") for x in lines)  # every row has every column
+    assert f"not run yet: {fast.name}" in next(
+        x for x in report.calibration_rate_lines({slow.name: done[slow.name]})[1] if slow.name in x
+    )

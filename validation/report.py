@@ -939,22 +939,30 @@ def fan_rows(done: dict) -> tuple[list[dict], list[str]]:
     return rows, lines
 
 
-def surface_shift(fan: dict, ref: dict, kind: str) -> tuple[float, int]:
-    """Largest relative change, over the directions where both fans cross ``kind``, of the
-    point's distance from the (shared) unloaded state (sigma_m unloaded, 0); and how many
-    directions that is (NaN, 0 if none)."""
+def direction_shifts(fan: dict, ref: dict, kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """The reload directions phi (deg) where both fans cross ``kind``, and in each the relative
+    change of the point's distance from the (shared) unloaded state (sigma_m unloaded, 0)."""
     a, b = fan["surfaces"].get(kind), ref["surfaces"].get(kind)
     if a is None or b is None or not len(a) or not len(b):
-        return float("nan"), 0
+        return np.zeros(0), np.zeros(0)
     centre = np.array([ref["unloaded"]["sigma_m_unloaded"], 0.0])
-    shifts = []
+    phis, shifts = [], []
     for phi, m, d in b:
         same = a[np.isclose(a[:, 0], phi)]
         if len(same):
+            phis.append(phi)
             shifts.append(
                 np.linalg.norm(same[0, 1:] - centre) / np.linalg.norm([m - centre[0], d]) - 1.0
             )
-    return (float(np.max(np.abs(shifts))), len(shifts)) if shifts else (float("nan"), 0)
+    return np.array(phis), np.array(shifts)
+
+
+def surface_shift(fan: dict, ref: dict, kind: str) -> tuple[float, int]:
+    """Largest relative change, over the directions where both fans cross ``kind``, of the
+    point's distance from the (shared) unloaded state (``direction_shifts``); and how many
+    directions that is (NaN, 0 if none)."""
+    shifts = direction_shifts(fan, ref, kind)[1]
+    return (float(np.max(np.abs(shifts))), len(shifts)) if len(shifts) else (float("nan"), 0)
 
 
 def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
@@ -1019,6 +1027,47 @@ def reload_study_lines(done: dict) -> tuple[list[dict], list[str]]:
             + f" | {change(lambda f: 'yield', 'compressive')} | "
             f"{change(rupture_kind, 'tensile')} | "
             f"{recompression_ratio(fan):.3f} vs {recompression_ratio(ref):.3f} | {reading} |"
+        )
+    return [], lines
+
+
+#: the largest shift of the yield points between the calibration fans' two reload rates for
+#: which they count as converged in the rate (the continuum model's first criterion)
+RATE_CONVERGED = 0.03
+
+
+def calibration_rate_lines(done: dict) -> tuple[list[dict], list[str]]:
+    """The calibration campaign's fans, density by density: the slower reloads against the
+    faster ones from the same unload, the yield points' largest shift over the directions where
+    both yield (``surface_shift``), and whether that is within ``RATE_CONVERGED`` ("shown")."""
+    lines = [
+        "| loading | rho_f | slower fan | faster fan | reload increments | yield points (slower /"
+        " faster) | yield: largest shift (common directions) | shift's direction (deg) | "
+        f"converged within {100 * RATE_CONVERGED:.0f} % |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for case in STAGES["calibration"]:
+        if not (isinstance(case, FanCase) and case.shares == "" and case.reference):
+            continue
+        head = f"| {case.loading} | {case.rho_f:g} | {case.name} | {case.reference} |"
+        slow, fast = done.get(case.name), done.get(case.reference)
+        if slow is None or fast is None:
+            missing = [n for n, f in ((case.name, slow), (case.reference, fast)) if f is None]
+            lines.append(f"{head} | | | | not run yet: {', '.join(missing)} |")
+            continue
+        phis, shifts = direction_shifts(slow, fast, "yield")
+        n = len(shifts)
+        shift = float(np.max(np.abs(shifts))) if n else float("nan")
+        worst = float(phis[np.argmax(np.abs(shifts))]) if n else float("nan")
+        counts = " / ".join(str(f["summary"]["points"].get("yield", 0)) for f in (slow, fast))
+        steps = " / ".join(
+            str((f["summary"].get("reload") or {}).get("steps", "?")) for f in (slow, fast)
+        )
+        verdict = "shown" if n and shift <= RATE_CONVERGED else "not shown"
+        lines.append(
+            f"{head} {steps} | {counts} of {case.nphi} | "
+            + (f"{100 * shift:.1f} % ({n})" if n else "-")
+            + f" | {worst:g} | {verdict} |"
         )
     return [], lines
 
@@ -1670,6 +1719,12 @@ TABLES = (
     ("gamma", "Specific contact surface against table 4.2", ("gamma",), gamma_rows),
     ("fans", "Gamma_l from fans (table 4.2)", ("fans",), fan_rows),
     ("reloads", "The fans' reload rate, amplitude and profile", (), reload_study_lines),
+    (
+        "calibration",
+        "The continuum model's fans: yield points against the reload rate",
+        ("calibration",),
+        calibration_rate_lines,
+    ),
     ("trends", "Trends of §4.3-4.5", (), trend_lines),
     (
         "sensitivity",
