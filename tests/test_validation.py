@@ -481,7 +481,6 @@ def _ellipse_fan(case, centre, a, b, angle_deg, nphi=12, compressive=3.0, tensil
 
 
 def test_surface_axis_of_a_rotated_ellipse():
-
     case = FanCase("f", "die", 0.82)
     for angle in (0.0, 30.0, -60.0, 89.0):
         pts = _ellipse_fan(case, (2.0, 0.5), 3.0, 1.0, angle)["surfaces"]["yield"]
@@ -489,7 +488,6 @@ def test_surface_axis_of_a_rotated_ellipse():
 
 
 def test_fan_ellipses_recover_a_turned_ellipse_and_tell_it_from_one_on_the_axis():
-
     from validation.fan_ellipses import fit_ellipse
 
     case = FanCase("f", "die", 0.82)
@@ -935,3 +933,25 @@ def test_calibration_table_reads_each_density_s_rate_convergence():
     assert f"not run yet: {fast.name}" in next(
         x for x in report.calibration_rate_lines({slow.name: done[slow.name]})[1] if slow.name in x
     )
+
+
+def test_die_point_of_an_ellipse_has_the_uniaxial_plastic_strain():
+    """fan_ellipses.die_point: on an ellipse on the axis the closed form (tan t = 2 b / 3 a);
+    on a turned one the point that a dense sampling of the outward normals picks."""
+    from validation.fan_ellipses import die_point
+
+    a, b = 3.0, 2.0
+    t = np.arctan(2 * b / (3 * a))
+    p, q, ratio = die_point((0.5, 0.0), (a, b), 0.0)
+    assert (p, q) == pytest.approx((0.5 + a * np.cos(t), b * np.sin(t)), rel=1e-12)
+    assert ratio == pytest.approx((p - q / 3) / (p + 2 * q / 3))
+    for angle in (48.0, -30.0, 80.0, -60.0, -85.0, 10.0):
+        th, s = np.radians(angle), np.linspace(0, 2 * np.pi, 200001)
+        turn = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+        points = (turn @ np.stack([5.0 * np.cos(s), 2.5 * np.sin(s)])).T + [0.6, 0.3]
+        normals = (turn @ np.stack([np.cos(s) / 5.0, np.sin(s) / 2.5])).T
+        compaction = normals[:, 0] > 0
+        k = np.flatnonzero(compaction)[
+            np.argmin(np.abs(normals[compaction, 1] / normals[compaction, 0] - 2 / 3))
+        ]
+        assert die_point((0.6, 0.3), (5.0, 2.5), angle)[:2] == pytest.approx(points[k], abs=1e-3)

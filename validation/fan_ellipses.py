@@ -8,7 +8,10 @@ Rendulic plane (sigma_m, sigma~_d; MPa, compression > 0) are fitted by least squ
 relative radial misfit seen from the points' mean (as ``mpfem_fenicsx.calibration.fit_cap``
 does): centred on the hydrostatic axis with axes along it (the critical-state family), free
 centre, and free centre and rotation (an anisotropic, rotated ellipse). It prints each fit's
-rms misfit, centre, semi-axes and rotation. Pure numpy / scipy; seconds.
+rms misfit, centre, semi-axes and rotation, and where the ellipse, as an associated yield
+surface, would be loaded by a die compaction: the point whose normal gives a uniaxial plastic
+strain (d eps_q^p / d eps_v^p = 2/3) and its radial / axial stress ratio, to set beside the
+die path's. Pure numpy / scipy; seconds.
 """
 
 from __future__ import annotations
@@ -66,6 +69,22 @@ def fit_ellipse(points: np.ndarray, shifted: bool, rotated: bool):
     return float(np.sqrt(np.mean(best.fun**2))), centre, axes, float(angle)
 
 
+def die_point(centre, axes, angle_deg: float) -> tuple[float, float, float]:
+    """(sigma_m, sigma~_d, radial / axial stress ratio) on the ellipse (``fit_ellipse``'s
+    centre, semi-axes, long axis's direction) where its outward normal (d eps_v^p,
+    d eps_q^p), with d eps_v^p > 0, gives a uniaxial plastic strain: d eps_q^p / d eps_v^p =
+    2/3. With (u, v) = (a cos t, b sin t) along the axes, the normal is the turned
+    (cos t / a, sin t / b), and the condition is linear in (cos t, sin t): of its two roots,
+    t below is the one of compaction (its d eps_v^p is 1 / (a b) > 0 times a positive
+    factor)."""
+    (a, b), th = axes, np.radians(angle_deg)
+    c, s = np.cos(th), np.sin(th)
+    t = np.arctan2(-(s - 2.0 / 3.0 * c) / a, (c + 2.0 / 3.0 * s) / b)
+    u, v = a * np.cos(t), b * np.sin(t)
+    p, q = centre[0] + c * u - s * v, centre[1] + s * u + c * v
+    return float(p), float(q), float((p - q / 3.0) / (p + 2.0 * q / 3.0))
+
+
 def main(names: list[str]) -> None:
     """Print the three fits of each named fan."""
     for name in names:
@@ -79,7 +98,10 @@ def main(names: list[str]) -> None:
             print(
                 f"{name} ({len(points)} points), ellipse {label}: misfit {100 * rms:.1f} %, "
                 f"centre ({centre[0]:.2f}, {centre[1]:.2f}) MPa, semi-axes {axes[0]:.2f} / "
-                f"{axes[1]:.2f} MPa, long axis at {angle:.1f} deg from the sigma_m axis"
+                f"{axes[1]:.2f} MPa, long axis at {angle:.1f} deg from the sigma_m axis; "
+                "die point (sigma_m, sigma~_d) ({:.2f}, {:.2f}) MPa, radial / axial {:.3f}".format(
+                    *die_point(centre, axes, angle)
+                )
             )
 
 
