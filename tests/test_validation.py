@@ -913,7 +913,7 @@ def test_calibration_table_reads_each_density_s_rate_convergence():
     slow = fans["fan_isotropic_0.79_n3600"]
     fast = fans[slow.reference]
     done = {fast.name: _ellipse_fan(fast, (0.25, 0.0), 2.0, 1.5, 0.0)}
-    done[slow.name] = _ellipse_fan(slow, (0.25, 0.0), 2.04, 1.53, 0.0)
+    done[slow.name] = _ellipse_fan(slow, (0.25, 0.0), 2.0, 1.5, 0.0)
     done[slow.name]["surfaces"]["yield"][3, 1:] = [0.25, 0.0] + 1.05 * (
         done[fast.name]["surfaces"]["yield"][3, 1:] - [0.25, 0.0]
     )  # one direction 5 % further out
@@ -922,7 +922,10 @@ def test_calibration_table_reads_each_density_s_rate_convergence():
     rows, lines = report.calibration_rate_lines(done)
     line = next(x for x in lines if f"| {slow.name} |" in x)
     phi = done[fast.name]["surfaces"]["yield"][3, 0]
-    assert f"| 3600 / 1200 | 12 / 12 of 12 | 5.0 % (12) | {phi:g} | not shown |" in line
+    rms = 100 * np.sqrt(0.05**2 / 12)  # one direction 5 % out, eleven at 0
+    cells = f"| 5.0 % (12) | {np.degrees(phi):.0f} | {rms:.1f} % |"
+    assert f"| 3600 / 1200 | 12 / 12 of 12 {cells}" in line
+    assert line.endswith("| not shown |")
     done[slow.name] = _ellipse_fan(slow, (0.25, 0.0), 2.04, 1.53, 0.0)
     done[slow.name]["summary"]["reload"] = {"steps": 3600}
     line = next(x for x in report.calibration_rate_lines(done)[1] if f"| {slow.name} |" in x)

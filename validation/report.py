@@ -1039,12 +1039,13 @@ RATE_CONVERGED = 0.03
 def calibration_rate_lines(done: dict) -> tuple[list[dict], list[str]]:
     """The calibration campaign's fans, density by density: the slower reloads against the
     faster ones from the same unload, the yield points' largest shift over the directions where
-    both yield (``surface_shift``), and whether that is within ``RATE_CONVERGED`` ("shown")."""
+    both yield (``direction_shifts``; phi of the reload direction, eq. 4.9) and their rms, and
+    whether the largest is within ``RATE_CONVERGED`` ("shown")."""
     lines = [
         "| loading | rho_f | slower fan | faster fan | reload increments | yield points (slower /"
-        " faster) | yield: largest shift (common directions) | shift's direction (deg) | "
-        f"converged within {100 * RATE_CONVERGED:.0f} % |",
-        "|---|---|---|---|---|---|---|---|---|",
+        " faster) | yield: largest shift (common directions) | its direction phi (deg) | "
+        f"rms shift | converged within {100 * RATE_CONVERGED:.0f} % |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for case in STAGES["calibration"]:
         if not (isinstance(case, FanCase) and case.shares == "" and case.reference):
@@ -1053,12 +1054,13 @@ def calibration_rate_lines(done: dict) -> tuple[list[dict], list[str]]:
         slow, fast = done.get(case.name), done.get(case.reference)
         if slow is None or fast is None:
             missing = [n for n, f in ((case.name, slow), (case.reference, fast)) if f is None]
-            lines.append(f"{head} | | | | not run yet: {', '.join(missing)} |")
+            lines.append(f"{head} | | | | | not run yet: {', '.join(missing)} |")
             continue
         phis, shifts = direction_shifts(slow, fast, "yield")
         n = len(shifts)
         shift = float(np.max(np.abs(shifts))) if n else float("nan")
-        worst = float(phis[np.argmax(np.abs(shifts))]) if n else float("nan")
+        worst = float(np.degrees(phis[np.argmax(np.abs(shifts))])) if n else float("nan")
+        rms = float(np.sqrt(np.mean(shifts**2))) if n else float("nan")
         counts = " / ".join(str(f["summary"]["points"].get("yield", 0)) for f in (slow, fast))
         steps = " / ".join(
             str((f["summary"].get("reload") or {}).get("steps", "?")) for f in (slow, fast)
@@ -1067,7 +1069,7 @@ def calibration_rate_lines(done: dict) -> tuple[list[dict], list[str]]:
         lines.append(
             f"{head} {steps} | {counts} of {case.nphi} | "
             + (f"{100 * shift:.1f} % ({n})" if n else "-")
-            + f" | {worst:g} | {verdict} |"
+            + f" | {worst:.0f} | {100 * rms:.1f} % | {verdict} |"
         )
     return [], lines
 
