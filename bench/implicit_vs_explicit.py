@@ -87,9 +87,12 @@ def run(solver: str, restart: str | None, held: float | None = None) -> None:
     subprocess.run(cmd, check=True)
 
 
-def run_die50(held: float | None) -> None:
+def run_die50(held: float | None, restart: str | None = None, steps: int | None = None) -> None:
     """The 50-particle die CLP by Newton: the validation campaign's case with the implicit
-    solver (and the ``held`` drag), resumed from the newest checkpoint of its folder if any."""
+    solver (and the ``held`` drag), resumed from ``restart`` or else the newest checkpoint of
+    its folder if any; ``steps``: another nominal number of load steps than the case's (a
+    restart is exact: the same step sequence stalls where it stalled, another one takes other
+    states past it; the drag's viscosity, c = k dt0, moves with dt0 by as much)."""
     sys.path.insert(0, str(ROOT.parent))  # the repository: the validation package
     from mpi4py import MPI
 
@@ -102,9 +105,11 @@ def run_die50(held: float | None) -> None:
     changes = dict(kind="implicit", checkpoint_every=5, visual=False)
     if held is not None:
         changes["held_regularization"] = held
+    if steps is not None:
+        changes["steps"] = steps
     case = die_case("CLP").compaction_case(str(out)).updated(**changes)
     try:
-        restart = resolve_checkpoint(out)
+        restart = restart or resolve_checkpoint(out)
     except CheckpointError:
         restart = None
     run_compaction(case, MPI.COMM_WORLD, restart=restart, progress=Progress(MPI.COMM_WORLD))
@@ -226,6 +231,9 @@ def main(argv=None) -> None:
         help="implicit: another drag on the held particles than the case's (E V_p / h^2)",
     )
     parser.add_argument(
+        "--steps", type=int, default=None, help="die50, implicit: nominal load steps (default 100)"
+    )
+    parser.add_argument(
         "--increments", type=int, default=24000, help="random16, explicit: its loading rate"
     )
     args = parser.parse_args(argv)
@@ -238,7 +246,7 @@ def main(argv=None) -> None:
     if die50 and args.run == "explicit":
         parser.error("--case die50: its explicit run is the validation campaign's (make validate)")
     if args.run and die50:
-        run_die50(args.held_regularization)
+        run_die50(args.held_regularization, args.restart, args.steps)
     elif args.run:
         run(args.run, args.restart, args.held_regularization)
     table(args.held_regularization, die50)
