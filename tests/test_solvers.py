@@ -313,3 +313,26 @@ def test_a_failed_line_search_is_retried_once_with_the_full_update():
     assert solver.full_step_retries == 1 and solver.cutbacks == 0 and solver.t == 1.0
     assert solver.snes.getLineSearch().getType() == "bt"
     assert prob.u.x.array[pulled].max() == pytest.approx(1e-4)
+
+
+def test_a_cut_back_tells_the_failed_attempt_s_residuals():
+    """A cut-back's log line gives the failed attempt's residuals, first / best / last (what
+    tells a jump at the converged state, first far above the target however short the
+    increment, from too long an increment): in N from rest, over the force target (the step
+    control's ``force_rtol`` x the internal forces) once loaded."""
+    import re
+
+    a = particle_mesh([[0, 0, 0]], [1.0], MPI.COMM_SELF)
+    prob = SolidProblem(a.mesh, LEAD)
+    bcs, _ = _squeeze_bcs(prob.V, 0.3)
+    messages = []
+    ImplicitSolver(prob, bcs).run(
+        StepControl(t_end=1.0, dt=1.0, dt_max=1.0, force_rtol=1e-8), log=messages.append
+    )
+    cut = [m for m in messages if "cut-back" in m]
+    assert "residual (N): first" in cut[0]  # from rest: no internal forces to scale by
+    assert any("residual / target: first" in m for m in cut[1:])
+    first, best, last = (
+        float(x) for x in re.search(r"first (\S+), best (\S+), last (\S+)\)", cut[0]).groups()
+    )
+    assert best <= min(first, last) and first > 0.0

@@ -337,6 +337,19 @@ class ImplicitSolver:
             return reason.DIVERGED_DTOL
         return reason.ITERATING
 
+    def _residual_trace(self) -> str:
+        """The failed attempt's residual norms, first / smallest / last: over the force target
+        (``force_rtol`` x ||P^T f_int|| at the last converged state) where there is one, else
+        in N. A first one far above the target however short the increment is a jump at the
+        converged state, not too long an increment."""
+        norms = np.asarray(getattr(self, "_fnorms", None) or [], dtype=float)
+        if not norms.size:
+            return ""
+        target = self._force_rtol * self._force_scale
+        what = "residual / target" if target > 0.0 else "residual (N)"
+        f = norms / target if target > 0.0 else norms
+        return f" ({what}: first {f[0]:.3g}, best {f.min():.3g}, last {f[-1]:.3g})"
+
     def _attach_near_nullspace(self, J: PETSc.Mat) -> None:
         """Give ``J`` the rigid-body modes of the current configuration as its near-nullspace
         (an AMG preconditioner only)."""
@@ -840,7 +853,7 @@ class ImplicitSolver:
                     )
                     log(
                         f"  cut-back at t={self.t:.4g}: Newton {what} after "
-                        f"{its} iterations, dt -> {dt:.3g}"
+                        f"{its} iterations, dt -> {dt:.3g}{self._residual_trace()}"
                     )
                 if dt < control.dt_min:
                     raise NonConvergence(
